@@ -1,0 +1,5 @@
+import sys
+
+from dyntarget.cli import main
+
+sys.exit(main())

@@ -1,0 +1,161 @@
+"""The ``dyntarget`` command line: a thin layer over the library.
+
+Exit codes: 0 success, 2 bad usage or bad input (any :class:`DynTargetError`),
+1 internal error. No traceback is printed unless ``--debug`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from dyntarget import __version__
+from dyntarget.errors import DynTargetError
+
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse exits 2 as well; keep its one line
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"dyntarget: error: {message}\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def cmd_synth(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dyntarget.io import write_scene
+    from dyntarget.synth import generate_scenes
+
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    n_files = 0
+    gen = generate_scenes(args.scenes, size=args.size, seed=args.seed, gsd=args.gsd)
+    for scene, _params in tqdm(
+        gen, total=args.scenes, desc="synth", unit="scene", disable=args.quiet
+    ):
+        n_files += len(write_scene(scene, out))
+    _log(
+        f"wrote {args.scenes} scenes ({n_files} files) to {out} in {time.perf_counter() - t0:.1f} s"
+    )
+    return EXIT_OK
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.figures import scenes_figure
+    from dyntarget.io import read_scene_dir
+
+    out = Path(args.out)
+    data = out / "scenes"
+    rc = cmd_synth(
+        argparse.Namespace(
+            scenes=args.scenes, size=args.size, seed=args.seed, gsd=8.0, out=data, quiet=args.quiet
+        )
+    )
+    if rc:
+        return rc
+    scenes = read_scene_dir(data)
+    fig = scenes_figure(scenes, out / "scenes.png", max_scenes=4)
+    print(f"scenes:  {data}  ({len(scenes)} scenes)")
+    print(f"picture: {fig}")
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="dyntarget",
+        description="Dynamic targeting of plumes: classify look-ahead imagery, denoise, plan NFOV trajectories.",
+    )
+    parser.add_argument("--version", action="version", version=f"dyntarget {__version__}")
+    parser.add_argument("--debug", action="store_true", help="print full tracebacks on errors")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser
+    )
+
+    p = sub.add_parser("synth", help="generate synthetic volcanic scenes (GeoTIFF + mask)")
+    p.add_argument("--scenes", type=_positive_int, default=38, help="number of scenes (default 38)")
+    p.add_argument(
+        "--size", type=_positive_int, default=512, help="scene size in pixels (default 512)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--gsd", type=_positive_float, default=8.0, help="metres per pixel (default 8)")
+    p.add_argument("--out", required=True, help="output scene directory")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_synth)
+
+    p = sub.add_parser("demo", help="run the main job on the built-in synthetic data")
+    p.add_argument("--out", default="out", help="output folder (default ./out)")
+    p.add_argument("--scenes", type=_positive_int, default=38, help="number of scenes (default 38)")
+    p.add_argument(
+        "--size", type=_positive_int, default=512, help="scene size in pixels (default 512)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``dyntarget`` console script; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and usage errors
+        return int(exc.code or 0)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except DynTargetError as exc:
+        if args.debug:
+            raise
+        print(f"dyntarget: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("dyntarget: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal error: one line unless --debug
+        if args.debug:
+            raise
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        print(
+            f"dyntarget: internal error: {type(exc).__name__}: {first} (rerun with --debug for a traceback)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

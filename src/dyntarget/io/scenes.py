@@ -1,0 +1,338 @@
+"""Read and write scenes as GeoTIFFs (rasterio), with GeoJSON or raster labels.
+
+On disk a scene ``<id>`` is
+
+* ``<id>.tif`` — a 4-band GeoTIFF in band order R, G, B, NIR, float reflectance
+  or integer digital numbers (scaled on read, default ``1/10000``);
+* ``<id>_mask.tif`` — optional single-band label, non-zero = plume; or
+* ``<id>.geojson`` — optional label as polygons, in the image's CRS when the
+  image is georeferenced (or in the CRS named by a legacy ``"crs"`` member),
+  in pixel coordinates ``(column, row)`` when it is not.
+
+A *scene directory* is a folder of such files.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import rasterio
+import rasterio.errors
+import rasterio.features
+from affine import Affine
+from rasterio.crs import CRS
+
+from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError
+from dyntarget.io.atomic import atomic_path
+from dyntarget.scene import Scene, check_label
+
+DEFAULT_SCALE = 1e-4
+"""Reflectance per digital number for integer images (Sentinel-2/PlanetScope convention)."""
+
+GSD_TAG = "DYNTARGET_GSD"
+MASK_SUFFIX = "_mask"
+
+
+def _open(path: Path):
+    if not path.exists():
+        raise DataFileError(f"{path}: no such file")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            return rasterio.open(path)
+    except rasterio.errors.RasterioIOError as exc:
+        raise DataFileError(f"{path}: not a readable raster ({_first_line(exc)})") from None
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _read_all(src, path: Path) -> np.ndarray:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            return src.read()
+    except (rasterio.errors.RasterioIOError, rasterio.errors.RasterioError) as exc:
+        raise DataFileError(f"{path}: corrupt or truncated raster ({_first_line(exc)})") from None
+
+
+def _georef(src) -> tuple[str | None, Affine | None]:
+    crs = src.crs.to_string() if src.crs else None
+    transform = src.transform
+    if crs is None and transform == Affine.identity():
+        return None, None
+    return crs, transform
+
+
+def scale_to_reflectance(data: np.ndarray, *, scale: float | None, path: Path | str) -> np.ndarray:
+    """Convert raw raster values to float32 reflectance.
+
+    Integer data are multiplied by ``scale`` (default :data:`DEFAULT_SCALE`);
+    floating data are taken as reflectance unless a ``scale`` is given.
+    """
+    if scale is not None and (not np.isfinite(scale) or scale <= 0):
+        raise InvalidParameterError(f"scale: expected a positive number, got {scale!r}")
+    if np.issubdtype(data.dtype, np.integer):
+        return data.astype(np.float32) * np.float32(DEFAULT_SCALE if scale is None else scale)
+    if np.issubdtype(data.dtype, np.floating):
+        out = data.astype(np.float32)
+        return out * np.float32(scale) if scale is not None else out
+    raise InvalidSceneError(f"{path}: unsupported data type {data.dtype}")
+
+
+def read_scene(
+    path: str | os.PathLike[str],
+    *,
+    label: str | os.PathLike[str] | None = None,
+    scale: float | None = None,
+    gsd: float | None = None,
+) -> Scene:
+    """Read ``<id>.tif`` (and its label, if one sits beside it) as a :class:`Scene`.
+
+    Parameters
+    ----------
+    path : path to a 4-band GeoTIFF (R, G, B, NIR).
+    label : explicit label file (``.tif`` mask or ``.geojson``); by default
+        ``<id>_mask.tif`` then ``<id>.geojson`` beside the image are tried.
+    scale : reflectance per digital number for integer images (default 1e-4).
+    gsd : ground sampling distance in metres; by default the ``DYNTARGET_GSD``
+        tag, else the pixel size of a projected CRS in metres, else unknown.
+
+    Examples
+    --------
+    >>> import tempfile, numpy as np
+    >>> d = tempfile.mkdtemp()
+    >>> s = Scene(np.full((4, 8, 8), 0.2, np.float32), label=np.eye(8, dtype=bool), id="a")
+    >>> _ = write_scene(s, d)
+    >>> read_scene(f"{d}/a.tif").label.sum()
+    np.int64(8)
+    """
+    path = Path(path)
+    with _open(path) as src:
+        if src.count != 4:
+            raise InvalidSceneError(
+                f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s)"
+            )
+        data = _read_all(src, path)
+        crs, transform = _georef(src)
+        tags = src.tags()
+        nodata = src.nodata
+        linear_units = src.crs.linear_units if src.crs and src.crs.is_projected else None
+    if nodata is not None and np.isfinite(nodata) and (data == nodata).all(axis=0).any():
+        n = int((data == nodata).all(axis=0).sum())
+        raise InvalidSceneError(
+            f"{path}: {n} pixel(s) are nodata ({nodata}); crop them out or fill them before use"
+        )
+    image = scale_to_reflectance(data, scale=scale, path=path)
+    if not np.isfinite(image).all():
+        raise InvalidSceneError(f"{path}: image holds NaN or infinite values")
+    if gsd is None and GSD_TAG in tags:
+        gsd = float(tags[GSD_TAG])
+    elif gsd is None and transform is not None and linear_units in ("metre", "meter"):
+        gsd = abs(transform.a)
+    scene_id = path.stem
+    label_array = None
+    label_path = Path(label) if label is not None else _find_label(path)
+    if label_path is not None:
+        label_array = read_label(label_path, shape=image.shape[1:], crs=crs, transform=transform)
+    try:
+        return Scene(image, label=label_array, gsd=gsd, crs=crs, transform=transform, id=scene_id)
+    except InvalidSceneError as exc:
+        raise InvalidSceneError(f"{path}: {exc}") from None
+
+
+def _find_label(image_path: Path) -> Path | None:
+    for candidate in (
+        image_path.with_name(image_path.stem + MASK_SUFFIX + ".tif"),
+        image_path.with_suffix(".geojson"),
+    ):
+        if candidate.exists():
+            return candidate
+    return None
+
+
+def read_label(
+    path: str | os.PathLike[str],
+    *,
+    shape: tuple[int, int],
+    crs: str | None = None,
+    transform: Affine | None = None,
+) -> np.ndarray:
+    """Read a label (single-band raster or GeoJSON polygons) onto an image grid."""
+    path = Path(path)
+    if path.suffix.lower() in (".geojson", ".json"):
+        return read_geojson_label(path, shape=shape, crs=crs, transform=transform)
+    with _open(path) as src:
+        if src.count != 1:
+            raise InvalidSceneError(f"{path}: a label must have 1 band, got {src.count}")
+        data = _read_all(src, path)[0]
+    if np.issubdtype(data.dtype, np.floating):
+        if not np.isfinite(data).all():
+            raise InvalidSceneError(f"{path}: label holds NaN or infinite values")
+        data = data != 0
+    return check_label(data, shape, name=str(path))
+
+
+def read_geojson_label(
+    path: str | os.PathLike[str],
+    *,
+    shape: tuple[int, int],
+    crs: str | None = None,
+    transform: Affine | None = None,
+) -> np.ndarray:
+    """Rasterise GeoJSON polygons onto an image grid of ``shape``; ``True`` inside.
+
+    Coordinates are in the image's CRS when it has one (a GeoJSON ``"crs"``
+    member naming another CRS is reprojected), else in pixels ``(column, row)``.
+    An empty FeatureCollection gives an all-``False`` label; polygons that fall
+    entirely outside the image are an error, since that is almost always a CRS
+    mix-up.
+    """
+    from rasterio.warp import transform_geom
+    from shapely.geometry import box
+    from shapely.geometry import shape as to_shape
+
+    path = Path(path)
+    if not path.exists():
+        raise DataFileError(f"{path}: no such file")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{path}: not valid JSON ({exc})") from None
+    geoms = _geojson_geometries(doc, path)
+    src_crs = None
+    if isinstance(doc, dict) and isinstance(doc.get("crs"), dict):
+        name = doc["crs"].get("properties", {}).get("name")
+        if name:
+            src_crs = name
+    if src_crs is not None and crs is not None:
+        geoms = [
+            transform_geom(CRS.from_user_input(src_crs), CRS.from_user_input(crs), g) for g in geoms
+        ]
+    grid = transform if (crs is not None and transform is not None) else Affine.identity()
+    shapes = []
+    for g in geoms:
+        try:
+            geom = to_shape(g)
+        except Exception as exc:  # shapely raises several types for bad geometry
+            raise DataFileError(f"{path}: invalid geometry ({_first_line(exc)})") from None
+        if geom.geom_type not in ("Polygon", "MultiPolygon"):
+            raise DataFileError(f"{path}: expected Polygon or MultiPolygon, got {geom.geom_type}")
+        if not geom.is_empty:
+            shapes.append(geom)
+    h, w = shape
+    if not shapes:
+        return np.zeros((h, w), dtype=bool)
+    west, south, east, north = rasterio.transform.array_bounds(h, w, grid)
+    footprint = box(min(west, east), min(south, north), max(west, east), max(south, north))
+    if not any(s.intersects(footprint) for s in shapes):
+        raise InvalidSceneError(
+            f"{path}: no polygon overlaps the image (wrong CRS or coordinates?)"
+        )
+    return rasterio.features.rasterize(
+        [(s, 1) for s in shapes], out_shape=(h, w), transform=grid, fill=0, dtype="uint8"
+    ).astype(bool)
+
+
+def _geojson_geometries(doc: object, path: Path) -> list[dict]:
+    if not isinstance(doc, dict) or "type" not in doc:
+        raise DataFileError(f"{path}: not a GeoJSON object (no 'type')")
+    kind = doc["type"]
+    if kind == "FeatureCollection":
+        feats = doc.get("features")
+        if not isinstance(feats, list):
+            raise DataFileError(f"{path}: FeatureCollection without a 'features' list")
+        out = []
+        for i, f in enumerate(feats):
+            if not isinstance(f, dict) or not isinstance(f.get("geometry"), dict):
+                raise DataFileError(f"{path}: feature {i} has no geometry")
+            out.append(f["geometry"])
+        return out
+    if kind == "Feature":
+        if not isinstance(doc.get("geometry"), dict):
+            raise DataFileError(f"{path}: feature has no geometry")
+        return [doc["geometry"]]
+    if kind in ("Polygon", "MultiPolygon"):
+        return [doc]
+    raise DataFileError(f"{path}: unsupported GeoJSON type {kind!r}")
+
+
+def write_scene(scene: Scene, directory: str | os.PathLike[str]) -> list[Path]:
+    """Write ``<id>.tif`` (float32, deflate) and, if labelled, ``<id>_mask.tif``.
+
+    Files are written atomically; the GSD goes into the ``DYNTARGET_GSD`` tag.
+    Returns the paths written.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    h, w = scene.shape
+    profile = {
+        "driver": "GTiff",
+        "height": h,
+        "width": w,
+        "compress": "deflate",
+        "tiled": True,
+        "blockxsize": 256,
+        "blockysize": 256,
+    }
+    if scene.transform is not None:
+        profile["transform"] = scene.transform
+    if scene.crs is not None:
+        profile["crs"] = CRS.from_user_input(scene.crs)
+    written = []
+    image_path = directory / f"{scene.id}.tif"
+    with atomic_path(image_path) as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(tmp, "w", count=4, dtype="float32", predictor=3, **profile) as dst:
+            dst.write(scene.image)
+            for i, band in enumerate(("red", "green", "blue", "nir"), start=1):
+                dst.set_band_description(i, band)
+            if scene.gsd is not None:
+                dst.update_tags(**{GSD_TAG: repr(scene.gsd)})
+    written.append(image_path)
+    if scene.label is not None:
+        mask_path = directory / f"{scene.id}{MASK_SUFFIX}.tif"
+        with atomic_path(mask_path) as tmp, warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(tmp, "w", count=1, dtype="uint8", predictor=2, **profile) as dst:
+                dst.write(scene.label.astype(np.uint8)[None])
+        written.append(mask_path)
+    return written
+
+
+def scene_ids(directory: str | os.PathLike[str]) -> list[str]:
+    """Sorted ids of the scenes (``<id>.tif`` not ending in ``_mask``) in ``directory``."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise DataFileError(f"{directory}: not a directory")
+    ids = sorted(
+        p.stem
+        for p in directory.glob("*.tif")
+        if not p.stem.endswith(MASK_SUFFIX) and not p.name.startswith(".")
+    )
+    return ids
+
+
+def read_scene_dir(
+    directory: str | os.PathLike[str], *, scale: float | None = None, require_labels: bool = False
+) -> list[Scene]:
+    """Read every scene of a scene directory, sorted by id."""
+    directory = Path(directory)
+    ids = scene_ids(directory)
+    if not ids:
+        raise DataFileError(f"{directory}: no scenes (<id>.tif files) found")
+    scenes = [read_scene(directory / f"{i}.tif", scale=scale) for i in ids]
+    if require_labels:
+        missing = [s.id for s in scenes if s.label is None]
+        if missing:
+            raise InvalidSceneError(
+                f"{directory}: {len(missing)} scene(s) have no label (<id>_mask.tif or <id>.geojson): "
+                + ", ".join(missing[:5])
+            )
+    return scenes

@@ -1,0 +1,39 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from affine import Affine
+
+from dyntarget.scene import Scene
+from dyntarget.synth import generate_scene
+
+
+@pytest.fixture
+def tiny_scene() -> Scene:
+    """A 64x64 synthetic scene (seed 0, index 0), georeferenced."""
+    return generate_scene(0, 0, size=64)[0]
+
+
+@pytest.fixture
+def plain_scene() -> Scene:
+    """A hand-made 8x8 scene without georeferencing: bright square plume on dark ground."""
+    image = np.full((4, 8, 8), 0.05, np.float32)
+    image[:, 2:6, 2:6] = 0.8
+    label = np.zeros((8, 8), bool)
+    label[2:6, 2:6] = True
+    return Scene(image, label=label, gsd=2.0, id="plain")
+
+
+@pytest.fixture
+def georef_scene() -> Scene:
+    rng = np.random.default_rng(1)
+    image = rng.uniform(0, 1, (4, 16, 12)).astype(np.float32)
+    label = rng.uniform(size=(16, 12)) > 0.7
+    return Scene(
+        image,
+        label=label,
+        gsd=10.0,
+        crs="EPSG:32605",
+        transform=Affine(10.0, 0.0, 250000.0, 0.0, -10.0, 2150000.0),
+        id="geo",
+    )
