@@ -91,6 +91,67 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_classifiers(args: argparse.Namespace) -> int:
+    from dyntarget.perceive import CLASSIFIERS
+
+    for name in CLASSIFIERS.available():
+        print(f"{name:20s} {CLASSIFIERS.get(name).summary}")
+    return EXIT_OK
+
+
+def _load_labelled(data: str) -> list:
+    from dyntarget.io import read_scene_dir
+
+    return read_scene_dir(data, require_labels=True)
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.crossval import classifier_kwargs
+    from dyntarget.perceive import make_classifier
+
+    scenes = [s.to_wfov(args.factor) for s in _load_labelled(args.data)]
+    model = make_classifier(
+        args.classifier, **classifier_kwargs(args.classifier, seed=args.seed, epochs=args.epochs)
+    )
+    t0 = time.perf_counter()
+    model.fit(scenes)
+    path = model.save(args.out)
+    _log(f"trained {args.classifier} on {len(scenes)} scenes in {time.perf_counter() - t0:.1f} s")
+    print(path)
+    return EXIT_OK
+
+
+def cmd_evaluate_classification(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
+    from dyntarget.evaluate.tables import markdown_table, write_table
+
+    names = tuple(args.classifiers.split(",")) if args.classifiers else None
+    config = CVConfig(
+        folds=args.folds,
+        seed=args.seed,
+        factor=args.factor,
+        epochs=args.epochs,
+        **({"classifiers": names} if names else {}),
+    )
+    scenes = _load_labelled(args.data)
+    t0 = time.perf_counter()
+    result = cross_validate(scenes, config, models_dir=args.models, progress=not args.quiet)
+    seconds = time.perf_counter() - t0
+    paths = write_table(
+        args.out,
+        "table1_classification",
+        result["rows"],
+        TABLE1_COLUMNS,
+        extra={k: v for k, v in result.items() if k != "rows"} | {"seconds": seconds},
+    )
+    print(markdown_table(result["rows"], TABLE1_COLUMNS))
+    _log(
+        f"cross-validation of {len(config.classifiers)} classifiers on {len(scenes)} scenes took {seconds:.0f} s"
+    )
+    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -115,6 +176,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output scene directory")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_synth)
+
+    p = sub.add_parser("classifiers", help="list the plume classifiers")
+    p.set_defaults(func=cmd_classifiers)
+
+    p = sub.add_parser("train", help="train a classifier on a scene directory and save the model")
+    p.add_argument("--data", required=True, help="scene directory with labels")
+    p.add_argument(
+        "--classifier", required=True, help="classifier name (see 'dyntarget classifiers')"
+    )
+    p.add_argument("--out", required=True, help="model directory to write")
+    p.add_argument(
+        "--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
+    )
+    p.add_argument(
+        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("evaluate", help="evaluations that reproduce the paper's tables")
+    ev = p.add_subparsers(
+        dest="evaluation", required=True, metavar="EVALUATION", parser_class=_Parser
+    )
+    q = ev.add_parser("classification", help="k-fold cross-validation of the classifiers (Table 1)")
+    q.add_argument("--data", required=True, help="scene directory with labels")
+    q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
+    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
+    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+    q.add_argument("--classifiers", help="comma-separated subset (default: all)")
+    q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
+    q.add_argument(
+        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_evaluate_classification)
 
     p = sub.add_parser("demo", help="run the main job on the built-in synthetic data")
     p.add_argument("--out", default="out", help="output folder (default ./out)")

@@ -24,8 +24,9 @@ class Registry(Generic[T]):
     ['a']
     """
 
-    def __init__(self, kind: str) -> None:
+    def __init__(self, kind: str, *, order: tuple[str, ...] = ()) -> None:
         self.kind = kind
+        self.order = order  # names listed first by available(), in this order
         self._items: dict[str, T] = {}
 
     def register(self, name: str) -> Callable[[T], T]:
@@ -46,7 +47,9 @@ class Registry(Generic[T]):
             ) from None
 
     def available(self) -> list[str]:
-        return list(self._items)
+        """Registered names: those in ``order`` first (in that order), then the rest as registered."""
+        first = [n for n in self.order if n in self._items]
+        return first + [n for n in self._items if n not in first]
 
     def __contains__(self, name: object) -> bool:
         return name in self._items

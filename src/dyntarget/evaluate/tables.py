@@ -1,0 +1,84 @@
+"""Result tables as Markdown, CSV and JSON (written atomically)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from dyntarget.io.atomic import write_text
+
+DISPLAY_NAMES = {
+    "band-threshold": "Band Threshold",
+    "naive-bayes": "Naive Bayes",
+    "logistic-regression": "Logistic Regression",
+    "decision-tree": "Decision Tree",
+    "random-forest": "Random Forest",
+    "mlp": "Multilayer Perceptron",
+    "unet-xception": "UNET-Xception",
+    "unet-uavsar": "UNET-Uavsar",
+    "straight-nadir": "Straight Nadir",
+    "naive-transect": "Naive Transect",
+    "trace-outline": "Trace Outline",
+    "track-center": "Track Center",
+    "diagonal-transect": "Diagonal Transect",
+    "lawnmower-transect": "Lawnmower Transect",
+}
+
+
+def display(name: str) -> str:
+    return DISPLAY_NAMES.get(name, name)
+
+
+def _fmt(value: Any, digits: int) -> str:
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def markdown_table(
+    rows: Sequence[dict[str, Any]], columns: Sequence[str], *, digits: int = 3
+) -> str:
+    """A GitHub Markdown table of ``rows`` (dicts) over ``columns``."""
+    head = "| " + " | ".join(columns) + " |"
+    sep = "|" + "|".join("---" for _ in columns) + "|"
+    body = ["| " + " | ".join(_fmt(r.get(c, ""), digits) for c in columns) + " |" for r in rows]
+    return "\n".join([head, sep, *body]) + "\n"
+
+
+def csv_text(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(
+        buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n"
+    )
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({c: r.get(c, "") for c in columns})
+    return buf.getvalue()
+
+
+def write_table(
+    out_dir: str | os.PathLike[str],
+    stem: str,
+    rows: Sequence[dict[str, Any]],
+    columns: Sequence[str],
+    *,
+    extra: dict[str, Any] | None = None,
+    digits: int = 3,
+) -> dict[str, Path]:
+    """Write ``<stem>.md``, ``<stem>.csv`` and ``<stem>.json`` into ``out_dir``."""
+    out = Path(out_dir)
+    paths = {
+        "md": write_text(out / f"{stem}.md", markdown_table(rows, columns, digits=digits)),
+        "csv": write_text(out / f"{stem}.csv", csv_text(rows, columns)),
+        "json": write_text(
+            out / f"{stem}.json",
+            json.dumps({"columns": list(columns), "rows": list(rows), **(extra or {})}, indent=2)
+            + "\n",
+        ),
+    }
+    return paths

@@ -1,0 +1,243 @@
+"""The classifier interface, its registry, pixel sampling and model files.
+
+A classifier maps a 4-band image ``(4, H, W)`` to a plume probability
+``float32 (H, W)`` in 0..1. Every classifier is registered by name in
+:data:`CLASSIFIERS` and passes the same contract test.
+
+A saved model is a directory::
+
+    model/
+      metadata.json     format, classifier name, dyntarget version, band order, config
+      model.skops | model.safetensors | params.json
+
+Loading checks the metadata before touching the weights and never unpickles.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError, ModelFileError
+from dyntarget.registry import Registry
+from dyntarget.scene import BANDS, Scene, check_image
+
+MODEL_FORMAT = "dyntarget-model"
+MODEL_FORMAT_VERSION = 1
+METADATA = "metadata.json"
+
+DEFAULT_MAX_PIXELS_PER_CLASS = 50_000
+"""Training pixels drawn per class (plume / not plume) over all training scenes."""
+
+
+class Classifier(ABC):
+    """Base class: ``fit(scenes)``, ``predict_proba(image)``, ``predict(image)``, ``save``/``load``."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+
+    def __init__(self, *, seed: int = 0) -> None:
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+            raise InvalidParameterError(f"seed: expected an integer, got {seed!r}")
+        self.seed = int(seed)
+        self.fitted = False
+        self.training: dict[str, Any] = {}
+
+    # -- configuration -------------------------------------------------------------
+    def get_config(self) -> dict[str, Any]:
+        """Constructor arguments as JSON-able values (stored in the model's metadata)."""
+        return {"seed": self.seed}
+
+    # -- learning ------------------------------------------------------------------
+    def fit(self, scenes: Sequence[Scene]) -> Classifier:
+        """Train on labelled scenes (already on the grid the classifier will see)."""
+        scenes = list(scenes)
+        if not scenes:
+            raise InvalidParameterError("scenes: expected at least one training scene, got none")
+        for s in scenes:
+            if s.label is None:
+                raise InvalidSceneError(
+                    f"scene {s.id!r} has no label; training needs labelled scenes"
+                )
+        if not any(s.label.any() for s in scenes):
+            raise InvalidSceneError(
+                "training scenes hold no plume pixel; cannot learn a plume class"
+            )
+        if all(s.label.all() for s in scenes):
+            raise InvalidSceneError(
+                "training scenes hold no background pixel; cannot learn two classes"
+            )
+        self._fit(scenes)
+        self.fitted = True
+        self.training = {"scenes": [s.id for s in scenes]}
+        return self
+
+    @abstractmethod
+    def _fit(self, scenes: list[Scene]) -> None: ...
+
+    def predict_proba(self, image: np.ndarray) -> np.ndarray:
+        """Plume probability ``float32 (H, W)`` in 0..1 for a ``(4, H, W)`` image."""
+        if not self.fitted:
+            raise InvalidParameterError(f"{self.name}: call fit() or load() before predicting")
+        image = check_image(image)
+        proba = np.asarray(self._predict_proba(image), dtype=np.float32)
+        return np.clip(proba, 0.0, 1.0, out=proba)
+
+    @abstractmethod
+    def _predict_proba(self, image: np.ndarray) -> np.ndarray: ...
+
+    def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+        """Plume mask: ``predict_proba(image) >= threshold``."""
+        if not 0.0 <= float(threshold) <= 1.0:
+            raise InvalidParameterError(
+                f"threshold: expected a probability in 0..1, got {threshold!r}"
+            )
+        return self.predict_proba(image) >= threshold
+
+    # -- persistence ---------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model directory ``path`` (replacing it atomically)."""
+        if not self.fitted:
+            raise InvalidParameterError(
+                f"{self.name}: nothing to save, the classifier is not fitted"
+            )
+        from dyntarget import __version__
+
+        path = Path(path)
+        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        try:
+            self._save_weights(tmp)
+            meta = {
+                "format": MODEL_FORMAT,
+                "format_version": MODEL_FORMAT_VERSION,
+                "classifier": self.name,
+                "dyntarget_version": __version__,
+                "bands": list(BANDS),
+                "config": self.get_config(),
+                "training": self.training,
+            }
+            (tmp / METADATA).write_text(
+                json.dumps(meta, indent=2, sort_keys=True), encoding="utf-8"
+            )
+            if path.exists():
+                old = path.with_name(f".{path.name}.old-{os.getpid()}")
+                path.rename(old)
+                tmp.rename(path)
+                shutil.rmtree(old)
+            else:
+                tmp.rename(path)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return path
+
+    @abstractmethod
+    def _save_weights(self, directory: Path) -> None: ...
+
+    @abstractmethod
+    def _load_weights(self, directory: Path) -> None: ...
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Classifier:
+        """Load a model directory written by :meth:`save` (checking its metadata)."""
+        meta = read_metadata(path)
+        if meta["classifier"] != cls.name:
+            raise ModelFileError(f"{path}: holds a {meta['classifier']!r} model, not {cls.name!r}")
+        try:
+            model = cls(**meta["config"])
+        except (TypeError, InvalidParameterError) as exc:
+            raise ModelFileError(
+                f"{path}: metadata config does not fit {cls.name!r} ({exc})"
+            ) from None
+        model._load_weights(Path(path))
+        model.fitted = True
+        model.training = meta.get("training", {})
+        return model
+
+
+CLASSIFIERS: Registry[type[Classifier]] = Registry(
+    "classifier",
+    order=(  # the paper's Table 1 order
+        "band-threshold",
+        "naive-bayes",
+        "logistic-regression",
+        "decision-tree",
+        "random-forest",
+        "mlp",
+        "unet-xception",
+        "unet-uavsar",
+    ),
+)
+
+
+def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read and check a model directory's ``metadata.json``."""
+    path = Path(path)
+    meta_path = path / METADATA
+    if not path.is_dir():
+        raise DataFileError(f"{path}: not a model directory")
+    if not meta_path.is_file():
+        raise ModelFileError(f"{path}: no {METADATA}; not a dyntarget model")
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ModelFileError(f"{meta_path}: not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
+        raise ModelFileError(f"{meta_path}: not a dyntarget model (format field missing or wrong)")
+    if meta.get("format_version") != MODEL_FORMAT_VERSION:
+        raise ModelFileError(
+            f"{meta_path}: model format version {meta.get('format_version')!r}, expected {MODEL_FORMAT_VERSION}"
+        )
+    if meta.get("bands") != list(BANDS):
+        raise ModelFileError(
+            f"{meta_path}: band order {meta.get('bands')!r}, expected {list(BANDS)}"
+        )
+    if meta.get("classifier") not in CLASSIFIERS:
+        raise ModelFileError(f"{meta_path}: unknown classifier {meta.get('classifier')!r}")
+    if not isinstance(meta.get("config"), dict):
+        raise ModelFileError(f"{meta_path}: config missing")
+    return meta
+
+
+def load_classifier(path: str | os.PathLike[str]) -> Classifier:
+    """Load any saved classifier, dispatching on its metadata."""
+    meta = read_metadata(path)
+    return CLASSIFIERS.get(meta["classifier"]).load(path)
+
+
+def make_classifier(name: str, **kwargs: Any) -> Classifier:
+    """Construct a registered classifier by name."""
+    return CLASSIFIERS.get(name)(**kwargs)
+
+
+def pixels(image: np.ndarray) -> np.ndarray:
+    """``(4, H, W)`` image -> ``(H*W, 4)`` feature matrix (a view where possible)."""
+    return image.reshape(image.shape[0], -1).T
+
+
+def sample_pixels(
+    scenes: Sequence[Scene], *, max_per_class: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Class-balanced pixel sample over all scenes: ``(X (n, 4) float32, y (n,) int)``.
+
+    From each class (plume, background) ``min(max_per_class, n_plume, n_background)``
+    pixels are drawn without replacement, uniformly over all training pixels of
+    that class, so both classes are equally represented.
+    """
+    feats = np.concatenate([pixels(s.image) for s in scenes])
+    labels = np.concatenate([s.label.ravel() for s in scenes])
+    pos = np.flatnonzero(labels)
+    neg = np.flatnonzero(~labels)
+    n = min(max_per_class, len(pos), len(neg))
+    idx = np.concatenate([rng.choice(pos, n, replace=False), rng.choice(neg, n, replace=False)])
+    idx.sort()
+    return feats[idx].astype(np.float32), labels[idx].astype(np.int64)

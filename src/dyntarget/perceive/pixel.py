@@ -1,0 +1,178 @@
+"""The five scikit-learn single-pixel classifiers on the four band values.
+
+Training draws a class-balanced pixel sample (at most
+:data:`~dyntarget.perceive.base.DEFAULT_MAX_PIXELS_PER_CLASS` per class over all
+training scenes, uniformly); prediction is one vectorised ``predict_proba``
+over every pixel of the image. Models are saved with skops and loaded with an
+explicit list of trusted types, never with pickle.
+
+Hyperparameters (chosen for speed on 2 cores and stable results, not tuned
+per data set):
+
+=====================  ===============================================================
+naive-bayes            GaussianNB()
+logistic-regression    StandardScaler -> LogisticRegression(C=1.0, max_iter=1000)
+decision-tree          DecisionTreeClassifier(max_depth=12, min_samples_leaf=20)
+random-forest          RandomForestClassifier(n_estimators=50, max_depth=14, min_samples_leaf=5)
+mlp                    StandardScaler -> MLPClassifier((32, 32), early_stopping, max_iter=300)
+=====================  ===============================================================
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import skops.io as sio
+from sklearn.base import BaseEstimator
+from sklearn.ensemble import RandomForestClassifier
+from sklearn.linear_model import LogisticRegression
+from sklearn.naive_bayes import GaussianNB
+from sklearn.neural_network import MLPClassifier
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.tree import DecisionTreeClassifier
+
+from dyntarget.errors import InvalidParameterError, ModelFileError
+from dyntarget.perceive.base import (
+    CLASSIFIERS,
+    DEFAULT_MAX_PIXELS_PER_CLASS,
+    Classifier,
+    pixels,
+    sample_pixels,
+)
+
+MODEL_FILE = "model.skops"
+
+TRUSTED_TYPES = [
+    "numpy.dtype",
+    "numpy.ndarray",
+    "sklearn.ensemble._forest.RandomForestClassifier",
+    "sklearn.linear_model._logistic.LogisticRegression",
+    "sklearn.naive_bayes.GaussianNB",
+    "sklearn.neural_network._multilayer_perceptron.MLPClassifier",
+    "sklearn.neural_network._stochastic_optimizers.AdamOptimizer",
+    "sklearn.pipeline.Pipeline",
+    "sklearn.preprocessing._data.StandardScaler",
+    "sklearn.tree._classes.DecisionTreeClassifier",
+    "sklearn.tree._tree.Tree",
+]
+"""The only non-builtin types a dyntarget scikit-learn model file may contain."""
+
+
+class PixelClassifier(Classifier):
+    """A scikit-learn estimator over the four band values of each pixel."""
+
+    def __init__(
+        self, *, seed: int = 0, max_pixels_per_class: int = DEFAULT_MAX_PIXELS_PER_CLASS
+    ) -> None:
+        super().__init__(seed=seed)
+        if (
+            isinstance(max_pixels_per_class, bool)
+            or not isinstance(max_pixels_per_class, int)
+            or (max_pixels_per_class < 10)
+        ):
+            raise InvalidParameterError(
+                f"max_pixels_per_class: expected an integer >= 10, got {max_pixels_per_class!r}"
+            )
+        self.max_pixels_per_class = max_pixels_per_class
+        self.estimator: BaseEstimator | None = None
+
+    def get_config(self) -> dict[str, Any]:
+        return {"seed": self.seed, "max_pixels_per_class": self.max_pixels_per_class}
+
+    def make_estimator(self) -> BaseEstimator:
+        raise NotImplementedError
+
+    def _fit(self, scenes) -> None:
+        rng = np.random.default_rng(self.seed)
+        x, y = sample_pixels(scenes, max_per_class=self.max_pixels_per_class, rng=rng)
+        est = self.make_estimator()
+        est.fit(x, y)
+        self.estimator = est
+
+    def _predict_proba(self, image: np.ndarray) -> np.ndarray:
+        h, w = image.shape[1:]
+        proba = self.estimator.predict_proba(np.ascontiguousarray(pixels(image)))[:, 1]
+        return proba.reshape(h, w)
+
+    def _save_weights(self, directory: Path) -> None:
+        sio.dump(self.estimator, directory / MODEL_FILE)
+
+    def _load_weights(self, directory: Path) -> None:
+        path = directory / MODEL_FILE
+        if not path.is_file():
+            raise ModelFileError(f"{directory}: no {MODEL_FILE}")
+        try:
+            untrusted = sio.get_untrusted_types(file=path)
+        except Exception as exc:  # skops raises several types on a corrupt archive
+            raise ModelFileError(f"{path}: not a readable skops file ({exc})") from None
+        foreign = sorted(set(untrusted) - set(TRUSTED_TYPES))
+        if foreign:
+            raise ModelFileError(f"{path}: refuses to load untrusted types: {', '.join(foreign)}")
+        try:
+            est = sio.load(path, trusted=untrusted)
+        except Exception as exc:
+            raise ModelFileError(f"{path}: could not load ({exc})") from None
+        expected = type(self.make_estimator())
+        if type(est) is not expected:
+            raise ModelFileError(
+                f"{path}: holds a {type(est).__name__}, expected {expected.__name__}"
+            )
+        self.estimator = est
+
+
+@CLASSIFIERS.register("naive-bayes")
+class NaiveBayes(PixelClassifier):
+    name = "naive-bayes"
+    summary = "Gaussian naive Bayes on the 4 band values (bands assumed independent)"
+
+    def make_estimator(self) -> BaseEstimator:
+        return GaussianNB()
+
+
+@CLASSIFIERS.register("logistic-regression")
+class LogisticRegressionClassifier(PixelClassifier):
+    name = "logistic-regression"
+    summary = "standardised logistic regression on the 4 band values"
+
+    def make_estimator(self) -> BaseEstimator:
+        return make_pipeline(StandardScaler(), LogisticRegression(C=1.0, max_iter=1000))
+
+
+@CLASSIFIERS.register("decision-tree")
+class DecisionTree(PixelClassifier):
+    name = "decision-tree"
+    summary = "decision tree (depth <= 12) on the 4 band values"
+
+    def make_estimator(self) -> BaseEstimator:
+        return DecisionTreeClassifier(max_depth=12, min_samples_leaf=20, random_state=self.seed)
+
+
+@CLASSIFIERS.register("random-forest")
+class RandomForest(PixelClassifier):
+    name = "random-forest"
+    summary = "random forest (50 trees, depth <= 14) on the 4 band values"
+
+    def make_estimator(self) -> BaseEstimator:
+        return RandomForestClassifier(
+            n_estimators=50, max_depth=14, min_samples_leaf=5, random_state=self.seed, n_jobs=1
+        )
+
+
+@CLASSIFIERS.register("mlp")
+class MLP(PixelClassifier):
+    name = "mlp"
+    summary = "multilayer perceptron (32, 32) on the standardised 4 band values"
+
+    def make_estimator(self) -> BaseEstimator:
+        return make_pipeline(
+            StandardScaler(),
+            MLPClassifier(
+                hidden_layer_sizes=(32, 32),
+                early_stopping=True,
+                max_iter=300,
+                random_state=self.seed,
+            ),
+        )
