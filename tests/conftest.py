@@ -37,3 +37,9 @@ def georef_scene() -> Scene:
         transform=Affine(10.0, 0.0, 250000.0, 0.0, -10.0, 2150000.0),
         id="geo",
     )
+
+
+@pytest.fixture(scope="session")
+def tiny_scenes() -> list[Scene]:
+    """Four 64x64 synthetic scenes (seed 0), shared read-only by many tests."""
+    return [generate_scene(0, i, size=64)[0] for i in range(4)]

@@ -12,9 +12,9 @@
    shapes; see ``docs/results.md`` for how these defaults were chosen);
 4. ``reconstructMask``: the mask of the kept polygons (holes stay holes).
 
-Pixels beyond the image border count as background for the closing's
-dilation and as foreground for its erosion (OpenCV's defaults), so plumes cut
-by the border are not eroded away.
+Pixels beyond the image border are background (the mask is zero-padded before
+the closing), so blobs near the border are not glued onto it, and plumes cut
+by the border keep their shape.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from shapely.geometry import LineString, MultiPoint, Point, Polygon
+import shapely
+from shapely.geometry import Polygon
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 
@@ -58,8 +59,8 @@ def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
     """Polygons of a mask's 8-connected components, with holes, largest first.
 
     Vertices are pixel centres ``(column, row)``. A component only one pixel
-    wide (a point or a line of pixels) becomes the square-buffered point or
-    line (half a pixel each side), so every polygon is valid and non-empty.
+    wide (a point or a line of pixels) becomes the union of its pixels' unit
+    squares, so every polygon is valid and non-empty.
     """
     mask = check_mask(mask)
     if not mask.any():
@@ -94,18 +95,30 @@ def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
     return polygons
 
 
-def _ring(contour: np.ndarray):
+def _ring(contour: np.ndarray) -> Polygon:
     pts = contour[:, 0, :].astype(float)
-    unique = np.unique(pts, axis=0)
-    if len(unique) == 1:
-        return Point(unique[0]).buffer(0.5, cap_style="square")
-    poly = Polygon(pts) if len(unique) >= 3 else None
-    if poly is None or poly.area == 0:
-        # a line of pixels: cover it with its half-pixel square buffer
-        return (
-            LineString(pts).buffer(0.5, cap_style="square") if len(unique) > 1 else MultiPoint(pts)
-        )
-    return poly
+    poly = Polygon(pts) if len(pts) >= 3 else None
+    if poly is not None and poly.area > 0:
+        return poly
+    # a point or a one-pixel-wide line: the union of its pixels' unit squares
+    return shapely.union_all(
+        [shapely.box(x - 0.5, y - 0.5, x + 0.5, y + 0.5) for x, y in np.unique(pts, axis=0)]
+    )
+
+
+def close(mask: np.ndarray, iterations: int) -> np.ndarray:
+    """Morphological closing with a 3x3 kernel, ``iterations`` times, outside = background.
+
+    The mask is padded with ``iterations + 1`` background pixels first, so a
+    blob near the border is not glued onto it, and a blob touching the border
+    keeps its shape (the closing of the set in an unbounded background).
+    """
+    pad = iterations + 1
+    padded = cv2.copyMakeBorder(
+        mask.astype(np.uint8), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0
+    )
+    closed = cv2.morphologyEx(padded, cv2.MORPH_CLOSE, _KERNEL, iterations=iterations)
+    return closed[pad:-pad, pad:-pad]
 
 
 def denoise(
@@ -150,7 +163,7 @@ def denoise(
         raise InvalidParameterError(f"min_area: expected a number of pixels >= 0, got {min_area!r}")
     m8 = mask.astype(np.uint8)
     if iterations > 0 and m8.any():
-        m8 = cv2.morphologyEx(m8, cv2.MORPH_CLOSE, _KERNEL, iterations=int(iterations))
+        m8 = close(m8, int(iterations))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m8, connectivity=8)
     keep = np.zeros(n, bool)
     keep[1:] = stats[1:, cv2.CC_STAT_AREA] >= min_area

@@ -279,7 +279,7 @@ class _UNetClassifier(Classifier):
                 loss = loss_fn(model(xb), yb)
                 loss.backward()
                 opt.step()
-                total += float(loss) * len(idx)
+                total += float(loss.detach()) * len(idx)
             self.history.append(total / len(xt))
         model.eval()
         self.model = model

@@ -1,0 +1,161 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dyntarget import InvalidParameterError, InvalidSceneError
+from dyntarget.perceive.denoise import denoise, mask_to_polygons
+
+
+def _mask(rows: list[str]) -> np.ndarray:
+    return np.array([[c == "#" for c in r] for r in rows])
+
+
+def test_two_blobs_merge_and_speck_dropped_by_hand():
+    m = _mask(
+        [
+            "..........",
+            ".###.###..",
+            ".###.###..",
+            ".###.###..",
+            "..........",
+            "..........",
+            "........#.",
+        ]
+    )
+    r = denoise(m, iterations=1, min_area=4)
+    expected = _mask(
+        [
+            "..........",
+            ".#######..",
+            ".#######..",
+            ".#######..",
+            "..........",
+            "..........",
+            "..........",
+        ]
+    )
+    np.testing.assert_array_equal(r.mask, expected)
+    assert len(r.polygons) == 1
+
+
+def test_without_merging_blobs_stay_separate():
+    m = _mask([".###.###.", ".###.###.", ".###.###."])
+    r = denoise(m, iterations=0, min_area=1)
+    np.testing.assert_array_equal(r.mask, m)
+    assert len(r.polygons) == 2
+
+
+def test_gap_too_wide_to_close_stays_two_plumes():
+    m = np.zeros((10, 20), bool)
+    m[2:8, 2:7] = True
+    m[2:8, 12:17] = True  # 5 px apart: needs 3 iterations to bridge
+    assert len(denoise(m, iterations=2, min_area=1).polygons) == 2
+    assert len(denoise(m, iterations=3, min_area=1).polygons) == 1
+
+
+def test_area_filter_threshold_inclusive():
+    m = np.zeros((10, 10), bool)
+    m[1:3, 1:3] = True  # 4 px
+    m[6:9, 6:9] = True  # 9 px
+    np.testing.assert_array_equal(
+        denoise(m, iterations=0, min_area=9).mask, m & (np.arange(10)[:, None] > 4)
+    )
+    assert denoise(m, iterations=0, min_area=4).mask.sum() == 13
+    assert denoise(m, iterations=0, min_area_fraction=0.05).mask.sum() == 9  # 5 px of 100
+
+
+def test_hole_kept_and_polygon_has_interior():
+    m = np.ones((9, 9), bool)
+    m[3:6, 3:6] = False  # 3x3 hole: a closing of 1 iteration fills only 1-2 px gaps
+    r = denoise(m, iterations=1, min_area=1)
+    np.testing.assert_array_equal(r.mask, m)
+    (poly,) = r.polygons
+    assert len(poly.interiors) == 1
+    assert not poly.contains(poly.interiors[0].centroid)
+
+
+def test_empty_mask():
+    r = denoise(np.zeros((5, 5), bool))
+    assert not r.mask.any() and r.polygons == []
+
+
+def test_full_mask():
+    r = denoise(np.ones((6, 7), bool), iterations=3, min_area=1)
+    assert r.mask.all()
+    (poly,) = r.polygons
+    assert poly.bounds == (0.0, 0.0, 6.0, 5.0)
+
+
+def test_single_pixel():
+    m = np.zeros((5, 5), bool)
+    m[2, 3] = True
+    r = denoise(m, iterations=1, min_area=1)
+    np.testing.assert_array_equal(r.mask, m)
+    (poly,) = r.polygons
+    assert poly.area == pytest.approx(1.0) and poly.contains(poly.centroid)
+    assert poly.centroid.coords[0] == pytest.approx((3.0, 2.0))
+
+
+def test_line_of_pixels_is_a_valid_polygon():
+    m = np.zeros((5, 8), bool)
+    m[2, 1:6] = True
+    (poly,) = mask_to_polygons(m)
+    assert poly.is_valid and poly.area == pytest.approx(5.0)
+
+
+def test_blob_near_border_not_glued_to_it():
+    m = np.zeros((8, 8), bool)
+    m[1:4, 1:4] = True
+    np.testing.assert_array_equal(denoise(m, iterations=2, min_area=1).mask, m)
+
+
+def test_plume_touching_border_not_eroded():
+    m = np.zeros((8, 8), bool)
+    m[:, :3] = True  # along the left border
+    r = denoise(m, iterations=2, min_area=1)
+    np.testing.assert_array_equal(r.mask, m)
+
+
+def test_output_within_closing_and_input_untouched():
+    rng = np.random.default_rng(0)
+    m = rng.uniform(size=(40, 40)) > 0.7
+    before = m.copy()
+    import cv2
+
+    padded = np.pad(m, 3).astype(np.uint8)
+    closed = (
+        cv2.morphologyEx(padded, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8), iterations=2)[
+            3:-3, 3:-3
+        ]
+        > 0
+    )
+    r = denoise(m, iterations=2, min_area=10)
+    assert not (r.mask & ~closed).any()
+    np.testing.assert_array_equal(m, before)
+
+
+def test_integer_mask_accepted():
+    assert denoise(np.eye(4, dtype=np.uint8), iterations=1, min_area=1).mask.any()
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"iterations": -1}, "iterations"),
+        ({"iterations": 1.5}, "iterations"),
+        ({"min_area": -3}, "min_area"),
+        ({"min_area_fraction": 2.0}, "min_area_fraction"),
+    ],
+)
+def test_bad_parameters(kw, match):
+    with pytest.raises(InvalidParameterError, match=match):
+        denoise(np.zeros((4, 4), bool), **kw)
+
+
+@pytest.mark.parametrize(
+    "bad", [np.zeros((2, 2, 2), bool), np.zeros((0, 3), bool), np.zeros((3, 3), np.float32)]
+)
+def test_bad_masks(bad):
+    with pytest.raises(InvalidSceneError, match="mask"):
+        denoise(bad)
