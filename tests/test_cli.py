@@ -43,3 +43,76 @@ def test_library_error_exit_2_one_line(tmp_path, capsys):
     code, _, err = run(capsys, "synth", "--scenes", 1, "--size", 4, "--out", tmp_path, "--quiet")
     assert code == 2
     assert err.strip().splitlines() == ["dyntarget: error: size: expected an integer >= 16, got 4"]
+
+
+def test_classifiers_lists_eight(capsys):
+    code, out, _ = run(capsys, "classifiers")
+    assert code == 0
+    names = [line.split()[0] for line in out.strip().splitlines()]
+    assert names[0] == "band-threshold" and len(names) == 8 and "unet-xception" in names
+
+
+def _tiny_dir(tmp_path, capsys, n=4):
+    d = tmp_path / "scenes"
+    assert run(capsys, "synth", "--scenes", n, "--size", 32, "--out", d, "--quiet")[0] == 0
+    return d
+
+
+def test_train_writes_model(tmp_path, capsys):
+    d = _tiny_dir(tmp_path, capsys, n=2)
+    code, out, err = run(
+        capsys,
+        "train",
+        "--data",
+        d,
+        "--classifier",
+        "naive-bayes",
+        "--out",
+        tmp_path / "nb",
+        "--factor",
+        2,
+    )
+    assert code == 0, err
+    assert (tmp_path / "nb" / "metadata.json").exists() and "nb" in out
+
+
+def test_train_unknown_classifier(tmp_path, capsys):
+    d = _tiny_dir(tmp_path, capsys, n=1)
+    code, _, err = run(capsys, "train", "--data", d, "--classifier", "svm", "--out", tmp_path / "m")
+    assert code == 2 and "unknown classifier 'svm'; expected one of: band-threshold" in err
+    assert not (tmp_path / "m").exists()
+
+
+def test_train_missing_data(tmp_path, capsys):
+    code, _, err = run(
+        capsys, "train", "--data", tmp_path / "nope", "--classifier", "mlp", "--out", tmp_path / "m"
+    )
+    assert code == 2 and "not a directory" in err
+
+
+def test_evaluate_classification_writes_table1(tmp_path, capsys):
+    d = _tiny_dir(tmp_path, capsys, n=4)
+    out_dir = tmp_path / "t1"
+    code, out, err = run(
+        capsys,
+        "evaluate",
+        "classification",
+        "--data",
+        d,
+        "--folds",
+        2,
+        "--out",
+        out_dir,
+        "--classifiers",
+        "band-threshold,logistic-regression",
+        "--factor",
+        2,
+        "--quiet",
+    )
+    assert code == 0, err
+    assert "| Band Threshold |" in out and "| + Denoising |" in out
+    assert sorted(p.name for p in out_dir.iterdir()) == [
+        "table1_classification.csv",
+        "table1_classification.json",
+        "table1_classification.md",
+    ]
