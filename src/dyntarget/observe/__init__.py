@@ -1,0 +1,5 @@
+"""Observation: the NFOV simulator and utility metrics."""
+
+from dyntarget.observe.nfov import ObservationMetrics, UtilityMaps, observe, observed_pixels
+
+__all__ = ["ObservationMetrics", "UtilityMaps", "observe", "observed_pixels"]

@@ -1,0 +1,90 @@
+"""Plane geometry for the planners (shapely + numpy), in pixel coordinates."""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Polygon
+
+
+def resample_ring(polygon: Polygon, spacing: float = 1.0) -> np.ndarray:
+    """Points evenly spaced (about ``spacing`` px) along the exterior ring."""
+    ring = polygon.exterior
+    n = max(int(np.ceil(ring.length / spacing)), 4)
+    return shapely.get_coordinates(
+        shapely.line_interpolate_point(ring, np.linspace(0, ring.length, n, endpoint=False))
+    )
+
+
+def major_axis(polygon: Polygon) -> tuple[np.ndarray, np.ndarray]:
+    """The polygon's major axis: a total-least-squares line through its contour.
+
+    Returns ``(centre, direction)``: the mean of the contour points (resampled
+    evenly so vertex density does not bias the fit) and the unit principal
+    direction, oriented so its larger component is positive (deterministic).
+    """
+    pts = resample_ring(polygon, spacing=max(polygon.exterior.length / 400.0, 0.5))
+    centre = pts.mean(axis=0)
+    cov = np.cov((pts - centre).T)
+    eigval, eigvec = np.linalg.eigh(cov)
+    u = eigvec[:, int(np.argmax(eigval))]
+    if np.isclose(eigval[0], eigval[1]):  # a circle or a square: no preferred axis, take x
+        u = np.array([1.0, 0.0])
+    i = int(np.argmax(np.abs(u)))
+    if u[i] < 0:
+        u = -u
+    return centre, u / np.linalg.norm(u)
+
+
+def chord(
+    polygon: Polygon, origin: np.ndarray, direction: np.ndarray
+) -> tuple[float, float] | None:
+    """Farthest boundary points of ``polygon`` on the line ``origin + t * direction``.
+
+    Returns ``(t_min, t_max)`` over every piece where the line crosses the
+    polygon (so a concave plume is crossed from first entry to last exit), or
+    ``None`` when the line misses it.
+    """
+    minx, miny, maxx, maxy = polygon.bounds
+    reach = np.hypot(maxx - minx, maxy - miny) + np.hypot(*(origin - [minx, miny])) + 1.0
+    line = LineString([origin - reach * direction, origin + reach * direction])
+    inter = polygon.intersection(line)
+    if inter.is_empty:
+        return None
+    coords = shapely.get_coordinates(inter)
+    if len(coords) == 0:
+        return None
+    t = (coords - origin) @ direction
+    return float(t.min()), float(t.max())
+
+
+def sample_polyline(vertices: np.ndarray, step: float) -> np.ndarray:
+    """Points every ``step`` px of arc length along a polyline, starting at its first vertex.
+
+    The last vertex is added when the remaining stretch is longer than half a
+    step, so paths end near their end point. A single vertex gives itself.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    if len(vertices) == 0:
+        return vertices
+    seg = np.hypot(*np.diff(vertices, axis=0).T)
+    total = float(seg.sum())
+    if total == 0.0:
+        return vertices[:1].copy()
+    s = np.arange(0.0, total + 1e-9, step)
+    if total - s[-1] > step / 2:
+        s = np.append(s, total)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    x = np.interp(s, cum, vertices[:, 0])
+    y = np.interp(s, cum, vertices[:, 1])
+    return np.column_stack([x, y])
+
+
+def sample_ring(polygon: Polygon, step: float, start: np.ndarray) -> np.ndarray:
+    """Points every ``step`` px along the exterior ring, starting at the ring point nearest ``start``."""
+    ring = polygon.exterior
+    length = ring.length
+    s0 = ring.project(shapely.Point(start))
+    n = max(int(np.floor(length / step + 1e-9)), 1)
+    s = (s0 + step * np.arange(n)) % length
+    return shapely.get_coordinates(shapely.line_interpolate_point(ring, s))

@@ -1,0 +1,310 @@
+"""The trajectory planners (registry ``PLANNERS``) and the shared configuration.
+
+Every planner has the interface ``plan(mask, polygons, config) -> Trajectory``
+and works in WFOV pixel coordinates ``(x, y) = (column, row)``.
+
+Conventions (documented in ``docs/planning.md``):
+
+* **Along-track** is image "up" (decreasing row): the spacecraft reaches the
+  bottom of the WFOV image first. The sensor starts at the bottom centre
+  ``(W/2, H-1)``.
+* **step** = 1 % of the scene's x-axis (``W / 100`` px) between consecutive
+  pointings along a path; **width** = 2 x step between the starting points of
+  consecutive cross-transects. Both can be overridden.
+* **Several polygons** are visited nearest-next from the current position
+  (largest first on ties); within a polygon a path starts at its end nearest
+  the current position. The hop from one polygon to the next is travel: it is
+  not sampled and observes nothing (``Trajectory.part`` changes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from shapely.geometry import Polygon
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.perceive.denoise import check_mask, mask_to_polygons
+from dyntarget.plan.geometry import chord, major_axis, sample_polyline, sample_ring
+from dyntarget.plan.trajectory import Trajectory
+from dyntarget.registry import Registry
+
+PlannerFn = Callable[[np.ndarray, Sequence[Polygon], "PlanConfig"], Trajectory]
+
+PLANNERS: Registry[PlannerFn] = Registry(
+    "planner",
+    order=(
+        "trace-outline",
+        "track-center",
+        "diagonal-transect",
+        "lawnmower-transect",
+        "straight-nadir",
+        "naive-transect",
+    ),
+)
+BASELINES = ("straight-nadir", "naive-transect")
+"""Planners that use no look-ahead knowledge of the plume."""
+
+STEP_FRACTION = 0.01
+WIDTH_STEPS = 2.0
+
+
+@dataclass(frozen=True)
+class PlanConfig:
+    """Planner settings (all lengths in WFOV pixels).
+
+    step : pixels between consecutive pointings (default ``step_fraction * W``).
+    step_fraction : step as a fraction of the image width (paper: 1 %).
+    width : spacing of cross-transects (default ``2 * step``).
+    naive_fraction : side of the naive-transect square, as a fraction of min(H, W).
+    """
+
+    step: float | None = None
+    step_fraction: float = STEP_FRACTION
+    width: float | None = None
+    naive_fraction: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name in ("step", "width"):
+            v = getattr(self, name)
+            if v is not None and (not np.isfinite(v) or v <= 0):
+                raise InvalidParameterError(
+                    f"{name}: expected a positive number of pixels, got {v!r}"
+                )
+        if not 0 < self.step_fraction <= 1:
+            raise InvalidParameterError(
+                f"step_fraction: expected a fraction in (0, 1], got {self.step_fraction!r}"
+            )
+        if not 0 < self.naive_fraction <= 1:
+            raise InvalidParameterError(
+                f"naive_fraction: expected a fraction in (0, 1], got {self.naive_fraction!r}"
+            )
+
+    def resolved(self, shape: tuple[int, int]) -> tuple[float, float]:
+        """``(step, width)`` in pixels for an image of ``shape`` (H, W)."""
+        step = self.step if self.step is not None else max(self.step_fraction * shape[1], 1e-6)
+        width = self.width if self.width is not None else WIDTH_STEPS * step
+        return float(step), float(width)
+
+    def as_dict(self, shape: tuple[int, int]) -> dict[str, float]:
+        step, width = self.resolved(shape)
+        return {**asdict(self), "step": step, "width": width}
+
+
+def start_point(shape: tuple[int, int]) -> np.ndarray:
+    """Where the NFOV sensor starts: bottom centre (the first ground the spacecraft reaches)."""
+    h, w = shape
+    return np.array([(w - 1) / 2.0, h - 1.0])
+
+
+def _visit(
+    polygons: Sequence[Polygon],
+    shape: tuple[int, int],
+    path_for: Callable[[Polygon, np.ndarray], np.ndarray],
+    name: str,
+    params: dict,
+) -> Trajectory:
+    """Visit polygons nearest-next; ``path_for(polygon, position)`` returns its pointings."""
+    position = start_point(shape)
+    remaining = list(range(len(polygons)))
+    pts, parts = [], []
+    part = 0
+    while remaining:
+        dists = [polygons[i].exterior.distance(_point(position)) for i in remaining]
+        j = remaining.pop(int(np.argmin(dists)))  # argmin keeps the first (largest) on ties
+        path = path_for(polygons[j], position)
+        if len(path) == 0:
+            continue
+        pts.append(path)
+        parts.append(np.full(len(path), part))
+        part += 1
+        position = path[-1]
+    if not pts:
+        return Trajectory.empty(name, params)
+    return Trajectory(np.concatenate(pts), np.concatenate(parts), name, params)
+
+
+def _point(xy: np.ndarray):
+    from shapely.geometry import Point
+
+    return Point(float(xy[0]), float(xy[1]))
+
+
+def _oriented(path: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """Reverse ``path`` if its last point is nearer ``position`` than its first."""
+    if len(path) > 1 and np.hypot(*(path[-1] - position)) < np.hypot(*(path[0] - position)):
+        return path[::-1].copy()
+    return path
+
+
+def _clip(points: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    h, w = shape
+    return np.column_stack([np.clip(points[:, 0], 0, w - 1), np.clip(points[:, 1], 0, h - 1)])
+
+
+@PLANNERS.register("trace-outline")
+def trace_outline(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
+    """Pointings every ``step`` along the outer boundary of each polygon (holes are not traced)."""
+    step, _ = config.resolved(mask.shape)
+
+    def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
+        return sample_ring(poly, step, position)
+
+    return _visit(polygons, mask.shape, path, "trace-outline", config.as_dict(mask.shape))
+
+
+@PLANNERS.register("track-center")
+def track_center(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
+    """Pointings every ``step`` along each polygon's major axis, from where it enters to where it leaves."""
+    step, _ = config.resolved(mask.shape)
+
+    def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
+        centre, u = major_axis(poly)
+        span = chord(poly, centre, u)
+        if span is None:
+            return np.zeros((0, 2))
+        ends = np.array([centre + span[0] * u, centre + span[1] * u])
+        return _oriented(sample_polyline(ends, step), position)
+
+    return _visit(polygons, mask.shape, path, "track-center", config.as_dict(mask.shape))
+
+
+def _transects(
+    poly: Polygon, position: np.ndarray, step: float, width: float, *, zigzag: bool
+) -> np.ndarray:
+    """Cross-transects along the major axis, alternating direction, sampled by ``step``.
+
+    Starting points lie on the major axis every ``width`` px (the first half a
+    width inside the polygon's extent along the axis). Through each starting
+    point the line perpendicular to the axis meets the plume boundary farthest
+    out at two ends ``A_k`` and ``B_k`` (first entry and last exit, so concave
+    and curved plumes are crossed whole).
+
+    * lawnmower (boustrophedon): ``A_0 -> B_0 -> B_1 -> A_1 -> A_2 -> B_2 ...``:
+      perpendicular transects joined by short legs along the boundary;
+    * diagonal (zig-zag): ``A_0 -> B_1 -> A_2 -> B_3 ...``: each transect runs
+      at an angle from one side at starting point ``k`` to the other side at
+      ``k + 1``, opposite to the previous one.
+
+    The walk starts at the axis end and the side nearer ``position``.
+    """
+    centre, u = major_axis(poly)
+    v = np.array([-u[1], u[0]])
+    proj = (np.asarray(poly.exterior.coords) - centre) @ u
+    a_min, a_max = float(proj.min()), float(proj.max())
+    n = max(int(np.floor((a_max - a_min) / width)), 1)
+    offsets = a_min + (np.arange(n) + 0.5) * min(width, (a_max - a_min) / n)
+    ends = []
+    for a in offsets:
+        origin = centre + a * u
+        span = chord(poly, origin, v)
+        if span is not None:
+            ends.append((origin + span[0] * v, origin + span[1] * v))
+    if not ends:
+        return np.zeros((0, 2))
+    candidates = {  # (reverse the axis walk?, start on side B?)
+        (rev, side): (ends[::-1] if rev else ends)[0][1 if side else 0]
+        for rev in (False, True)
+        for side in (False, True)
+    }
+    rev, side = min(candidates, key=lambda key: (np.hypot(*(candidates[key] - position)), key))
+    ends = ends[::-1] if rev else ends
+    if side:
+        ends = [(b, a) for a, b in ends]
+    vertices = []
+    for k, (a, b) in enumerate(ends):
+        if zigzag:
+            vertices.append(a if k % 2 == 0 else b)
+        else:
+            vertices += [a, b] if k % 2 == 0 else [b, a]
+    return sample_polyline(np.array(vertices), step)
+
+
+@PLANNERS.register("diagonal-transect")
+def diagonal_transect(
+    mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
+) -> Trajectory:
+    """Zig-zag transects at an angle across each polygon's major axis (see :func:`_transects`)."""
+    step, width = config.resolved(mask.shape)
+
+    def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
+        return _transects(poly, position, step, width, zigzag=True)
+
+    return _visit(polygons, mask.shape, path, "diagonal-transect", config.as_dict(mask.shape))
+
+
+@PLANNERS.register("lawnmower-transect")
+def lawnmower_transect(
+    mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
+) -> Trajectory:
+    """Boustrophedon transects perpendicular to each polygon's major axis."""
+    step, width = config.resolved(mask.shape)
+
+    def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
+        return _transects(poly, position, step, width, zigzag=False)
+
+    return _visit(polygons, mask.shape, path, "lawnmower-transect", config.as_dict(mask.shape))
+
+
+@PLANNERS.register("straight-nadir")
+def straight_nadir(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
+    """Baseline: a line along-track through the scene centre, bottom to top, every ``step``."""
+    step, _ = config.resolved(mask.shape)
+    h, w = mask.shape
+    x = (w - 1) / 2.0
+    pts = sample_polyline(np.array([[x, h - 1.0], [x, 0.0]]), step)
+    return Trajectory(
+        pts, np.zeros(len(pts), np.int64), "straight-nadir", config.as_dict(mask.shape)
+    )
+
+
+@PLANNERS.register("naive-transect")
+def naive_transect(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
+    """Baseline: a lawnmower over a fixed central square, ignoring the plume.
+
+    The square is centred on the scene, of side ``naive_fraction * min(H, W)``
+    (default 30 %); transects run across-track (along x), spaced by ``width``,
+    alternating direction, from the bottom of the square to its top.
+    """
+    step, width = config.resolved(mask.shape)
+    h, w = mask.shape
+    side = config.naive_fraction * min(h, w)
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    x0, x1 = cx - side / 2, cx + side / 2
+    rows = np.arange(cy + side / 2, cy - side / 2 - 1e-9, -width)
+    vertices = []
+    for k, y in enumerate(rows):
+        a, b = (x0, x1) if k % 2 == 0 else (x1, x0)
+        vertices += [[a, y], [b, y]]
+    pts = _clip(sample_polyline(np.array(vertices), step), mask.shape)
+    return Trajectory(
+        pts, np.zeros(len(pts), np.int64), "naive-transect", config.as_dict(mask.shape)
+    )
+
+
+def plan(
+    name: str,
+    mask: np.ndarray,
+    polygons: Sequence[Polygon] | None = None,
+    config: PlanConfig | None = None,
+) -> Trajectory:
+    """Plan with the registered planner ``name``.
+
+    ``polygons`` default to the mask's polygons (:func:`mask_to_polygons`);
+    pass the denoised polygons from :func:`dyntarget.perceive.denoise.denoise`
+    to plan as the paper does.
+
+    Examples
+    --------
+    >>> m = np.zeros((100, 100), bool); m[40:60, 10:90] = True
+    >>> t = plan("track-center", m)
+    >>> len(t), t.points[0].tolist()
+    (80, [10.0, 49.5])
+    """
+    mask = check_mask(mask)
+    fn = PLANNERS.get(name)
+    if polygons is None:
+        polygons = mask_to_polygons(mask)
+    return fn(mask, list(polygons), config or PlanConfig())
