@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import pytest
 import rasterio
 
 from dyntarget.cli import main
@@ -116,3 +117,103 @@ def test_evaluate_classification_writes_table1(tmp_path, capsys):
         "table1_classification.json",
         "table1_classification.md",
     ]
+
+
+def test_planners_lists_six(capsys):
+    code, out, _ = run(capsys, "planners")
+    assert code == 0
+    lines = out.strip().splitlines()
+    assert len(lines) == 6 and lines[0].startswith("trace-outline")
+    assert sum("(baseline)" in line for line in lines) == 2
+
+
+def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):
+    import json
+
+    d = _tiny_dir(tmp_path, capsys, n=1)
+    image = d / "synth-0000-0000.tif"
+    code, _, err = run(
+        capsys,
+        "plan",
+        image,
+        "--mask",
+        d / "synth-0000-0000_mask.tif",
+        "--planner",
+        "trace-outline",
+        "--out",
+        tmp_path / "t.geojson",
+        "--figure",
+        tmp_path / "t.png",
+    )
+    assert code == 0, err
+    doc = json.loads((tmp_path / "t.geojson").read_text())
+    assert doc["crs"]["properties"]["name"] == "EPSG:32605"
+    x, y = doc["features"][-1]["geometry"]["coordinates"]
+    assert 200_000 < x < 300_000 and 2_100_000 < y < 2_200_000  # UTM metres, not pixels
+    assert (tmp_path / "t.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_plan_with_model(tmp_path, capsys):
+    d = _tiny_dir(tmp_path, capsys, n=2)
+    assert (
+        run(
+            capsys, "train", "--data", d, "--classifier", "decision-tree", "--out", tmp_path / "dt"
+        )[0]
+        == 0
+    )
+    code, _, err = run(
+        capsys,
+        "plan",
+        d / "synth-0000-0001.tif",
+        "--model",
+        tmp_path / "dt",
+        "--planner",
+        "lawnmower-transect",
+        "--out",
+        tmp_path / "t.csv",
+    )
+    assert code == 0, err
+    assert (tmp_path / "t.csv").read_text().startswith("order,x,y,part,X,Y")
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--classifier", "mlp"], "needs --model PATH"),
+        ([], "give --mask MASK or --model PATH"),
+        (["--mask", "MISSING.tif"], "no such file"),
+    ],
+)
+def test_plan_input_errors(tmp_path, capsys, extra, message):
+    d = _tiny_dir(tmp_path, capsys, n=1)
+    extra = [str(tmp_path / e) if e.endswith(".tif") else e for e in extra]
+    code, _, err = run(
+        capsys,
+        "plan",
+        d / "synth-0000-0000.tif",
+        "--planner",
+        "track-center",
+        "--out",
+        tmp_path / "t.geojson",
+        *extra,
+    )
+    assert code == 2 and message in err and "Traceback" not in err
+    assert not (tmp_path / "t.geojson").exists()
+
+
+def test_evaluate_planning(tmp_path, capsys):
+    d = _tiny_dir(tmp_path, capsys, n=2)
+    code, out, err = run(
+        capsys,
+        "evaluate",
+        "planning",
+        "--data",
+        d,
+        "--out",
+        tmp_path / "p",
+        "--factor",
+        2,
+        "--quiet",
+    )
+    assert code == 0, err
+    assert "| Straight Nadir |" in out and (tmp_path / "p" / "planning_true_masks.csv").exists()

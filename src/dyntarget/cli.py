@@ -152,6 +152,99 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_planners(args: argparse.Namespace) -> int:
+    from dyntarget.plan import BASELINES, PLANNERS
+
+    for name in PLANNERS.available():
+        doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
+        tag = " (baseline)" if name in BASELINES else ""
+        print(f"{name:20s} {doc}{tag}")
+    return EXIT_OK
+
+
+def _plan_config(args: argparse.Namespace):
+    from dyntarget.plan import PlanConfig
+
+    return PlanConfig(step=args.step, width=args.width)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.io import read_scene
+    from dyntarget.perceive import load_classifier
+    from dyntarget.pipeline import PipelineConfig, plan_scene
+
+    if args.mask is None and args.model is None:
+        if args.classifier:
+            raise InvalidParameterError(
+                f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
+            )
+        raise InvalidParameterError("give --mask MASK or --model PATH")
+    scene = read_scene(args.image, scale=args.scale, label=args.mask)
+    if args.mask is None:
+        scene = replace(scene, label=None)
+    wfov = scene.to_wfov(args.factor)
+    classifier = None
+    if args.model is not None:
+        classifier = load_classifier(args.model)
+        if args.classifier and args.classifier != classifier.name:
+            raise InvalidParameterError(
+                f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
+            )
+    config = PipelineConfig(plan=_plan_config(args))
+    result = plan_scene(
+        wfov.image,
+        classifier,
+        args.planner,
+        mask=wfov.label,
+        denoise=not args.no_denoise,
+        config=config,
+    )
+    traj = result.trajectory
+    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
+    times = ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
+    _log(
+        f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
+    )
+    print(out)
+    if args.figure:
+        from dyntarget.evaluate.figures import trajectories_figure
+
+        print(
+            trajectories_figure(
+                wfov.image, [traj], args.figure, mask=result.mask, title=Path(args.image).name
+            )
+        )
+    return EXIT_OK
+
+
+def cmd_evaluate_planning(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
+    from dyntarget.evaluate.tables import markdown_table, write_table
+
+    scenes = _load_labelled(args.data)
+    result = evaluate_planners_on_truth(
+        scenes, factor=args.factor, config=_plan_config(args), progress=not args.quiet
+    )
+    paths = write_table(
+        args.out, "planning_true_masks", result["rows"], PLANNING_COLUMNS, extra=result
+    )
+    print(markdown_table(result["rows"], PLANNING_COLUMNS))
+    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
+def _add_plan_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--step", type=_positive_float, help="pixels between pointings (default 1%% of the width)"
+    )
+    p.add_argument(
+        "--width", type=_positive_float, help="pixels between transects (default 2 x step)"
+    )
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -212,6 +305,42 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_evaluate_classification)
+    q = ev.add_parser("planning", help="the six planners on the true masks")
+    q.add_argument("--data", required=True, help="scene directory with labels")
+    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
+    q.add_argument(
+        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_plan_options(q)
+    q.set_defaults(func=cmd_evaluate_planning)
+
+    p = sub.add_parser("planners", help="list the trajectory planners")
+    p.set_defaults(func=cmd_planners)
+
+    p = sub.add_parser(
+        "plan", help="plan an NFOV trajectory for one image (classify, denoise, plan)"
+    )
+    p.add_argument("image", help="4-band GeoTIFF (R, G, B, NIR)")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
+    src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
+    p.add_argument("--classifier", help="classifier name; must match --model")
+    p.add_argument("--planner", required=True, help="planner name (see 'dyntarget planners')")
+    p.add_argument("--out", required=True, help="trajectory file: .geojson or .csv")
+    p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
+    p.add_argument(
+        "--factor",
+        type=_positive_int,
+        default=1,
+        help="downsample the image to WFOV first (default 1)",
+    )
+    p.add_argument(
+        "--scale", type=_positive_float, help="reflectance per digital number for integer images"
+    )
+    p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
+    _add_plan_options(p)
+    p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("demo", help="run the main job on the built-in synthetic data")
     p.add_argument("--out", default="out", help="output folder (default ./out)")

@@ -51,3 +51,64 @@ def scenes_figure(
             ax.set_axis_off()
     fig.tight_layout()
     return save(fig, path, dpi=dpi)
+
+
+PATH_COLOURS = {
+    "trace-outline": "#e41a1c",
+    "track-center": "#ff7f00",
+    "diagonal-transect": "#4daf4a",
+    "lawnmower-transect": "#377eb8",
+    "straight-nadir": "#984ea3",
+    "naive-transect": "#a65628",
+}
+
+
+def draw_trajectory(ax, trajectory, *, colour: str | None = None, label: str | None = None) -> None:
+    """Draw a trajectory: observation legs as lines with dots, travel hops dashed."""
+    pts = trajectory.points
+    colour = colour or PATH_COLOURS.get(trajectory.planner, "red")
+    if len(pts) == 0:
+        return
+    for p in np.unique(trajectory.part):
+        leg = pts[trajectory.part == p]
+        ax.plot(
+            leg[:, 0],
+            leg[:, 1],
+            "-",
+            color=colour,
+            lw=1.0,
+            label=label if p == trajectory.part[0] else None,
+        )
+        ax.plot(leg[:, 0], leg[:, 1], ".", color=colour, ms=2.5)
+    hops = np.flatnonzero(np.diff(trajectory.part) != 0)
+    for i in hops:
+        ax.plot(pts[i : i + 2, 0], pts[i : i + 2, 1], "--", color=colour, lw=0.8, alpha=0.7)
+    ax.plot(*pts[0], "o", color=colour, ms=5, mec="white", mew=0.8)
+
+
+def trajectories_figure(
+    image: np.ndarray,
+    trajectories,
+    path: str | os.PathLike[str],
+    *,
+    mask: np.ndarray | None = None,
+    title: str | None = None,
+    dpi: int = 110,
+) -> Path:
+    """The paper's Figure 3: one panel per trajectory, drawn over the RGB image (and mask outline)."""
+    trajectories = list(trajectories)
+    n = max(len(trajectories), 1)
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
+    for ax, traj in zip(axes[0], trajectories, strict=False):
+        ax.imshow(rgb(image))
+        if mask is not None and mask.any():
+            ax.contour(mask.astype(float), levels=[0.5], colors="yellow", linewidths=0.7)
+        draw_trajectory(ax, traj)
+        ax.set_title(f"{traj.planner} ({len(traj)} pointings)", fontsize=9)
+        ax.set_xlim(-0.5, image.shape[2] - 0.5)
+        ax.set_ylim(image.shape[1] - 0.5, -0.5)
+        ax.set_axis_off()
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return save(fig, path, dpi=dpi)

@@ -43,7 +43,9 @@ class UtilityMaps:
     @classmethod
     def from_scene(cls, scene: Scene) -> UtilityMaps:
         if scene.label is None:
-            raise InvalidSceneError(f"scene {scene.id!r} has no label; scoring observations needs the truth")
+            raise InvalidSceneError(
+                f"scene {scene.id!r} has no label; scoring observations needs the truth"
+            )
         intensity = scene.label.astype(np.float32) * scene.image[2]
         peak = float(intensity.max())
         intensity = intensity / peak if peak > 0 else intensity
@@ -95,14 +97,30 @@ def observe(
     """
     maps = truth if isinstance(truth, UtilityMaps) else UtilityMaps.from_scene(truth)
     factor = check_factor(factor, maps.label.shape)
-    if isinstance(footprint, bool) or not isinstance(footprint, int) or footprint < 1 or footprint % 2 == 0:
-        raise InvalidParameterError(f"footprint: expected an odd positive number of WFOV pixels, got {footprint!r}")
+    if (
+        isinstance(footprint, bool)
+        or not isinstance(footprint, int)
+        or footprint < 1
+        or footprint % 2 == 0
+    ):
+        raise InvalidParameterError(
+            f"footprint: expected an odd positive number of WFOV pixels, got {footprint!r}"
+        )
     stack = np.stack([maps.label.astype(np.float32), maps.intensity, maps.gradient])
     per_wfov = block_mean(stack, factor)  # (3, H/f, W/f): mean over each WFOV pixel's footprint
     if footprint > 1:
-        per_wfov = np.stack([cv2.blur(ch, (footprint, footprint), borderType=cv2.BORDER_CONSTANT) for ch in per_wfov])
+        per_wfov = np.stack(
+            [
+                cv2.blur(ch, (footprint, footprint), borderType=cv2.BORDER_CONSTANT)
+                for ch in per_wfov
+            ]
+        )
         # at the image edge, average only over footprint pixels that exist
-        ones = cv2.blur(np.ones(per_wfov.shape[1:], np.float32), (footprint, footprint), borderType=cv2.BORDER_CONSTANT)
+        ones = cv2.blur(
+            np.ones(per_wfov.shape[1:], np.float32),
+            (footprint, footprint),
+            borderType=cv2.BORDER_CONSTANT,
+        )
         per_wfov = per_wfov / ones
     rc = observed_pixels(trajectory, per_wfov.shape[1:])
     if len(rc) == 0:

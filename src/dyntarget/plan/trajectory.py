@@ -129,7 +129,7 @@ class Trajectory:
         suffix = path.suffix.lower()
         if suffix in (".geojson", ".json"):
             return write_text(
-                path, json.dumps(self.to_geojson(transform=transform, crs=crs), indent=1) + "\n"
+                path, json.dumps(self.to_geojson(transform=transform, crs=crs)) + "\n"
             )
         if suffix == ".csv":
             return write_text(path, self.to_csv(transform=transform))
