@@ -112,3 +112,76 @@ def trajectories_figure(
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return save(fig, path, dpi=dpi)
+
+
+def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
+    """The paper's Figure 4: per scene, image / classifier probability / denoised mask.
+
+    ``rows`` is a sequence of ``(title, image, probability, denoised_mask, truth)``.
+    """
+    rows = list(rows)
+    fig, axes = plt.subplots(len(rows), 3, figsize=(9, 3 * len(rows)), squeeze=False)
+    for ax_row, (title, image, proba, clean, truth) in zip(axes, rows, strict=True):
+        ax_row[0].imshow(rgb(image))
+        ax_row[0].set_title(title, fontsize=9)
+        ax_row[1].imshow(proba, cmap="magma", vmin=0, vmax=1)
+        ax_row[1].set_title("classifier output (plume probability)", fontsize=9)
+        ax_row[2].imshow(clean, cmap="gray", vmin=0, vmax=1)
+        if truth is not None and truth.any():
+            ax_row[2].contour(truth.astype(float), levels=[0.5], colors="cyan", linewidths=0.8)
+        ax_row[2].set_title("denoised (cyan: true outline)", fontsize=9)
+        for ax in ax_row:
+            ax.set_axis_off()
+    fig.tight_layout()
+    return save(fig, path, dpi=dpi)
+
+
+def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
+    """Bar chart: ratio plume, intensity and gradient per planner x classifier; baselines as lines."""
+    from dyntarget.plan import BASELINES
+
+    metrics = ("Ratio Plume", "Intensity", "Gradient")
+    look = [r for r in table2_rows if r["planner"] not in BASELINES]
+    base = [r for r in table2_rows if r["planner"] in BASELINES]
+    planners = list(dict.fromkeys(r["planner"] for r in look))
+    classifiers = list(dict.fromkeys(r["classifier"] for r in look))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    width = 0.8 / max(len(classifiers), 1)
+    cmap = plt.get_cmap("tab10")
+    for ax, metric in zip(axes, metrics, strict=True):
+        for j, cname in enumerate(classifiers):
+            vals = [
+                next(
+                    (r[metric] for r in look if r["planner"] == p and r["classifier"] == cname), 0.0
+                )
+                for p in planners
+            ]
+            ax.bar(
+                np.arange(len(planners)) + (j - (len(classifiers) - 1) / 2) * width,
+                vals,
+                width,
+                color=cmap(j % 10),
+                label=next(r["Classifier"] for r in look if r["classifier"] == cname),
+            )
+        for k, r in enumerate(base):
+            ax.axhline(
+                r[metric],
+                color="black",
+                ls=["--", ":"][k % 2],
+                lw=1,
+                label=f"{r['Trajectory Algorithm']} (baseline)",
+            )
+        ax.set_xticks(np.arange(len(planners)))
+        ax.set_xticklabels(
+            [next(r["Trajectory Algorithm"] for r in look if r["planner"] == p) for p in planners],
+            fontsize=8,
+            rotation=15,
+        )
+        ax.set_title(metric, fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(
+        handles, labels, fontsize=8, ncol=min(len(labels), 6), loc="lower center", frameon=False
+    )
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
+    return save(fig, path, dpi=dpi)

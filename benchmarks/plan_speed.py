@@ -1,0 +1,91 @@
+"""Planning latency per planner on 512 x 512 WFOV masks (issue: < 50 ms per scene).
+
+Masks: the 38 synthetic scenes of seed 0 at 512 px used directly as WFOV grids
+(factor 1, the hardest case for planning), (a) their true labels and (b) the
+masks a decision tree predicts (messier: many fragments), both denoised as in
+the pipeline. Reports the median and the maximum over scenes of 5 repeats'
+median, after one warm-up run per scene.
+
+    python benchmarks/plan_speed.py [--scenes 38] [--out docs/benchmarks/plan_speed.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dyntarget.perceive import make_classifier
+from dyntarget.perceive.denoise import denoise
+from dyntarget.plan import PLANNERS, plan
+from dyntarget.synth import generate_scene
+
+
+def median_ms(fn, repeats: int = 5) -> float:
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1000 * float(np.median(times))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", type=int, default=38)
+    ap.add_argument("--out", default="docs/benchmarks/plan_speed.json")
+    args = ap.parse_args()
+    scenes = [generate_scene(0, i, size=512)[0] for i in range(args.scenes)]
+    tree = make_classifier("decision-tree").fit(scenes[:5])
+    masks = {
+        "true": [denoise(s.label) for s in scenes],
+        "decision-tree": [denoise(tree.predict(s.image)) for s in scenes],
+    }
+    results = {}
+    for kind, cleaned in masks.items():
+        polys = [len(c.polygons) for c in cleaned]
+        results[kind] = {
+            "polygons_median": float(np.median(polys)),
+            "polygons_max": int(max(polys)),
+            "planners": {},
+        }
+        for name in PLANNERS.available():
+            ms = [median_ms(lambda c=c, name=name: plan(name, c.mask, c.polygons)) for c in cleaned]
+            results[kind]["planners"][name] = {
+                "median_ms": float(np.median(ms)),
+                "max_ms": float(max(ms)),
+            }
+    record = {
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor(),
+            "python": platform.python_version(),
+        },
+        "size_px": 512,
+        "scenes": args.scenes,
+        "results": results,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(record, indent=2) + "\n")
+    print(
+        "| planner | true mask median (ms) | true mask max (ms) | DT mask median (ms) | DT mask max (ms) |"
+    )
+    print("|---|---|---|---|---|")
+    for name in PLANNERS.available():
+        t, d = results["true"]["planners"][name], results["decision-tree"]["planners"][name]
+        print(
+            f"| {name} | {t['median_ms']:.1f} | {t['max_ms']:.1f} | {d['median_ms']:.1f} | {d['max_ms']:.1f} |"
+        )
+    for kind in masks:
+        print(
+            f"{kind} masks: polygons per scene median {results[kind]['polygons_median']}, max {results[kind]['polygons_max']}"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,232 @@
+"""The Markdown report of an evaluation run (demo and reproduce), with its figures."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dyntarget.evaluate.claims import check_claims, paper_results
+from dyntarget.evaluate.crossval import TABLE1_COLUMNS
+from dyntarget.evaluate.endtoend import TABLE2_COLUMNS
+from dyntarget.evaluate.figures import classification_figure, trajectories_figure, utilities_figure
+from dyntarget.evaluate.tables import display, markdown_table
+from dyntarget.io.atomic import write_text
+from dyntarget.perceive import load_classifier
+from dyntarget.pipeline import PipelineConfig, plan_scene
+from dyntarget.plan import BASELINES
+from dyntarget.scene import Scene
+
+
+def best_classifier(table1_rows: list[dict]) -> str:
+    """Classifier with the highest IoU (raw or denoised)."""
+    return max(table1_rows, key=lambda r: r["IoU"])["classifier"]
+
+
+def make_figures(
+    out: Path,
+    scenes: list[Scene],
+    table1: dict[str, Any],
+    table2: dict[str, Any],
+    models_dir: Path,
+    *,
+    factor: int,
+    pipeline: PipelineConfig | None = None,
+) -> dict[str, Path]:
+    """Figure 3 (four planners over one held-out scene), Figure 4 and the utilities chart."""
+    pipeline = pipeline or PipelineConfig()
+    best = best_classifier(table1["rows"])
+    fold0 = set(table1["folds"][0])
+    held_out = [s for s in scenes if s.id in fold0]
+    model = load_classifier(models_dir / "fold-0" / best)
+    figs: dict[str, Path] = {}
+    # Figure 3: the held-out scene with the largest plume
+    scene = max(held_out, key=lambda s: float(s.label.mean()))
+    wfov = scene.to_wfov(factor)
+    lookahead = [
+        p for p in dict.fromkeys(r["planner"] for r in table2["rows"]) if p not in BASELINES
+    ]
+    results = [plan_scene(wfov.image, model, p, config=pipeline) for p in lookahead]
+    figs["fig3"] = trajectories_figure(
+        wfov.image,
+        [r.trajectory for r in results],
+        out / "fig3_trajectories.png",
+        mask=results[0].mask,
+        title=f"{scene.id}: planners on the {display(best)} mask (held-out scene)",
+    )
+    # Figure 4: three held-out scenes
+    rows = []
+    for s in held_out[:3]:
+        w = s.to_wfov(factor)
+        r = plan_scene(
+            w.image, model, lookahead[0] if lookahead else "trace-outline", config=pipeline
+        )
+        rows.append((f"{s.id} ({display(best)})", w.image, r.probability, r.mask, w.label))
+    figs["fig4"] = classification_figure(rows, out / "fig4_classification.png")
+    figs["utilities"] = utilities_figure(table2["rows"], out / "fig_utilities.png")
+    return figs
+
+
+def _paper_table1_md(ours: list[dict]) -> str:
+    paper = {(r["classifier"], r["denoised"]): r for r in paper_results()["table1"]}
+    rows = []
+    for r in ours:
+        p = paper.get((r["classifier"], r["denoised"]))
+        rows.append(
+            {
+                "Classifier": r["Classifier"]
+                if not r["denoised"]
+                else f"{display(r['classifier'])} + Denoising",
+                "IoU (ours)": r["IoU"],
+                "IoU (paper)": p["IoU"] if p else "",
+                "Precision (ours)": r["Precision"],
+                "Precision (paper)": p["Precision"] if p else "",
+                "Recall (ours)": r["Recall"],
+                "Recall (paper)": p["Recall"] if p else "",
+            }
+        )
+    cols = list(rows[0]) if rows else []
+    return markdown_table(rows, cols)
+
+
+def _paper_table2_md(ours: list[dict]) -> str:
+    paper = {(r["planner"], r["classifier"]): r for r in paper_results()["table2"]}
+    rows = []
+    for r in ours:
+        p = paper.get((r["planner"], r["classifier"]))
+        rows.append(
+            {
+                "Trajectory Algorithm": r["Trajectory Algorithm"],
+                "Classifier": r["Classifier"],
+                "Ratio Plume (ours)": r["Ratio Plume"],
+                "Ratio Plume (paper)": p["Ratio Plume"] if p else "",
+                "Intensity (ours)": r["Intensity"],
+                "Intensity (paper)": p["Intensity"] if p else "",
+                "Runtime s (ours)": r["Runtime (s)"],
+                "Runtime s (paper)": p["Runtime (s)"] if p else "",
+            }
+        )
+    cols = list(rows[0]) if rows else []
+    return markdown_table(rows, cols)
+
+
+def claims_md(table1_rows: list[dict], table2_rows: list[dict]) -> str:
+    ours = check_claims(table1_rows, table2_rows)
+    paper = paper_results()
+    theirs = check_claims(paper["table1"], paper["table2"])
+    lines = [
+        "| claim | on our data | detail | same rule on the paper's numbers |",
+        "|---|---|---|---|",
+    ]
+    for o, t in zip(ours, theirs, strict=True):
+        verdict = o.get("verdict") or ("holds" if o["holds"] else "does not hold")
+        pv = t.get("verdict") or ("holds" if t["holds"] else "does not hold")
+        lines.append(f"| {o['claim']} | **{verdict}** | {o['detail']} | {pv}: {t['detail']} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_report(
+    out: str | os.PathLike[str],
+    *,
+    title: str,
+    command: str,
+    table1: dict[str, Any],
+    table2: dict[str, Any],
+    figures: dict[str, Path],
+    seconds: float,
+    data_note: str,
+    compare_with_paper: bool = True,
+) -> Path:
+    """Write ``report.md`` with both tables, the figures and (optionally) the paper comparison."""
+    import platform
+
+    import dyntarget
+
+    out = Path(out)
+    rel = {k: os.path.relpath(v, out) for k, v in figures.items()}
+    parts = [
+        f"# {title}\n",
+        f"Command: `{command}`  \n",
+        f"dyntarget {dyntarget.__version__}, {platform.platform()}, Python {platform.python_version()}, "
+        f"{os.cpu_count()} CPU(s); took {seconds / 60:.1f} min; written {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.\n",
+        f"{data_note}\n",
+        "## Table 1: classification (k-fold cross-validation, plume class)\n",
+        markdown_table(table1["rows"], TABLE1_COLUMNS),
+        "\nConfusion counts are summed over each fold's held-out pixels; the table shows the mean over folds.\n",
+        "## Table 2: perception and planning (end to end)\n",
+        markdown_table(table2["rows"], TABLE2_COLUMNS),
+        "\nMeans over all held-out scenes; Runtime = classify + denoise + plan for one WFOV scene.\n",
+        "## Figures\n",
+        f"![Figure 3: planners' paths]({rel['fig3']})\n\n"
+        f"*Figure 3 — the four look-ahead planners over one held-out scene (yellow: denoised mask).*\n",
+        f"![Figure 4: classification]({rel['fig4']})\n\n"
+        f"*Figure 4 — image, classifier output, denoised output for held-out scenes.*\n",
+        f"![Utilities]({rel['utilities']})\n\n"
+        "*Ratio plume, intensity and gradient per planner and classifier; dashed/dotted: baselines.*\n",
+    ]
+    if compare_with_paper:
+        parts += [
+            "## Beside the paper\n",
+            "The paper's numbers (Zilberstein, Candela, Chien 2025, Tables 1-2; 38 SkySat scenes) are stored in "
+            "`dyntarget/data/paper_results.json`. Different data: compare orderings and ratios, not values.\n",
+            "### Table 1\n",
+            _paper_table1_md(table1["rows"]),
+            "\n### Table 2\n",
+            _paper_table2_md(table2["rows"]),
+            "\n## The paper's claims on this data\n",
+            claims_md(table1["rows"], table2["rows"]),
+        ]
+    return write_text(out / "report.md", "\n".join(parts))
+
+
+def mean_iou_gain(table1_rows: list[dict]) -> float:
+    by = {(r["classifier"], r["denoised"]): r["IoU"] for r in table1_rows}
+    names = {r["classifier"] for r in table1_rows}
+    return float(np.mean([by[(n, True)] - by[(n, False)] for n in names]))
+
+
+def evaluate_all(
+    scenes: list[Scene],
+    out: str | os.PathLike[str],
+    *,
+    models_dir: str | os.PathLike[str],
+    classifiers: tuple[str, ...],
+    folds: int = 5,
+    epochs: int = 50,
+    factor: int = 4,
+    seed: int = 0,
+    progress: bool = True,
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Path]]:
+    """Table 1 and Table 2 sharing one training run (models in ``models_dir``), plus figures."""
+    from dyntarget.evaluate.crossval import CVConfig, cross_validate
+    from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
+    from dyntarget.evaluate.tables import write_table
+
+    out, models_dir = Path(out), Path(models_dir)
+    t0 = time.perf_counter()
+    cv = CVConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
+    table1 = cross_validate(scenes, cv, models_dir=models_dir, progress=progress)
+    table1["seconds"] = time.perf_counter() - t0
+    write_table(
+        out,
+        "table1_classification",
+        table1["rows"],
+        TABLE1_COLUMNS,
+        extra={k: v for k, v in table1.items() if k != "rows"},
+    )
+    t0 = time.perf_counter()
+    e2e = E2EConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
+    table2 = evaluate_end_to_end(scenes, e2e, models_dir=models_dir, progress=progress)
+    table2["seconds"] = time.perf_counter() - t0
+    write_table(
+        out,
+        "table2_end_to_end",
+        table2["rows"],
+        TABLE2_COLUMNS,
+        extra={k: v for k, v in table2.items() if k != "rows"},
+    )
+    figures = make_figures(out, scenes, table1, table2, models_dir, factor=factor)
+    return table1, table2, figures
