@@ -116,6 +116,7 @@ def test_evaluate_classification_writes_table1(tmp_path, capsys):
         "table1_classification.csv",
         "table1_classification.json",
         "table1_classification.md",
+        "table1_classification.timing.json",
     ]
 
 

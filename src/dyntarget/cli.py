@@ -103,7 +103,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
-    from dyntarget.evaluate.tables import markdown_table, write_table
+    from dyntarget.evaluate.tables import markdown_table, write_result
 
     names = tuple(args.classifiers.split(",")) if args.classifiers else None
     config = CVConfig(
@@ -117,13 +117,8 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = cross_validate(scenes, config, models_dir=args.models, progress=not args.quiet)
     seconds = time.perf_counter() - t0
-    paths = write_table(
-        args.out,
-        "table1_classification",
-        result["rows"],
-        TABLE1_COLUMNS,
-        extra={k: v for k, v in result.items() if k != "rows"} | {"seconds": seconds},
-    )
+    result["timing"]["seconds"] = seconds
+    paths = write_result(args.out, "table1_classification", result, TABLE1_COLUMNS)
     print(markdown_table(result["rows"], TABLE1_COLUMNS))
     _log(
         f"cross-validation of {len(config.classifiers)} classifiers on {len(scenes)} scenes took {seconds:.0f} s"
@@ -183,6 +178,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         config=config,
     )
     traj = result.trajectory
+    if len(traj) == 0:
+        _log(f"{args.planner}: no plume found in {args.image}; the trajectory is empty")
     out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
     times = ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
     _log(
@@ -202,15 +199,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
-    from dyntarget.evaluate.tables import markdown_table, write_table
+    from dyntarget.evaluate.tables import markdown_table, write_result
 
     scenes = _load_labelled(args.data)
     result = evaluate_planners_on_truth(
         scenes, factor=args.factor, config=_plan_config(args), progress=not args.quiet
     )
-    paths = write_table(
-        args.out, "planning_true_masks", result["rows"], PLANNING_COLUMNS, extra=result
-    )
+    paths = write_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
     print(markdown_table(result["rows"], PLANNING_COLUMNS))
     _log("wrote " + ", ".join(str(p) for p in paths.values()))
     return EXIT_OK
@@ -283,7 +278,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
-    from dyntarget.evaluate.tables import markdown_table, write_table
+    from dyntarget.evaluate.tables import markdown_table, write_result
     from dyntarget.pipeline import PipelineConfig
 
     kw = {}
@@ -302,14 +297,8 @@ def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     scenes = _load_labelled(args.data)
     t0 = time.perf_counter()
     result = evaluate_end_to_end(scenes, config, models_dir=args.models, progress=not args.quiet)
-    result["seconds"] = time.perf_counter() - t0
-    paths = write_table(
-        args.out,
-        "table2_end_to_end",
-        result["rows"],
-        TABLE2_COLUMNS,
-        extra={k: v for k, v in result.items() if k != "rows"},
-    )
+    result["timing"] = {"seconds": time.perf_counter() - t0}
+    paths = write_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)
     print(markdown_table(result["rows"], TABLE2_COLUMNS))
     _log("wrote " + ", ".join(str(p) for p in paths.values()))
     return EXIT_OK

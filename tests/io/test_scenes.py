@@ -10,6 +10,7 @@ from affine import Affine
 
 from dyntarget import DataFileError, InvalidSceneError, Scene
 from dyntarget.io import read_scene, read_scene_dir, scene_ids, write_scene
+from helpers import ramp
 
 
 def test_round_trip_georeferenced(georef_scene, tmp_path):
@@ -33,7 +34,7 @@ def test_round_trip_plain(plain_scene, tmp_path):
 
 
 def test_unlabelled_scene(tmp_path):
-    write_scene(Scene(np.zeros((4, 4, 4), np.float32), id="u"), tmp_path)
+    write_scene(Scene(ramp(4, 4, 4), id="u"), tmp_path)
     assert read_scene(tmp_path / "u.tif").label is None
 
 
@@ -54,6 +55,7 @@ def _write_raw(path, data, **kw):
 
 def test_uint16_scaled_to_reflectance(tmp_path):
     dn = np.full((4, 3, 3), 2500, np.uint16)
+    dn[0, 2, 2] = 5000
     _write_raw(tmp_path / "dn.tif", dn)
     assert read_scene(tmp_path / "dn.tif").image[0, 0, 0] == pytest.approx(0.25)
     assert read_scene(tmp_path / "dn.tif", scale=2e-5).image[0, 0, 0] == pytest.approx(0.05)
@@ -64,7 +66,7 @@ def test_gsd_from_projected_transform(tmp_path):
 
     _write_raw(
         tmp_path / "p.tif",
-        np.zeros((4, 2, 2), np.float32),
+        ramp(4, 2, 2),
         crs=CRS.from_epsg(32605),
         transform=Affine(30.0, 0, 0, 0, -30.0, 0),
     )
@@ -72,7 +74,7 @@ def test_gsd_from_projected_transform(tmp_path):
 
 
 def test_geojson_label_pixel_coordinates(tmp_path):
-    write_scene(Scene(np.zeros((4, 10, 10), np.float32), id="g"), tmp_path)
+    write_scene(Scene(ramp(4, 10, 10), id="g"), tmp_path)
     poly = {"type": "Polygon", "coordinates": [[[2, 3], [6, 3], [6, 7], [2, 7], [2, 3]]]}
     (tmp_path / "g.geojson").write_text(
         json.dumps(
@@ -105,7 +107,7 @@ def test_geojson_label_in_crs(georef_scene, tmp_path):
 
 
 def test_geojson_empty_collection_gives_empty_label(tmp_path):
-    write_scene(Scene(np.zeros((4, 4, 4), np.float32), id="e"), tmp_path)
+    write_scene(Scene(ramp(4, 4, 4), id="e"), tmp_path)
     (tmp_path / "e.geojson").write_text('{"type": "FeatureCollection", "features": []}')
     assert not read_scene(tmp_path / "e.tif").label.any()
 
@@ -124,7 +126,7 @@ def test_geojson_empty_collection_gives_empty_label(tmp_path):
     ],
 )
 def test_bad_geojson(tmp_path, text, match):
-    write_scene(Scene(np.zeros((4, 4, 4), np.float32), id="b"), tmp_path)
+    write_scene(Scene(ramp(4, 4, 4), id="b"), tmp_path)
     (tmp_path / "b.geojson").write_text(text)
     with pytest.raises((DataFileError, InvalidSceneError), match=match):
         read_scene(tmp_path / "b.tif")
@@ -157,7 +159,7 @@ def test_wrong_band_count_file(tmp_path):
 
 
 def test_nan_in_file(tmp_path):
-    data = np.zeros((4, 2, 2), np.float32)
+    data = ramp(4, 2, 2)
     data[1, 0, 0] = np.nan
     _write_raw(tmp_path / "nan.tif", data)
     with pytest.raises(InvalidSceneError, match="nan.tif.*NaN"):
@@ -165,7 +167,7 @@ def test_nan_in_file(tmp_path):
 
 
 def test_label_shape_mismatch_file(tmp_path):
-    write_scene(Scene(np.zeros((4, 4, 4), np.float32), id="m"), tmp_path)
+    write_scene(Scene(ramp(4, 4, 4), id="m"), tmp_path)
     _write_raw(tmp_path / "m_mask.tif", np.zeros((1, 3, 4), np.uint8))
     with pytest.raises(InvalidSceneError, match="m_mask.tif.*does not match"):
         read_scene(tmp_path / "m.tif")
@@ -173,9 +175,7 @@ def test_label_shape_mismatch_file(tmp_path):
 
 def test_scene_dir_sorted_and_skips_masks(tmp_path):
     for name in ["b", "a", "c"]:
-        write_scene(
-            Scene(np.zeros((4, 2, 2), np.float32), label=np.ones((2, 2), bool), id=name), tmp_path
-        )
+        write_scene(Scene(ramp(4, 2, 2), label=np.ones((2, 2), bool), id=name), tmp_path)
     assert scene_ids(tmp_path) == ["a", "b", "c"]
     assert [s.id for s in read_scene_dir(tmp_path, require_labels=True)] == ["a", "b", "c"]
 
@@ -185,13 +185,13 @@ def test_scene_dir_errors(tmp_path):
         scene_ids(tmp_path / "missing")
     with pytest.raises(DataFileError, match="no scenes"):
         read_scene_dir(tmp_path)
-    write_scene(Scene(np.zeros((4, 2, 2), np.float32), id="nolabel"), tmp_path)
+    write_scene(Scene(ramp(4, 2, 2), id="nolabel"), tmp_path)
     with pytest.raises(InvalidSceneError, match="no label"):
         read_scene_dir(tmp_path, require_labels=True)
 
 
 def test_write_is_atomic_on_failure(tmp_path, monkeypatch):
-    s = Scene(np.zeros((4, 2, 2), np.float32), id="atomic")
+    s = Scene(ramp(4, 2, 2), id="atomic")
     write_scene(s, tmp_path)
     before = (tmp_path / "atomic.tif").read_bytes()
 
@@ -200,6 +200,6 @@ def test_write_is_atomic_on_failure(tmp_path, monkeypatch):
 
     monkeypatch.setattr(rasterio.io.DatasetWriter, "write", boom)
     with pytest.raises(RuntimeError):
-        write_scene(Scene(np.ones((4, 2, 2), np.float32), id="atomic"), tmp_path)
+        write_scene(Scene(ramp(4, 2, 2) + 0.1, id="atomic"), tmp_path)
     assert (tmp_path / "atomic.tif").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["atomic.tif"]

@@ -173,7 +173,6 @@ def cross_validate(
                     "precision_background": mean["precision_background"],
                     "recall_background": mean["recall_background"],
                     "fold_iou": [f["iou"] for f in per_fold],
-                    "predict_seconds_per_scene": float(np.median(timing[name])),
                 }
             )
     return {
@@ -181,4 +180,7 @@ def cross_validate(
         "config": asdict(config),
         "folds": [[scenes[i].id for i in sorted(f.tolist())] for f in folds],
         "wfov_shape": list(wfov[0].shape),
+        "timing": {
+            "predict_seconds_per_scene": {n: float(np.median(t)) for n, t in timing.items()}
+        },
     }

@@ -203,30 +203,18 @@ def evaluate_all(
     """Table 1 and Table 2 sharing one training run (models in ``models_dir``), plus figures."""
     from dyntarget.evaluate.crossval import CVConfig, cross_validate
     from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
-    from dyntarget.evaluate.tables import write_table
+    from dyntarget.evaluate.tables import write_result
 
     out, models_dir = Path(out), Path(models_dir)
     t0 = time.perf_counter()
     cv = CVConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
     table1 = cross_validate(scenes, cv, models_dir=models_dir, progress=progress)
-    table1["seconds"] = time.perf_counter() - t0
-    write_table(
-        out,
-        "table1_classification",
-        table1["rows"],
-        TABLE1_COLUMNS,
-        extra={k: v for k, v in table1.items() if k != "rows"},
-    )
+    table1["timing"]["seconds"] = time.perf_counter() - t0
+    write_result(out, "table1_classification", table1, TABLE1_COLUMNS)
     t0 = time.perf_counter()
     e2e = E2EConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
     table2 = evaluate_end_to_end(scenes, e2e, models_dir=models_dir, progress=progress)
-    table2["seconds"] = time.perf_counter() - t0
-    write_table(
-        out,
-        "table2_end_to_end",
-        table2["rows"],
-        TABLE2_COLUMNS,
-        extra={k: v for k, v in table2.items() if k != "rows"},
-    )
+    table2["timing"] = {"seconds": time.perf_counter() - t0}
+    write_result(out, "table2_end_to_end", table2, TABLE2_COLUMNS)
     figures = make_figures(out, scenes, table1, table2, models_dir, factor=factor)
     return table1, table2, figures

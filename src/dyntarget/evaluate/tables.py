@@ -61,6 +61,16 @@ def csv_text(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
     return buf.getvalue()
 
 
+def write_result(
+    out_dir: str | os.PathLike[str], stem: str, result: dict[str, Any], columns: Sequence[str]
+) -> dict[str, Path]:
+    """Write an evaluation result: its ``rows`` as the table, ``timing`` apart, the rest as context."""
+    extra = {k: v for k, v in result.items() if k not in ("rows", "timing")}
+    return write_table(
+        out_dir, stem, result["rows"], columns, extra=extra, timing=result.get("timing")
+    )
+
+
 def write_table(
     out_dir: str | os.PathLike[str],
     stem: str,
@@ -68,9 +78,15 @@ def write_table(
     columns: Sequence[str],
     *,
     extra: dict[str, Any] | None = None,
+    timing: dict[str, Any] | None = None,
     digits: int = 3,
 ) -> dict[str, Path]:
-    """Write ``<stem>.md``, ``<stem>.csv`` and ``<stem>.json`` into ``out_dir``."""
+    """Write ``<stem>.md``, ``<stem>.csv`` and ``<stem>.json`` into ``out_dir``.
+
+    Wall-clock measurements go to ``<stem>.timing.json`` (when ``timing`` is
+    given), so the three table files are byte-identical between runs with the
+    same seed.
+    """
     out = Path(out_dir)
     paths = {
         "md": write_text(out / f"{stem}.md", markdown_table(rows, columns, digits=digits)),
@@ -81,4 +97,8 @@ def write_table(
             + "\n",
         ),
     }
+    if timing is not None:
+        paths["timing"] = write_text(
+            out / f"{stem}.timing.json", json.dumps(timing, indent=2) + "\n"
+        )
     return paths

@@ -14,8 +14,10 @@ A *scene directory* is a folder of such files.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 import warnings
 from pathlib import Path
 
@@ -34,17 +36,45 @@ DEFAULT_SCALE = 1e-4
 """Reflectance per digital number for integer images (Sentinel-2/PlanetScope convention)."""
 
 GSD_TAG = "DYNTARGET_GSD"
+
+MAX_PIXELS = 16384 * 16384
+"""Largest image read whole (4 bands x float32 = 4 GiB); larger ones are refused with a message."""
+REFLECTANCE_RANGE = (-0.5, 2.0)
+"""Values outside this range cannot be reflectance (e.g. digital numbers stored as float)."""
 MASK_SUFFIX = "_mask"
+
+
+@contextlib.contextmanager
+def _quiet_gdal_log_errors():
+    """Silence rasterio's GDAL log handler failing on non-UTF-8 messages from a corrupt file.
+
+    rasterio decodes GDAL's error text as UTF-8 inside a C callback; garbage bytes
+    make that raise an "unraisable" exception, which Python prints as a traceback
+    although the read itself then fails cleanly (and we report it). Only that
+    case is swallowed; anything else goes to the previous hook.
+    """
+    previous = sys.unraisablehook
+
+    def hook(args):
+        if isinstance(args.exc_value, UnicodeDecodeError) and "log_error" in repr(args.object):
+            return
+        previous(args)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
 
 
 def _open(path: Path):
     if not path.exists():
         raise DataFileError(f"{path}: no such file")
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _quiet_gdal_log_errors():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             return rasterio.open(path)
-    except rasterio.errors.RasterioIOError as exc:
+    except (rasterio.errors.RasterioIOError, rasterio.errors.RasterioError) as exc:
         raise DataFileError(f"{path}: not a readable raster ({_first_line(exc)})") from None
 
 
@@ -55,7 +85,7 @@ def _first_line(exc: BaseException) -> str:
 
 def _read_all(src, path: Path) -> np.ndarray:
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _quiet_gdal_log_errors():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             return src.read()
     except (rasterio.errors.RasterioIOError, rasterio.errors.RasterioError) as exc:
@@ -84,6 +114,23 @@ def scale_to_reflectance(data: np.ndarray, *, scale: float | None, path: Path | 
         out = data.astype(np.float32)
         return out * np.float32(scale) if scale is not None else out
     raise InvalidSceneError(f"{path}: unsupported data type {data.dtype}")
+
+
+def check_reflectance(image: np.ndarray, path: Path | str) -> None:
+    """Refuse images that cannot be reflectance: non-finite, far out of range, or constant."""
+    finite = np.isfinite(image)
+    if not finite.all():
+        raise InvalidSceneError(f"{path}: {int((~finite).sum())} value(s) are NaN or infinite")
+    lo, hi = float(image.min()), float(image.max())
+    if lo < REFLECTANCE_RANGE[0] or hi > REFLECTANCE_RANGE[1]:
+        raise InvalidSceneError(
+            f"{path}: values from {lo:g} to {hi:g} are not reflectance (expected about 0..1); "
+            "digital numbers stored as float? pass a scale (--scale)"
+        )
+    if lo == hi:
+        raise InvalidSceneError(
+            f"{path}: image is constant (every value {lo:g}); a blank or nodata image?"
+        )
 
 
 def read_scene(
@@ -119,6 +166,11 @@ def read_scene(
             raise InvalidSceneError(
                 f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s)"
             )
+        if src.width * src.height > MAX_PIXELS:
+            raise InvalidSceneError(
+                f"{path}: image is {src.width} x {src.height} px, more than the {MAX_PIXELS:,} px that are read "
+                "whole; crop or tile it first"
+            )
         data = _read_all(src, path)
         crs, transform = _georef(src)
         tags = src.tags()
@@ -130,8 +182,7 @@ def read_scene(
             f"{path}: {n} pixel(s) are nodata ({nodata}); crop them out or fill them before use"
         )
     image = scale_to_reflectance(data, scale=scale, path=path)
-    if not np.isfinite(image).all():
-        raise InvalidSceneError(f"{path}: image holds NaN or infinite values")
+    check_reflectance(image, path)
     if gsd is None and GSD_TAG in tags:
         gsd = float(tags[GSD_TAG])
     elif gsd is None and transform is not None and linear_units in ("metre", "meter"):

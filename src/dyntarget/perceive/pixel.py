@@ -20,6 +20,9 @@ mlp                    StandardScaler -> MLPClassifier((32, 32), early_stopping,
 
 from __future__ import annotations
 
+import io
+import re
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +64,47 @@ TRUSTED_TYPES = [
 """The only non-builtin types a dyntarget scikit-learn model file may contain."""
 
 
+def _canonical_skops(archive: bytes) -> bytes:
+    """Make a skops archive byte-identical across runs.
+
+    skops names each array file after the Python ``id()`` of the array, records
+    object identities (``__id__``) as ``id()`` values, and dates zip entries with
+    the current time; all change between runs. Array files are renamed ``0.npy,
+    1.npy, ...`` and identities ``0, 1, ...`` in order of appearance (a bijection,
+    so shared references stay shared) and every entry is dated 1980-01-01.
+    """
+    src = zipfile.ZipFile(io.BytesIO(archive))
+    schema = src.read("schema.json").decode("utf-8")
+    names: dict[str, str] = {}
+    for match in re.finditer(r'"([0-9]+\.npy)"', schema):
+        names.setdefault(match.group(1), f"{len(names)}.npy")
+    schema = re.sub(r'"([0-9]+\.npy)"', lambda m: f'"{names[m.group(1)]}"', schema)
+    ids: dict[str, str] = {}  # object identities (shared references): renumbered consistently
+    schema = re.sub(
+        r'"__id__": ([0-9]+)',
+        lambda m: f'"__id__": {ids.setdefault(m.group(1), str(len(ids)))}',
+        schema,
+    )
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as dst:
+        for info in sorted(
+            src.infolist(),
+            key=lambda i: (i.filename != "schema.json", names.get(i.filename, i.filename)),
+        ):
+            data = (
+                schema.encode("utf-8")
+                if info.filename == "schema.json"
+                else src.read(info.filename)
+            )
+            fixed = zipfile.ZipInfo(
+                names.get(info.filename, info.filename), date_time=(1980, 1, 1, 0, 0, 0)
+            )
+            fixed.compress_type = info.compress_type
+            fixed.external_attr = info.external_attr
+            dst.writestr(fixed, data)
+    return out.getvalue()
+
+
 class PixelClassifier(Classifier):
     """A scikit-learn estimator over the four band values of each pixel."""
 
@@ -98,7 +142,7 @@ class PixelClassifier(Classifier):
         return proba.reshape(h, w)
 
     def _save_weights(self, directory: Path) -> None:
-        sio.dump(self.estimator, directory / MODEL_FILE)
+        (directory / MODEL_FILE).write_bytes(_canonical_skops(sio.dumps(self.estimator)))
 
     def _load_weights(self, directory: Path) -> None:
         path = directory / MODEL_FILE

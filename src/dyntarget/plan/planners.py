@@ -49,13 +49,15 @@ BASELINES = ("straight-nadir", "naive-transect")
 
 STEP_FRACTION = 0.01
 WIDTH_STEPS = 2.0
+MIN_STEP = 0.1
+"""Smallest step or width accepted, in pixels (finer steps only repeat the same pixel)."""
 
 
 @dataclass(frozen=True)
 class PlanConfig:
     """Planner settings (all lengths in WFOV pixels).
 
-    step : pixels between consecutive pointings (default ``step_fraction * W``).
+    step : pixels between consecutive pointings (default ``step_fraction * W``, at least 1 px).
     step_fraction : step as a fraction of the image width (paper: 1 %).
     width : spacing of cross-transects (default ``2 * step``).
     naive_fraction : side of the naive-transect square, as a fraction of min(H, W).
@@ -69,9 +71,9 @@ class PlanConfig:
     def __post_init__(self) -> None:
         for name in ("step", "width"):
             v = getattr(self, name)
-            if v is not None and (not np.isfinite(v) or v <= 0):
+            if v is not None and (not np.isfinite(v) or v < MIN_STEP):
                 raise InvalidParameterError(
-                    f"{name}: expected a positive number of pixels, got {v!r}"
+                    f"{name}: expected a number of pixels >= {MIN_STEP}, got {v!r}"
                 )
         if not 0 < self.step_fraction <= 1:
             raise InvalidParameterError(
@@ -84,7 +86,7 @@ class PlanConfig:
 
     def resolved(self, shape: tuple[int, int]) -> tuple[float, float]:
         """``(step, width)`` in pixels for an image of ``shape`` (H, W)."""
-        step = self.step if self.step is not None else max(self.step_fraction * shape[1], 1e-6)
+        step = self.step if self.step is not None else max(self.step_fraction * shape[1], 1.0)
         width = self.width if self.width is not None else WIDTH_STEPS * step
         return float(step), float(width)
 
@@ -123,7 +125,7 @@ def _visit(
         position = path[-1]
     if not pts:
         return Trajectory.empty(name, params)
-    return Trajectory(np.concatenate(pts), np.concatenate(parts), name, params)
+    return Trajectory(_clip(np.concatenate(pts), shape), np.concatenate(parts), name, params)
 
 
 def _point(xy: np.ndarray):
@@ -140,6 +142,7 @@ def _oriented(path: np.ndarray, position: np.ndarray) -> np.ndarray:
 
 
 def _clip(points: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Clip to the pixel-centre grid (polygons of edge pixels reach half a pixel beyond it)."""
     h, w = shape
     return np.column_stack([np.clip(points[:, 0], 0, w - 1), np.clip(points[:, 1], 0, h - 1)])
 
