@@ -13,3 +13,16 @@ def ramp(*shape: int):
 
     n = int(np.prod(shape))
     return np.linspace(0.0, 0.5, n, dtype=np.float32).reshape(shape)
+
+
+def shared_data():
+    """``../shared/data`` beside the checkout (or $DYNTARGET_SHARED_DATA); ``None`` when absent."""
+    import os
+    from pathlib import Path
+
+    root = Path(
+        os.environ.get(
+            "DYNTARGET_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"
+        )
+    )
+    return root if root.is_dir() else None

@@ -44,6 +44,12 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _preset_names() -> list[str]:
+    from dyntarget.io.sensors import PRESETS
+
+    return list(PRESETS)
+
+
 def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -147,7 +153,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.io import read_scene
+    from dyntarget.io import read_label
+    from dyntarget.io.sensors import read_any
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import PipelineConfig, plan_scene
 
@@ -157,9 +164,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
             )
         raise InvalidParameterError("give --mask MASK or --model PATH")
-    scene = read_scene(args.image, scale=args.scale, label=args.mask)
-    if args.mask is None:
-        scene = replace(scene, label=None)
+    scene = read_any(
+        args.image, bands=args.bands, preset=args.preset, scale=args.scale, offset=args.offset
+    )
+    label = None
+    if args.mask is not None:
+        label = read_label(args.mask, shape=scene.shape, crs=scene.crs, transform=scene.transform)
+    scene = replace(scene, label=label)
     wfov = scene.to_wfov(args.factor)
     classifier = None
     if args.model is not None:
@@ -179,7 +190,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     )
     traj = result.trajectory
     if len(traj) == 0:
-        _log(f"{args.planner}: no plume found in {args.image}; the trajectory is empty")
+        _log(f"{args.planner}: no plume found in {args.image[0]}; the trajectory is empty")
     out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
     times = ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
     _log(
@@ -190,9 +201,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dyntarget.evaluate.figures import trajectories_figure
 
         print(
-            trajectories_figure(
-                wfov.image, [traj], args.figure, mask=result.mask, title=Path(args.image).name
-            )
+            trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=scene.id)
         )
     return EXIT_OK
 
@@ -413,7 +422,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "plan", help="plan an NFOV trajectory for one image (classify, denoise, plan)"
     )
-    p.add_argument("image", help="4-band GeoTIFF (R, G, B, NIR)")
+    p.add_argument(
+        "image",
+        nargs="+",
+        help="a 4-band GeoTIFF (R, G, B, NIR), a multi-band product with --preset/--bands, a .npz, "
+        "or four single-band files in the order R G B NIR",
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
     src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
@@ -429,6 +443,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--scale", type=_positive_float, help="reflectance per digital number for integer images"
+    )
+    p.add_argument("--preset", help="sensor preset: " + ", ".join(_preset_names()))
+    p.add_argument(
+        "--bands", help="R,G,B,NIR band numbers (1-based) or names, e.g. 3,2,1,7 or B4,B3,B2,B8"
+    )
+    p.add_argument(
+        "--offset", type=float, help="reflectance offset added after scaling (e.g. -0.1)"
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     _add_plan_options(p)

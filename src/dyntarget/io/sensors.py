@@ -1,0 +1,307 @@
+"""Sensor presets and flexible ingest: band selection, one file per band, ``.npz``.
+
+A preset fixes where R, G, B and NIR sit in a product's multi-band file and how
+digital numbers become reflectance (``reflectance = DN * scale + offset``):
+
+==================  ====================  ==================  ===========================================
+preset              bands (1-based)       scale, offset       notes
+==================  ====================  ==================  ===========================================
+``planetscope``     3, 2, 1, 4            1e-4, 0             4-band analytic SR/TOA: B, G, R, NIR on disk
+``skysat``          3, 2, 1, 4            1e-4, 0             4-band analytic: B, G, R, NIR on disk
+``sentinel2-l1c``   4, 3, 2, 8            1e-4, 0             13-band stack B1..B8, B8A, B9..B12
+``sentinel2-l2a``   4, 3, 2, 8            1e-4, 0             12-band stack (no B10); baseline >= 04.00
+                                                              products need ``offset=-0.1``
+``landsat8/9``      4, 3, 2, 5            2e-5, -0.1          Collection 1/2 Level-1 TOA reflectance
+                                                              (REFLECTANCE_MULT/ADD), no sun-angle term
+==================  ====================  ==================  ===========================================
+
+Band names (``B4,B3,B2,B8``) resolve through the preset's band list, or
+through the file's own band descriptions.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dyntarget.errors import (
+    DataFileError,
+    InvalidParameterError,
+    InvalidSceneError,
+    UnknownNameError,
+)
+from dyntarget.io import scenes as scene_io
+from dyntarget.scene import Scene
+
+_S2_L1C = ("B1", "B2", "B3", "B4", "B5", "B6", "B7", "B8", "B8A", "B9", "B10", "B11", "B12")
+_S2_L2A = ("B1", "B2", "B3", "B4", "B5", "B6", "B7", "B8", "B8A", "B9", "B11", "B12")
+_LANDSAT = ("B1", "B2", "B3", "B4", "B5", "B6", "B7")
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Where R, G, B, NIR are in a product's file and how to scale its numbers."""
+
+    name: str
+    bands: tuple[int, int, int, int]
+    scale: float
+    offset: float
+    band_names: tuple[str, ...] = ()
+    description: str = ""
+
+
+PRESETS: dict[str, Preset] = {
+    p.name: p
+    for p in (
+        Preset(
+            "planetscope",
+            (3, 2, 1, 4),
+            1e-4,
+            0.0,
+            ("B", "G", "R", "NIR"),
+            "PlanetScope 4-band (B, G, R, NIR)",
+        ),
+        Preset(
+            "skysat",
+            (3, 2, 1, 4),
+            1e-4,
+            0.0,
+            ("B", "G", "R", "NIR"),
+            "SkySat 4-band (B, G, R, NIR)",
+        ),
+        Preset(
+            "sentinel2-l1c", (4, 3, 2, 8), 1e-4, 0.0, _S2_L1C, "Sentinel-2 L1C, 13 bands, DN/10000"
+        ),
+        Preset(
+            "sentinel2-l2a",
+            (4, 3, 2, 8),
+            1e-4,
+            0.0,
+            _S2_L2A,
+            "Sentinel-2 L2A, 12 bands (no B10), DN/10000",
+        ),
+        Preset(
+            "landsat8", (4, 3, 2, 5), 2e-5, -0.1, _LANDSAT, "Landsat 8 OLI L1 TOA (DN * 2e-5 - 0.1)"
+        ),
+        Preset(
+            "landsat9",
+            (4, 3, 2, 5),
+            2e-5,
+            -0.1,
+            _LANDSAT,
+            "Landsat 9 OLI-2 L1 TOA (DN * 2e-5 - 0.1)",
+        ),
+    )
+}
+
+
+def get_preset(name: str) -> Preset:
+    try:
+        return PRESETS[name]
+    except KeyError:
+        raise UnknownNameError(
+            f"unknown preset {name!r}; expected one of: {', '.join(PRESETS)}"
+        ) from None
+
+
+def parse_bands(
+    text: str | Sequence[int | str], names: Sequence[str] = ()
+) -> tuple[int, int, int, int]:
+    """Parse a band selection for R, G, B, NIR: ``"3,2,1,7"`` (1-based) or names like ``"B4,B3,B2,B8"``.
+
+    Examples
+    --------
+    >>> parse_bands("3,2,1,7")
+    (3, 2, 1, 7)
+    >>> parse_bands("B4,B3,B2,B8", names=["B1", "B2", "B3", "B4", "B5", "B6", "B7", "B8"])
+    (4, 3, 2, 8)
+    """
+    tokens = (
+        [t.strip() for t in text.split(",")] if isinstance(text, str) else [str(t) for t in text]
+    )
+    if len(tokens) != 4:
+        raise InvalidParameterError(
+            f"bands: expected 4 bands for R, G, B, NIR, got {len(tokens)} in {text!r}"
+        )
+    lookup = {n.upper(): i + 1 for i, n in enumerate(names)}
+    out = []
+    for t in tokens:
+        if t.isdigit():
+            idx = int(t)
+        elif t.upper() in lookup:
+            idx = lookup[t.upper()]
+        else:
+            known = f"; known names: {', '.join(names)}" if names else ""
+            raise InvalidParameterError(
+                f"bands: {t!r} is neither a 1-based band number nor a band name{known}"
+            )
+        if idx < 1:
+            raise InvalidParameterError(f"bands: band numbers are 1-based, got {idx}")
+        out.append(idx)
+    return tuple(out)  # type: ignore[return-value]
+
+
+def _scale(data: np.ndarray, scale: float | None, offset: float, path: object) -> np.ndarray:
+    image = scene_io.scale_to_reflectance(data, scale=scale, path=str(path))
+    return image + np.float32(offset) if offset else image
+
+
+def read_multiband(
+    path: str | os.PathLike[str],
+    *,
+    bands: str | Sequence[int | str] | None = None,
+    preset: str | None = None,
+    scale: float | None = None,
+    offset: float | None = None,
+) -> Scene:
+    """Read R, G, B, NIR from one multi-band raster (selected by ``bands`` or a ``preset``)."""
+    path = Path(path)
+    p = get_preset(preset) if preset else None
+    with scene_io._open(path) as src:
+        names = p.band_names if p and p.band_names else tuple(d or "" for d in src.descriptions)
+        if bands is not None:
+            sel = parse_bands(bands, names)
+        elif p is not None:
+            sel = p.bands
+        else:
+            sel = (1, 2, 3, 4)
+            if src.count != 4:
+                raise InvalidSceneError(
+                    f"{path}: {src.count} band(s); choose R, G, B, NIR with --bands or a --preset"
+                )
+        if max(sel) > src.count:
+            raise InvalidSceneError(
+                f"{path}: band {max(sel)} requested but the file has {src.count} band(s)"
+            )
+        if src.width * src.height > scene_io.MAX_PIXELS:
+            raise InvalidSceneError(
+                f"{path}: image is {src.width} x {src.height} px, too large to read whole"
+            )
+        try:
+            data = src.read(list(sel))
+        except Exception as exc:  # rasterio raises several types on corrupt data
+            raise DataFileError(
+                f"{path}: corrupt or truncated raster ({scene_io._first_line(exc)})"
+            ) from None
+        crs, transform = scene_io._georef(src)
+        gsd = (
+            abs(transform.a) if transform is not None and src.crs and src.crs.is_projected else None
+        )
+    image = _scale(
+        data,
+        scale if scale is not None else (p.scale if p else None),
+        offset if offset is not None else (p.offset if p else 0.0),
+        path,
+    )
+    scene_io.check_reflectance(image, path)
+    return Scene(image, gsd=gsd, crs=crs, transform=transform, id=path.stem)
+
+
+def read_band_files(
+    paths: Sequence[str | os.PathLike[str]],
+    *,
+    preset: str | None = None,
+    scale: float | None = None,
+    offset: float | None = None,
+    scene_id: str | None = None,
+) -> Scene:
+    """Read one single-band file per band, given in the order R, G, B, NIR (the Landsat/38-Cloud layout)."""
+    if len(paths) != 4:
+        raise InvalidParameterError(
+            f"band files: expected 4 files (R, G, B, NIR), got {len(paths)}"
+        )
+    p = get_preset(preset) if preset else None
+    planes, georef, shape = [], None, None
+    for path in map(Path, paths):
+        with scene_io._open(path) as src:
+            if src.count != 1:
+                raise InvalidSceneError(f"{path}: a band file must hold 1 band, got {src.count}")
+            plane = scene_io._read_all(src, path)[0]
+            ref = scene_io._georef(src)
+        if shape is None:
+            shape, georef = plane.shape, ref
+        elif plane.shape != shape:
+            raise InvalidSceneError(
+                f"{path}: shape {plane.shape} differs from the first band's {shape}"
+            )
+        elif ref != georef:
+            raise InvalidSceneError(f"{path}: georeferencing differs from the first band's")
+        planes.append(plane)
+    data = np.stack(planes)
+    image = _scale(
+        data,
+        scale if scale is not None else (p.scale if p else None),
+        offset if offset is not None else (p.offset if p else 0.0),
+        paths[0],
+    )
+    scene_io.check_reflectance(image, paths[0])
+    crs, transform = georef
+    return Scene(
+        image, crs=crs, transform=transform, id=scene_id or Path(paths[0]).parent.name or "scene"
+    )
+
+
+def read_npz(
+    path: str | os.PathLike[str], *, scale: float | None = None, offset: float = 0.0
+) -> Scene:
+    """Read ``image`` (4, H, W) or ``red``, ``green``, ``blue``, ``nir`` arrays (and an optional ``label``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"{path}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (ValueError, OSError, EOFError) as exc:
+        raise DataFileError(
+            f"{path}: not a readable .npz file ({scene_io._first_line(exc)})"
+        ) from None
+    if "image" in arrays:
+        data = arrays["image"]
+    elif {"red", "green", "blue", "nir"} <= arrays.keys():
+        data = np.stack([arrays[k] for k in ("red", "green", "blue", "nir")])
+    else:
+        raise InvalidSceneError(
+            f"{path}: expected an 'image' array or 'red', 'green', 'blue', 'nir'; found {sorted(arrays)}"
+        )
+    label = arrays.get("label")
+    if data.ndim != 3 or data.shape[0] != 4:
+        raise InvalidSceneError(
+            f"{path}: expected 4 bands (R, G, B, NIR) of shape (4, H, W), got {data.shape}"
+        )
+    image = _scale(data, scale, offset, path)
+    scene_io.check_reflectance(image, path)
+    try:
+        return Scene(image, label=label, id=path.stem)
+    except InvalidSceneError as exc:
+        raise InvalidSceneError(f"{path}: {exc}") from None
+
+
+def read_any(
+    paths: Sequence[str | os.PathLike[str]],
+    *,
+    bands: str | None = None,
+    preset: str | None = None,
+    scale: float | None = None,
+    offset: float | None = None,
+) -> Scene:
+    """One path (GeoTIFF or .npz) or four band files (R, G, B, NIR): the CLI's image argument."""
+    if len(paths) == 4:
+        if bands:
+            raise InvalidParameterError(
+                "bands: not used with four band files (they are R, G, B, NIR in order)"
+            )
+        return read_band_files(paths, preset=preset, scale=scale, offset=offset)
+    if len(paths) != 1:
+        raise InvalidParameterError(
+            f"image: expected 1 file or 4 band files (R, G, B, NIR), got {len(paths)}"
+        )
+    path = Path(paths[0])
+    if path.suffix.lower() == ".npz":
+        return read_npz(path, scale=scale, offset=offset or 0.0)
+    if bands is None and preset is None and offset is None:
+        return scene_io.read_scene(path, scale=scale)
+    return read_multiband(path, bands=bands, preset=preset, scale=scale, offset=offset)
