@@ -1,0 +1,302 @@
+"""The industrial smoke plume dataset (Mommert et al. 2020), Zenodo record 4250706.
+
+M. Mommert, M. Sigel, M. Neuhausler, L. Scheibenreif, D. Borth, "Characterization
+of Industrial Smoke Plumes from Remote Sensing Data", Tackling Climate Change with
+Machine Learning workshop, NeurIPS 2020. https://doi.org/10.5281/zenodo.4250706
+
+Published layout (learned from the dataset record and the authors' loader,
+github.com/HSG-AIML/IndustrialSmokePlumeDetection, ``segmentation/data.py``):
+
+* ``images.tar.gz``: Sentinel-2 GeoTIFFs, about 120 x 120 px at 10 m, all 13
+  bands in the order B1..B8, B8A, B9..B12, digital numbers (reflectance x
+  10000), in folders named ``positive`` (smoke present) and ``negative``;
+  file names embed an ISO timestamp (with colons);
+* ``segmentation_labels.tar.gz``: one Label Studio JSON file per annotated
+  image: ``data.image`` is ``"<upload prefix>-<image name>.png"`` and
+  ``completions[*].result[*].value.points`` are polygon vertices ``[x, y]`` in
+  percent of a 120 px image (the authors scale them by 1.2 to pixels and
+  rasterise with ``all_touched=True``).
+
+:func:`fetch` downloads the record's files with the MD5 checksums the Zenodo
+API publishes for them, resuming partial downloads. :func:`prepare` converts
+the annotated positives (and optionally as many negatives) into a dyntarget
+scene directory: ``<id>.tif`` (R, G, B, NIR = B4, B3, B2, B8, reflectance) and
+``<id>_mask.tif``; colons in ids become ``-``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import tarfile
+import urllib.error
+import urllib.request
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+import rasterio
+import rasterio.errors
+import rasterio.features
+from affine import Affine
+from tqdm import tqdm
+
+from dyntarget.errors import DataFileError
+from dyntarget.io import write_scene
+from dyntarget.scene import Scene
+
+RECORD_ID = 4250706
+DOI = "10.5281/zenodo.4250706"
+RECORD_API = f"https://zenodo.org/api/records/{RECORD_ID}"
+IMAGES, LABELS = "images.tar.gz", "segmentation_labels.tar.gz"
+RGBN_BANDS = (4, 3, 2, 8)  # B4, B3, B2, B8 in the 13-band (and the 12-band L2A) stack
+DN_SCALE = 1e-4
+LABEL_PERCENT_TO_PX = 1.2  # percent of a 120 px image
+GSD_M = 10.0
+CHUNK = 1 << 20
+
+
+@dataclass(frozen=True)
+class RemoteFile:
+    key: str
+    size: int
+    md5: str
+    url: str
+
+
+# ------------------------------------------------------------------ fetching
+
+
+def _network_error(url: str, exc: BaseException) -> DataFileError:
+    reason = getattr(exc, "reason", exc)
+    return DataFileError(
+        f"cannot download {url}: {reason}. Is the network reachable? Download the files of "
+        f"https://doi.org/{DOI} by hand into the folder instead, then run 'dyntarget datasets prepare'"
+    )
+
+
+def record_files(api_url: str = RECORD_API, *, timeout: float = 30.0) -> list[RemoteFile]:
+    """The record's files with sizes and MD5 checksums, from the Zenodo records API."""
+    try:
+        with urllib.request.urlopen(api_url, timeout=timeout) as resp:
+            record = json.load(resp)
+    except OSError as exc:  # URLError and TimeoutError are OSErrors
+        raise _network_error(api_url, exc) from None
+    except json.JSONDecodeError as exc:
+        raise DataFileError(f"{api_url}: not a Zenodo record ({exc})") from None
+    files = []
+    for f in record.get("files", []):
+        checksum = str(f.get("checksum", ""))
+        if not checksum.startswith("md5:"):
+            raise DataFileError(f"{api_url}: file {f.get('key')!r} has no MD5 checksum")
+        files.append(RemoteFile(f["key"], int(f["size"]), checksum[4:], f["links"]["self"]))
+    if not files:
+        raise DataFileError(f"{api_url}: the record lists no files")
+    return files
+
+
+def _md5(path: Path) -> str:
+    h = hashlib.md5(usedforsecurity=False)
+    with path.open("rb") as fh:
+        for chunk in iter(lambda: fh.read(CHUNK), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def download(
+    remote: RemoteFile, directory: Path, *, timeout: float = 60.0, progress: bool = True
+) -> Path:
+    """Download one file, resuming ``<name>.part`` with an HTTP Range request; verify its MD5."""
+    target = directory / remote.key
+    if target.exists() and target.stat().st_size == remote.size and _md5(target) == remote.md5:
+        return target
+    part = directory / f"{remote.key}.part"
+    have = part.stat().st_size if part.exists() else 0
+    if have > remote.size:
+        part.unlink()
+        have = 0
+    request = urllib.request.Request(
+        remote.url, headers={"Range": f"bytes={have}-"} if have else {}
+    )
+    try:
+        with urllib.request.urlopen(request, timeout=timeout) as resp:
+            if have and resp.status != 206:  # the server ignored the range: start again
+                have = 0
+            mode = "ab" if have else "wb"
+            with (
+                part.open(mode) as out,
+                tqdm(
+                    total=remote.size,
+                    initial=have,
+                    unit="B",
+                    unit_scale=True,
+                    desc=remote.key,
+                    disable=not progress,
+                ) as bar,
+            ):
+                for chunk in iter(lambda: resp.read(CHUNK), b""):
+                    out.write(chunk)
+                    bar.update(len(chunk))
+    except OSError as exc:  # URLError and TimeoutError are OSErrors
+        raise _network_error(remote.url, exc) from None
+    if part.stat().st_size != remote.size or _md5(part) != remote.md5:
+        part.unlink(missing_ok=True)
+        raise DataFileError(
+            f"{remote.key}: size or MD5 does not match the record; the partial download was removed"
+        )
+    os.replace(part, target)
+    return target
+
+
+def fetch(
+    to: str | os.PathLike[str], *, api_url: str = RECORD_API, progress: bool = True
+) -> list[Path]:
+    """Download the dataset's files into ``to`` (resumable, checksummed)."""
+    directory = Path(to)
+    directory.mkdir(parents=True, exist_ok=True)
+    return [download(f, directory, progress=progress) for f in record_files(api_url)]
+
+
+# ------------------------------------------------------------------ preparing
+
+
+def label_image_name(image_field: str) -> str:
+    """The GeoTIFF name a Label Studio ``data.image`` refers to (the authors' rule).
+
+    Examples
+    --------
+    >>> label_image_name("/data/upload/17-site_2019-05-09T10:26:31.png")
+    'site_2019-05-09T10:26:31.tif'
+    """
+    name = PurePosixPath(image_field).name
+    return "-".join(name.split("-")[1:]).replace(".png", ".tif")
+
+
+def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
+    """``(image name, polygons in percent)`` from one Label Studio JSON document."""
+    try:
+        name = label_image_name(doc["data"]["image"])
+        polygons = [
+            np.asarray(result["value"]["points"], dtype=np.float64)
+            for completion in doc.get("completions", [])
+            for result in completion.get("result", [])
+        ]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{source}: not a Label Studio annotation ({exc!r})") from None
+    return name, [p for p in polygons if p.ndim == 2 and p.shape[0] >= 3 and p.shape[1] == 2]
+
+
+def _members(source: Path, suffixes: tuple[str, ...]) -> Iterator[tuple[str, bytes]]:
+    """``(path, bytes)`` of the files in a .tar.gz archive or an extracted folder."""
+    if source.is_dir():
+        for p in sorted(source.rglob("*")):
+            if p.is_file() and p.suffix.lower() in suffixes:
+                yield p.relative_to(source).as_posix(), p.read_bytes()
+        return
+    try:
+        with tarfile.open(source, "r:*") as tar:
+            for m in sorted(tar.getmembers(), key=lambda m: m.name):
+                if m.isfile() and PurePosixPath(m.name).suffix.lower() in suffixes:
+                    fh = tar.extractfile(m)
+                    if fh is not None:
+                        yield m.name, fh.read()
+    except (tarfile.TarError, OSError, EOFError) as exc:
+        raise DataFileError(f"{source}: not a readable archive ({exc})") from None
+
+
+def _find(src: Path, archive: str) -> Path:
+    for candidate in (src / archive, src / archive.removesuffix(".tar.gz")):
+        if candidate.exists():
+            return candidate
+    raise DataFileError(
+        f"{src}: neither {archive} nor its extracted folder is there (run 'dyntarget datasets fetch')"
+    )
+
+
+def _read_tif(name: str, data: bytes) -> tuple[np.ndarray, str | None, Affine | None]:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.MemoryFile(data) as mem, mem.open() as ds:
+                if ds.count < max(RGBN_BANDS):
+                    raise DataFileError(
+                        f"{name}: {ds.count} band(s); expected a 12- or 13-band Sentinel-2 stack"
+                    )
+                planes = ds.read(list(RGBN_BANDS))
+                crs = ds.crs.to_string() if ds.crs else None
+                transform = ds.transform if ds.crs else None
+    except rasterio.errors.RasterioError as exc:
+        raise DataFileError(f"{name}: not a readable GeoTIFF ({exc})") from None
+    return planes.astype(np.float32) * np.float32(DN_SCALE), crs, transform
+
+
+def _scene_id(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "-", PurePosixPath(name).stem)
+
+
+def prepare(
+    src: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    negatives: bool = False,
+    progress: bool = True,
+) -> list[str]:
+    """Convert the downloaded dataset into a scene directory; returns the scene ids written.
+
+    Annotated images in ``positive`` folders become labelled scenes. With
+    ``negatives``, as many images from ``negative`` folders are added with empty
+    labels (the authors' balancing).
+    """
+    src, out = Path(src), Path(out)
+    labels: dict[str, list[np.ndarray]] = {}
+    for path, data in _members(_find(src, LABELS), (".json",)):
+        try:
+            doc = json.loads(data.decode("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DataFileError(f"{path}: not valid JSON ({exc})") from None
+        name, polygons = parse_label(doc, path)
+        if polygons:
+            labels[name] = polygons
+    if not labels:
+        raise DataFileError(f"{src}: no segmentation labels with polygons found")
+    written: list[str] = []
+    n_neg = 0
+    images = _members(_find(src, IMAGES), (".tif", ".tiff"))
+    for path, data in tqdm(images, desc="prepare", unit="image", disable=not progress):
+        parts = PurePosixPath(path).parts
+        name = PurePosixPath(path).name
+        positive = "positive" in parts and name in labels
+        negative = negatives and "negative" in parts and n_neg < len(labels)
+        if not (positive or negative):
+            continue
+        image, crs, transform = _read_tif(path, data)
+        h, w = image.shape[1:]
+        mask = np.zeros((h, w), bool)
+        if positive:
+            from shapely.geometry import Polygon
+
+            shapes = [Polygon(p * LABEL_PERCENT_TO_PX) for p in labels[name]]
+            shapes = [s.buffer(0) if not s.is_valid else s for s in shapes]
+            mask = rasterio.features.rasterize(
+                [(s, 1) for s in shapes if not s.is_empty],
+                out_shape=(h, w),
+                all_touched=True,
+                dtype="uint8",
+            ).astype(bool)
+        else:
+            n_neg += 1
+        scene = Scene(
+            image, label=mask, gsd=GSD_M, crs=crs, transform=transform, id=_scene_id(name)
+        )
+        write_scene(scene, out)
+        written.append(scene.id)
+    if not written:
+        raise DataFileError(f"{src}: no annotated image in a 'positive' folder matched a label")
+    return written
+
+
+__all__ = ["DOI", "RECORD_API", "fetch", "label_image_name", "prepare", "record_files"]
