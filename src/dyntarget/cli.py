@@ -150,10 +150,8 @@ def _plan_config(args: argparse.Namespace):
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from dataclasses import replace
 
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.io import read_label
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import PipelineConfig, plan_scene
@@ -164,14 +162,15 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
             )
         raise InvalidParameterError("give --mask MASK or --model PATH")
-    scene = read_any(
-        args.image, bands=args.bands, preset=args.preset, scale=args.scale, offset=args.offset
+    wfov = read_any(
+        args.image,
+        label=args.mask,
+        bands=args.bands,
+        preset=args.preset,
+        scale=args.scale,
+        offset=args.offset,
+        factor=args.factor,
     )
-    label = None
-    if args.mask is not None:
-        label = read_label(args.mask, shape=scene.shape, crs=scene.crs, transform=scene.transform)
-    scene = replace(scene, label=label)
-    wfov = scene.to_wfov(args.factor)
     classifier = None
     if args.model is not None:
         classifier = load_classifier(args.model)
@@ -185,6 +184,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         classifier,
         args.planner,
         mask=wfov.label,
+        valid=wfov.valid,
         denoise=not args.no_denoise,
         config=config,
     )
@@ -200,9 +200,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
 
-        print(
-            trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=scene.id)
-        )
+        print(trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=wfov.id))
     return EXIT_OK
 
 

@@ -53,6 +53,7 @@ def plan_scene(
     planner: str,
     *,
     mask: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
     denoise: bool = True,
     config: PipelineConfig | None = None,
 ) -> PlanResult:
@@ -64,6 +65,7 @@ def plan_scene(
     classifier : a fitted classifier, or ``None`` when ``mask`` is given.
     planner : registered planner name (see ``dyntarget planners``).
     mask : a plume mask to plan on instead of classifying (e.g. a hand label).
+    valid : ``False`` on nodata pixels (``Scene.valid``): never plume, never pointed at.
     denoise : apply Algorithm 2 before planning (as the paper does).
     """
     config = config or PipelineConfig()
@@ -82,6 +84,12 @@ def plan_scene(
             raise InvalidSceneError(
                 f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
             )
+    if valid is not None:
+        if np.shape(valid) != raw.shape:
+            raise InvalidSceneError(
+                f"valid: shape {np.shape(valid)} does not match the image's {raw.shape}"
+            )
+        raw = raw & np.asarray(valid, bool)
     timings["classify"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if denoise:
@@ -95,5 +103,11 @@ def plan_scene(
     timings["denoise"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     trajectory = plan(planner, clean, polygons, config.plan)
+    if valid is not None and len(trajectory):
+        rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, raw.shape[0] - 1)
+        cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, raw.shape[1] - 1)
+        trajectory = trajectory.without(
+            ~np.asarray(valid, bool)[rows, cols]
+        )  # never point at nodata
     timings["plan"] = time.perf_counter() - t0
     return PlanResult(probability, raw, clean, polygons, trajectory, timings)

@@ -93,6 +93,10 @@ class Scene:
         Pixel -> CRS affine transform (GDAL convention, top-left corner).
     id : str
         Scene identifier, also the file stem on disk.
+    valid : array (H, W) or None
+        ``False`` where the sensor has no data (nodata); ``None`` when every pixel
+        is valid. Nodata pixels are left out of training and metrics and are
+        never observed; their image values are placeholders (0).
 
     Examples
     --------
@@ -108,6 +112,7 @@ class Scene:
     crs: str | None = None
     transform: Affine | None = None
     id: str = "scene"
+    valid: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         image = check_image(self.image, name=f"scene {self.id!r} image")
@@ -115,6 +120,15 @@ class Scene:
         if self.label is not None:
             label = check_label(self.label, image.shape[1:], name=f"scene {self.id!r} label")
             object.__setattr__(self, "label", label)
+        if self.valid is not None:
+            valid = np.asarray(self.valid)
+            if valid.shape != image.shape[1:] or valid.dtype != bool:
+                raise InvalidSceneError(
+                    f"scene {self.id!r} valid mask: expected bool {image.shape[1:]}, got {valid.dtype} {valid.shape}"
+                )
+            if not valid.any():
+                raise InvalidSceneError(f"scene {self.id!r}: no valid pixel (everything is nodata)")
+            object.__setattr__(self, "valid", None if valid.all() else valid)
         if self.gsd is not None:
             gsd = float(self.gsd)
             if not np.isfinite(gsd) or gsd <= 0:
@@ -135,6 +149,11 @@ class Scene:
         return (int(self.image.shape[1]), int(self.image.shape[2]))
 
     @property
+    def valid_mask(self) -> np.ndarray:
+        """``bool (H, W)``: ``True`` where there is data (all ``True`` without nodata)."""
+        return self.valid if self.valid is not None else np.ones(self.shape, bool)
+
+    @property
     def georeferenced(self) -> bool:
         return self.crs is not None and self.transform is not None
 
@@ -147,7 +166,8 @@ class Scene:
         whole block (``H % factor``, ``W % factor`` at the bottom/right edge) are
         dropped, so the top-left origin and the transform stay exact; the new
         transform is ``transform @ Affine.scale(factor)`` and the GSD is
-        multiplied by ``factor``.
+        multiplied by ``factor``. A WFOV pixel is valid only when all of its
+        high-resolution pixels are.
         """
         factor = check_factor(factor, self.shape)
         if factor == 1:
@@ -158,6 +178,13 @@ class Scene:
         if self.label is not None:
             frac = block_mean(self.label[None].astype(np.float32), factor)[0]
             label = frac >= LABEL_FRACTION
+        valid = None
+        if self.valid is not None:
+            valid = block_mean(self.valid[None].astype(np.float32), factor)[0] == 1.0
+            if not valid.any():
+                raise InvalidSceneError(
+                    f"scene {self.id!r}: no WFOV pixel at factor {factor} is free of nodata"
+                )
         assert image.shape == (4, h, w)
         return replace(
             self,
@@ -165,6 +192,7 @@ class Scene:
             label=label,
             gsd=None if self.gsd is None else self.gsd * factor,
             transform=None if self.transform is None else self.transform @ Affine.scale(factor),
+            valid=valid,
         )
 
 

@@ -144,13 +144,14 @@ def cross_validate(
                 t0 = time.perf_counter()
                 pred = model.predict(s.image)
                 timing[name].append(time.perf_counter() - t0)
-                raw = raw + Confusion.from_masks(pred, s.label)
+                pred &= s.valid_mask
+                raw = raw + Confusion.from_masks(pred, s.label, s.valid)
                 cleaned = denoise(
                     pred,
                     iterations=config.denoise_iterations,
                     min_area_fraction=config.min_area_fraction,
                 ).mask
-                den = den + Confusion.from_masks(cleaned, s.label)
+                den = den + Confusion.from_masks(cleaned, s.label, s.valid)
             counts.setdefault((name, False), []).append(raw)
             counts.setdefault((name, True), []).append(den)
             steps.update()

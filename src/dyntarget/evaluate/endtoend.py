@@ -90,6 +90,7 @@ def evaluate_end_to_end(
                     None,
                     name,
                     mask=np.zeros(wfov[i].shape, bool),
+                    valid=wfov[i].valid,
                     config=config.pipeline,
                 )
                 records.append(
@@ -118,7 +119,14 @@ def evaluate_end_to_end(
                 classify_s = time.perf_counter() - t0
                 mask = proba >= config.pipeline.threshold
                 for pname in lookahead:
-                    res = plan_scene(wfov[i].image, None, pname, mask=mask, config=config.pipeline)
+                    res = plan_scene(
+                        wfov[i].image,
+                        None,
+                        pname,
+                        mask=mask,
+                        valid=wfov[i].valid,
+                        config=config.pipeline,
+                    )
                     runtime = classify_s + res.timings["denoise"] + res.timings["plan"]
                     records.append(
                         _record(

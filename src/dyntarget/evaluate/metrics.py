@@ -27,12 +27,18 @@ class Confusion:
     tn: int = 0
 
     @classmethod
-    def from_masks(cls, predicted: np.ndarray, truth: np.ndarray) -> Confusion:
+    def from_masks(
+        cls, predicted: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None
+    ) -> Confusion:
+        """Counts over the pixels where ``valid`` (default: all); nodata pixels do not count."""
         predicted, truth = np.asarray(predicted, bool), np.asarray(truth, bool)
         if predicted.shape != truth.shape:
             raise InvalidSceneError(
                 f"predicted mask {predicted.shape} and truth {truth.shape} differ in shape"
             )
+        if valid is not None:
+            valid = np.asarray(valid, bool)
+            predicted, truth = predicted[valid], truth[valid]
         tp = int(np.count_nonzero(predicted & truth))
         fp = int(np.count_nonzero(predicted & ~truth))
         fn = int(np.count_nonzero(~predicted & truth))

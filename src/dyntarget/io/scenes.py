@@ -30,7 +30,7 @@ from rasterio.crs import CRS
 
 from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError
 from dyntarget.io.atomic import atomic_path
-from dyntarget.scene import Scene, check_label
+from dyntarget.scene import LABEL_FRACTION, Scene, block_mean, check_factor, check_label
 
 DEFAULT_SCALE = 1e-4
 """Reflectance per digital number for integer images (Sentinel-2/PlanetScope convention)."""
@@ -116,12 +116,20 @@ def scale_to_reflectance(data: np.ndarray, *, scale: float | None, path: Path | 
     raise InvalidSceneError(f"{path}: unsupported data type {data.dtype}")
 
 
-def check_reflectance(image: np.ndarray, path: Path | str) -> None:
-    """Refuse images that cannot be reflectance: non-finite, far out of range, or constant."""
-    finite = np.isfinite(image)
+def check_reflectance(
+    image: np.ndarray, path: Path | str, invalid: np.ndarray | None = None
+) -> None:
+    """Refuse images that cannot be reflectance: non-finite, far out of range, or constant.
+
+    Only pixels with data count (``invalid`` marks nodata pixels).
+    """
+    values = image if invalid is None else image[:, ~invalid]
+    if values.size == 0:
+        raise InvalidSceneError(f"{path}: no valid pixel (everything is nodata)")
+    finite = np.isfinite(values)
     if not finite.all():
         raise InvalidSceneError(f"{path}: {int((~finite).sum())} value(s) are NaN or infinite")
-    lo, hi = float(image.min()), float(image.max())
+    lo, hi = float(values.min()), float(values.max())
     if lo < REFLECTANCE_RANGE[0] or hi > REFLECTANCE_RANGE[1]:
         raise InvalidSceneError(
             f"{path}: values from {lo:g} to {hi:g} are not reflectance (expected about 0..1); "
@@ -133,12 +141,31 @@ def check_reflectance(image: np.ndarray, path: Path | str) -> None:
         )
 
 
+def _nodata_mask(data: np.ndarray, nodata: float | None) -> np.ndarray | None:
+    """``True`` where any band holds the nodata value (or NaN when nodata is NaN); ``None`` if none."""
+    if nodata is None:
+        return None
+    bad = np.isnan(data).any(axis=0) if np.isnan(nodata) else (data == nodata).any(axis=0)
+    return bad if bad.any() else None
+
+
+def _to_reflectance(data: np.ndarray, nodata: float | None, scale: float | None, path: Path):
+    """Scale raw values; nodata pixels become 0 and are returned as ``invalid``."""
+    invalid = _nodata_mask(data, nodata)
+    if invalid is not None:
+        data = data.copy()
+        data[:, invalid] = 0
+    return scale_to_reflectance(data, scale=scale, path=path), invalid
+
+
 def read_scene(
     path: str | os.PathLike[str],
     *,
     label: str | os.PathLike[str] | None = None,
     scale: float | None = None,
     gsd: float | None = None,
+    factor: int = 1,
+    auto_label: bool = True,
 ) -> Scene:
     """Read ``<id>.tif`` (and its label, if one sits beside it) as a :class:`Scene`.
 
@@ -150,52 +177,141 @@ def read_scene(
     scale : reflectance per digital number for integer images (default 1e-4).
     gsd : ground sampling distance in metres; by default the ``DYNTARGET_GSD``
         tag, else the pixel size of a projected CRS in metres, else unknown.
+    factor : read straight onto the WFOV grid (``Scene.to_wfov(factor)``),
+        in strips of rows, so an image too large to hold whole is never held.
+    auto_label : look for ``<id>_mask.tif`` / ``<id>.geojson`` when ``label`` is not given.
+
+    The file's nodata value marks pixels without data (any band): they become
+    ``Scene.valid == False`` and are left out of training, metrics and
+    observation.
 
     Examples
     --------
     >>> import tempfile, numpy as np
     >>> d = tempfile.mkdtemp()
-    >>> s = Scene(np.full((4, 8, 8), 0.2, np.float32), label=np.eye(8, dtype=bool), id="a")
-    >>> _ = write_scene(s, d)
+    >>> img = np.linspace(0, 0.5, 4 * 8 * 8, dtype=np.float32).reshape(4, 8, 8)
+    >>> _ = write_scene(Scene(img, label=np.eye(8, dtype=bool), id="a"), d)
     >>> read_scene(f"{d}/a.tif").label.sum()
     np.int64(8)
+    >>> read_scene(f"{d}/a.tif", factor=2).shape
+    (4, 4)
     """
     path = Path(path)
+    label_path = Path(label) if label is not None else (_find_label(path) if auto_label else None)
     with _open(path) as src:
         if src.count != 4:
             raise InvalidSceneError(
                 f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s)"
             )
-        if src.width * src.height > MAX_PIXELS:
-            raise InvalidSceneError(
-                f"{path}: image is {src.width} x {src.height} px, more than the {MAX_PIXELS:,} px that are read "
-                "whole; crop or tile it first"
+        factor = check_factor(factor, (src.height, src.width))
+        out_h, out_w = src.height // factor, src.width // factor
+        if out_h * out_w > MAX_PIXELS:
+            hint = (
+                "pass a WFOV factor (--factor) to read it in strips"
+                if factor == 1
+                else "use a larger factor"
             )
-        data = _read_all(src, path)
+            raise InvalidSceneError(
+                f"{path}: image is {src.width} x {src.height} px, more than the {MAX_PIXELS:,} px held at once "
+                f"at factor {factor}; {hint}, or crop or tile it"
+            )
         crs, transform = _georef(src)
         tags = src.tags()
-        nodata = src.nodata
         linear_units = src.crs.linear_units if src.crs and src.crs.is_projected else None
-    if nodata is not None and np.isfinite(nodata) and (data == nodata).all(axis=0).any():
-        n = int((data == nodata).all(axis=0).sum())
-        raise InvalidSceneError(
-            f"{path}: {n} pixel(s) are nodata ({nodata}); crop them out or fill them before use"
-        )
-    image = scale_to_reflectance(data, scale=scale, path=path)
-    check_reflectance(image, path)
-    if gsd is None and GSD_TAG in tags:
-        gsd = float(tags[GSD_TAG])
-    elif gsd is None and transform is not None and linear_units in ("metre", "meter"):
-        gsd = abs(transform.a)
-    scene_id = path.stem
-    label_array = None
-    label_path = Path(label) if label is not None else _find_label(path)
-    if label_path is not None:
-        label_array = read_label(label_path, shape=image.shape[1:], crs=crs, transform=transform)
+        if factor == 1:
+            image, invalid = _to_reflectance(_read_all(src, path), src.nodata, scale, path)
+            check_reflectance(image, path, invalid)
+            label_array = (
+                read_label(label_path, shape=image.shape[1:], crs=crs, transform=transform)
+                if label_path
+                else None
+            )
+            scene_gsd = gsd
+        else:
+            image, label_array, invalid = _read_strips(
+                src, path, factor, scale, label_path, crs, transform
+            )
+            check_reflectance(image, path, invalid)
+            transform = None if transform is None else transform @ Affine.scale(factor)
+            scene_gsd = None if gsd is None else gsd * factor
+    if scene_gsd is None and GSD_TAG in tags:
+        scene_gsd = float(tags[GSD_TAG]) * factor
+    elif scene_gsd is None and transform is not None and linear_units in ("metre", "meter"):
+        scene_gsd = abs(transform.a)
     try:
-        return Scene(image, label=label_array, gsd=gsd, crs=crs, transform=transform, id=scene_id)
+        return Scene(
+            image,
+            label=label_array,
+            gsd=scene_gsd,
+            crs=crs,
+            transform=transform,
+            id=path.stem,
+            valid=None if invalid is None else ~invalid,
+        )
     except InvalidSceneError as exc:
         raise InvalidSceneError(f"{path}: {exc}") from None
+
+
+STRIP_PIXELS = 1 << 24
+"""About how many high-resolution pixels one strip of a windowed read holds (x 4 bands)."""
+
+
+def _read_strips(src, path: Path, factor: int, scale, label_path, crs, transform):
+    """Windowed read: strips of rows, each averaged onto the WFOV grid as it arrives.
+
+    The rules are those of :meth:`Scene.to_wfov`: image mean, label where at
+    least half the block is plume, valid only where the whole block is.
+    """
+    from rasterio.windows import Window
+
+    out_h, out_w = src.height // factor, src.width // factor
+    rows_per_strip = max(1, STRIP_PIXELS // max(src.width * factor, 1)) * factor
+    grid = transform if transform is not None else Affine.identity()
+    images, labels, invalids = [], [], []
+    for r0 in range(0, out_h * factor, rows_per_strip):
+        window = Window(0, r0, out_w * factor, min(rows_per_strip, out_h * factor - r0))
+        try:
+            with warnings.catch_warnings(), _quiet_gdal_log_errors():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                data = src.read(window=window)
+        except rasterio.errors.RasterioError as exc:
+            raise DataFileError(
+                f"{path}: corrupt or truncated raster ({_first_line(exc)})"
+            ) from None
+        strip, invalid = _to_reflectance(data, src.nodata, scale, path)
+        images.append(block_mean(strip, factor))
+        valid = np.ones(strip.shape[1:], bool) if invalid is None else ~invalid
+        invalids.append(block_mean(valid[None].astype(np.float32), factor)[0] < 1.0)
+        if label_path is not None:
+            lab = _label_window(label_path, window, grid, crs)
+            labels.append(block_mean(lab[None].astype(np.float32), factor)[0] >= LABEL_FRACTION)
+    invalid = np.concatenate(invalids)
+    label = np.concatenate(labels) if label_path is not None else None
+    return np.concatenate(images, axis=1), label, (invalid if invalid.any() else None)
+
+
+def _label_window(label_path: Path, window, grid: Affine, crs: str | None) -> np.ndarray:
+    """The label on one window of the image grid (a raster read, or GeoJSON rasterised there)."""
+    shape = (int(window.height), int(window.width))
+    if label_path.suffix.lower() in (".geojson", ".json"):
+        return read_geojson_label(
+            label_path,
+            shape=shape,
+            crs=crs,
+            transform=grid @ Affine.translation(window.col_off, window.row_off),
+            require_overlap=False,
+        )
+    with _open(label_path) as lsrc:
+        if lsrc.count != 1:
+            raise InvalidSceneError(f"{label_path}: a label must have 1 band, got {lsrc.count}")
+        data = lsrc.read(1, window=window, boundless=False)
+    if data.shape != shape:
+        raise InvalidSceneError(
+            f"{label_path}: label of another size than the image (window {shape}, got {data.shape})"
+        )
+    if np.issubdtype(data.dtype, np.floating) and not np.isfinite(data).all():
+        raise InvalidSceneError(f"{label_path}: label holds NaN or infinite values")
+    return data != 0
 
 
 def _find_label(image_path: Path) -> Path | None:
@@ -236,6 +352,7 @@ def read_geojson_label(
     shape: tuple[int, int],
     crs: str | None = None,
     transform: Affine | None = None,
+    require_overlap: bool = True,
 ) -> np.ndarray:
     """Rasterise GeoJSON polygons onto an image grid of ``shape``; ``True`` inside.
 
@@ -266,7 +383,7 @@ def read_geojson_label(
         geoms = [
             transform_geom(CRS.from_user_input(src_crs), CRS.from_user_input(crs), g) for g in geoms
         ]
-    grid = transform if (crs is not None and transform is not None) else Affine.identity()
+    grid = transform if transform is not None else Affine.identity()
     shapes = []
     for g in geoms:
         try:
@@ -282,7 +399,7 @@ def read_geojson_label(
         return np.zeros((h, w), dtype=bool)
     west, south, east, north = rasterio.transform.array_bounds(h, w, grid)
     footprint = box(min(west, east), min(south, north), max(west, east), max(south, north))
-    if not any(s.intersects(footprint) for s in shapes):
+    if require_overlap and not any(s.intersects(footprint) for s in shapes):
         raise InvalidSceneError(
             f"{path}: no polygon overlaps the image (wrong CRS or coordinates?)"
         )
@@ -340,8 +457,14 @@ def write_scene(scene: Scene, directory: str | os.PathLike[str]) -> list[Path]:
     image_path = directory / f"{scene.id}.tif"
     with atomic_path(image_path) as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(tmp, "w", count=4, dtype="float32", predictor=3, **profile) as dst:
-            dst.write(scene.image)
+        nodata = {"nodata": float("nan")} if scene.valid is not None else {}
+        with rasterio.open(
+            tmp, "w", count=4, dtype="float32", predictor=3, **profile, **nodata
+        ) as dst:
+            image = scene.image
+            if scene.valid is not None:  # nodata is written as NaN (the file's nodata value)
+                image = np.where(scene.valid[None], image, np.float32(np.nan))
+            dst.write(image)
             for i, band in enumerate(("red", "green", "blue", "nir"), start=1):
                 dst.set_band_description(i, band)
             if scene.gsd is not None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -283,25 +283,41 @@ def read_npz(
 def read_any(
     paths: Sequence[str | os.PathLike[str]],
     *,
+    label: str | os.PathLike[str] | None = None,
     bands: str | None = None,
     preset: str | None = None,
     scale: float | None = None,
     offset: float | None = None,
+    factor: int = 1,
 ) -> Scene:
-    """One path (GeoTIFF or .npz) or four band files (R, G, B, NIR): the CLI's image argument."""
+    """One path (GeoTIFF or .npz) or four band files (R, G, B, NIR), on the WFOV grid of ``factor``.
+
+    ``label`` (a mask raster or GeoJSON on the full-resolution grid) is read
+    only when given; no sibling file is picked up. A plain 4-band GeoTIFF is
+    read in strips straight onto the WFOV grid (:func:`dyntarget.io.read_scene`
+    with ``factor``); the other forms are read whole, then downsampled.
+    """
     if len(paths) == 4:
         if bands:
             raise InvalidParameterError(
                 "bands: not used with four band files (they are R, G, B, NIR in order)"
             )
-        return read_band_files(paths, preset=preset, scale=scale, offset=offset)
-    if len(paths) != 1:
+        scene = read_band_files(paths, preset=preset, scale=scale, offset=offset)
+    elif len(paths) != 1:
         raise InvalidParameterError(
             f"image: expected 1 file or 4 band files (R, G, B, NIR), got {len(paths)}"
         )
-    path = Path(paths[0])
-    if path.suffix.lower() == ".npz":
-        return read_npz(path, scale=scale, offset=offset or 0.0)
-    if bands is None and preset is None and offset is None:
-        return scene_io.read_scene(path, scale=scale)
-    return read_multiband(path, bands=bands, preset=preset, scale=scale, offset=offset)
+    elif Path(paths[0]).suffix.lower() == ".npz":
+        scene = replace(read_npz(paths[0], scale=scale, offset=offset or 0.0), label=None)
+    elif bands is None and preset is None and offset is None:
+        return scene_io.read_scene(
+            paths[0], label=label, scale=scale, factor=factor, auto_label=False
+        )
+    else:
+        scene = read_multiband(paths[0], bands=bands, preset=preset, scale=scale, offset=offset)
+    if label is not None:
+        lab = scene_io.read_label(
+            label, shape=scene.shape, crs=scene.crs, transform=scene.transform
+        )
+        scene = replace(scene, label=lab)
+    return scene.to_wfov(factor)

@@ -13,7 +13,7 @@ A pointing at WFOV pixel ``(x, y)`` (rounded to the nearest pixel centre)
 observes the high-resolution footprint under ``footprint x footprint`` WFOV
 pixels centred there (default 1: exactly the ``factor x factor`` block under
 one WFOV pixel). Pointings outside the image observe nothing and are
-dropped; several pointings at the same WFOV pixel count once.
+dropped, and so are pointings on nodata; several pointings at the same WFOV pixel count once.
 
 Metrics per trajectory: pixels observed (distinct pointings), ratio plume
 (mean plume fraction of the observed footprints), intensity and gradient
@@ -39,6 +39,7 @@ class UtilityMaps:
     label: np.ndarray
     intensity: np.ndarray
     gradient: np.ndarray
+    valid: np.ndarray | None = None
 
     @classmethod
     def from_scene(cls, scene: Scene) -> UtilityMaps:
@@ -54,7 +55,9 @@ class UtilityMaps:
         gradient = np.hypot(gx, gy)
         gpeak = float(gradient.max())
         gradient = gradient / gpeak if gpeak > 0 else gradient
-        return cls(scene.label, intensity.astype(np.float32), gradient.astype(np.float32))
+        return cls(
+            scene.label, intensity.astype(np.float32), gradient.astype(np.float32), scene.valid
+        )
 
 
 @dataclass(frozen=True)
@@ -123,6 +126,9 @@ def observe(
         )
         per_wfov = per_wfov / ones
     rc = observed_pixels(trajectory, per_wfov.shape[1:])
+    if maps.valid is not None and len(rc):  # nodata is never observed
+        valid_wfov = block_mean(maps.valid[None].astype(np.float32), factor)[0] == 1.0
+        rc = rc[valid_wfov[rc[:, 0], rc[:, 1]]]
     if len(rc) == 0:
         return ObservationMetrics(0, 0.0, 0.0, 0.0)
     vals = per_wfov[:, rc[:, 0], rc[:, 1]].astype(np.float64)

@@ -66,11 +66,11 @@ class Classifier(ABC):
                 raise InvalidSceneError(
                     f"scene {s.id!r} has no label; training needs labelled scenes"
                 )
-        if not any(s.label.any() for s in scenes):
+        if not any((s.label & s.valid_mask).any() for s in scenes):
             raise InvalidSceneError(
                 "training scenes hold no plume pixel; cannot learn a plume class"
             )
-        if all(s.label.all() for s in scenes):
+        if all((s.label | ~s.valid_mask).all() for s in scenes):
             raise InvalidSceneError(
                 "training scenes hold no background pixel; cannot learn two classes"
             )
@@ -231,12 +231,13 @@ def sample_pixels(
 
     From each class (plume, background) ``min(max_per_class, n_plume, n_background)``
     pixels are drawn without replacement, uniformly over all training pixels of
-    that class, so both classes are equally represented.
+    that class, so both classes are equally represented. Nodata pixels are never drawn.
     """
     feats = np.concatenate([pixels(s.image) for s in scenes])
     labels = np.concatenate([s.label.ravel() for s in scenes])
-    pos = np.flatnonzero(labels)
-    neg = np.flatnonzero(~labels)
+    valid = np.concatenate([s.valid_mask.ravel() for s in scenes])
+    pos = np.flatnonzero(labels & valid)
+    neg = np.flatnonzero(~labels & valid)
     n = min(max_per_class, len(pos), len(neg))
     idx = np.concatenate([rng.choice(pos, n, replace=False), rng.choice(neg, n, replace=False)])
     idx.sort()

@@ -87,12 +87,29 @@ def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
                 poly = poly.buffer(0)
         else:
             poly = shell
-        if poly.geom_type == "MultiPolygon":
-            polygons.extend(poly.geoms)
-        else:
-            polygons.append(poly)
+        polygons.extend(_component_pieces(poly))
     polygons.sort(key=lambda p: (-p.area, p.centroid.x, p.centroid.y))
     return polygons
+
+
+SLIVER_FRACTION = 0.01
+
+
+def _component_pieces(poly) -> list[Polygon]:
+    """The polygon(s) of one connected component.
+
+    A pixel-centre contour runs out and back along one-pixel necks; repairing it
+    (``buffer(0)``) splits the component there into its body and slivers of a
+    pixel or so. The largest piece is kept, and any other piece of at least
+    ``SLIVER_FRACTION`` (1 %) of it and at least one pixel: real lobes joined by
+    a thin neck stay, slivers do not become separate plumes.
+    """
+    pieces = list(poly.geoms) if poly.geom_type == "MultiPolygon" else [poly]
+    pieces = [p for p in pieces if not p.is_empty]
+    if len(pieces) <= 1:
+        return pieces
+    largest = max(p.area for p in pieces)
+    return [p for p in pieces if p.area == largest or p.area >= max(1.0, SLIVER_FRACTION * largest)]
 
 
 def _ring(contour: np.ndarray) -> Polygon:

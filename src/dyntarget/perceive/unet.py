@@ -34,6 +34,8 @@ from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier
 
 WEIGHTS_FILE = "model.safetensors"
+IGNORE = -1
+"""Target value of nodata pixels: left out of the loss."""
 
 
 def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
@@ -242,16 +244,21 @@ class _UNetClassifier(Classifier):
         stride = self.tile  # training tiles do not overlap; random flips augment them
         for s in scenes:
             img = _pad_to(s.image, self.tile)
-            lab = _pad_to(s.label[None].astype(np.float32), self.tile)[0] > 0.5
+            target = np.where(
+                s.valid_mask, s.label.astype(np.float32), float(IGNORE)
+            )  # nodata: no loss
+            target = _pad_to(target[None], self.tile)[0].astype(np.int64)
             for r in tile_origins(img.shape[1], self.tile, stride):
                 for c in tile_origins(img.shape[2], self.tile, stride):
-                    xs.append(img[:, r : r + self.tile, c : c + self.tile])
-                    ys.append(lab[r : r + self.tile, c : c + self.tile])
-        return np.stack(xs), np.stack(ys).astype(np.int64)
+                    t = target[r : r + self.tile, c : c + self.tile]
+                    if (t != IGNORE).any():
+                        xs.append(img[:, r : r + self.tile, c : c + self.tile])
+                        ys.append(t)
+        return np.stack(xs), np.stack(ys)
 
     def _fit(self, scenes) -> None:
         x, y = self._tiles(scenes)
-        stack = np.concatenate([s.image.reshape(4, -1) for s in scenes], axis=1)
+        stack = np.concatenate([s.image[:, s.valid_mask] for s in scenes], axis=1)
         mean, std = stack.mean(axis=1), np.maximum(stack.std(axis=1), 1e-4)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
@@ -261,7 +268,7 @@ class _UNetClassifier(Classifier):
         gen = torch.Generator().manual_seed(self.seed)
         xt, yt = torch.from_numpy(x), torch.from_numpy(y)
         opt = torch.optim.Adam(model.parameters(), lr=self.learning_rate)
-        loss_fn = nn.CrossEntropyLoss()
+        loss_fn = nn.CrossEntropyLoss(ignore_index=IGNORE)
         model.train()
         self.history = []
         for _ in range(self.epochs):

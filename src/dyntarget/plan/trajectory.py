@@ -49,6 +49,11 @@ class Trajectory:
     def empty(cls, planner: str, params: dict[str, Any] | None = None) -> Trajectory:
         return cls(np.zeros((0, 2)), np.zeros(0, np.int64), planner, params or {})
 
+    def without(self, drop: np.ndarray) -> Trajectory:
+        """The trajectory without the pointings where ``drop`` (bool per point) is true."""
+        keep = ~np.asarray(drop, bool)
+        return Trajectory(self.points[keep], self.part[keep], self.planner, self.params)
+
     @property
     def path_length(self) -> float:
         """Length of the whole path in WFOV pixels, travel hops included."""
