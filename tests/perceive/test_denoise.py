@@ -110,6 +110,24 @@ def test_blob_near_border_not_glued_to_it():
     np.testing.assert_array_equal(denoise(m, iterations=2, min_area=1).mask, m)
 
 
+def test_one_pixel_wide_ring_keeps_its_polygon():
+    """Found by the denoise sweep: outer and hole contours coincide, so the polygon had no area."""
+    m = np.zeros((9, 9), bool)
+    m[2, 2:7] = m[6, 2:7] = m[2:7, 2] = m[2:7, 6] = True  # a hollow 5x5 square, one pixel wide
+    r = denoise(m, iterations=0, min_area=1)
+    (poly,) = r.polygons
+    assert poly.area == pytest.approx(16.0) and poly.is_valid
+    assert not poly.contains(poly.centroid)  # still hollow
+
+
+def test_one_pixel_ring_with_thick_corner_pieces():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        m = rng.uniform(size=(20, 20)) > 0.55
+        for p in mask_to_polygons(m):
+            assert not p.is_empty and p.area > 0
+
+
 def test_plume_touching_border_not_eroded():
     m = np.zeros((8, 8), bool)
     m[:, :3] = True  # along the left border

@@ -232,3 +232,36 @@ def test_trajectory_export_pixel_and_crs(tmp_path):
 def test_trajectory_rejects_nan():
     with pytest.raises(InvalidParameterError, match="NaN"):
         Trajectory(np.array([[np.nan, 1.0]]), np.array([0]), "x")
+
+
+def _shapely_chord(poly, origin, direction):
+    """The straightforward implementation: intersect a long line with the polygon in shapely."""
+    import shapely
+    from shapely.geometry import LineString
+
+    minx, miny, maxx, maxy = poly.bounds
+    reach = np.hypot(maxx - minx, maxy - miny) + np.hypot(*(origin - [minx, miny])) + 1.0
+    inter = poly.intersection(LineString([origin - reach * direction, origin + reach * direction]))
+    coords = shapely.get_coordinates(inter)
+    if inter.is_empty or len(coords) == 0:
+        return (np.nan, np.nan)
+    t = (coords - origin) @ direction
+    return (t.min(), t.max())
+
+
+def test_vectorised_chords_equal_shapely_intersection():
+    from dyntarget.perceive.denoise import denoise
+    from dyntarget.plan.geometry import chords
+    from dyntarget.synth import generate_scene
+
+    polygons = [Polygon([(0, 0), (10, 0), (10, 10), (7, 10), (7, 3), (3, 3), (3, 10), (0, 10)])]
+    for i in range(4):
+        polygons += denoise(generate_scene(0, i, size=128)[0].label).polygons
+    for poly in polygons:
+        centre, u = major_axis(poly)
+        v = np.array([-u[1], u[0]])
+        origins = centre + np.linspace(-80, 80, 41)[:, None] * u
+        ours = chords(poly, origins, v)
+        ref = np.array([_shapely_chord(poly, o, v) for o in origins])
+        np.testing.assert_array_equal(np.isnan(ours[:, 0]), np.isnan(ref[:, 0]))
+        np.testing.assert_allclose(ours, ref, atol=1e-9)

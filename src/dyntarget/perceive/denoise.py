@@ -58,9 +58,10 @@ def check_mask(mask: object, *, name: str = "mask") -> np.ndarray:
 def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
     """Polygons of a mask's 8-connected components, with holes, largest first.
 
-    Vertices are pixel centres ``(column, row)``. A component only one pixel
-    wide (a point or a line of pixels) becomes the union of its pixels' unit
-    squares, so every polygon is valid and non-empty.
+    Vertices are pixel centres ``(column, row)``. A component one or two pixels
+    wide (a point, a line, a thin ring: its pixel-centre polygon covers less
+    than half its pixels) becomes the union of its pixels' unit squares, so
+    every polygon is valid, non-empty and faithful to the mask.
     """
     mask = check_mask(mask)
     if not mask.any():
@@ -69,30 +70,39 @@ def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
         mask.astype(np.uint8), cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE
     )
     hierarchy = hierarchy[0]
+    _, component = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    pixel_counts = np.bincount(component.ravel())
     polygons = []
     for i, contour in enumerate(contours):
         if hierarchy[i][3] != -1:  # a hole; handled with its parent
             continue
         shell = _ring(contour)
         holes = []
-        child = hierarchy[i][2]
-        while child != -1:
+        for child in _children(hierarchy, i):
             ring = contours[child][:, 0, :]
             if len(np.unique(ring, axis=0)) >= 3:
                 holes.append(ring.astype(float))
-            child = hierarchy[child][0]
         if isinstance(shell, Polygon):
             poly = Polygon(shell.exterior.coords, holes)
             if not poly.is_valid:
                 poly = poly.buffer(0)
         else:
             poly = shell
+        x0, y0 = contour[0, 0]
+        label = component[y0, x0]
+        if poly.is_empty or poly.area < THIN_AREA_RATIO * pixel_counts[label]:
+            # a structure one or two pixels wide (a thin ring, a line): the pixel-centre
+            # contour has (almost) no area there; its pixels' unit squares describe it exactly
+            rows, cols = np.nonzero(component == label)
+            poly = _pixel_union(np.column_stack([cols, rows]))
         polygons.extend(_component_pieces(poly))
     polygons.sort(key=lambda p: (-p.area, p.centroid.x, p.centroid.y))
     return polygons
 
 
 SLIVER_FRACTION = 0.01
+THIN_AREA_RATIO = 0.5
+"""A component whose contour polygon covers less than this share of its pixels is described by its pixels."""
 
 
 def _component_pieces(poly) -> list[Polygon]:
@@ -118,9 +128,24 @@ def _ring(contour: np.ndarray) -> Polygon:
     if poly is not None and poly.area > 0:
         return poly
     # a point or a one-pixel-wide line: the union of its pixels' unit squares
-    return shapely.union_all(
-        [shapely.box(x - 0.5, y - 0.5, x + 0.5, y + 0.5) for x, y in np.unique(pts, axis=0)]
-    )
+    return _pixel_union(pts)
+
+
+def _pixel_union(pts: np.ndarray) -> Polygon:
+    """The union of the unit squares of pixels ``(x, y)``."""
+    squares = [
+        shapely.box(x - 0.5, y - 0.5, x + 0.5, y + 0.5)
+        for x, y in np.unique(pts.astype(float), axis=0)
+    ]
+    return shapely.union_all(squares)
+
+
+def _children(hierarchy: np.ndarray, i: int) -> list[int]:
+    out, child = [], hierarchy[i][2]
+    while child != -1:
+        out.append(child)
+        child = hierarchy[child][0]
+    return out
 
 
 def close(mask: np.ndarray, iterations: int) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import Polygon
 
 
 def resample_ring(polygon: Polygon, spacing: float = 1.0) -> np.ndarray:
@@ -36,26 +36,39 @@ def major_axis(polygon: Polygon) -> tuple[np.ndarray, np.ndarray]:
     return centre, u / np.linalg.norm(u)
 
 
+def chords(polygon: Polygon, origins: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Farthest boundary points of ``polygon`` on the lines ``origins[k] + t * direction``.
+
+    Returns ``(k, 2)`` arrays of ``(t_min, t_max)``: the first entry into and
+    the last exit from the polygon along each line (so a concave plume is
+    crossed whole), NaN where a line misses it. Both extremes lie on the
+    exterior ring, so only its segments are intersected, all lines at once
+    (vectorised: one matrix of line x segment crossings).
+    """
+    ring = np.asarray(polygon.exterior.coords, dtype=np.float64)
+    a, e = ring[:-1], np.diff(ring, axis=0)  # segments a + u e, u in [0, 1]
+    d = np.asarray(direction, dtype=np.float64)
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 2)
+    denom = d[0] * e[:, 1] - d[1] * e[:, 0]  # cross(d, e), per segment
+    ok = np.abs(denom) > 1e-12  # segments parallel to the lines never decide an extreme alone
+    ao = a[None, :, :] - o[:, None, :]  # (k, n, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (ao[..., 0] * e[:, 1] - ao[..., 1] * e[:, 0]) / denom
+        u = (ao[..., 0] * d[1] - ao[..., 1] * d[0]) / denom
+    hit = ok & (u >= -1e-9) & (u <= 1 + 1e-9)
+    t_min = np.where(hit, t, np.inf).min(axis=1)
+    t_max = np.where(hit, t, -np.inf).max(axis=1)
+    out = np.column_stack([t_min, t_max])
+    out[~hit.any(axis=1)] = np.nan
+    return out
+
+
 def chord(
     polygon: Polygon, origin: np.ndarray, direction: np.ndarray
 ) -> tuple[float, float] | None:
-    """Farthest boundary points of ``polygon`` on the line ``origin + t * direction``.
-
-    Returns ``(t_min, t_max)`` over every piece where the line crosses the
-    polygon (so a concave plume is crossed from first entry to last exit), or
-    ``None`` when the line misses it.
-    """
-    minx, miny, maxx, maxy = polygon.bounds
-    reach = np.hypot(maxx - minx, maxy - miny) + np.hypot(*(origin - [minx, miny])) + 1.0
-    line = LineString([origin - reach * direction, origin + reach * direction])
-    inter = polygon.intersection(line)
-    if inter.is_empty:
-        return None
-    coords = shapely.get_coordinates(inter)
-    if len(coords) == 0:
-        return None
-    t = (coords - origin) @ direction
-    return float(t.min()), float(t.max())
+    """:func:`chords` for one line: ``(t_min, t_max)``, or ``None`` when the line misses the polygon."""
+    t0, t1 = chords(polygon, np.asarray(origin)[None], direction)[0]
+    return None if np.isnan(t0) else (float(t0), float(t1))
 
 
 def sample_polyline(vertices: np.ndarray, step: float) -> np.ndarray:

@@ -27,7 +27,7 @@ from shapely.geometry import Polygon
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.denoise import check_mask, mask_to_polygons
-from dyntarget.plan.geometry import chord, major_axis, sample_polyline, sample_ring
+from dyntarget.plan.geometry import chord, chords, major_axis, sample_polyline, sample_ring
 from dyntarget.plan.trajectory import Trajectory
 from dyntarget.registry import Registry
 
@@ -199,12 +199,13 @@ def _transects(
     a_min, a_max = float(proj.min()), float(proj.max())
     n = max(int(np.floor((a_max - a_min) / width)), 1)
     offsets = a_min + (np.arange(n) + 0.5) * min(width, (a_max - a_min) / n)
-    ends = []
-    for a in offsets:
-        origin = centre + a * u
-        span = chord(poly, origin, v)
-        if span is not None:
-            ends.append((origin + span[0] * v, origin + span[1] * v))
+    origins = centre + offsets[:, None] * u
+    spans = chords(poly, origins, v)
+    ends = [
+        (o + t0 * v, o + t1 * v)
+        for o, (t0, t1) in zip(origins, spans, strict=True)
+        if not np.isnan(t0)
+    ]
     if not ends:
         return np.zeros((0, 2))
     candidates = {  # (reverse the axis walk?, start on side B?)
