@@ -265,3 +265,17 @@ def test_vectorised_chords_equal_shapely_intersection():
         ref = np.array([_shapely_chord(poly, o, v) for o in origins])
         np.testing.assert_array_equal(np.isnan(ours[:, 0]), np.isnan(ref[:, 0]))
         np.testing.assert_allclose(ours, ref, atol=1e-9)
+
+
+def test_ring_interpolation_equals_shapely():
+    import shapely
+
+    from dyntarget.perceive.denoise import denoise
+    from dyntarget.plan.geometry import interpolate_ring
+    from dyntarget.synth import generate_scene
+
+    for poly in denoise(generate_scene(0, 5, size=128)[0].label).polygons:
+        ring = poly.exterior
+        s = np.linspace(0, ring.length, 97, endpoint=False)
+        ref = shapely.get_coordinates(shapely.line_interpolate_point(ring, s))
+        np.testing.assert_allclose(interpolate_ring(np.asarray(ring.coords), s), ref, atol=1e-9)

@@ -11,9 +11,18 @@ def resample_ring(polygon: Polygon, spacing: float = 1.0) -> np.ndarray:
     """Points evenly spaced (about ``spacing`` px) along the exterior ring."""
     ring = polygon.exterior
     n = max(int(np.ceil(ring.length / spacing)), 4)
-    return shapely.get_coordinates(
-        shapely.line_interpolate_point(ring, np.linspace(0, ring.length, n, endpoint=False))
-    )
+    return interpolate_ring(np.asarray(ring.coords), np.linspace(0, ring.length, n, endpoint=False))
+
+
+def interpolate_ring(coords: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points at arc lengths ``s`` (0 <= s < length) along a closed ring given by its coordinates.
+
+    The same linear interpolation as shapely's ``line_interpolate_point``, done
+    for all points at once with ``np.interp`` (shapely walks the ring once per
+    point, which is slow for long rings).
+    """
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
+    return np.column_stack([np.interp(s, cum, coords[:, 0]), np.interp(s, cum, coords[:, 1])])
 
 
 def major_axis(polygon: Polygon) -> tuple[np.ndarray, np.ndarray]:
@@ -100,4 +109,4 @@ def sample_ring(polygon: Polygon, step: float, start: np.ndarray) -> np.ndarray:
     s0 = ring.project(shapely.Point(start))
     n = max(int(np.floor(length / step + 1e-9)), 1)
     s = (s0 + step * np.arange(n)) % length
-    return shapely.get_coordinates(shapely.line_interpolate_point(ring, s))
+    return interpolate_ring(np.asarray(ring.coords), s)
