@@ -259,7 +259,11 @@ class _UNetClassifier(Classifier):
     def _fit(self, scenes) -> None:
         x, y = self._tiles(scenes)
         stack = np.concatenate([s.image[:, s.valid_mask] for s in scenes], axis=1)
-        mean, std = stack.mean(axis=1), np.maximum(stack.std(axis=1), 1e-4)
+        # float64: per-band statistics independent of summation order (float32 sums are not)
+        mean, std = (
+            stack.mean(axis=1, dtype=np.float64),
+            np.maximum(stack.std(axis=1, dtype=np.float64), 1e-4),
+        )
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             model = self.network(width=self.width)
