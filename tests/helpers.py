@@ -26,3 +26,24 @@ def shared_data():
         )
     )
     return root if root.is_dir() else None
+
+
+def write_raw_tif(path, data, **profile):
+    """Write ``data (bands, H, W)`` as a GeoTIFF exactly as given (no dyntarget conventions applied)."""
+    import warnings
+
+    import rasterio
+
+    full = {
+        "driver": "GTiff",
+        "height": data.shape[1],
+        "width": data.shape[2],
+        "count": data.shape[0],
+        "dtype": data.dtype.name,
+        **profile,
+    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path, "w", **full) as dst:
+            dst.write(data)
+    return path

@@ -6,32 +6,14 @@ Each case here is a row of docs/reliability.md.
 from __future__ import annotations
 
 import json
-import warnings
 
 import numpy as np
 import pytest
-import rasterio
 
 from dyntarget import Scene
 from dyntarget.cli import main
 from dyntarget.io import write_scene
-from helpers import ramp
-
-
-def _raw_tif(path, data, **kw):
-    profile = {
-        "driver": "GTiff",
-        "height": data.shape[1],
-        "width": data.shape[2],
-        "count": data.shape[0],
-        "dtype": data.dtype.name,
-        **kw,
-    }
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", **profile) as dst:
-            dst.write(data)
-    return path
+from helpers import ramp, write_raw_tif
 
 
 def _good(tmp_path, name="img", h=16, w=16):
@@ -44,7 +26,7 @@ def _good(tmp_path, name="img", h=16, w=16):
 
 def _bands(n):
     def make(tmp_path):
-        return _raw_tif(tmp_path / "img.tif", ramp(n, 8, 8))
+        return write_raw_tif(tmp_path / "img.tif", ramp(n, 8, 8))
 
     return make
 
@@ -56,7 +38,7 @@ def _values(fill):
             data = fill(data)
         else:
             data[1, 2, 3] = fill
-        return _raw_tif(tmp_path / "img.tif", data)
+        return write_raw_tif(tmp_path / "img.tif", data)
 
     return make
 
@@ -127,16 +109,16 @@ def test_plan_bad_image(tmp_path, capsys, case, make, extra, message):
 def _label_cases():
     def wrong_shape(tmp_path):
         p = tmp_path / "m.tif"
-        _raw_tif(p, np.ones((1, 5, 5), np.uint8))
+        write_raw_tif(p, np.ones((1, 5, 5), np.uint8))
         return p, "does not match the image's (16, 16)"
 
     def nan_label(tmp_path):
         data = np.zeros((1, 16, 16), np.float32)
         data[0, 0, 0] = np.nan
-        return _raw_tif(tmp_path / "m.tif", data), "label holds NaN"
+        return write_raw_tif(tmp_path / "m.tif", data), "label holds NaN"
 
     def two_band_label(tmp_path):
-        return _raw_tif(
+        return write_raw_tif(
             tmp_path / "m.tif", np.zeros((2, 16, 16), np.uint8)
         ), "a label must have 1 band, got 2"
 

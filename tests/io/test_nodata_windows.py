@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import warnings
 
 import numpy as np
 import pytest
@@ -18,6 +17,7 @@ from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import make_classifier
 from dyntarget.perceive.base import sample_pixels
 from dyntarget.pipeline import plan_scene
+from helpers import write_raw_tif
 
 
 def _scene_with_nodata(h=40, w=36, seed=0):
@@ -55,35 +55,11 @@ def test_integer_nodata_value(tmp_path):
     data = np.full((4, 6, 6), 3000, np.uint16)
     data[:, :, 3:] = 5000
     data[:, 0, 0] = 0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(
-            tmp_path / "n.tif",
-            "w",
-            driver="GTiff",
-            height=6,
-            width=6,
-            count=4,
-            dtype="uint16",
-            nodata=0,
-        ) as dst:
-            dst.write(data)
+    write_raw_tif(tmp_path / "n.tif", data, nodata=0)
     s = read_scene(tmp_path / "n.tif")
     assert not s.valid[0, 0] and s.valid.sum() == 35
     data[:] = 0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(
-            tmp_path / "n.tif",
-            "w",
-            driver="GTiff",
-            height=6,
-            width=6,
-            count=4,
-            dtype="uint16",
-            nodata=0,
-        ) as dst:
-            dst.write(data)
+    write_raw_tif(tmp_path / "n.tif", data, nodata=0)
     with pytest.raises(InvalidSceneError, match="no valid pixel"):
         read_scene(tmp_path / "n.tif")
 

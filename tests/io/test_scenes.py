@@ -1,7 +1,6 @@
 from __future__ import annotations
 
 import json
-import warnings
 
 import numpy as np
 import pytest
@@ -10,7 +9,7 @@ from affine import Affine
 
 from dyntarget import DataFileError, InvalidSceneError, Scene
 from dyntarget.io import read_scene, read_scene_dir, scene_ids, write_scene
-from helpers import ramp
+from helpers import ramp, write_raw_tif
 
 
 def test_round_trip_georeferenced(georef_scene, tmp_path):
@@ -38,25 +37,10 @@ def test_unlabelled_scene(tmp_path):
     assert read_scene(tmp_path / "u.tif").label is None
 
 
-def _write_raw(path, data, **kw):
-    profile = {
-        "driver": "GTiff",
-        "height": data.shape[1],
-        "width": data.shape[2],
-        "count": data.shape[0],
-        "dtype": data.dtype.name,
-    }
-    profile.update(kw)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", **profile) as dst:
-            dst.write(data)
-
-
 def test_uint16_scaled_to_reflectance(tmp_path):
     dn = np.full((4, 3, 3), 2500, np.uint16)
     dn[0, 2, 2] = 5000
-    _write_raw(tmp_path / "dn.tif", dn)
+    write_raw_tif(tmp_path / "dn.tif", dn)
     assert read_scene(tmp_path / "dn.tif").image[0, 0, 0] == pytest.approx(0.25)
     assert read_scene(tmp_path / "dn.tif", scale=2e-5).image[0, 0, 0] == pytest.approx(0.05)
 
@@ -64,7 +48,7 @@ def test_uint16_scaled_to_reflectance(tmp_path):
 def test_gsd_from_projected_transform(tmp_path):
     from rasterio.crs import CRS
 
-    _write_raw(
+    write_raw_tif(
         tmp_path / "p.tif",
         ramp(4, 2, 2),
         crs=CRS.from_epsg(32605),
@@ -153,7 +137,7 @@ def test_truncated_tiff(georef_scene, tmp_path):
 
 
 def test_wrong_band_count_file(tmp_path):
-    _write_raw(tmp_path / "three.tif", np.zeros((3, 2, 2), np.float32))
+    write_raw_tif(tmp_path / "three.tif", np.zeros((3, 2, 2), np.float32))
     with pytest.raises(InvalidSceneError, match="three.tif: expected 4 bands.*got 3"):
         read_scene(tmp_path / "three.tif")
 
@@ -161,14 +145,14 @@ def test_wrong_band_count_file(tmp_path):
 def test_nan_in_file(tmp_path):
     data = ramp(4, 2, 2)
     data[1, 0, 0] = np.nan
-    _write_raw(tmp_path / "nan.tif", data)
+    write_raw_tif(tmp_path / "nan.tif", data)
     with pytest.raises(InvalidSceneError, match="nan.tif.*NaN"):
         read_scene(tmp_path / "nan.tif")
 
 
 def test_label_shape_mismatch_file(tmp_path):
     write_scene(Scene(ramp(4, 4, 4), id="m"), tmp_path)
-    _write_raw(tmp_path / "m_mask.tif", np.zeros((1, 3, 4), np.uint8))
+    write_raw_tif(tmp_path / "m_mask.tif", np.zeros((1, 3, 4), np.uint8))
     with pytest.raises(InvalidSceneError, match="m_mask.tif.*does not match"):
         read_scene(tmp_path / "m.tif")
 

@@ -1,10 +1,7 @@
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
-import rasterio
 from affine import Affine
 from rasterio.crs import CRS
 
@@ -17,22 +14,7 @@ from dyntarget.io.sensors import (
     read_multiband,
     read_npz,
 )
-
-
-def _tif(path, data, **kw):
-    profile = {
-        "driver": "GTiff",
-        "height": data.shape[1],
-        "width": data.shape[2],
-        "count": data.shape[0],
-        "dtype": data.dtype.name,
-        **kw,
-    }
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", **profile) as dst:
-            dst.write(data)
-    return path
+from helpers import write_raw_tif
 
 
 def _stack(n, h=6, w=5):
@@ -58,7 +40,7 @@ def test_parse_bands():
 
 
 def test_sentinel2_preset_selects_b4_b3_b2_b8_and_scales(tmp_path):
-    p = _tif(
+    p = write_raw_tif(
         tmp_path / "s2.tif",
         _stack(13),
         crs=CRS.from_epsg(32632),
@@ -73,20 +55,20 @@ def test_sentinel2_preset_selects_b4_b3_b2_b8_and_scales(tmp_path):
 
 
 def test_planetscope_preset_reorders_bgr(tmp_path):
-    p = _tif(tmp_path / "ps.tif", _stack(4))
+    p = write_raw_tif(tmp_path / "ps.tif", _stack(4))
     np.testing.assert_allclose(
         read_multiband(p, preset="planetscope").image[:, 0, 0], [0.3, 0.2, 0.1, 0.4], rtol=1e-6
     )
 
 
 def test_landsat_preset_offset(tmp_path):
-    p = _tif(tmp_path / "l8.tif", _stack(7) * 5)
+    p = write_raw_tif(tmp_path / "l8.tif", _stack(7) * 5)
     img = read_multiband(p, preset="landsat8").image
     assert img[0, 0, 0] == pytest.approx(4 * 5000 * 2e-5 - 0.1)
 
 
 def test_explicit_bands_and_errors(tmp_path):
-    p = _tif(tmp_path / "m.tif", _stack(5))
+    p = write_raw_tif(tmp_path / "m.tif", _stack(5))
     assert read_multiband(p, bands="5,4,3,2").image[0, 0, 0] == pytest.approx(0.5)
     with pytest.raises(InvalidSceneError, match="band 9 requested but the file has 5"):
         read_multiband(p, bands="9,4,3,2")
@@ -97,10 +79,12 @@ def test_explicit_bands_and_errors(tmp_path):
 
 
 def test_band_files(tmp_path):
-    paths = [_tif(tmp_path / f"{c}.tif", _stack(1) + 100 * i) for i, c in enumerate("rgbn")]
+    paths = [
+        write_raw_tif(tmp_path / f"{c}.tif", _stack(1) + 100 * i) for i, c in enumerate("rgbn")
+    ]
     s = read_band_files(paths, scale=1e-4)
     np.testing.assert_allclose(s.image[:, 0, 0], [0.1, 0.11, 0.12, 0.13], rtol=1e-5)
-    bad = _tif(tmp_path / "small.tif", _stack(1, h=3))
+    bad = write_raw_tif(tmp_path / "small.tif", _stack(1, h=3))
     with pytest.raises(InvalidSceneError, match="differs from the first band"):
         read_band_files([*paths[:3], bad])
     with pytest.raises(InvalidParameterError, match="expected 4 files"):
