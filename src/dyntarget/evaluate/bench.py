@@ -1,0 +1,250 @@
+"""Benchmark harness: per-stage latency and peak memory for every classifier and planner.
+
+For each WFOV size (default 256, 512, 1024, 2048 px) a synthetic scene of that
+size is generated and used directly as the WFOV grid. Every classifier (trained
+once on four 256 px scenes; U-Nets for a few epochs — latency does not depend on
+how well a model is trained) is timed on it, then denoising of its mask, every
+planner on the denoised polygons, and the NFOV simulator on each trajectory.
+Each number is the median of ``repeats`` runs after one warm-up run.
+
+Peak memory is the process's resident high-water mark during a stage minus the
+resident size before it (Linux: the mark is reset through
+``/proc/self/clear_refs`` before each stage); elsewhere it is not reported.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.observe import UtilityMaps, observe
+from dyntarget.perceive import CLASSIFIERS, make_classifier
+from dyntarget.perceive.denoise import denoise
+from dyntarget.plan import PLANNERS, plan
+from dyntarget.synth import generate_scene
+
+DEFAULT_SIZES = (256, 512, 1024, 2048)
+
+
+def _status_kb(field: str) -> int | None:
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def _reset_peak() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
+    """Median wall time (s) of ``repeats`` runs after a warm-up, and peak memory (MiB) above the start."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    peak = None
+    if _reset_peak():
+        before = _status_kb("VmRSS")
+        fn()
+        after = _status_kb("VmHWM")
+        if before is not None and after is not None:
+            peak = max(after - before, 0) / 1024
+    return {"median_s": float(np.median(times)), "min_s": float(np.min(times)), "peak_mib": peak}
+
+
+def machine() -> dict[str, Any]:
+    import cv2
+    import sklearn
+    import torch
+
+    import dyntarget
+
+    cpu = platform.processor() or ""
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
+            cpu = next(
+                (ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")), cpu
+            )
+    except OSError:
+        pass
+    return {
+        "platform": platform.platform(),
+        "cpu": cpu,
+        "cpus": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "python": platform.python_version(),
+        "versions": {
+            "dyntarget": dyntarget.__version__,
+            "numpy": np.__version__,
+            "torch": torch.__version__,
+            "scikit-learn": sklearn.__version__,
+            "opencv": cv2.__version__,
+        },
+    }
+
+
+def run_bench(
+    *,
+    sizes: Sequence[int] = DEFAULT_SIZES,
+    classifiers: Sequence[str] | None = None,
+    planners: Sequence[str] | None = None,
+    repeats: int = 5,
+    epochs: int = 2,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Time classify, denoise, plan and observe at each size; returns records and the machine."""
+    from tqdm import tqdm
+
+    if repeats < 1:
+        raise InvalidParameterError(f"repeats: expected a positive integer, got {repeats}")
+    classifiers = list(classifiers or CLASSIFIERS.available())
+    planners = list(planners or PLANNERS.available())
+    train = [generate_scene(1, i, size=256)[0] for i in range(4)]
+    models = {}
+    for name in classifiers:
+        kw = {"epochs": epochs} if name.startswith("unet-") else {}
+        models[name] = make_classifier(name, **kw).fit(train)
+    records: list[dict[str, Any]] = []
+    bar = tqdm(total=len(sizes) * len(classifiers), desc="bench", disable=not progress)
+    for size in sizes:
+        scene = generate_scene(0, 0, size=size)[0]
+        maps = UtilityMaps.from_scene(scene)
+        for name, model in models.items():
+            bar.set_postfix_str(f"{size} px: {name}")
+            rec = {"size": size, "stage": "classify", "classifier": name, "planner": None}
+            records.append(
+                rec
+                | measure(lambda m=model, img=scene.image: m.predict_proba(img), repeats=repeats)
+            )
+            mask = model.predict(scene.image)
+            records.append(
+                {"size": size, "stage": "denoise", "classifier": name, "planner": None}
+                | measure(lambda mk=mask: denoise(mk), repeats=repeats)
+            )
+            cleaned = denoise(mask)
+            for pname in planners:
+                traj = plan(pname, cleaned.mask, cleaned.polygons)
+                base = {"size": size, "classifier": name, "planner": pname, "pointings": len(traj)}
+                records.append(
+                    base
+                    | {"stage": "plan"}
+                    | measure(
+                        lambda p=pname, c=cleaned: plan(p, c.mask, c.polygons), repeats=repeats
+                    )
+                )
+                records.append(
+                    base
+                    | {"stage": "observe"}
+                    | measure(lambda t=traj, mp=maps: observe(t, mp, factor=1), repeats=repeats)
+                )
+            bar.update()
+    bar.close()
+    return {"machine": machine(), "repeats": repeats, "sizes": list(sizes), "records": records}
+
+
+def scaling_exponent(sizes: Sequence[int], seconds: Sequence[float]) -> float:
+    """Slope of log(time) against log(pixels): 1.0 means cost grows linearly with the pixel count."""
+    px = np.asarray(sizes, float) ** 2
+    t = np.asarray(seconds, float)
+    ok = t > 0
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(px[ok]), np.log(t[ok]), 1)[0])
+
+
+def summary_tables(result: dict[str, Any]) -> str:
+    """Markdown: pipeline latency per classifier and size, stage breakdown, planners, scaling."""
+    from dyntarget.evaluate.tables import markdown_table
+
+    recs = result["records"]
+    sizes = result["sizes"]
+
+    def get(stage, size, classifier=None, planner=None, key="median_s"):
+        for r in recs:
+            if (
+                r["stage"] == stage
+                and r["size"] == size
+                and (classifier is None or r["classifier"] == classifier)
+                and (planner is None or r["planner"] == planner)
+            ):
+                return r[key]
+        return None
+
+    classifiers = list(dict.fromkeys(r["classifier"] for r in recs))
+    planners = list(dict.fromkeys(r["planner"] for r in recs if r["planner"]))
+    ref_planner = "lawnmower-transect" if "lawnmower-transect" in planners else planners[0]
+    rows = []
+    for c in classifiers:
+        row: dict[str, Any] = {"classifier": c}
+        totals = []
+        for s in sizes:
+            total = get("classify", s, c) + get("denoise", s, c) + get("plan", s, c, ref_planner)
+            totals.append(total)
+            row[f"{s} px (s)"] = total
+        row["scaling exponent"] = scaling_exponent(sizes, totals)
+        peak = [get("classify", s, c, key="peak_mib") for s in sizes]
+        row["classify peak MiB (largest)"] = peak[-1] if peak[-1] is not None else "n/a"
+        rows.append(row)
+    cols = [
+        "classifier",
+        *[f"{s} px (s)" for s in sizes],
+        "scaling exponent",
+        "classify peak MiB (largest)",
+    ]
+    parts = [
+        f"Pipeline (classify + denoise + plan with {ref_planner}), median seconds per WFOV scene:\n",
+        markdown_table(rows, cols),
+    ]
+    stage_rows = []
+    for c in classifiers:
+        for s in sizes:
+            stage_rows.append(
+                {
+                    "classifier": c,
+                    "size": s,
+                    "classify (ms)": 1000 * get("classify", s, c),
+                    "denoise (ms)": 1000 * get("denoise", s, c),
+                    f"plan {ref_planner} (ms)": 1000 * get("plan", s, c, ref_planner),
+                    "observe (ms)": 1000 * get("observe", s, c, ref_planner),
+                }
+            )
+    parts += [
+        "\nPer stage, milliseconds:\n",
+        markdown_table(stage_rows, list(stage_rows[0]), digits=1),
+    ]
+    plan_rows = []
+    for p in planners:
+        row = {"planner": p}
+        for s in sizes:
+            vals = [
+                r["median_s"]
+                for r in recs
+                if r["stage"] == "plan" and r["planner"] == p and r["size"] == s
+            ]
+            row[f"{s} px median / max (ms)"] = (
+                f"{1000 * np.median(vals):.1f} / {1000 * np.max(vals):.1f}"
+            )
+        plan_rows.append(row)
+    parts += [
+        "\nPlanning alone, over the classifiers' masks (median / max over classifiers):\n",
+        markdown_table(plan_rows, list(plan_rows[0])),
+    ]
+    return "".join(parts)

@@ -1,0 +1,58 @@
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from dyntarget.cli import main
+from dyntarget.evaluate.bench import measure, scaling_exponent
+
+
+def test_scaling_exponent_by_hand():
+    assert scaling_exponent([100, 200, 400], [1.0, 4.0, 16.0]) == pytest.approx(
+        1.0
+    )  # linear in pixels
+    assert scaling_exponent([100, 200], [1.0, 2.0]) == pytest.approx(0.5)
+
+
+def test_measure_reports_median_and_peak():
+    calls = []
+    m = measure(lambda: calls.append(1), repeats=3)
+    assert len(calls) == 5  # warm-up, 3 timed, 1 for memory
+    assert m["median_s"] >= 0 and m["min_s"] <= m["median_s"]
+
+
+def test_bench_cli_small(tmp_path, capsys):
+    code = main(
+        [
+            "bench",
+            "--sizes",
+            "32,48",
+            "--classifiers",
+            "decision-tree,band-threshold",
+            "--planners",
+            "trace-outline,straight-nadir",
+            "--repeats",
+            "1",
+            "--out",
+            str(tmp_path / "b.json"),
+            "--markdown",
+            str(tmp_path / "b.md"),
+            "--quiet",
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    result = json.loads((tmp_path / "b.json").read_text())
+    stages = {(r["stage"], r["size"], r["classifier"], r["planner"]) for r in result["records"]}
+    assert ("classify", 48, "decision-tree", None) in stages
+    assert ("observe", 32, "band-threshold", "trace-outline") in stages
+    assert len(result["records"]) == 2 * 2 * (2 + 2 * 2)
+    assert (
+        "versions" in result["machine"]
+        and "Pipeline (classify + denoise + plan" in (tmp_path / "b.md").read_text()
+    )
+
+
+def test_bench_bad_size(tmp_path, capsys):
+    assert main(["bench", "--sizes", "8", "--out", str(tmp_path / "b.json")]) == 2
+    assert "at least 32 px" in capsys.readouterr().err
