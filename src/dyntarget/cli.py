@@ -245,6 +245,30 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.sweep import parse_grid, summary_figure, sweep
+
+    grid = parse_grid(args.grid or [])
+    table = sweep(
+        args.data,
+        args.out,
+        classifiers=args.classifiers.split(","),
+        planners=args.planners.split(",") if args.planners else None,
+        grid=grid,
+        folds=args.folds,
+        seed=args.seed,
+        epochs=args.epochs,
+        scheduler=args.scheduler,
+        models_dir=args.models,
+        progress=not args.quiet,
+    )
+    figure = summary_figure(table, Path(args.out) / "sweep.png")
+    print(table)
+    if figure:
+        print(figure)
+    return EXIT_OK
+
+
 DATASETS = {
     "industrial-smoke": "Mommert et al. 2020, Sentinel-2 industrial smoke plumes (Zenodo 4250706)"
 }
@@ -539,6 +563,33 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_end_to_end)
+
+    p = sub.add_parser(
+        "sweep", help="a parameter grid over held-out scenes x classifiers x planners, on Dask"
+    )
+    p.add_argument("--data", required=True, help="scene directory with labels")
+    p.add_argument(
+        "--out", required=True, help="output folder (sweep.csv, parts/, models/, sweep.png)"
+    )
+    p.add_argument("--classifiers", required=True, help="comma-separated classifier names")
+    p.add_argument("--planners", help="comma-separated subset (default: all)")
+    p.add_argument(
+        "--grid",
+        nargs="*",
+        metavar="NAME=V1,V2",
+        help="parameters to sweep: step_fraction, denoise_iterations, min_area_fraction, factor",
+    )
+    p.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
+    p.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--models", help="folder for trained models (default OUT/models)")
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        help="local (threads), processes, or a dask.distributed scheduler address",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser(
         "bench", help="latency and peak memory of every stage, classifier and planner"

@@ -1,0 +1,308 @@
+"""Parameter sweeps on Dask: held-out scenes x classifiers x a parameter grid, resumable.
+
+Work is split into tasks of one held-out scene x one classifier x one point of
+the parameter grid (all planners inside a task: they share the classification).
+Tasks run on a ``dask.distributed`` cluster:
+
+* ``local``: one worker process-less cluster, threads on this machine;
+* ``processes``: a local cluster with one single-threaded worker process per core;
+* ``tcp://HOST:PORT`` (any scheduler address): an existing cluster; its workers
+  must see the data and model folders at the same paths.
+
+Each finished task's rows are written at once, atomically, to
+``OUT/parts/<task id>.csv``; a rerun skips tasks whose part file exists, so an
+interrupted sweep resumes without redoing finished work, and the final table
+``OUT/sweep.csv`` (all parts, sorted) is the same whatever the completion
+order. Classifiers are trained once per fold and WFOV factor in the driver
+(``OUT/models`` unless ``models_dir`` is given) and reused on resume.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import itertools
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.io.atomic import write_text
+
+GRID_PARAMETERS: dict[str, type] = {
+    "step_fraction": float,
+    "denoise_iterations": int,
+    "min_area_fraction": float,
+    "factor": int,
+}
+DEFAULTS: dict[str, Any] = {
+    "step_fraction": 0.01,
+    "denoise_iterations": 1,
+    "min_area_fraction": 0.01,
+    "factor": 4,
+}
+METRICS = ("pixels_observed", "ratio_plume", "intensity", "gradient", "pointings")
+COLUMNS = (
+    "task", "fold", "scene", "classifier", "planner", *GRID_PARAMETERS, *METRICS, "runtime_s",
+)  # fmt: skip
+
+
+def parse_grid(items: Sequence[str]) -> dict[str, list]:
+    """``["step_fraction=0.005,0.01", "factor=2,4"]`` -> ``{"step_fraction": [0.005, 0.01], ...}``."""
+    grid: dict[str, list] = {}
+    for item in items:
+        name, _, values = item.partition("=")
+        name = name.strip().replace("-", "_")
+        if name not in GRID_PARAMETERS or not values:
+            raise InvalidParameterError(
+                f"grid: {item!r} is not NAME=V1,V2,...; NAME one of: {', '.join(GRID_PARAMETERS)}"
+            )
+        try:
+            grid[name] = [GRID_PARAMETERS[name](v) for v in values.split(",")]
+        except ValueError:
+            raise InvalidParameterError(
+                f"grid: {item!r} holds a value that is not a {GRID_PARAMETERS[name].__name__}"
+            ) from None
+    return grid
+
+
+def expand(grid: dict[str, list]) -> list[dict[str, Any]]:
+    """Every point of the grid (unswept parameters at their defaults), in a fixed order."""
+    names = list(GRID_PARAMETERS)
+    axes = [grid.get(n, [DEFAULTS[n]]) for n in names]
+    return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*axes)]
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    fold: int
+    scene_path: str
+    classifier: str
+    model_dir: str
+    params: dict[str, Any] = field(hash=False)
+
+    @property
+    def key(self) -> str:
+        p = ",".join(f"{k}={self.params[k]}" for k in GRID_PARAMETERS)
+        return f"{Path(self.scene_path).stem}|{self.classifier}|{p}"
+
+    @property
+    def file_id(self) -> str:
+        return hashlib.sha1(self.key.encode(), usedforsecurity=False).hexdigest()[:20]
+
+
+def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
+    """One task, on a worker: classify once, then denoise, plan and observe for every planner."""
+    import time
+
+    from dyntarget.io import read_scene
+    from dyntarget.observe import UtilityMaps, observe
+    from dyntarget.perceive import load_classifier
+    from dyntarget.pipeline import DenoiseConfig, PipelineConfig, plan_scene
+    from dyntarget.plan import PlanConfig
+
+    p = task.params
+    scene = read_scene(task.scene_path)
+    wfov = scene.to_wfov(p["factor"])
+    model = load_classifier(task.model_dir)
+    maps = UtilityMaps.from_scene(scene)
+    config = PipelineConfig(
+        plan=PlanConfig(step_fraction=p["step_fraction"]),
+        denoise=DenoiseConfig(
+            iterations=p["denoise_iterations"], min_area_fraction=p["min_area_fraction"]
+        ),
+    )
+    t0 = time.perf_counter()
+    mask = model.predict(wfov.image)
+    classify_s = time.perf_counter() - t0
+    rows = []
+    for planner in planners:
+        res = plan_scene(wfov.image, None, planner, mask=mask, valid=wfov.valid, config=config)
+        m = observe(res.trajectory, maps, factor=p["factor"])
+        rows.append(
+            {
+                "task": task.file_id,
+                "fold": task.fold,
+                "scene": scene.id,
+                "classifier": task.classifier,
+                "planner": planner,
+                **p,
+                **m.as_dict(),
+                "pointings": len(res.trajectory),
+                "runtime_s": classify_s + res.timings["denoise"] + res.timings["plan"],
+            }
+        )
+    return rows
+
+
+def _csv(rows: list[dict[str, Any]], header: bool) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    if header:
+        w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _client(scheduler: str):
+    from distributed import Client, LocalCluster
+
+    if scheduler == "local":
+        cluster = LocalCluster(
+            n_workers=1,
+            threads_per_worker=os.cpu_count() or 1,
+            processes=False,
+            dashboard_address=":0",
+        )
+        return Client(cluster), cluster
+    if scheduler == "processes":
+        cluster = LocalCluster(
+            n_workers=os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=":0",
+        )
+        return Client(cluster), cluster
+    if "://" not in scheduler:
+        raise InvalidParameterError(
+            f"scheduler: expected local, processes or a scheduler address, got {scheduler!r}"
+        )
+    try:
+        return Client(scheduler, timeout=10), None
+    except OSError as exc:
+        raise InvalidParameterError(f"scheduler: cannot reach {scheduler} ({exc})") from None
+
+
+class SweepInterrupted(Exception):
+    """Raised by ``stop_after`` (tests simulate a killed sweep with it)."""
+
+
+def sweep(
+    data: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    classifiers: Sequence[str],
+    planners: Sequence[str] | None = None,
+    grid: dict[str, list] | None = None,
+    folds: int = 5,
+    seed: int = 0,
+    epochs: int = 50,
+    scheduler: str = "local",
+    models_dir: str | os.PathLike[str] | None = None,
+    progress: bool = True,
+    stop_after: int | None = None,
+) -> Path:
+    """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``."""
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    from dyntarget.evaluate.crossval import kfold_indices, train_or_load
+    from dyntarget.io import read_scene_dir, scene_ids
+    from dyntarget.perceive import CLASSIFIERS
+    from dyntarget.plan import PLANNERS
+
+    for name in classifiers:
+        CLASSIFIERS.get(name)
+    planners = list(planners or PLANNERS.available())
+    for name in planners:
+        PLANNERS.get(name)
+    out, data = Path(out), Path(data)
+    models = Path(models_dir) if models_dir else out / "models"
+    points = expand(grid or {})
+    ids = scene_ids(data)
+    fold_idx = kfold_indices(len(ids), folds, seed)
+    scenes = None
+    tasks: list[SweepTask] = []
+    for factor in sorted({p["factor"] for p in points}):
+        for k, test in enumerate(fold_idx):
+            test_ids = [ids[i] for i in sorted(test.tolist())]
+            for cname in classifiers:
+                model_dir = models / f"factor-{factor}" / f"fold-{k}" / cname
+                pending_here = [
+                    SweepTask(k, str(data / f"{sid}.tif"), cname, str(model_dir), p)
+                    for sid in test_ids
+                    for p in points
+                    if p["factor"] == factor
+                ]
+                tasks += pending_here
+                if all((out / "parts" / f"{t.file_id}.csv").exists() for t in pending_here):
+                    continue  # nothing left to do for this model: do not even load the scenes
+                if scenes is None:
+                    scenes = {s.id: s for s in read_scene_dir(data, require_labels=True)}
+                train = [scenes[sid].to_wfov(factor) for sid in ids if sid not in test_ids]
+                train_or_load(cname, train, seed=seed, epochs=epochs, model_dir=model_dir)
+    parts = out / "parts"
+    parts.mkdir(parents=True, exist_ok=True)
+    todo = [t for t in tasks if not (parts / f"{t.file_id}.csv").exists()]
+    if todo:
+        client, cluster = _client(scheduler)
+        try:
+            futures = client.map(run_task, todo, planners=planners, pure=False)
+            done = 0
+            with tqdm(
+                total=len(tasks), initial=len(tasks) - len(todo), desc="sweep", disable=not progress
+            ) as bar:
+                for fut in as_completed(futures):
+                    rows = fut.result()
+                    write_text(parts / f"{rows[0]['task']}.csv", _csv(rows, header=False))
+                    bar.update()
+                    done += 1
+                    if stop_after is not None and done >= stop_after:
+                        client.cancel(futures)
+                        raise SweepInterrupted(f"stopped after {done} task(s)")
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return assemble(out, tasks)
+
+
+def assemble(out: Path, tasks: Sequence[SweepTask]) -> Path:
+    """Concatenate the tasks' parts into ``sweep.csv``, sorted by task id then planner order."""
+    rows_text = []
+    for fid in sorted({t.file_id for t in tasks}):
+        rows_text.append((out / "parts" / f"{fid}.csv").read_text(encoding="utf-8"))
+    header = ",".join(COLUMNS) + "\n"
+    return write_text(out / "sweep.csv", header + "".join(rows_text))
+
+
+def summary_figure(table: Path, path: Path) -> Path | None:
+    """Mean ratio plume per planner against each swept parameter (one panel per parameter)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from dyntarget.evaluate.figures import PATH_COLOURS, save
+
+    with open(table, encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    swept = [p for p in GRID_PARAMETERS if len({r[p] for r in rows}) > 1]
+    if not swept:
+        return None
+    fig, axes = plt.subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
+    for ax, param in zip(axes[0], swept, strict=True):
+        values = sorted({float(r[param]) for r in rows})
+        for planner in dict.fromkeys(r["planner"] for r in rows):
+            means = [
+                np.mean(
+                    [
+                        float(r["ratio_plume"])
+                        for r in rows
+                        if r["planner"] == planner and float(r[param]) == v
+                    ]
+                )
+                for v in values
+            ]
+            ax.plot(values, means, "o-", color=PATH_COLOURS.get(planner), label=planner)
+        ax.set_xlabel(param)
+        ax.set_ylabel("mean ratio plume")
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    return save(fig, path)
