@@ -56,3 +56,40 @@ def test_bench_cli_small(tmp_path, capsys):
 def test_bench_bad_size(tmp_path, capsys):
     assert main(["bench", "--sizes", "8", "--out", str(tmp_path / "b.json")]) == 2
     assert "at least 32 px" in capsys.readouterr().err
+
+
+def test_unet_flops_scale_with_area_and_tiling_costs_more(tiny_scenes):
+    from dyntarget.evaluate.bench import unet_flops
+    from dyntarget.perceive import make_classifier
+    from helpers import FAST_KWARGS
+
+    model = make_classifier("unet-uavsar", **FAST_KWARGS["unet-uavsar"]).fit(tiny_scenes[:2])
+    small, large = unet_flops(model, 64), unet_flops(model, 128)
+    assert small["one_pass"] > 0 and large["one_pass"] == pytest.approx(4 * small["one_pass"])
+    # overlapping tiles (stride tile/2) compute most pixels several times
+    assert large["tiled"] > 2 * large["one_pass"]
+
+
+def test_bounds_table_in_bench_output(tmp_path, capsys):
+    code = main(
+        [
+            "bench",
+            "--sizes",
+            "32",
+            "--classifiers",
+            "band-threshold",
+            "--planners",
+            "straight-nadir",
+            "--repeats",
+            "1",
+            "--out",
+            str(tmp_path / "b.json"),
+            "--markdown",
+            str(tmp_path / "b.md"),
+            "--quiet",
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    rates = json.loads((tmp_path / "b.json").read_text())["bounds"]["rates"]
+    assert rates["copy_bytes_per_s"] > 0 and rates["matmul_flop_per_s"] > 0
+    assert "read the image once" in (tmp_path / "b.md").read_text()

@@ -144,3 +144,19 @@ def test_band_threshold_learns_plume_over_cloud():
     label[:2] = True
     model = make_classifier("band-threshold").fit([Scene(image, label=label)])
     np.testing.assert_array_equal(model.predict(image), label)
+
+
+@pytest.mark.parametrize(
+    "name", ["naive-bayes", "logistic-regression", "decision-tree", "random-forest", "mlp"]
+)
+def test_chunked_parallel_prediction_equals_one_call(name, tiny_scenes, monkeypatch):
+    """The fast path (fixed chunks on a thread pool) is bit-identical to one predict_proba call."""
+    from dyntarget.perceive import pixel
+    from dyntarget.perceive.base import pixels
+
+    model = make_classifier(name).fit(tiny_scenes[:3])
+    image = tiny_scenes[3].image
+    straight = model.estimator.predict_proba(np.ascontiguousarray(pixels(image)))[:, 1]
+    monkeypatch.setattr(pixel, "PREDICT_CHUNK", 500)  # 64 x 64 px -> 9 chunks, last one short
+    chunked = model.predict_proba(image)
+    np.testing.assert_array_equal(chunked, straight.astype(np.float32).reshape(64, 64))

@@ -8,12 +8,20 @@ planner on the denoised polygons, and the NFOV simulator on each trajectory.
 Each number is the median of ``repeats`` runs after one warm-up run.
 
 Peak memory is the process's resident high-water mark during a stage minus the
-resident size before it (Linux: the mark is reset through
-``/proc/self/clear_refs`` before each stage); elsewhere it is not reported.
+resident size before it (Linux: freed heap pages are first returned to the OS
+with ``malloc_trim`` and the mark is reset through ``/proc/self/clear_refs``);
+elsewhere it is not reported.
+
+Lower bounds (:func:`lower_bounds`) put each stage's time in perspective: reading
+the image once from memory at the machine's measured copy bandwidth, and for the
+U-Nets the network's multiply-adds for one pass over the image at the machine's
+measured single-precision matrix-multiply rate.
 """
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import os
 import platform
 import time
@@ -52,6 +60,16 @@ def _reset_peak() -> bool:
         return False
 
 
+def _release_free_memory() -> None:
+    """Hand freed heap pages back to the OS (glibc ``malloc_trim``), so that the
+    next stage's resident high-water mark shows what it allocates rather than
+    reusing pages an earlier run left in the allocator."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
 def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
     """Median wall time (s) of ``repeats`` runs after a warm-up, and peak memory (MiB) above the start."""
     fn()
@@ -61,6 +79,8 @@ def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
         fn()
         times.append(time.perf_counter() - t0)
     peak = None
+    gc.collect()
+    _release_free_memory()
     if _reset_peak():
         before = _status_kb("VmRSS")
         fn()
@@ -157,7 +177,62 @@ def run_bench(
                 )
             bar.update()
     bar.close()
-    return {"machine": machine(), "repeats": repeats, "sizes": list(sizes), "records": records}
+    return {
+        "machine": machine(),
+        "repeats": repeats,
+        "sizes": list(sizes),
+        "records": records,
+        "bounds": lower_bounds(sizes, {n: m for n, m in models.items() if n.startswith("unet-")}),
+    }
+
+
+def machine_rates() -> dict[str, float]:
+    """Measured memory copy bandwidth (bytes/s, read + write) and float32 matmul rate (FLOP/s)."""
+    import torch
+
+    src = np.ones(1 << 23)  # 64 MiB, far beyond any cache
+    dst = np.empty_like(src)
+    copy_s = min(_timed(lambda: np.copyto(dst, src)) for _ in range(5))
+    n = 2048
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    mm_s = min(_timed(lambda: torch.mm(a, b)) for _ in range(5))
+    return {"copy_bytes_per_s": 2 * src.nbytes / copy_s, "matmul_flop_per_s": 2 * n**3 / mm_s}
+
+
+def _timed(fn: Callable[[], Any]) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def unet_flops(model: Any, size: int) -> dict[str, float]:
+    """FLOPs of one U-Net pass over a ``size``² image without tile overlap, and as tiled."""
+    import torch
+    from torch.utils.flop_counter import FlopCounterMode
+
+    tile = model.tile
+    with FlopCounterMode(display=False) as counter, torch.inference_mode():
+        model.model.eval()(torch.zeros(1, 4, tile, tile))
+    per_tile = counter.get_total_flops()
+    with FlopCounterMode(display=False) as counter:
+        model.predict_proba(np.zeros((4, size, size), np.float32))
+    return {"one_pass": per_tile * size * size / tile**2, "tiled": counter.get_total_flops()}
+
+
+def lower_bounds(sizes: Sequence[int], unets: dict[str, Any]) -> dict[str, Any]:
+    """Simple lower bounds on a stage's time at each size (see the module docstring)."""
+    rates = machine_rates()
+    out: dict[str, Any] = {"rates": rates, "sizes": {}}
+    for size in sizes:
+        entry: dict[str, Any] = {"read_image_s": 4 * 4 * size * size / rates["copy_bytes_per_s"]}
+        for name, model in unets.items():
+            flops = unet_flops(model, size)
+            entry[name] = flops | {
+                "one_pass_s": flops["one_pass"] / rates["matmul_flop_per_s"],
+                "tiled_s": flops["tiled"] / rates["matmul_flop_per_s"],
+            }
+        out["sizes"][str(size)] = entry
+    return out
 
 
 def scaling_exponent(sizes: Sequence[int], seconds: Sequence[float]) -> float:
@@ -247,4 +322,43 @@ def summary_tables(result: dict[str, Any]) -> str:
         "\nPlanning alone, over the classifiers' masks (median / max over classifiers):\n",
         markdown_table(plan_rows, list(plan_rows[0])),
     ]
+    bounds = result.get("bounds")
+    if bounds:
+        parts += ["\n", bounds_table(result, get)]
     return "".join(parts)
+
+
+def bounds_table(result: dict[str, Any], get: Callable[..., Any]) -> str:
+    """Markdown: each classifier's time against its lower bound, at the largest size."""
+    from dyntarget.evaluate.tables import markdown_table
+
+    bounds = result["bounds"]
+    size = max(result["sizes"])
+    entry = bounds["sizes"][str(size)]
+    rates = bounds["rates"]
+    rows = []
+    for c in dict.fromkeys(r["classifier"] for r in result["records"]):
+        measured = get("classify", size, c)
+        if c in entry:
+            bound, what = (
+                entry[c]["one_pass_s"],
+                f"{entry[c]['one_pass'] / 1e9:.1f} GFLOP one pass "
+                f"({entry[c]['tiled'] / 1e9:.1f} as tiled) at the matmul rate",
+            )
+        else:
+            bound, what = entry["read_image_s"], "read the image once"
+        rows.append(
+            {
+                "classifier": c,
+                "classify (ms)": 1000 * measured,
+                "lower bound (ms)": 1000 * bound,
+                "measured / bound": measured / bound,
+                "bound": what,
+            }
+        )
+    head = (
+        f"Classification at {size} px against a lower bound (copy bandwidth "
+        f"{rates['copy_bytes_per_s'] / 1e9:.1f} GB/s, float32 matmul "
+        f"{rates['matmul_flop_per_s'] / 1e9:.0f} GFLOP/s, both measured):\n"
+    )
+    return head + markdown_table(rows, list(rows[0]), digits=1)
