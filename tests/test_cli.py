@@ -113,6 +113,7 @@ def test_evaluate_classification_writes_table1(tmp_path, capsys):
     assert code == 0, err
     assert "| Band Threshold |" in out and "| + Denoising |" in out
     assert sorted(p.name for p in out_dir.iterdir()) == [
+        "parts",  # finished tasks, for resuming
         "table1_classification.csv",
         "table1_classification.json",
         "table1_classification.md",

@@ -24,6 +24,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"dyntarget: error: {message}\n")
 
 
+SCHEDULER_HELP = (
+    "run the tasks on dask.distributed: local (threads), processes (one worker process per "
+    "core) or a scheduler address tcp://HOST:PORT (default: one by one in this process)"
+)
+
+
+def _scheduler(text: str) -> str:
+    if text in ("local", "processes") or "://" in text:
+        return text
+    raise argparse.ArgumentTypeError(
+        f"expected local, processes or a scheduler address like tcp://HOST:PORT, got {text!r}"
+    )
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -121,7 +135,14 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     )
     scenes = _load_labelled(args.data)
     t0 = time.perf_counter()
-    result = cross_validate(scenes, config, models_dir=args.models, progress=not args.quiet)
+    result = cross_validate(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "classification",
+    )
     seconds = time.perf_counter() - t0
     result["timing"]["seconds"] = seconds
     paths = write_result(args.out, "table1_classification", result, TABLE1_COLUMNS)
@@ -210,7 +231,12 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
 
     scenes = _load_labelled(args.data)
     result = evaluate_planners_on_truth(
-        scenes, factor=args.factor, config=_plan_config(args), progress=not args.quiet
+        scenes,
+        factor=args.factor,
+        config=_plan_config(args),
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "planning",
     )
     paths = write_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
     print(markdown_table(result["rows"], PLANNING_COLUMNS))
@@ -396,7 +422,14 @@ def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     )
     scenes = _load_labelled(args.data)
     t0 = time.perf_counter()
-    result = evaluate_end_to_end(scenes, config, models_dir=args.models, progress=not args.quiet)
+    result = evaluate_end_to_end(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "end-to-end",
+    )
     result["timing"] = {"seconds": time.perf_counter() - t0}
     paths = write_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)
     print(markdown_table(result["rows"], TABLE2_COLUMNS))
@@ -421,6 +454,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         factor=args.factor,
         seed=args.seed,
         progress=not args.quiet,
+        scheduler=args.scheduler,
     )
     report = write_report(
         out,
@@ -496,6 +530,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_classification)
     q = ev.add_parser("planning", help="the six planners on the true masks")
     q.add_argument("--data", required=True, help="scene directory with labels")
@@ -505,6 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_plan_options(q)
+    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_planning)
 
     p = sub.add_parser("planners", help="list the trajectory planners")
@@ -562,6 +598,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_plan_options(q)
+    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_end_to_end)
 
     p = sub.add_parser(
@@ -586,7 +623,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--scheduler",
         default="local",
-        help="local (threads), processes, or a dask.distributed scheduler address",
+        help="dask.distributed: local (threads, default), processes (one worker process per "
+        "core) or a scheduler address tcp://HOST:PORT",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
@@ -649,6 +687,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_reproduce)
 

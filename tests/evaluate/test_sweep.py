@@ -38,6 +38,16 @@ def _rows(path):
 
 
 @pytest.fixture(scope="module")
+def data38(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sweep-data38")
+    assert (
+        main(["synth", "--scenes", "38", "--size", "64", "--seed", "4", "--out", str(d), "--quiet"])
+        == 0
+    )
+    return d
+
+
+@pytest.fixture(scope="module")
 def data(tmp_path_factory):
     d = tmp_path_factory.mktemp("sweep-data")
     assert (
@@ -45,21 +55,6 @@ def data(tmp_path_factory):
         == 0
     )
     return d
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import LocalCluster
-
-    with LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=False,
-        protocol="tcp",
-        host="127.0.0.1",
-        dashboard_address=":0",
-    ) as c:
-        yield c.scheduler_address
 
 
 def test_parse_and_expand_grid():
@@ -75,32 +70,56 @@ def test_parse_and_expand_grid():
         parse_grid(["factor=two"])
 
 
-def test_killed_sweep_resumes_with_identical_results(data, cluster, tmp_path):
+def test_killed_sweep_resumes_with_identical_results(data38, cluster, tmp_path):
+    """38 scenes x 3 classifiers x 6 planners on a 2-worker LocalCluster, killed halfway."""
     kw = dict(
         classifiers=["band-threshold", "decision-tree", "naive-bayes"],
-        grid={"step_fraction": [0.01, 0.03]},
         folds=2,
         scheduler=cluster,
         progress=False,
     )
     # uninterrupted reference run
-    ref = sweep(data, tmp_path / "ref", **kw)
+    ref = sweep(data38, tmp_path / "ref", **kw)
     ref_rows = _rows(ref)
-    assert len(ref_rows) == 6 * 3 * 2 * 6  # scenes x classifiers x grid points x planners
+    assert len(ref_rows) == 38 * 3 * 6  # scenes x classifiers x planners
     # a run killed halfway, then rerun
     out = tmp_path / "resumed"
     with pytest.raises(SweepInterrupted):
-        sweep(data, out, stop_after=10, **kw)
+        sweep(data38, out, stop_after=57, **kw)
     finished = {p.name for p in (out / "parts").iterdir()}
-    assert len(finished) >= 10 and not (out / "sweep.csv").exists()
+    assert 57 <= len(finished) < 114 and not (out / "sweep.csv").exists()
     mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "parts").iterdir()}
-    table = sweep(data, out, models_dir=out / "models", **kw)
+    table = sweep(data38, out, models_dir=out / "models", **kw)
     rows = _rows(table)
     assert rows == ref_rows  # identical, in the same order
     keys = [(r["task"], r["planner"]) for r in rows]
     assert len(keys) == len(set(keys))  # no duplicated rows
     # finished tasks were not redone
     assert all((out / "parts" / n).stat().st_mtime_ns == t for n, t in mtimes.items())
+
+
+def test_sweep_grid_points(data, cluster, tmp_path):
+    table = sweep(
+        data,
+        tmp_path / "g",
+        classifiers=["band-threshold"],
+        planners=["track-center", "lawnmower-transect"],
+        grid={"step_fraction": [0.01, 0.03], "denoise_iterations": [0, 1]},
+        folds=2,
+        scheduler=cluster,
+        progress=False,
+    )
+    rows = _rows(table)
+    assert len(rows) == 6 * 4 * 2
+    assert {(r["step_fraction"], r["denoise_iterations"]) for r in rows} == {
+        ("0.01", "0"), ("0.01", "1"), ("0.03", "0"), ("0.03", "1")
+    }  # fmt: skip
+    # a coarser step gives fewer pointings on the same masks
+    by = {}
+    for r in rows:
+        if r["planner"] == "lawnmower-transect" and r["denoise_iterations"] == "1":
+            by.setdefault(r["scene"], {})[r["step_fraction"]] = int(r["pointings"])
+    assert all(v["0.03"] <= v["0.01"] for v in by.values())
 
 
 def test_sweep_cli_local_scheduler(data, tmp_path, capsys):

@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
+from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import display
 from dyntarget.perceive import (
@@ -113,49 +113,88 @@ def train_or_load(
     return model, seconds, False
 
 
+def data_signature(scenes: Sequence[Scene]) -> str:
+    """A key over the scenes' ids, images, labels and valid masks (by content)."""
+    parts: list[Any] = [[s.id for s in scenes]]
+    for s in scenes:
+        parts += [s.image, s.label if s.label is not None else "unlabelled"]
+        parts += [s.valid if s.valid is not None else "all-valid"]
+    return task_key(*parts)
+
+
+def _cv_task(
+    task: tuple[int, str],
+    *,
+    wfov: Sequence[Scene],
+    folds: list[list[int]],
+    config: CVConfig,
+    models_dir: str | None,
+) -> dict[str, Any]:
+    """One fold x classifier: train (or reuse), predict the held-out scenes, count, denoise, count."""
+    k, name = task
+    test_set = set(folds[k])
+    train = [s for i, s in enumerate(wfov) if i not in test_set]
+    model_dir = Path(models_dir) / f"fold-{k}" / name if models_dir is not None else None
+    model, _, _ = train_or_load(
+        name, train, seed=config.seed, epochs=config.epochs, model_dir=model_dir
+    )
+    raw, den, seconds = Confusion(), Confusion(), []
+    for i in folds[k]:
+        s = wfov[i]
+        t0 = time.perf_counter()
+        pred = model.predict(s.image)
+        seconds.append(time.perf_counter() - t0)
+        pred &= s.valid_mask
+        raw = raw + Confusion.from_masks(pred, s.label, s.valid)
+        cleaned = denoise(
+            pred, iterations=config.denoise_iterations, min_area_fraction=config.min_area_fraction
+        ).mask
+        den = den + Confusion.from_masks(cleaned, s.label, s.valid)
+    return {"raw": asdict(raw), "denoised": asdict(den), "predict_seconds": seconds}
+
+
 def cross_validate(
     scenes: Sequence[Scene],
     config: CVConfig = CVConfig(),
     *,
     models_dir: str | Path | None = None,
     progress: bool = True,
+    scheduler: str | None = None,
+    parts: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Run the cross-validation; returns rows for Table 1 plus per-fold details."""
+    """Run the cross-validation; returns rows for Table 1 plus per-fold details.
+
+    Each fold x classifier is one task of :func:`~dyntarget.evaluate.distributed.run_tasks`
+    (``scheduler``: here, or on Dask; ``parts``: a folder where finished tasks are
+    kept, so that a rerun resumes).
+    """
+    check_scheduler(scheduler)  # before any training
     scenes = list(scenes)
     wfov = [s.to_wfov(config.factor) for s in scenes]
-    folds = kfold_indices(len(wfov), config.folds, config.seed)
+    folds = [sorted(f.tolist()) for f in kfold_indices(len(wfov), config.folds, config.seed)]
+    run = task_key("classification", asdict(config), data_signature(wfov))
+    tasks = [(k, name) for k in range(config.folds) for name in config.classifiers]
+    results = run_tasks(
+        _cv_task,
+        tasks,
+        key=lambda t: task_key(run, *t),
+        parts=Path(parts) if parts is not None else None,
+        scheduler=scheduler,
+        shared={
+            "wfov": wfov,
+            "folds": folds,
+            "config": config,
+            "models_dir": str(models_dir) if models_dir is not None else None,
+        },
+        progress=progress,
+        desc="cross-validation",
+    )
     counts: dict[tuple[str, bool], list[Confusion]] = {}
     timing: dict[str, list[float]] = {n: [] for n in config.classifiers}
-    steps = tqdm(
-        total=config.folds * len(config.classifiers), desc="cross-validation", disable=not progress
-    )
-    for k, test_idx in enumerate(folds):
-        test_set = set(test_idx.tolist())
-        train = [s for i, s in enumerate(wfov) if i not in test_set]
-        test = [wfov[i] for i in sorted(test_set)]
-        for name in config.classifiers:
-            steps.set_postfix_str(f"fold {k + 1}: {name}")
-            model_dir = Path(models_dir) / f"fold-{k}" / name if models_dir is not None else None
-            model, _, _ = train_or_load(
-                name, train, seed=config.seed, epochs=config.epochs, model_dir=model_dir
-            )
-            raw, den = Confusion(), Confusion()
-            for s in test:
-                t0 = time.perf_counter()
-                pred = model.predict(s.image)
-                timing[name].append(time.perf_counter() - t0)
-                pred &= s.valid_mask
-                raw = raw + Confusion.from_masks(pred, s.label, s.valid)
-                cleaned = denoise(
-                    pred,
-                    iterations=config.denoise_iterations,
-                    min_area_fraction=config.min_area_fraction,
-                ).mask
-                den = den + Confusion.from_masks(cleaned, s.label, s.valid)
-            counts.setdefault((name, False), []).append(raw)
-            counts.setdefault((name, True), []).append(den)
-            steps.update()
-    steps.close()
+    for (_, name), result in zip(tasks, results, strict=True):
+        counts.setdefault((name, False), []).append(Confusion(**result["raw"]))
+        counts.setdefault((name, True), []).append(Confusion(**result["denoised"]))
+        timing[name] += result["predict_seconds"]
     rows = []
     for name in config.classifiers:
         for denoised in (False, True):
@@ -179,7 +218,7 @@ def cross_validate(
     return {
         "rows": rows,
         "config": asdict(config),
-        "folds": [[scenes[i].id for i in sorted(f.tolist())] for f in folds],
+        "folds": [[scenes[i].id for i in f] for f in folds],
         "wfov_shape": list(wfov[0].shape),
         "timing": {
             "predict_seconds_per_scene": {n: float(np.median(t)) for n, t in timing.items()}

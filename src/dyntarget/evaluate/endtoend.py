@@ -23,7 +23,13 @@ import numpy as np
 from tqdm import tqdm
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.evaluate.crossval import DEFAULT_FACTOR, kfold_indices, train_or_load
+from dyntarget.evaluate.crossval import (
+    DEFAULT_FACTOR,
+    data_signature,
+    kfold_indices,
+    train_or_load,
+)
+from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
@@ -69,80 +75,106 @@ def evaluate_end_to_end(
     *,
     models_dir: str | Path | None = None,
     progress: bool = True,
+    scheduler: str | None = None,
+    parts: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Run the end-to-end evaluation; returns Table 2 rows and per-scene records."""
+    """Run the end-to-end evaluation; returns Table 2 rows and per-scene records.
+
+    Classifiers are trained (or loaded) here, once per fold; then each held-out
+    scene x classifier (and each scene for the baselines) is one task of
+    :func:`~dyntarget.evaluate.distributed.run_tasks` (``scheduler``: here or on
+    Dask; ``parts``: where finished tasks are kept so that a rerun resumes).
+    Runtimes measured on a parallel scheduler include contention between tasks.
+    """
+    check_scheduler(scheduler)  # before any training
     scenes = list(scenes)
-    lookahead = [p for p in config.planners if p not in BASELINES]
     baselines = [p for p in config.planners if p in BASELINES]
-    folds = kfold_indices(len(scenes), config.folds, config.seed)
+    lookahead = [p for p in config.planners if p not in BASELINES]
+    folds = [sorted(f.tolist()) for f in kfold_indices(len(scenes), config.folds, config.seed)]
     wfov = [s.to_wfov(config.factor) for s in scenes]
-    records: list[dict[str, Any]] = []
-    total = len(scenes) * (len(config.classifiers) + (1 if baselines else 0))
-    bar = tqdm(total=total, desc="end-to-end", unit="run", disable=not progress)
-    for k, test_idx in enumerate(folds):
-        test_set = set(test_idx.tolist())
-        train = [s for i, s in enumerate(wfov) if i not in test_set]
-        maps = {i: UtilityMaps.from_scene(scenes[i]) for i in sorted(test_set)}
-        for i in sorted(test_set):  # baselines: no classifier
-            for name in baselines:
-                res = plan_scene(
-                    wfov[i].image,
-                    None,
-                    name,
-                    mask=np.zeros(wfov[i].shape, bool),
-                    valid=wfov[i].valid,
-                    config=config.pipeline,
-                )
-                records.append(
-                    _record(
-                        k,
-                        scenes[i].id,
-                        name,
-                        "N/A",
-                        res.trajectory,
-                        maps[i],
-                        config,
-                        res.timings["plan"],
-                    )
-                )
-            if baselines:
-                bar.update()
-        for cname in config.classifiers:
-            bar.set_postfix_str(f"fold {k + 1}: {cname}")
+    models: dict[str, Any] = {}
+    tasks: list[tuple[int, int, str]] = []
+    for k, test in enumerate(folds):
+        if baselines:
+            tasks += [(k, i, "N/A") for i in test]
+        train = [s for i, s in enumerate(wfov) if i not in set(test)]
+        for cname in tqdm(
+            config.classifiers, desc=f"models, fold {k + 1}", leave=False, disable=not progress
+        ):
             model_dir = Path(models_dir) / f"fold-{k}" / cname if models_dir is not None else None
-            model, _, _ = train_or_load(
+            models[f"{k}/{cname}"], _, _ = train_or_load(
                 cname, train, seed=config.seed, epochs=config.epochs, model_dir=model_dir
             )
-            for i in sorted(test_set):
-                t0 = time.perf_counter()
-                proba = model.predict_proba(wfov[i].image)
-                classify_s = time.perf_counter() - t0
-                mask = proba >= config.pipeline.threshold
-                for pname in lookahead:
-                    res = plan_scene(
-                        wfov[i].image,
-                        None,
-                        pname,
-                        mask=mask,
-                        valid=wfov[i].valid,
-                        config=config.pipeline,
-                    )
-                    runtime = classify_s + res.timings["denoise"] + res.timings["plan"]
-                    records.append(
-                        _record(
-                            k, scenes[i].id, pname, cname, res.trajectory, maps[i], config, runtime
-                        )
-                    )
-                bar.update()
-    bar.close()
+            tasks += [(k, i, cname) for i in test]
+    run = task_key("end-to-end", _config_dict(config), data_signature(scenes))
+    results = run_tasks(
+        _e2e_task,
+        tasks,
+        key=lambda t: task_key(run, t[0], scenes[t[1]].id, t[2]),
+        parts=Path(parts) if parts is not None else None,
+        scheduler=scheduler,
+        shared={
+            "scenes": scenes,
+            "wfov": wfov,
+            "models": models,
+            "config": config,
+            "planners": {"baselines": baselines, "lookahead": lookahead},
+        },
+        progress=progress,
+        desc="end-to-end",
+    )
+    records = [r for result in results for r in result]
     rows = table2_rows(records, baselines + lookahead, list(config.classifiers))
     return {
         "rows": rows,
         "records": records,
         "config": _config_dict(config),
-        "folds": [[scenes[i].id for i in sorted(f.tolist())] for f in folds],
+        "folds": [[scenes[i].id for i in f] for f in folds],
         "wfov_shape": list(wfov[0].shape),
     }
+
+
+def _e2e_task(
+    task: tuple[int, int, str],
+    *,
+    scenes: Sequence[Scene],
+    wfov: Sequence[Scene],
+    models: dict[str, Any],
+    config: E2EConfig,
+    planners: dict[str, list[str]],
+) -> list[dict[str, Any]]:
+    """One held-out scene with one classifier (all look-ahead planners), or with the baselines."""
+    k, i, cname = task
+    maps = UtilityMaps.from_scene(scenes[i])
+    image, valid = wfov[i].image, wfov[i].valid
+    records = []
+    if cname == "N/A":  # baselines: no classifier
+        for name in planners["baselines"]:
+            res = plan_scene(
+                image,
+                None,
+                name,
+                mask=np.zeros(wfov[i].shape, bool),
+                valid=valid,
+                config=config.pipeline,
+            )
+            records.append(
+                _record(
+                    k, scenes[i].id, name, "N/A", res.trajectory, maps, config, res.timings["plan"]
+                )
+            )
+        return records
+    t0 = time.perf_counter()
+    proba = models[f"{k}/{cname}"].predict_proba(image)
+    classify_s = time.perf_counter() - t0
+    mask = proba >= config.pipeline.threshold
+    for pname in planners["lookahead"]:
+        res = plan_scene(image, None, pname, mask=mask, valid=valid, config=config.pipeline)
+        runtime = classify_s + res.timings["denoise"] + res.timings["plan"]
+        records.append(
+            _record(k, scenes[i].id, pname, cname, res.trajectory, maps, config, runtime)
+        )
+    return records
 
 
 def _record(

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
+from dyntarget.evaluate.crossval import data_signature
+from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
@@ -31,6 +34,26 @@ PLANNING_COLUMNS = [
 ]
 
 
+def _planning_task(
+    i: int, *, scenes: Sequence[Scene], factor: int, config: PlanConfig, planners: list[str]
+) -> list[list[float]]:
+    """One scene: denoise its WFOV label, then plan and observe with every planner."""
+    scene = scenes[i]
+    wfov = scene.to_wfov(factor)
+    cleaned = denoise(
+        wfov.label, iterations=DEFAULT_ITERATIONS, min_area_fraction=DEFAULT_MIN_AREA_FRACTION
+    )
+    maps = UtilityMaps.from_scene(scene)
+    out = []
+    for name in planners:
+        t0 = time.perf_counter()
+        traj = plan(name, cleaned.mask, cleaned.polygons, config)
+        ms = 1000 * (time.perf_counter() - t0)
+        m = observe(traj, maps, factor=factor)
+        out.append([m.pixels_observed, m.ratio_plume, m.intensity, m.gradient, ms])
+    return out
+
+
 def evaluate_planners_on_truth(
     scenes: Sequence[Scene],
     *,
@@ -38,22 +61,25 @@ def evaluate_planners_on_truth(
     config: PlanConfig | None = None,
     planners: Sequence[str] | None = None,
     progress: bool = True,
+    scheduler: str | None = None,
+    parts: str | Path | None = None,
 ) -> dict[str, Any]:
+    """Every planner on every scene's true mask; one task per scene (see ``run_tasks``)."""
+    check_scheduler(scheduler)  # before any training
     config = config or PlanConfig()
     planners = list(planners or PLANNERS.available())
-    per: dict[str, list[list[float]]] = {n: [] for n in planners}
-    for scene in tqdm(scenes, desc="planning on true masks", unit="scene", disable=not progress):
-        wfov = scene.to_wfov(factor)
-        cleaned = denoise(
-            wfov.label, iterations=DEFAULT_ITERATIONS, min_area_fraction=DEFAULT_MIN_AREA_FRACTION
-        )
-        maps = UtilityMaps.from_scene(scene)
-        for name in planners:
-            t0 = time.perf_counter()
-            traj = plan(name, cleaned.mask, cleaned.polygons, config)
-            ms = 1000 * (time.perf_counter() - t0)
-            m = observe(traj, maps, factor=factor)
-            per[name].append([m.pixels_observed, m.ratio_plume, m.intensity, m.gradient, ms])
+    run = task_key("planning", factor, asdict(config), planners, data_signature(scenes))
+    results = run_tasks(
+        _planning_task,
+        list(range(len(scenes))),
+        key=lambda i: task_key(run, scenes[i].id),
+        parts=Path(parts) if parts is not None else None,
+        scheduler=scheduler,
+        shared={"scenes": list(scenes), "factor": factor, "config": config, "planners": planners},
+        progress=progress,
+        desc="planning on true masks",
+    )
+    per = {name: [result[j] for result in results] for j, name in enumerate(planners)}
     rows = []
     for name in planners:
         a = np.asarray(per[name], dtype=np.float64)

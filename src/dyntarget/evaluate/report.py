@@ -199,8 +199,13 @@ def evaluate_all(
     factor: int = 4,
     seed: int = 0,
     progress: bool = True,
+    scheduler: str | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Path]]:
-    """Table 1 and Table 2 sharing one training run (models in ``models_dir``), plus figures."""
+    """Table 1 and Table 2 sharing one training run (models in ``models_dir``), plus figures.
+
+    Finished tasks are kept in ``out/parts/`` so that an interrupted run resumes;
+    ``scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
+    """
     from dyntarget.evaluate.crossval import CVConfig, cross_validate
     from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
     from dyntarget.evaluate.tables import write_result
@@ -208,12 +213,26 @@ def evaluate_all(
     out, models_dir = Path(out), Path(models_dir)
     t0 = time.perf_counter()
     cv = CVConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
-    table1 = cross_validate(scenes, cv, models_dir=models_dir, progress=progress)
+    table1 = cross_validate(
+        scenes,
+        cv,
+        models_dir=models_dir,
+        progress=progress,
+        scheduler=scheduler,
+        parts=out / "parts" / "classification",
+    )
     table1["timing"]["seconds"] = time.perf_counter() - t0
     write_result(out, "table1_classification", table1, TABLE1_COLUMNS)
     t0 = time.perf_counter()
     e2e = E2EConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
-    table2 = evaluate_end_to_end(scenes, e2e, models_dir=models_dir, progress=progress)
+    table2 = evaluate_end_to_end(
+        scenes,
+        e2e,
+        models_dir=models_dir,
+        progress=progress,
+        scheduler=scheduler,
+        parts=out / "parts" / "end-to-end",
+    )
     table2["timing"] = {"seconds": time.perf_counter() - t0}
     write_result(out, "table2_end_to_end", table2, TABLE2_COLUMNS)
     figures = make_figures(out, scenes, table1, table2, models_dir, factor=factor)

@@ -2,25 +2,21 @@
 
 Work is split into tasks of one held-out scene x one classifier x one point of
 the parameter grid (all planners inside a task: they share the classification).
-Tasks run on a ``dask.distributed`` cluster:
-
-* ``local``: one worker process-less cluster, threads on this machine;
-* ``processes``: a local cluster with one single-threaded worker process per core;
-* ``tcp://HOST:PORT`` (any scheduler address): an existing cluster; its workers
-  must see the data and model folders at the same paths.
-
-Each finished task's rows are written at once, atomically, to
-``OUT/parts/<task id>.csv``; a rerun skips tasks whose part file exists, so an
+Tasks run through :func:`dyntarget.evaluate.distributed.run_tasks` on a
+``dask.distributed`` cluster (``local`` threads, ``processes``, or a scheduler
+address; a remote cluster's workers must see the data and model folders at the
+same paths). Each finished task's rows are written at once to
+``OUT/parts/<task key>.json``; a rerun skips tasks whose part exists, so an
 interrupted sweep resumes without redoing finished work, and the final table
-``OUT/sweep.csv`` (all parts, sorted) is the same whatever the completion
-order. Classifiers are trained once per fold and WFOV factor in the driver
+``OUT/sweep.csv`` (rows sorted by task key) is the same whatever the completion
+order. A task's key covers the scene, classifier, grid point, the data set's
+scene list, folds, seed, epochs and planners. Classifiers are trained once per fold and WFOV factor in the driver
 (``OUT/models`` unless ``models_dir`` is given) and reused on resume.
 """
 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import itertools
 import os
@@ -30,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from dyntarget.errors import InvalidParameterError
+from dyntarget.evaluate.distributed import Interrupted, check_scheduler, run_tasks, task_key
 from dyntarget.io.atomic import write_text
 
 GRID_PARAMETERS: dict[str, type] = {
@@ -84,14 +81,11 @@ class SweepTask:
     model_dir: str
     params: dict[str, Any] = field(hash=False)
 
-    @property
-    def key(self) -> str:
-        p = ",".join(f"{k}={self.params[k]}" for k in GRID_PARAMETERS)
-        return f"{Path(self.scene_path).stem}|{self.classifier}|{p}"
+    run: str = ""  # signature of the data and training settings (part of the key)
 
     @property
-    def file_id(self) -> str:
-        return hashlib.sha1(self.key.encode(), usedforsecurity=False).hexdigest()[:20]
+    def key(self) -> str:
+        return task_key("sweep", self.run, Path(self.scene_path).stem, self.classifier, self.params)
 
 
 def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
@@ -124,7 +118,7 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
         m = observe(res.trajectory, maps, factor=p["factor"])
         rows.append(
             {
-                "task": task.file_id,
+                "task": task.key,
                 "fold": task.fold,
                 "scene": scene.id,
                 "classifier": task.classifier,
@@ -138,43 +132,12 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     return rows
 
 
-def _csv(rows: list[dict[str, Any]], header: bool) -> str:
+def _csv(rows: list[dict[str, Any]]) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
-    if header:
-        w.writeheader()
+    w.writeheader()
     w.writerows(rows)
     return buf.getvalue()
-
-
-def _client(scheduler: str):
-    from distributed import Client, LocalCluster
-
-    if scheduler == "local":
-        cluster = LocalCluster(
-            n_workers=1,
-            threads_per_worker=os.cpu_count() or 1,
-            processes=False,
-            dashboard_address=":0",
-        )
-        return Client(cluster), cluster
-    if scheduler == "processes":
-        cluster = LocalCluster(
-            n_workers=os.cpu_count() or 1,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=":0",
-        )
-        return Client(cluster), cluster
-    if "://" not in scheduler:
-        raise InvalidParameterError(
-            f"scheduler: expected local, processes or a scheduler address, got {scheduler!r}"
-        )
-    try:
-        return Client(scheduler, timeout=10), None
-    except OSError as exc:
-        raise InvalidParameterError(f"scheduler: cannot reach {scheduler} ({exc})") from None
 
 
 class SweepInterrupted(Exception):
@@ -197,24 +160,24 @@ def sweep(
     stop_after: int | None = None,
 ) -> Path:
     """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``."""
-    from distributed import as_completed
-    from tqdm import tqdm
-
     from dyntarget.evaluate.crossval import kfold_indices, train_or_load
     from dyntarget.io import read_scene_dir, scene_ids
     from dyntarget.perceive import CLASSIFIERS
     from dyntarget.plan import PLANNERS
 
+    check_scheduler(scheduler)
     for name in classifiers:
         CLASSIFIERS.get(name)
     planners = list(planners or PLANNERS.available())
     for name in planners:
         PLANNERS.get(name)
     out, data = Path(out), Path(data)
+    parts = out / "parts"
     models = Path(models_dir) if models_dir else out / "models"
     points = expand(grid or {})
     ids = scene_ids(data)
     fold_idx = kfold_indices(len(ids), folds, seed)
+    run = task_key(ids, folds, seed, epochs, planners)
     scenes = None
     tasks: list[SweepTask] = []
     for factor in sorted({p["factor"] for p in points}):
@@ -222,52 +185,35 @@ def sweep(
             test_ids = [ids[i] for i in sorted(test.tolist())]
             for cname in classifiers:
                 model_dir = models / f"factor-{factor}" / f"fold-{k}" / cname
-                pending_here = [
-                    SweepTask(k, str(data / f"{sid}.tif"), cname, str(model_dir), p)
+                here = [
+                    SweepTask(k, str(data / f"{sid}.tif"), cname, str(model_dir), p, run)
                     for sid in test_ids
                     for p in points
                     if p["factor"] == factor
                 ]
-                tasks += pending_here
-                if all((out / "parts" / f"{t.file_id}.csv").exists() for t in pending_here):
+                tasks += here
+                if all((parts / f"{t.key}.json").exists() for t in here):
                     continue  # nothing left to do for this model: do not even load the scenes
                 if scenes is None:
                     scenes = {s.id: s for s in read_scene_dir(data, require_labels=True)}
                 train = [scenes[sid].to_wfov(factor) for sid in ids if sid not in test_ids]
                 train_or_load(cname, train, seed=seed, epochs=epochs, model_dir=model_dir)
-    parts = out / "parts"
-    parts.mkdir(parents=True, exist_ok=True)
-    todo = [t for t in tasks if not (parts / f"{t.file_id}.csv").exists()]
-    if todo:
-        client, cluster = _client(scheduler)
-        try:
-            futures = client.map(run_task, todo, planners=planners, pure=False)
-            done = 0
-            with tqdm(
-                total=len(tasks), initial=len(tasks) - len(todo), desc="sweep", disable=not progress
-            ) as bar:
-                for fut in as_completed(futures):
-                    rows = fut.result()
-                    write_text(parts / f"{rows[0]['task']}.csv", _csv(rows, header=False))
-                    bar.update()
-                    done += 1
-                    if stop_after is not None and done >= stop_after:
-                        client.cancel(futures)
-                        raise SweepInterrupted(f"stopped after {done} task(s)")
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-    return assemble(out, tasks)
-
-
-def assemble(out: Path, tasks: Sequence[SweepTask]) -> Path:
-    """Concatenate the tasks' parts into ``sweep.csv``, sorted by task id then planner order."""
-    rows_text = []
-    for fid in sorted({t.file_id for t in tasks}):
-        rows_text.append((out / "parts" / f"{fid}.csv").read_text(encoding="utf-8"))
-    header = ",".join(COLUMNS) + "\n"
-    return write_text(out / "sweep.csv", header + "".join(rows_text))
+    try:
+        results = run_tasks(
+            run_task,
+            tasks,
+            key=lambda t: t.key,
+            parts=parts,
+            scheduler=scheduler,
+            shared={"planners": planners},
+            progress=progress,
+            desc="sweep",
+            stop_after=stop_after,
+        )
+    except Interrupted as exc:
+        raise SweepInterrupted(str(exc)) from None
+    order = sorted(range(len(tasks)), key=lambda i: tasks[i].key)  # independent of run order
+    return write_text(out / "sweep.csv", _csv([row for i in order for row in results[i]]))
 
 
 def summary_figure(table: Path, path: Path) -> Path | None:

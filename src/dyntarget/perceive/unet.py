@@ -21,6 +21,7 @@ so there are no seams. Weights are saved with safetensors.
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,7 @@ from dyntarget.perceive.base import CLASSIFIERS, Classifier
 WEIGHTS_FILE = "model.safetensors"
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
+_GLOBAL_RNG_LOCK = threading.Lock()
 
 
 def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
@@ -264,7 +266,9 @@ class _UNetClassifier(Classifier):
             stack.mean(axis=1, dtype=np.float64),
             np.maximum(stack.std(axis=1, dtype=np.float64), 1e-4),
         )
-        with torch.random.fork_rng(devices=[]):
+        # the initial weights come from torch's global generator: seed it under a lock so
+        # that models trained at once on several threads (a Dask worker) stay deterministic
+        with _GLOBAL_RNG_LOCK, torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             model = self.network(width=self.width)
         model.norm.mean.copy_(torch.from_numpy(mean.astype(np.float32)).view(1, 4, 1, 1))

@@ -1,0 +1,178 @@
+"""Run an evaluation's independent tasks here or on ``dask.distributed``; stream and resume.
+
+Every evaluation (classification folds, end-to-end scenes, planning scenes,
+sweep points) is a list of independent tasks, each a pure function of its
+inputs returning a JSON-serialisable result. :func:`run_tasks` runs them
+
+* ``scheduler=None``: one after another in this process (the default);
+* ``"local"``: on a ``LocalCluster`` of threads in this process (one per core);
+* ``"processes"``: on a ``LocalCluster`` of one single-threaded worker process per core;
+* ``"tcp://HOST:PORT"`` (any scheduler address): on an existing cluster.
+
+Inputs every task needs (the scenes, the configuration) are passed as
+``shared`` keyword arguments: on a cluster they are scattered once to every
+worker rather than sent with each task. Each finished task's result is written
+at once, atomically, to ``parts/<key>.json``; a rerun loads those instead of
+running the tasks again, so an interrupted evaluation resumes where it stopped
+and the assembled result is identical whatever the completion order. A task's
+key must change whenever anything that determines its result changes
+(:func:`task_key` hashes whatever it is given).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+from tqdm import tqdm
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.io.atomic import write_text
+
+T = TypeVar("T")
+
+
+class Interrupted(Exception):
+    """Raised by ``stop_after`` (tests simulate a killed run with it)."""
+
+
+def task_key(*parts: Any) -> str:
+    """A stable hex key for a task from JSON-able parts and numpy arrays (hashed by content)."""
+    h = hashlib.sha1(usedforsecurity=False)
+    for part in parts:
+        if isinstance(part, np.ndarray):
+            h.update(repr((part.dtype.str, part.shape)).encode())
+            h.update(np.ascontiguousarray(part).tobytes())
+        else:
+            h.update(json.dumps(part, sort_keys=True, default=str).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:24]
+
+
+@contextmanager
+def dask_client(scheduler: str) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``local``, ``processes`` or a scheduler address."""
+    from distributed import Client, LocalCluster
+
+    cores = os.cpu_count() or 1
+    if scheduler == "local":
+        cluster = LocalCluster(
+            n_workers=1, threads_per_worker=cores, processes=False, dashboard_address=":0"
+        )
+    elif scheduler == "processes":
+        cluster = LocalCluster(
+            n_workers=cores,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=":0",
+        )
+    else:
+        check_scheduler(scheduler)
+        cluster = None
+    try:
+        if cluster is None:
+            try:
+                client = Client(scheduler, timeout=10)
+            except OSError as exc:
+                raise InvalidParameterError(
+                    f"scheduler: cannot reach {scheduler} ({exc})"
+                ) from None
+        else:
+            client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """Refuse a malformed scheduler before any work starts."""
+    if scheduler is not None and scheduler not in ("local", "processes") and "://" not in scheduler:
+        raise InvalidParameterError(
+            f"scheduler: expected local, processes or a scheduler address, got {scheduler!r}"
+        )
+
+
+def _load_part(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None  # unreadable: run the task again
+
+
+def run_tasks(
+    fn: Callable[..., Any],
+    tasks: Sequence[T],
+    *,
+    key: Callable[[T], str],
+    parts: Path | None = None,
+    scheduler: str | None = None,
+    shared: dict[str, Any] | None = None,
+    progress: bool = True,
+    desc: str = "tasks",
+    stop_after: int | None = None,
+) -> list[Any]:
+    """``[fn(task, **shared) for task in tasks]``, resumable and optionally on Dask.
+
+    Results come back in task order. With ``parts``, finished results are kept
+    as ``parts/<key(task)>.json`` and reused on the next call.
+    """
+    check_scheduler(scheduler)
+    shared = shared or {}
+    keys = [key(t) for t in tasks]
+    if len(set(keys)) != len(keys):
+        raise ValueError("run_tasks: two tasks share a key")
+    results: dict[str, Any] = {}
+    if parts is not None:
+        parts.mkdir(parents=True, exist_ok=True)
+        for k in keys:
+            f = parts / f"{k}.json"
+            if f.exists() and (loaded := _load_part(f)) is not None:
+                results[k] = loaded
+    todo = [(k, t) for k, t in zip(keys, tasks, strict=True) if k not in results]
+    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, disable=not progress)
+    done = 0
+
+    def finish(k: str, result: Any) -> None:
+        nonlocal done
+        if parts is not None:
+            write_text(parts / f"{k}.json", json.dumps(result) + "\n")
+        results[k] = json.loads(json.dumps(result))  # the same types as a resumed result
+        bar.update()
+        done += 1
+        if stop_after is not None and done >= stop_after:
+            raise Interrupted(f"stopped after {done} task(s)")
+
+    try:
+        if todo and scheduler is None:
+            for k, t in todo:
+                finish(k, fn(t, **shared))
+        elif todo:
+            from distributed import as_completed
+
+            with dask_client(scheduler) as client:
+                remote = {
+                    name: client.scatter([value], broadcast=True)[0]
+                    for name, value in shared.items()
+                }
+                futures = client.map(fn, [t for _, t in todo], pure=False, **remote)
+                key_of = {f.key: k for f, (k, _) in zip(futures, todo, strict=True)}
+                try:
+                    for fut in as_completed(futures):
+                        finish(key_of[fut.key], fut.result())
+                except BaseException:
+                    client.cancel(futures)
+                    raise
+    finally:
+        bar.close()
+    return [results[k] for k in keys]
