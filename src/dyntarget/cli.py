@@ -200,6 +200,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
             )
     config = PipelineConfig(plan=_plan_config(args))
+    if args.planner == "utility-max" or args.agility:
+        return _plan_timed(args, wfov, classifier, config)
     result = plan_scene(
         wfov.image,
         classifier,
@@ -225,6 +227,71 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _plan_timed(args, wfov, classifier, config) -> int:
+    """``plan`` under an agility preset: schedule (or utility-max), write the timed pointings."""
+    import numpy as np
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.pipeline import plan_scene
+    from dyntarget.plan.kinematics import Geometry, get_agility, schedule
+    from dyntarget.plan.utility import utility_max
+
+    if not args.agility:
+        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
+    agility = get_agility(args.agility)
+    gsd = args.wfov_gsd or wfov.gsd
+    if gsd is None:
+        raise InvalidParameterError(
+            f"{args.image[0]}: no ground sampling distance known; give --wfov-gsd METRES"
+        )
+    geometry = Geometry(
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        wfov_gsd_m=gsd,
+        start_s=args.start_s,
+    )
+    if args.planner == "utility-max":
+        if classifier is not None:
+            proba = classifier.predict_proba(wfov.image)
+        else:
+            proba = wfov.label.astype(np.float32)
+        proba = np.where(wfov.valid_mask, proba, 0.0).astype(np.float32)
+        step, _ = config.plan.resolved(wfov.shape)
+        traj = utility_max(
+            proba,
+            wfov.image,
+            geometry,
+            agility,
+            step=max(step, 1.0),
+            objective=args.objective,
+            budget_s=args.budget_s,
+            max_pointings=args.max_pointings,
+        )
+        sched = schedule(traj, wfov.shape, geometry, agility)
+    else:
+        result = plan_scene(
+            wfov.image,
+            classifier,
+            args.planner,
+            mask=wfov.label,
+            valid=wfov.valid,
+            denoise=not args.no_denoise,
+            config=config,
+        )
+        sched = schedule(
+            result.trajectory, wfov.shape, geometry, agility, reorder=True, budget_s=args.budget_s
+        )
+    out = sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs)
+    summary = sched.summary()
+    _log(
+        f"{args.planner} under '{agility.name}' agility: {summary['kept']} of {summary['planned']} "
+        f"planned pointings feasible ({100 * sched.fraction_feasible:.0f} %), "
+        f"done {sched.total_s:.1f} s after the start, {sched.time_left_s:.1f} s left in the window"
+    )
+    print(out)
+    return EXIT_OK
+
+
 def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
     from dyntarget.evaluate.tables import markdown_table, write_result
@@ -241,6 +308,57 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     paths = write_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
     print(markdown_table(result["rows"], PLANNING_COLUMNS))
     _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
+def cmd_evaluate_agility(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
+    from dyntarget.evaluate.tables import markdown_table, write_result
+
+    kw = {}
+    if args.planners:
+        kw["planners"] = tuple(args.planners.split(","))
+    if args.agility:
+        kw["presets"] = tuple(args.agility.split(","))
+    config = AgilityConfig(
+        folds=args.folds,
+        seed=args.seed,
+        factor=args.factor,
+        epochs=args.epochs,
+        classifier=args.classifier,
+        objective=args.objective,
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        plan=_plan_config(args),
+        **kw,
+    )
+    scenes = _load_labelled(args.data)
+    result = evaluate_agility(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "agility",
+    )
+    paths = write_result(args.out, "agility", result, AGILITY_COLUMNS)
+    print(markdown_table(result["rows"], AGILITY_COLUMNS))
+    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
+def cmd_agility(args: argparse.Namespace) -> int:
+    from dyntarget.plan.kinematics import AGILITY
+
+    print(
+        f"{'preset':10s} {'rate °/s':>9s} {'accel °/s²':>10s} {'settle s':>9s} {'dwell s':>8s} {'FOR °':>6s}"
+    )
+    for a in AGILITY.values():
+        fov = "-" if a.field_of_regard_deg is None else f"{a.field_of_regard_deg:g}"
+        print(
+            f"{a.name:10s} {a.max_rate_deg_s:9g} {a.max_accel_deg_s2:10g} {a.settle_s:9g} "
+            f"{a.dwell_s:8g} {fov:>6s}"
+        )
     return EXIT_OK
 
 
@@ -542,9 +660,46 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plan_options(q)
     q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_planning)
+    q = ev.add_parser(
+        "agility", help="planners and utility-max under orbit kinematics and agility presets"
+    )
+    q.add_argument("--data", required=True, help="scene directory with labels")
+    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
+    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+    q.add_argument(
+        "--classifier", default="unet-uavsar", help="classifier to plan on (default unet-uavsar)"
+    )
+    q.add_argument("--planners", help="comma-separated geometric planners (default: the four)")
+    q.add_argument("--agility", help="comma-separated presets (default: all; 'dyntarget agility')")
+    q.add_argument(
+        "--objective",
+        default="gradient",
+        choices=["gradient", "intensity", "plume"],
+        help="what utility-max maximises (default gradient)",
+    )
+    q.add_argument("--altitude-km", type=_positive_float, default=500.0, help="default 500")
+    q.add_argument(
+        "--look-ahead-km",
+        type=float,
+        default=500.0,
+        help="ground distance from nadir to the WFOV scene centre at acquisition (default 500)",
+    )
+    q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
+    q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
+    q.add_argument(
+        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
+    _add_plan_options(q)
+    q.set_defaults(func=cmd_evaluate_agility)
 
     p = sub.add_parser("planners", help="list the trajectory planners")
     p.set_defaults(func=cmd_planners)
+
+    p = sub.add_parser("agility", help="list the NFOV agility presets")
+    p.set_defaults(func=cmd_agility)
 
     p = sub.add_parser(
         "plan", help="plan an NFOV trajectory for one image (classify, denoise, plan)"
@@ -559,7 +714,11 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
     src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
     p.add_argument("--classifier", help="classifier name; must match --model")
-    p.add_argument("--planner", required=True, help="planner name (see 'dyntarget planners')")
+    p.add_argument(
+        "--planner",
+        required=True,
+        help="planner name (see 'dyntarget planners'), or utility-max (with --agility)",
+    )
     p.add_argument("--out", required=True, help="trajectory file: .geojson or .csv")
     p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
     p.add_argument(
@@ -580,6 +739,36 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     _add_plan_options(p)
+    k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
+    k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
+    k.add_argument("--altitude-km", type=_positive_float, default=500.0, help="default 500")
+    k.add_argument(
+        "--look-ahead-km",
+        type=float,
+        default=500.0,
+        help="ground distance from nadir to the scene centre at acquisition (default 500)",
+    )
+    k.add_argument(
+        "--start-s",
+        type=float,
+        default=0.0,
+        help="seconds after acquisition when the plan starts (onboard latency; default 0)",
+    )
+    k.add_argument(
+        "--wfov-gsd", type=_positive_float, help="metres per WFOV pixel (default: the image's)"
+    )
+    k.add_argument("--budget-s", type=float, help="time budget in seconds from the start")
+    k.add_argument(
+        "--max-pointings",
+        type=_positive_int,
+        help="pointing budget (utility-max; needed when unlimited)",
+    )
+    k.add_argument(
+        "--objective",
+        default="gradient",
+        choices=["gradient", "intensity", "plume"],
+        help="what utility-max maximises (default gradient)",
+    )
     p.set_defaults(func=cmd_plan)
 
     q = ev.add_parser(

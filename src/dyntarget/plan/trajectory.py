@@ -29,12 +29,23 @@ class Trajectory:
     part: np.ndarray
     planner: str
     params: dict[str, Any] = field(default_factory=dict)
+    times: np.ndarray | None = None
+    """When each observation starts, seconds after the WFOV acquisition (set by
+    :func:`dyntarget.plan.kinematics.schedule`; ``None`` for an untimed plan)."""
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)
         part = np.asarray(self.part, dtype=np.int64).reshape(-1)
         if len(part) != len(pts):
             raise InvalidParameterError(f"part: {len(part)} entries for {len(pts)} points")
+        if self.times is not None:
+            times = np.asarray(self.times, dtype=np.float64).reshape(-1)
+            if len(times) != len(pts) or not np.isfinite(times).all():
+                raise InvalidParameterError(
+                    f"times: expected {len(pts)} finite times, got {len(times)}"
+                )
+            times.setflags(write=False)
+            object.__setattr__(self, "times", times)
         if not np.isfinite(pts).all():
             raise InvalidParameterError("points: trajectory holds NaN or infinite coordinates")
         pts.setflags(write=False)
@@ -52,7 +63,8 @@ class Trajectory:
     def without(self, drop: np.ndarray) -> Trajectory:
         """The trajectory without the pointings where ``drop`` (bool per point) is true."""
         keep = ~np.asarray(drop, bool)
-        return Trajectory(self.points[keep], self.part[keep], self.planner, self.params)
+        times = self.times[keep] if self.times is not None else None
+        return Trajectory(self.points[keep], self.part[keep], self.planner, self.params, times)
 
     @property
     def path_length(self) -> float:
@@ -78,12 +90,18 @@ class Trajectory:
         return np.column_stack([a * x + b * y + c, d * x + e * y + f])
 
     def to_csv(self, *, transform: Affine | None = None) -> str:
-        lines = ["order,x,y,part" + (",X,Y" if transform is not None else "")]
+        lines = [
+            "order,x,y,part"
+            + (",X,Y" if transform is not None else "")
+            + (",time_s" if self.times is not None else "")
+        ]
         world = self.world_points(transform)
         for i, ((x, y), p) in enumerate(zip(self.points, self.part, strict=True)):
             row = f"{i},{x:.3f},{y:.3f},{p}"
             if transform is not None:
                 row += f",{world[i, 0]:.3f},{world[i, 1]:.3f}"
+            if self.times is not None:
+                row += f",{self.times[i]:.3f}"
             lines.append(row)
         return "\n".join(lines) + "\n"
 
@@ -112,7 +130,10 @@ class Trajectory:
                 {
                     "type": "Feature",
                     "geometry": {"type": "Point", "coordinates": xy},
-                    "properties": {"order": i, "part": p},
+                    "properties": {"order": i, "part": p}
+                    | (
+                        {"time_s": round(float(self.times[i]), 3)} if self.times is not None else {}
+                    ),
                 }
             )
         doc: dict[str, Any] = {"type": "FeatureCollection", "features": feats, "properties": props}

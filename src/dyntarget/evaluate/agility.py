@@ -1,0 +1,233 @@
+"""Planners under orbit kinematics and agility presets, with ``utility-max`` beside them.
+
+For each fold a classifier is trained (or loaded from ``models_dir``, so the
+models of ``dyntarget reproduce`` are reused); for every held-out scene its
+plume probability is computed once, denoised, and every geometric planner
+plans on it. Each plan is then timed under each agility preset
+(:func:`dyntarget.plan.kinematics.schedule`): first in the planner's own order
+(the fraction of the paper's points that would really be observed), then
+reordered earliest-deadline-first and trimmed, which is what is flown and
+scored on the high-resolution truth. ``utility-max`` plans directly under each
+preset with the same visibility windows; with unlimited agility, where time
+costs nothing, its pointing budget is the largest number of pointings any
+geometric planner kept on that scene — equal budgets either way.
+
+Totals are sums over the observed WFOV pixels (mean utility x pixels observed);
+"per pointing" is the mean.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.evaluate.crossval import DEFAULT_FACTOR, data_signature, kfold_indices, train_or_load
+from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.tables import display
+from dyntarget.observe import UtilityMaps, observe
+from dyntarget.perceive import CLASSIFIERS
+from dyntarget.perceive.denoise import denoise
+from dyntarget.plan import BASELINES, PLANNERS, PlanConfig, plan
+from dyntarget.plan.kinematics import AGILITY, Geometry, schedule
+from dyntarget.plan.utility import OBJECTIVES, utility_max
+from dyntarget.scene import Scene
+
+AGILITY_COLUMNS = [
+    "Agility",
+    "Trajectory Algorithm",
+    "Planned",
+    "Feasible as planned",
+    "Observed",
+    "Gradient per pointing",
+    "Total gradient",
+    "Intensity per pointing",
+    "Total intensity",
+    "Ratio Plume",
+]
+
+
+@dataclass(frozen=True)
+class AgilityConfig:
+    folds: int = 5
+    seed: int = 0
+    factor: int = DEFAULT_FACTOR
+    epochs: int = 50
+    classifier: str = "unet-uavsar"
+    presets: tuple[str, ...] = tuple(AGILITY)
+    planners: tuple[str, ...] = field(
+        default_factory=lambda: tuple(p for p in PLANNERS.available() if p not in BASELINES)
+    )
+    objective: str = "gradient"
+    altitude_m: float = 500e3
+    look_ahead_m: float = 500e3
+    plan: PlanConfig = field(default_factory=PlanConfig)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
+            raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
+        CLASSIFIERS.get(self.classifier)
+        for name in self.planners:
+            PLANNERS.get(name)
+        for name in self.presets:
+            if name not in AGILITY:
+                raise InvalidParameterError(
+                    f"agility: unknown preset {name!r}; choose from {', '.join(AGILITY)}"
+                )
+        if self.objective not in OBJECTIVES:
+            raise InvalidParameterError(
+                f"objective: expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}"
+            )
+        Geometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
+
+
+def _agility_task(
+    task: tuple[int, int],
+    *,
+    scenes: Sequence[Scene],
+    wfov: Sequence[Scene],
+    models: dict[int, Any],
+    config: AgilityConfig,
+) -> list[dict[str, Any]]:
+    k, i = task
+    scene, w = scenes[i], wfov[i]
+    maps = UtilityMaps.from_scene(scene)
+    proba = models[k].predict_proba(w.image)
+    valid = w.valid_mask
+    proba = np.where(valid, proba, 0.0).astype(np.float32)
+    cleaned = denoise(proba >= 0.5)
+    geometry = Geometry(
+        altitude_m=config.altitude_m,
+        look_ahead_m=config.look_ahead_m,
+        wfov_gsd_m=scene.gsd * config.factor,
+    )
+    step, _ = config.plan.resolved(w.shape)
+    plans = {p: plan(p, cleaned.mask, cleaned.polygons, config.plan) for p in config.planners}
+    records = []
+
+    def record(preset, planner, planned, as_planned, flown):
+        m = observe(flown, maps, factor=config.factor)
+        return {
+            "fold": k,
+            "scene": scene.id,
+            "agility": preset,
+            "planner": planner,
+            "planned": planned,
+            "feasible_as_planned": as_planned,
+            "observed": m.pixels_observed,
+            "gradient": m.gradient,
+            "total_gradient": m.gradient * m.pixels_observed,
+            "intensity": m.intensity,
+            "total_intensity": m.intensity * m.pixels_observed,
+            "ratio_plume": m.ratio_plume,
+        }
+
+    for preset in config.presets:
+        kept = []
+        for name, traj in plans.items():
+            as_planned = schedule(traj, w.shape, geometry, preset).fraction_feasible
+            flown = schedule(traj, w.shape, geometry, preset, reorder=True)
+            kept.append(len(flown.kept))
+            records.append(record(preset, name, len(traj), as_planned, flown.trajectory))
+        budget = max(kept, default=0) if AGILITY[preset].unlimited else None
+        traj = utility_max(
+            proba,
+            w.image,
+            geometry,
+            preset,
+            step=max(step, 1.0),
+            objective=config.objective,
+            max_pointings=budget,
+        )
+        flown = schedule(traj, w.shape, geometry, preset)
+        records.append(
+            record(preset, "utility-max", len(traj), flown.fraction_feasible, flown.trajectory)
+        )
+    return records
+
+
+def evaluate_agility(
+    scenes: Sequence[Scene],
+    config: AgilityConfig = AgilityConfig(),
+    *,
+    models_dir: str | Path | None = None,
+    progress: bool = True,
+    scheduler: str | None = None,
+    parts: str | Path | None = None,
+) -> dict[str, Any]:
+    """Feasibility and utility of every planner under every agility preset (see module docstring)."""
+    check_scheduler(scheduler)
+    scenes = list(scenes)
+    folds = [sorted(f.tolist()) for f in kfold_indices(len(scenes), config.folds, config.seed)]
+    wfov = [s.to_wfov(config.factor) for s in scenes]
+    models = {}
+    for k, test in enumerate(folds):
+        train = [s for i, s in enumerate(wfov) if i not in set(test)]
+        model_dir = Path(models_dir) / f"fold-{k}" / config.classifier if models_dir else None
+        models[k], _, _ = train_or_load(
+            config.classifier, train, seed=config.seed, epochs=config.epochs, model_dir=model_dir
+        )
+    tasks = [(k, i) for k, test in enumerate(folds) for i in test]
+    run = task_key("agility", _config_dict(config), data_signature(scenes))
+    results = run_tasks(
+        _agility_task,
+        tasks,
+        key=lambda t: task_key(run, t[0], scenes[t[1]].id),
+        parts=Path(parts) if parts is not None else None,
+        scheduler=scheduler,
+        shared={"scenes": scenes, "wfov": wfov, "models": models, "config": config},
+        progress=progress,
+        desc="agility",
+    )
+    records = [r for result in results for r in result]
+    return {
+        "rows": agility_rows(records, list(config.presets), [*config.planners, "utility-max"]),
+        "records": records,
+        "config": _config_dict(config),
+        "ground_speed_m_s": Geometry(altitude_m=config.altitude_m).ground_speed,
+    }
+
+
+def agility_rows(
+    records: list[dict[str, Any]], presets: list[str], planners: list[str]
+) -> list[dict[str, Any]]:
+    rows = []
+    for preset in presets:
+        for name in planners:
+            sel = [r for r in records if r["agility"] == preset and r["planner"] == name]
+            if not sel:
+                continue
+
+            def mean(key, sel=sel):
+                return float(np.mean([r[key] for r in sel]))
+
+            rows.append(
+                {
+                    "Agility": preset,
+                    "Trajectory Algorithm": display(name)
+                    if name != "utility-max"
+                    else "Utility Max",
+                    "agility": preset,
+                    "planner": name,
+                    "Planned": mean("planned"),
+                    "Feasible as planned": mean("feasible_as_planned"),
+                    "Observed": mean("observed"),
+                    "Gradient per pointing": mean("gradient"),
+                    "Total gradient": mean("total_gradient"),
+                    "Intensity per pointing": mean("intensity"),
+                    "Total intensity": mean("total_intensity"),
+                    "Ratio Plume": mean("ratio_plume"),
+                    "scenes": len(sel),
+                }
+            )
+    return rows
+
+
+def _config_dict(config: AgilityConfig) -> dict[str, Any]:
+    d = asdict(config)
+    d["presets"], d["planners"] = list(config.presets), list(config.planners)
+    return d

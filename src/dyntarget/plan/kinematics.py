@@ -1,0 +1,383 @@
+"""Observation geometry and timing: which NFOV pointings can really be taken, and when.
+
+The paper plans in the image plane as if the NFOV sensor could take every
+pointing at once. Here the spacecraft moves and the sensor has finite agility.
+
+Model (documented in ``docs/kinematics.md``):
+
+* **Orbit**: circular, altitude ``h`` over a spherical, non-rotating Earth
+  (mean radius 6371 km; GM = 3.986004418e14 m³/s², WGS 84). The orbital speed is
+  ``sqrt(GM / (R + h))`` and the nadir point moves over the ground at
+  ``sqrt(GM / (R + h)) * R / (R + h)`` — 7.06 km/s at 500 km.
+* **Scene placement**: time ``t = 0`` is the WFOV acquisition. The WFOV footprint
+  centre lies ``look_ahead_m`` ahead of nadir along the ground track. WFOV
+  image "up" (decreasing row) is the flight direction, as for the planners;
+  pixel ``(x, y)`` lies ``look_ahead_m + ((H - 1) / 2 - y) * gsd`` ahead of
+  the nadir point at ``t = 0`` and ``(x - (W - 1) / 2) * gsd`` across track.
+  Earth rotation (at most 0.46 km/s) is ignored.
+* **Field of regard**: a target can be observed while its off-nadir angle is at
+  most ``field_of_regard_deg`` and its along-track look angle is no more than
+  ``aft_limit_deg`` behind nadir (default 0: the sensor looks forward and down,
+  never back, so a target the spacecraft has passed is lost).
+* **Agility**: a slew between two look directions of angle ``φ`` takes the
+  time of a rest-to-rest trapezoidal rate profile (acceleration ``α`` up to the
+  rate ``ω``): ``2 sqrt(φ / α)`` when ``φ <= ω² / α``, else ``φ / ω + ω / α``;
+  then ``settle_s``; then the pointing is held for ``dwell_s`` (the sensor
+  tracks the ground point meanwhile). The sensor starts at nadir at ``start_s``
+  (the time the plan is ready: onboard classification and planning latency).
+
+:func:`schedule` walks a trajectory in order, times every pointing and drops
+those that cannot be taken inside their visibility window (or the budget);
+with ``reorder=True`` it first sorts the pointings by the time they leave the
+field of regard (earliest deadline first; the planner's order on ties), since
+points the spacecraft passes first must be taken first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.plan.trajectory import Trajectory
+
+EARTH_RADIUS_M = 6_371_000.0
+"""Mean Earth radius (IUGG)."""
+GM_EARTH = 3.986004418e14
+"""Earth's gravitational parameter, m³/s² (WGS 84)."""
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Where the scene lies relative to the spacecraft, and when the plan starts."""
+
+    altitude_m: float = 500e3
+    look_ahead_m: float = 500e3
+    wfov_gsd_m: float = 32.0
+    start_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("altitude_m", "wfov_gsd_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"{name}: expected a positive number, got {v!r}")
+        if not 100e3 <= self.altitude_m <= 2000e3:
+            raise InvalidParameterError(
+                f"altitude_m: expected a low Earth orbit (100-2000 km), got {self.altitude_m!r}"
+            )
+        for name in ("look_ahead_m", "start_s"):
+            v = getattr(self, name)
+            if not math.isfinite(v):
+                raise InvalidParameterError(f"{name}: expected a finite number, got {v!r}")
+
+    @property
+    def ground_speed(self) -> float:
+        """Speed of the nadir point over the ground, m/s."""
+        r = EARTH_RADIUS_M + self.altitude_m
+        return math.sqrt(GM_EARTH / r) * EARTH_RADIUS_M / r
+
+    def ground(self, points: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """WFOV pixel ``(x, y)`` -> (along-track, cross-track) ground distance from nadir at t=0, m."""
+        h, w = shape
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        along = self.look_ahead_m + ((h - 1) / 2.0 - pts[:, 1]) * self.wfov_gsd_m
+        cross = (pts[:, 0] - (w - 1) / 2.0) * self.wfov_gsd_m
+        return along, cross
+
+
+@dataclass(frozen=True)
+class Agility:
+    """How fast the NFOV line of sight can move. ``inf`` rate/acceleration: instantaneous."""
+
+    name: str
+    max_rate_deg_s: float = math.inf
+    max_accel_deg_s2: float = math.inf
+    settle_s: float = 0.0
+    dwell_s: float = 0.0
+    field_of_regard_deg: float | None = None
+    aft_limit_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("max_rate_deg_s", "max_accel_deg_s2"):
+            v = getattr(self, name)
+            if not v > 0 or math.isnan(v):
+                raise InvalidParameterError(f"{name}: expected a positive number, got {v!r}")
+        for name in ("settle_s", "dwell_s", "aft_limit_deg"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"{name}: expected a number >= 0, got {v!r}")
+        f = self.field_of_regard_deg
+        if f is not None and not 0 < f < 70:
+            raise InvalidParameterError(
+                f"field_of_regard_deg: expected an off-nadir angle in (0, 70) degrees, got {f!r}"
+            )
+
+    @property
+    def unlimited(self) -> bool:
+        return self.field_of_regard_deg is None
+
+    def slew_time(self, angle_deg: np.ndarray | float) -> np.ndarray:
+        """Rest-to-rest slew time (s) for angles in degrees (trapezoidal rate profile)."""
+        phi = np.abs(np.asarray(angle_deg, np.float64))
+        w, a = self.max_rate_deg_s, self.max_accel_deg_s2
+        if math.isinf(a):
+            return phi / w if math.isfinite(w) else np.zeros_like(phi)
+        if math.isinf(w):
+            return 2.0 * np.sqrt(phi / a)
+        return np.where(phi <= w * w / a, 2.0 * np.sqrt(phi / a), phi / w + w / a)
+
+
+AGILITY: dict[str, Agility] = {
+    "unlimited": Agility("unlimited"),
+    "fast": Agility(
+        "fast",
+        max_rate_deg_s=10.0,
+        max_accel_deg_s2=20.0,
+        settle_s=0.05,
+        dwell_s=0.05,
+        field_of_regard_deg=30.0,
+    ),
+    "slow": Agility(
+        "slow",
+        max_rate_deg_s=1.0,
+        max_accel_deg_s2=0.5,
+        settle_s=1.0,
+        dwell_s=0.1,
+        field_of_regard_deg=30.0,
+    ),
+}
+"""Agility presets (see ``docs/kinematics.md`` for where the numbers come from).
+
+* ``unlimited``: the paper's assumption — every pointing, no time, no limits.
+* ``fast``: a steerable-mirror NFOV sensor (degrees per second slews, tens of
+  milliseconds to settle and expose).
+* ``slow``: a small satellite that points its whole body with reaction wheels
+  (about 1 °/s, a second to settle).
+"""
+
+
+def get_agility(name: str) -> Agility:
+    try:
+        return AGILITY[name]
+    except KeyError:
+        raise InvalidParameterError(
+            f"agility: unknown preset {name!r}; choose one of: {', '.join(AGILITY)}"
+        ) from None
+
+
+def look_vectors(geometry: Geometry, along: np.ndarray, cross: np.ndarray, t) -> np.ndarray:
+    """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``.
+
+    Frame: x along the velocity, y across track, z up (away from Earth's centre).
+    """
+    r = EARTH_RADIUS_M
+    rel = (np.asarray(along, np.float64) - geometry.ground_speed * np.asarray(t, np.float64)) / r
+    c = np.asarray(cross, np.float64) / r
+    target = np.stack(
+        np.broadcast_arrays(
+            r * np.sin(rel) * np.cos(c), r * np.sin(c), r * np.cos(rel) * np.cos(c)
+        ),
+        axis=-1,
+    )
+    los = target - np.array([0.0, 0.0, r + geometry.altitude_m])
+    return los / np.linalg.norm(los, axis=-1, keepdims=True)
+
+
+def off_nadir_deg(los: np.ndarray) -> np.ndarray:
+    """Angle between the line of sight and nadir, degrees."""
+    return np.degrees(np.arccos(np.clip(-los[..., 2], -1.0, 1.0)))
+
+
+def pitch_deg(los: np.ndarray) -> np.ndarray:
+    """Along-track look angle, degrees: positive ahead of nadir, negative behind."""
+    return np.degrees(np.arctan2(los[..., 0], -los[..., 2]))
+
+
+def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+
+
+def visibility_windows(
+    geometry: Geometry, agility: Agility, along: np.ndarray, cross: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_in, t_out)`` per ground point: when it is inside the field of regard.
+
+    ``t_in > t_out`` marks a point that is never inside (too far across track).
+    Unlimited agility: ``(-inf, inf)``.
+    """
+    along, cross = np.asarray(along, np.float64), np.asarray(cross, np.float64)
+    if agility.unlimited:
+        return np.full(along.shape, -np.inf), np.full(along.shape, np.inf)
+    v = geometry.ground_speed
+
+    def los_at(delta):  # the target ``delta`` metres ahead of nadir
+        return look_vectors(geometry, delta, cross, 0.0)
+
+    def bisect(pred, lo, hi):  # largest delta in [lo, hi] with pred true (pred true at lo)
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            ok = pred(mid)
+            lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+        return lo
+
+    reach = geometry.altitude_m * 10.0  # far beyond any field of regard below 70 degrees
+    zero = np.zeros_like(along)
+    visible_now = off_nadir_deg(los_at(zero)) <= agility.field_of_regard_deg
+    ahead = bisect(
+        lambda d: off_nadir_deg(los_at(d)) <= agility.field_of_regard_deg, zero, zero + reach
+    )
+    behind = -bisect(
+        lambda d: (
+            (off_nadir_deg(los_at(-d)) <= agility.field_of_regard_deg)
+            & (pitch_deg(los_at(-d)) >= -agility.aft_limit_deg - 1e-9)
+        ),
+        zero,
+        zero + reach,
+    )
+    t_in = np.where(visible_now, (along - ahead) / v, np.inf)
+    t_out = np.where(visible_now, (along - behind) / v, -np.inf)
+    return t_in, t_out
+
+
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """A trajectory re-timed under a geometry and an agility preset.
+
+    ``trajectory`` holds the kept pointings in the order they are taken,
+    ``times`` when each observation starts (s after the WFOV acquisition),
+    ``kept`` their indices in the planned trajectory, ``planned`` how many
+    pointings were planned. ``window_end_s`` is when the last planned point
+    leaves the field of regard (``inf`` without limits).
+    """
+
+    trajectory: Trajectory
+    times: np.ndarray
+    kept: np.ndarray
+    planned: int
+    start_s: float
+    end_s: float
+    window_end_s: float
+    agility: str
+
+    @property
+    def fraction_feasible(self) -> float:
+        return len(self.kept) / self.planned if self.planned else 1.0
+
+    @property
+    def total_s(self) -> float:
+        """From the plan's start to the end of the last observation."""
+        return self.end_s - self.start_s
+
+    @property
+    def time_left_s(self) -> float:
+        """Between the end of the last observation and the end of the window."""
+        return self.window_end_s - self.end_s
+
+    def summary(self) -> dict[str, float | int | str]:
+        return {
+            "agility": self.agility,
+            "planned": self.planned,
+            "kept": len(self.kept),
+            "fraction_feasible": self.fraction_feasible,
+            "total_s": self.total_s,
+            "time_left_s": self.time_left_s,
+        }
+
+
+class Timer:
+    """Step-by-step timing of pointings: what the sensor tracks and when it is free.
+
+    Between observations the sensor keeps tracking the ground, so a slew covers
+    the angle between the previous and the next ground point as seen at the
+    arrival time (from nadir for the first pointing).
+    """
+
+    def __init__(self, geometry: Geometry, agility: Agility) -> None:
+        self.geometry, self.agility = geometry, agility
+        self.t = geometry.start_s
+        self.target: tuple[float, float] | None = None  # None: looking at nadir
+
+    def _from(self, t: np.ndarray) -> np.ndarray:
+        if self.target is None:
+            return np.array([0.0, 0.0, -1.0])
+        return look_vectors(self.geometry, self.target[0], self.target[1], t)
+
+    def arrival(self, along: np.ndarray, cross: np.ndarray, t_in: np.ndarray) -> np.ndarray:
+        """When observations of the given targets could start if taken next (vectorised)."""
+        if self.agility.unlimited:
+            return np.full(np.shape(along), self.t)
+        ta = np.full(np.shape(along), self.t)
+        for _ in range(4):  # the geometry changes during the slew: fixed-point iteration
+            when = np.maximum(ta, t_in)
+            angle = angle_between_deg(
+                self._from(when), look_vectors(self.geometry, along, cross, when)
+            )
+            ta = self.t + self.agility.slew_time(angle) + self.agility.settle_s
+        return np.maximum(ta, t_in)
+
+    def take(self, along: float, cross: float, start: float) -> None:
+        self.t = start + self.agility.dwell_s
+        self.target = (float(along), float(cross))
+
+
+def schedule(
+    trajectory: Trajectory,
+    shape: tuple[int, int],
+    geometry: Geometry,
+    agility: Agility | str,
+    *,
+    reorder: bool = False,
+    budget_s: float | None = None,
+) -> Schedule:
+    """Time every pointing in order, dropping those that cannot be taken in their window.
+
+    ``reorder``: first sort by the time each point leaves the field of regard.
+    ``budget_s``: also drop pointings that would end later than ``start_s + budget_s``.
+    """
+    agility = get_agility(agility) if isinstance(agility, str) else agility
+    if budget_s is not None and not (budget_s >= 0 and math.isfinite(budget_s)):
+        raise InvalidParameterError(
+            f"budget_s: expected a number of seconds >= 0, got {budget_s!r}"
+        )
+    along, cross = geometry.ground(trajectory.points, shape)
+    t_in, t_out = visibility_windows(geometry, agility, along, cross)
+    order = np.argsort(t_out, kind="stable") if reorder else np.arange(len(trajectory))
+    limit = math.inf if budget_s is None else geometry.start_s + budget_s
+    timer = Timer(geometry, agility)
+    kept, times = [], []
+    for j in order:
+        if t_in[j] > t_out[j]:
+            continue  # never inside the field of regard
+        start = float(timer.arrival(along[j : j + 1], cross[j : j + 1], t_in[j : j + 1])[0])
+        end = start + agility.dwell_s
+        if end > t_out[j] or end > limit:
+            continue
+        timer.take(along[j], cross[j], start)
+        kept.append(j)
+        times.append(start)
+    kept_idx = np.asarray(kept, np.int64)
+    keep_traj = Trajectory(
+        trajectory.points[kept_idx],
+        trajectory.part[kept_idx],
+        trajectory.planner,
+        {**trajectory.params, "agility": agility.name},
+        np.asarray(times, np.float64),
+    )
+    visible = t_out[t_in <= t_out]
+    return Schedule(
+        trajectory=keep_traj,
+        times=np.asarray(times, np.float64),
+        kept=kept_idx,
+        planned=len(trajectory),
+        start_s=geometry.start_s,
+        end_s=timer.t,
+        window_end_s=float(visible.max()) if len(visible) else geometry.start_s,
+        agility=agility.name,
+    )
+
+
+def agility_table() -> list[dict[str, object]]:
+    """The presets as rows (for docs and ``dyntarget agility``)."""
+    return [asdict(a) for a in AGILITY.values()]

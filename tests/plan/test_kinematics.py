@@ -1,0 +1,178 @@
+"""Orbit kinematics and agility against hand-computed cases; utility-max; the agility evaluation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dyntarget import InvalidParameterError
+from dyntarget.plan.kinematics import (
+    AGILITY,
+    EARTH_RADIUS_M,
+    Agility,
+    Geometry,
+    look_vectors,
+    off_nadir_deg,
+    schedule,
+    visibility_windows,
+)
+from dyntarget.plan.trajectory import Trajectory
+from dyntarget.plan.utility import predicted_utility, utility_max
+
+FAST = AGILITY["fast"]
+SLOW = AGILITY["slow"]
+
+
+def test_ground_speed_at_500_km_by_hand():
+    # v = sqrt(GM / (R + h)) = sqrt(3.986004418e14 / 6.871e6) = 7616.5 m/s in orbit;
+    # the nadir point moves R / (R + h) as fast: 7616.5 * 6371 / 6871 = 7062.3 m/s
+    assert Geometry(altitude_m=500e3).ground_speed == pytest.approx(7062.3, abs=0.1)
+
+
+def test_slew_time_for_known_angles():
+    a = Agility("t", max_rate_deg_s=1.0, max_accel_deg_s2=0.5)
+    # 10 deg > rate^2 / accel = 2 deg: trapezoid, 10 / 1 + 1 / 0.5 = 12 s
+    assert a.slew_time(10.0) == pytest.approx(12.0)
+    # 1 deg < 2 deg: triangle, 2 * sqrt(1 / 0.5) = 2.828 s
+    assert a.slew_time(1.0) == pytest.approx(2 * math.sqrt(2.0))
+    # the two branches meet at 2 deg: 2 / 1 + 2 = 4 = 2 * sqrt(2 / 0.5)
+    assert a.slew_time(2.0) == pytest.approx(4.0)
+    assert Agility("r", max_rate_deg_s=2.0).slew_time(10.0) == pytest.approx(5.0)
+    assert AGILITY["unlimited"].slew_time(45.0) == 0.0
+
+
+def test_off_nadir_angle_on_a_sphere_by_hand():
+    g = Geometry(altitude_m=500e3)
+    # straight below: 0 deg
+    assert off_nadir_deg(look_vectors(g, 1000.0, 0.0, 1000.0 / g.ground_speed)) == pytest.approx(
+        0.0, abs=1e-6
+    )
+    # 300 km across track: Earth-central angle phi = d / R; tan(theta) = R sin phi / (R + h - R cos phi)
+    phi = 300e3 / EARTH_RADIUS_M
+    expected = math.degrees(
+        math.atan2(
+            EARTH_RADIUS_M * math.sin(phi), EARTH_RADIUS_M + 500e3 - EARTH_RADIUS_M * math.cos(phi)
+        )
+    )
+    got = off_nadir_deg(look_vectors(g, 0.0, 300e3, 0.0))
+    assert got == pytest.approx(expected, abs=1e-9)
+    assert 30.0 < got < math.degrees(math.atan(300 / 500))  # less than flat: the Earth curves away
+
+
+def test_visibility_window_of_a_point_on_the_ground_track():
+    g = Geometry()
+    t_in, t_out = visibility_windows(g, FAST, np.array([500e3]), np.array([0.0]))
+    # enters the 30 deg field of regard when the off-nadir angle is 30 deg, leaves at overhead
+    at_entry = off_nadir_deg(look_vectors(g, 500e3, 0.0, t_in[0]))
+    assert at_entry == pytest.approx(30.0, abs=1e-6)
+    assert t_out[0] == pytest.approx(500e3 / g.ground_speed)
+    # a sensor that may look 30 deg aft keeps it as long again
+    aft = Agility("aft", field_of_regard_deg=30.0, aft_limit_deg=30.0)
+    t_in2, t_out2 = visibility_windows(g, aft, np.array([500e3]), np.array([0.0]))
+    assert t_in2[0] == pytest.approx(t_in[0])
+    assert t_out2[0] - t_out[0] == pytest.approx(t_out[0] - t_in[0], rel=1e-6)
+    # too far across track: never visible
+    t_in3, t_out3 = visibility_windows(g, FAST, np.array([500e3]), np.array([400e3]))
+    assert t_in3[0] > t_out3[0]
+
+
+def _line(ys, x=63.5):
+    pts = np.array([[x, y] for y in ys], float)
+    return Trajectory(pts, np.zeros(len(pts), int), "line")
+
+
+def test_straight_along_track_line_is_feasible():
+    g = Geometry()
+    line = _line(np.arange(127, -1, -4.0))  # bottom (reached first) to top, along track
+    s = schedule(line, (128, 128), g, FAST)
+    assert s.fraction_feasible == 1.0 and len(s.kept) == 32
+    assert np.all(np.diff(s.times) > 0)  # taken in order, one after another
+    assert s.time_left_s > 0
+    assert schedule(line, (128, 128), g, "unlimited").fraction_feasible == 1.0
+    # the slow preset needs about 1.3 s per pointing: a short line fits, a long one is trimmed
+    assert schedule(_line([127.0, 120.0, 113.0]), (128, 128), g, SLOW).fraction_feasible == 1.0
+    long_line = schedule(_line(np.arange(127, -1, -1.0)), (128, 128), g, SLOW)
+    assert 0 < long_line.fraction_feasible < 1
+
+
+def test_pointing_behind_the_spacecraft_is_not_feasible():
+    # the plan starts 80 s after acquisition: nadir is then 565 km down-track, past the scene
+    g = Geometry(start_s=80.0)
+    s = schedule(_line([64.0]), (128, 128), g, FAST)
+    assert s.fraction_feasible == 0.0 and len(s.trajectory) == 0
+    # with unlimited agility (the paper's assumption) it would still be taken
+    assert schedule(_line([64.0]), (128, 128), g, "unlimited").fraction_feasible == 1.0
+
+
+def test_order_matters_and_reordering_recovers_points():
+    # a 384 km long WFOV scene: its far edge enters the field of regard after the near edge left it
+    g = Geometry(wfov_gsd_m=3000.0)
+    near = [[64.0, y] for y in (127.0, 125.0, 123.0)]
+    far_first = Trajectory(np.array([[64.0, 0.0], *near]), np.zeros(4, int), "far-first")
+    as_planned = schedule(far_first, (128, 128), g, FAST)
+    # waiting for the far point, the sensor lets the near ones pass under it
+    assert list(as_planned.kept) == [0]
+    reordered = schedule(far_first, (128, 128), g, FAST, reorder=True)
+    assert list(reordered.kept) == [1, 2, 3, 0] and np.all(np.diff(reordered.times) > 0)
+
+
+def test_budget_trims_and_times_are_exported(tmp_path):
+    g = Geometry()
+    line = _line(np.arange(127, -1, -4.0))
+    full = schedule(line, (128, 128), g, FAST)
+    budget = full.times[10] - g.start_s  # room for 10 observations and part of the 11th
+    short = schedule(line, (128, 128), g, FAST, budget_s=budget)
+    assert len(short.kept) == 10
+    path = short.trajectory.save(tmp_path / "t.csv")
+    header, first = path.read_text().splitlines()[:2]
+    assert header.endswith(",time_s") and float(first.split(",")[-1]) == pytest.approx(
+        short.times[0], abs=1e-3
+    )
+
+
+def test_bad_kinematic_parameters_are_refused():
+    with pytest.raises(InvalidParameterError, match="altitude_m"):
+        Geometry(altitude_m=50.0)
+    with pytest.raises(InvalidParameterError, match="field_of_regard_deg"):
+        Agility("x", field_of_regard_deg=95.0)
+    with pytest.raises(InvalidParameterError, match="max_rate_deg_s"):
+        Agility("x", max_rate_deg_s=-1.0)
+    with pytest.raises(InvalidParameterError, match="unknown preset"):
+        schedule(_line([1.0]), (128, 128), Geometry(), "nimble")
+
+
+def _blob(h=64, w=64):
+    yy, xx = np.mgrid[:h, :w]
+    p = np.exp(-(((yy - 32) / 10.0) ** 2 + ((xx - 20) / 6.0) ** 2)).astype(np.float32)
+    image = np.full((4, h, w), 0.2, np.float32)
+    image[2] += p
+    return p, image
+
+
+def test_utility_max_picks_high_utility_and_respects_budgets():
+    p, image = _blob()
+    g = Geometry(wfov_gsd_m=32.0)
+    traj = utility_max(p, image, g, "unlimited", step=1.0, objective="plume", max_pointings=5)
+    assert len(traj) == 5
+    # with unlimited agility the first pick is the most probable pixel
+    assert tuple(traj.points[0]) == (20.0, 32.0)
+    timed = utility_max(p, image, g, FAST, step=2.0, budget_s=35.0)
+    s = schedule(timed, p.shape, g, FAST)
+    assert s.fraction_feasible == 1.0 and s.end_s <= 35.0 + 1e-9
+    u = predicted_utility(p, image, "gradient")
+    assert u.max() == pytest.approx(1.0)
+    assert (
+        u[timed.points[:, 1].astype(int), timed.points[:, 0].astype(int)].mean() > u[p > 0.1].mean()
+    )
+    with pytest.raises(InvalidParameterError, match="max_pointings"):
+        utility_max(p, image, g, "unlimited", step=1.0)
+    with pytest.raises(InvalidParameterError, match="objective"):
+        utility_max(p, image, g, FAST, step=1.0, objective="beauty")
+
+
+def test_utility_max_empty_probability_gives_empty_plan():
+    p = np.zeros((32, 32), np.float32)
+    traj = utility_max(p, np.ones((4, 32, 32), np.float32), Geometry(), FAST, step=1.0)
+    assert len(traj) == 0
