@@ -193,8 +193,15 @@ def cmd_plan(args: argparse.Namespace) -> int:
         factor=args.factor,
     )
     classifier = None
+    if args.onnx and args.model is None:
+        raise InvalidParameterError("--onnx runs a model's ONNX export: give --model PATH")
     if args.model is not None:
-        classifier = load_classifier(args.model)
+        if args.onnx:
+            from dyntarget.perceive.onnx import load_onnx
+
+            classifier = load_onnx(args.model)
+        else:
+            classifier = load_classifier(args.model)
         if args.classifier and args.classifier != classifier.name:
             raise InvalidParameterError(
                 f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
@@ -344,6 +351,30 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     paths = write_result(args.out, "agility", result, AGILITY_COLUMNS)
     print(markdown_table(result["rows"], AGILITY_COLUMNS))
     _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
+def cmd_export_onnx(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from dyntarget.perceive import load_classifier
+    from dyntarget.perceive.onnx import TOLERANCE, export_onnx, load_onnx
+    from dyntarget.synth import generate_scene
+
+    native = load_classifier(args.model)
+    path = export_onnx(native, args.model)
+    check = generate_scene(args.seed, 0, size=args.check_size)[0].image
+    diff = float(
+        np.abs(load_onnx(args.model).predict_proba(check) - native.predict_proba(check)).max()
+    )
+    if diff > TOLERANCE:
+        path.unlink()
+        raise RuntimeError(
+            f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
+            f"(> {TOLERANCE:g}); export removed"
+        )
+    _log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
+    print(path)
     return EXIT_OK
 
 
@@ -698,6 +729,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("planners", help="list the trajectory planners")
     p.set_defaults(func=cmd_planners)
 
+    p = sub.add_parser(
+        "export-onnx", help="export a trained model to ONNX (model.onnx beside it), checked"
+    )
+    p.add_argument("model", help="trained model directory (from 'dyntarget train')")
+    p.add_argument(
+        "--check-size", type=_positive_int, default=128, help="check scene size (default 128)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the check scene (default 0)")
+    p.set_defaults(func=cmd_export_onnx)
+
     p = sub.add_parser("agility", help="list the NFOV agility presets")
     p.set_defaults(func=cmd_agility)
 
@@ -714,6 +755,9 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
     src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
     p.add_argument("--classifier", help="classifier name; must match --model")
+    p.add_argument(
+        "--onnx", action="store_true", help="run the model's ONNX export with onnxruntime"
+    )
     p.add_argument(
         "--planner",
         required=True,

@@ -300,6 +300,17 @@ class _UNetClassifier(Classifier):
         self.model = model
 
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
+        self.model.eval()
+
+        def forward(batch: np.ndarray) -> np.ndarray:
+            with torch.inference_mode():
+                return torch.softmax(self.model(torch.from_numpy(batch)), dim=1)[:, 1].numpy()
+
+        return self.tiled(image, forward)
+
+    def tiled(self, image: np.ndarray, forward) -> np.ndarray:
+        """Stitch ``forward`` (a ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume
+        probability) over overlapping tiles; shared by the PyTorch and ONNX runtimes."""
         h, w = image.shape[1:]
         img = _pad_to(image, self.tile)
         hp, wp = img.shape[1:]
@@ -312,17 +323,13 @@ class _UNetClassifier(Classifier):
         window = blend_window(self.tile)
         acc = np.zeros((hp, wp), np.float32)
         weight = np.zeros((hp, wp), np.float32)
-        self.model.eval()
-        with torch.inference_mode():
-            for i in range(0, len(origins), 32):
-                batch = origins[i : i + 32]
-                xb = torch.from_numpy(
-                    np.stack([img[:, r : r + self.tile, c : c + self.tile] for r, c in batch])
-                )
-                prob = torch.softmax(self.model(xb), dim=1)[:, 1].numpy()
-                for (r, c), p in zip(batch, prob, strict=True):
-                    acc[r : r + self.tile, c : c + self.tile] += p * window
-                    weight[r : r + self.tile, c : c + self.tile] += window
+        for i in range(0, len(origins), 32):
+            batch = origins[i : i + 32]
+            xb = np.stack([img[:, r : r + self.tile, c : c + self.tile] for r, c in batch])
+            prob = forward(xb)
+            for (r, c), p in zip(batch, prob, strict=True):
+                acc[r : r + self.tile, c : c + self.tile] += p * window
+                weight[r : r + self.tile, c : c + self.tile] += window
         return (acc / weight)[:h, :w]
 
     def _save_weights(self, directory: Path) -> None:
