@@ -209,6 +209,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     config = PipelineConfig(plan=_plan_config(args))
     if args.planner == "utility-max" or args.agility:
         return _plan_timed(args, wfov, classifier, config)
+    fallback = load_classifier(args.fallback_model) if args.fallback_model else None
     result = plan_scene(
         wfov.image,
         classifier,
@@ -217,7 +218,15 @@ def cmd_plan(args: argparse.Namespace) -> int:
         valid=wfov.valid,
         denoise=not args.no_denoise,
         config=config,
+        deadline_s=args.deadline_s,
+        fallback=fallback,
     )
+    if args.deadline_s is not None:
+        met = "met" if result.deadline_met else "MISSED"
+        _log(
+            f"deadline {args.deadline_s:g} s {met} ({result.runtime:.3f} s): "
+            + "; ".join(result.path)
+        )
     traj = result.trajectory
     if len(traj) == 0:
         _log(f"{args.planner}: no plume found in {args.image[0]}; the trajectory is empty")
@@ -757,6 +766,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--classifier", help="classifier name; must match --model")
     p.add_argument(
         "--onnx", action="store_true", help="run the model's ONNX export with onnxruntime"
+    )
+    p.add_argument(
+        "--deadline-s",
+        type=_positive_float,
+        help="seconds allowed for classify + denoise + plan; cheaper paths are taken to meet it",
+    )
+    p.add_argument(
+        "--fallback-model", help="a cheaper trained model to fall back on under --deadline-s"
     )
     p.add_argument(
         "--planner",

@@ -93,6 +93,11 @@ class Classifier(ABC):
     @abstractmethod
     def _predict_proba(self, image: np.ndarray) -> np.ndarray: ...
 
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """How much work predicting an image of ``shape`` is, in units whose cost is
+        constant (here pixels); used to extrapolate a timed probe to a whole image."""
+        return float(shape[0] * shape[1])
+
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
         """Plume mask: ``predict_proba(image) >= threshold``."""
         if not 0.0 <= float(threshold) <= 1.0:

@@ -308,6 +308,14 @@ class _UNetClassifier(Classifier):
 
         return self.tiled(image, forward)
 
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Tiles the stitching runs (overlapping, stride ``tile/2``)."""
+        hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
+        stride = self.tile // 2
+        return float(
+            len(tile_origins(hp, self.tile, stride)) * len(tile_origins(wp, self.tile, stride))
+        )
+
     def tiled(self, image: np.ndarray, forward) -> np.ndarray:
         """Stitch ``forward`` (a ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume
         probability) over overlapping tiles; shared by the PyTorch and ONNX runtimes."""
