@@ -121,12 +121,13 @@ def test_evaluate_classification_writes_table1(tmp_path, capsys):
     ]
 
 
-def test_planners_lists_six(capsys):
+def test_planners_lists_the_paper_six_then_ours(capsys):
     code, out, _ = run(capsys, "planners")
     assert code == 0
     lines = out.strip().splitlines()
-    assert len(lines) == 6 and lines[0].startswith("trace-outline")
+    assert len(lines) == 8 and lines[0].startswith("trace-outline")
     assert sum("(baseline)" in line for line in lines) == 2
+    assert [ln.split()[0] for ln in lines[6:]] == ["track-centerline", "utility-max"]
 
 
 def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):

@@ -155,12 +155,17 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
-    from dyntarget.plan import BASELINES, PLANNERS
+    from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
 
     for name in PLANNERS.available():
         doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
         tag = " (baseline)" if name in BASELINES else ""
+        tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
         print(f"{name:20s} {doc}{tag}")
+    print(
+        f"{'utility-max':20s} Pointings chosen for the highest expected utility per second "
+        "under orbit kinematics; needs plan --agility PRESET (beyond the paper)"
+    )
     return EXIT_OK
 
 

@@ -12,7 +12,7 @@ from dyntarget.evaluate.claims import check_claims, paper_results
 from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
 from dyntarget.perceive import make_classifier
 from dyntarget.pipeline import plan_scene
-from dyntarget.plan import PLANNERS
+from dyntarget.plan import PAPER_PLANNERS
 
 
 def test_plan_scene_stages_and_timings(tiny_scenes):
@@ -88,7 +88,7 @@ def test_demo_and_reproduce_cli(tmp_path, capsys):
     ):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
     t2 = json.loads((out / "table2_end_to_end.json").read_text())
-    assert {r["planner"] for r in t2["rows"]} == set(PLANNERS.available())
+    assert {r["planner"] for r in t2["rows"]} == set(PAPER_PLANNERS)
     # reproduce on the same scenes, reusing the demo's models for the pixel classifiers
     rep = tmp_path / "rep"
     code = main(

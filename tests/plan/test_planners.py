@@ -10,8 +10,8 @@ from affine import Affine
 from shapely.geometry import Point, Polygon
 
 from dyntarget import InvalidParameterError, UnknownNameError
-from dyntarget.perceive.denoise import mask_to_polygons
-from dyntarget.plan import BASELINES, PLANNERS, PlanConfig, Trajectory, plan
+from dyntarget.perceive.denoise import denoise, mask_to_polygons
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, Trajectory, plan
 from dyntarget.plan.geometry import chord, major_axis, sample_polyline
 
 NAMES = PLANNERS.available()
@@ -34,7 +34,7 @@ def ellipse_mask(angle_deg, h=200, w=200, a=70, b=18):
 
 
 def test_registry_names():
-    assert NAMES == [
+    paper = [
         "trace-outline",
         "track-center",
         "diagonal-transect",
@@ -42,6 +42,8 @@ def test_registry_names():
         "straight-nadir",
         "naive-transect",
     ]
+    assert list(PAPER_PLANNERS) == paper
+    assert NAMES == [*paper, "track-centerline"]  # the paper's first, then ours
     with pytest.raises(UnknownNameError, match="expected one of: trace-outline"):
         plan("spiral", rect_mask())
 
@@ -279,3 +281,32 @@ def test_ring_interpolation_equals_shapely():
         s = np.linspace(0, ring.length, 97, endpoint=False)
         ref = shapely.get_coordinates(shapely.line_interpolate_point(ring, s))
         np.testing.assert_allclose(interpolate_ring(np.asarray(ring.coords), s), ref, atol=1e-9)
+
+
+def _band(centre_y):
+    """A plume band 10 px wide whose centreline is ``centre_y(x)`` for x in 10..117."""
+    yy, xx = np.mgrid[:128, :128]
+    return (np.abs(yy - centre_y(xx)) < 5) & (xx > 10) & (xx < 118)
+
+
+def test_centerline_of_a_straight_plume_is_its_axis():
+    mask = _band(lambda x: 64.5 + 0 * x)
+    cleaned = denoise(mask)
+    straight = plan("track-center", cleaned.mask, cleaned.polygons).points
+    curved = plan("track-centerline", cleaned.mask, cleaned.polygons).points
+    assert np.abs(curved[:, 1] - 64.5).max() < 0.05
+    np.testing.assert_allclose(curved[[0, -1]], straight[[0, -1]], atol=0.05)
+
+
+@pytest.mark.parametrize("amplitude", [10, 20])
+def test_centerline_follows_a_curved_plume(amplitude):
+    mask = _band(lambda x: 64 + amplitude * np.sin(2 * np.pi * (x - 10) / 160))
+    cleaned = denoise(mask)
+    inside = {}
+    for name in ("track-center", "track-centerline"):
+        traj = plan(name, cleaned.mask, cleaned.polygons)
+        rows = np.round(traj.points[:, 1]).astype(int)
+        cols = np.round(traj.points[:, 0]).astype(int)
+        inside[name] = mask[rows, cols].mean()
+    assert inside["track-centerline"] == 1.0  # every pointing on the plume
+    assert inside["track-center"] < 0.85  # the straight axis cuts across the bend

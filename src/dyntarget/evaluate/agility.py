@@ -32,7 +32,7 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.perceive.denoise import denoise
-from dyntarget.plan import BASELINES, PLANNERS, PlanConfig, plan
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, plan
 from dyntarget.plan.kinematics import AGILITY, Geometry, schedule
 from dyntarget.plan.utility import OBJECTIVES, utility_max
 from dyntarget.scene import Scene
@@ -60,7 +60,7 @@ class AgilityConfig:
     classifier: str = "unet-uavsar"
     presets: tuple[str, ...] = tuple(AGILITY)
     planners: tuple[str, ...] = field(
-        default_factory=lambda: tuple(p for p in PLANNERS.available() if p not in BASELINES)
+        default_factory=lambda: tuple(p for p in PAPER_PLANNERS if p not in BASELINES)
     )
     objective: str = "gradient"
     altitude_m: float = 500e3

@@ -34,7 +34,7 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.pipeline import PipelineConfig, plan_scene
-from dyntarget.plan import BASELINES, PLANNERS
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
 from dyntarget.scene import Scene
 
 TABLE2_COLUMNS = [
@@ -57,7 +57,7 @@ class E2EConfig:
     factor: int = DEFAULT_FACTOR
     epochs: int = 50
     classifiers: tuple[str, ...] = field(default_factory=lambda: tuple(CLASSIFIERS.available()))
-    planners: tuple[str, ...] = field(default_factory=lambda: tuple(PLANNERS.available()))
+    planners: tuple[str, ...] = PAPER_PLANNERS
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:

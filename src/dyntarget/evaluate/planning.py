@@ -21,7 +21,7 @@ from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
-from dyntarget.plan import PLANNERS, PlanConfig, plan
+from dyntarget.plan import PAPER_PLANNERS, PlanConfig, plan
 from dyntarget.scene import Scene
 
 PLANNING_COLUMNS = [
@@ -67,7 +67,7 @@ def evaluate_planners_on_truth(
     """Every planner on every scene's true mask; one task per scene (see ``run_tasks``)."""
     check_scheduler(scheduler)  # before any training
     config = config or PlanConfig()
-    planners = list(planners or PLANNERS.available())
+    planners = list(planners or PAPER_PLANNERS)
     run = task_key("planning", factor, asdict(config), planners, data_signature(scenes))
     results = run_tasks(
         _planning_task,

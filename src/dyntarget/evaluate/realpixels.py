@@ -21,7 +21,7 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
 from dyntarget.perceive.denoise import denoise
-from dyntarget.plan import BASELINES, PLANNERS, plan
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, plan
 from dyntarget.scene import Scene
 
 
@@ -65,7 +65,7 @@ def real_pixel_check(
     train, test = split_columns(scene, train_fraction=train_fraction, gap=gap)
     classifiers = list(classifiers or CLASSIFIERS.available())
     maps = UtilityMaps.from_scene(test)
-    lookahead = [p for p in PLANNERS.available() if p not in BASELINES]
+    lookahead = [p for p in PAPER_PLANNERS if p not in BASELINES]
     seg_rows, plan_rows = [], []
     for name in BASELINES:
         m = observe(plan(name, test.label), maps, factor=1)

@@ -163,12 +163,12 @@ def sweep(
     from dyntarget.evaluate.crossval import kfold_indices, train_or_load
     from dyntarget.io import read_scene_dir, scene_ids
     from dyntarget.perceive import CLASSIFIERS
-    from dyntarget.plan import PLANNERS
+    from dyntarget.plan import PAPER_PLANNERS, PLANNERS
 
     check_scheduler(scheduler)
     for name in classifiers:
         CLASSIFIERS.get(name)
-    planners = list(planners or PLANNERS.available())
+    planners = list(planners or PAPER_PLANNERS)
     for name in planners:
         PLANNERS.get(name)
     out, data = Path(out), Path(data)

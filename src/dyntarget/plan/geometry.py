@@ -80,6 +80,58 @@ def chord(
     return None if np.isnan(t0) else (float(t0), float(t1))
 
 
+def centerline(polygon: Polygon, spacing: float) -> np.ndarray:
+    """A smooth line through the middle of a (possibly curved) polygon, end to end.
+
+    Stations every ``spacing`` px along the major axis; at each, the chord
+    across the polygon perpendicular to the axis and its midpoint (the first
+    entry and last exit, as for the transects). The midpoints' offsets from the
+    axis, as a function of the position along it, are smoothed with a cubic
+    smoothing spline (penalty chosen by generalised cross-validation,
+    ``scipy.interpolate.make_smoothing_spline``), evaluated densely and joined
+    by straight ends to where the axis-perpendicular chords stop. A straight
+    plume gives its major axis. Plumes that bend by more than 90 degrees from
+    their axis are followed only as far as the perpendicular chords can see.
+    Returns ``(n, 2)`` vertices (empty if the polygon is degenerate).
+    """
+    centre, u = major_axis(polygon)
+    n = np.array([-u[1], u[0]])
+    ring = np.asarray(polygon.exterior.coords, dtype=np.float64)
+    proj = (ring - centre) @ u
+    lo, hi = float(proj.min()), float(proj.max())
+    count = max(int(np.floor((hi - lo) / spacing)), 1)
+    s = lo + (np.arange(count) + 0.5) * (hi - lo) / count  # stations, inset from the tips
+    spans = chords(polygon, centre + s[:, None] * u, n)
+    ok = ~np.isnan(spans[:, 0])
+    if not ok.any():
+        return np.zeros((0, 2))
+    s, mid = s[ok], spans[ok].mean(axis=1)
+    if len(s) >= 5:
+        from scipy.interpolate import make_smoothing_spline
+
+        dense = np.linspace(s[0], s[-1], 4 * len(s))
+        offset = make_smoothing_spline(s, mid)(dense)
+    else:  # too few stations for a spline: the midpoints as they are
+        dense, offset = s, mid
+    line = centre + dense[:, None] * u + offset[:, None] * n
+    # extend both ends along their direction to the boundary (the plume's tips)
+    if len(line) >= 2:
+        first, last = line[0] - line[1], line[-1] - line[-2]
+    else:
+        first, last = -u, u
+    return np.vstack(
+        [_to_boundary(polygon, line[0], first), line, _to_boundary(polygon, line[-1], last)]
+    )
+
+
+def _to_boundary(polygon: Polygon, point: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Where the ray from ``point`` along ``direction`` last leaves the polygon (or ``point``)."""
+    d = direction / np.hypot(*direction)
+    span = chords(polygon, point[None, :], d)[0]
+    t = span[1] if np.isfinite(span[1]) and span[1] > 0 else 0.0
+    return point + t * d
+
+
 def sample_polyline(vertices: np.ndarray, step: float) -> np.ndarray:
     """Points every ``step`` px of arc length along a polyline, starting at its first vertex.
 

@@ -27,7 +27,14 @@ from shapely.geometry import Polygon
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.denoise import check_mask, mask_to_polygons
-from dyntarget.plan.geometry import chord, chords, major_axis, sample_polyline, sample_ring
+from dyntarget.plan.geometry import (
+    centerline,
+    chord,
+    chords,
+    major_axis,
+    sample_polyline,
+    sample_ring,
+)
 from dyntarget.plan.trajectory import Trajectory
 from dyntarget.registry import Registry
 
@@ -46,6 +53,9 @@ PLANNERS: Registry[PlannerFn] = Registry(
 )
 BASELINES = ("straight-nadir", "naive-transect")
 """Planners that use no look-ahead knowledge of the plume."""
+PAPER_PLANNERS = PLANNERS.order
+"""The paper's four planners and two baselines: the defaults of the Table 2 evaluations.
+Planners beyond the paper (``track-centerline``) are registered after them."""
 
 STEP_FRACTION = 0.01
 WIDTH_STEPS = 2.0
@@ -172,6 +182,22 @@ def track_center(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConf
         return _oriented(sample_polyline(ends, step), position)
 
     return _visit(polygons, mask.shape, path, "track-center", config.as_dict(mask.shape))
+
+
+@PLANNERS.register("track-centerline")
+def track_centerline(
+    mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
+) -> Trajectory:
+    """Pointings every ``step`` along a smoothed centreline that follows curved plumes."""
+    step, width = config.resolved(mask.shape)
+
+    def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
+        line = centerline(poly, spacing=width)
+        if len(line) == 0:
+            return np.zeros((0, 2))
+        return _oriented(sample_polyline(line, step), position)
+
+    return _visit(polygons, mask.shape, path, "track-centerline", config.as_dict(mask.shape))
 
 
 def _transects(
