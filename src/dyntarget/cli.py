@@ -254,7 +254,7 @@ def _plan_timed(args, wfov, classifier, config) -> int:
 
     from dyntarget.errors import InvalidParameterError
     from dyntarget.pipeline import plan_scene
-    from dyntarget.plan.kinematics import Geometry, get_agility, schedule
+    from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible, schedule
     from dyntarget.plan.utility import utility_max
 
     if not args.agility:
@@ -299,8 +299,8 @@ def _plan_timed(args, wfov, classifier, config) -> int:
             denoise=not args.no_denoise,
             config=config,
         )
-        sched = schedule(
-            result.trajectory, wfov.shape, geometry, agility, reorder=True, budget_s=args.budget_s
+        sched = make_feasible(
+            result.trajectory, wfov.shape, geometry, agility, budget_s=args.budget_s
         )
     out = sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs)
     summary = sched.summary()

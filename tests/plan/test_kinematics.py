@@ -176,3 +176,18 @@ def test_utility_max_empty_probability_gives_empty_plan():
     p = np.zeros((32, 32), np.float32)
     traj = utility_max(p, np.ones((4, 32, 32), np.float32), Geometry(), FAST, step=1.0)
     assert len(traj) == 0
+
+
+def test_make_feasible_flies_the_better_order():
+    from dyntarget.plan.kinematics import make_feasible
+
+    g = Geometry(wfov_gsd_m=3000.0)
+    near = [[64.0, y] for y in (127.0, 125.0, 123.0)]
+    far_first = Trajectory(np.array([[64.0, 0.0], *near]), np.zeros(4, int), "far-first")
+    assert list(make_feasible(far_first, (128, 128), g, FAST).kept) == [1, 2, 3, 0]
+    # a cross-track transect: reordering by deadline would zig-zag; the plan's order is kept
+    row = Trajectory(
+        np.array([[x, 64.0] for x in range(0, 128, 4)], float), np.zeros(32, int), "row"
+    )
+    flown = make_feasible(row, (128, 128), Geometry(), SLOW)
+    assert len(flown.kept) >= len(schedule(row, (128, 128), Geometry(), SLOW, reorder=True).kept)

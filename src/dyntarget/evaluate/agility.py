@@ -5,8 +5,9 @@ models of ``dyntarget reproduce`` are reused); for every held-out scene its
 plume probability is computed once, denoised, and every geometric planner
 plans on it. Each plan is then timed under each agility preset
 (:func:`dyntarget.plan.kinematics.schedule`): first in the planner's own order
-(the fraction of the paper's points that would really be observed), then
-reordered earliest-deadline-first and trimmed, which is what is flown and
+(the fraction of the paper's points that would really be observed), then the
+better of that and an earliest-deadline-first reordering
+(:func:`~dyntarget.plan.kinematics.make_feasible`), which is what is flown and
 scored on the high-resolution truth. ``utility-max`` plans directly under each
 preset with the same visibility windows; with unlimited agility, where time
 costs nothing, its pointing budget is the largest number of pointings any
@@ -33,7 +34,7 @@ from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, plan
-from dyntarget.plan.kinematics import AGILITY, Geometry, schedule
+from dyntarget.plan.kinematics import AGILITY, Geometry, make_feasible, schedule
 from dyntarget.plan.utility import OBJECTIVES, utility_max
 from dyntarget.scene import Scene
 
@@ -130,7 +131,7 @@ def _agility_task(
         kept = []
         for name, traj in plans.items():
             as_planned = schedule(traj, w.shape, geometry, preset).fraction_feasible
-            flown = schedule(traj, w.shape, geometry, preset, reorder=True)
+            flown = make_feasible(traj, w.shape, geometry, preset)
             kept.append(len(flown.kept))
             records.append(record(preset, name, len(traj), as_planned, flown.trajectory))
         budget = max(kept, default=0) if AGILITY[preset].unlimited else None

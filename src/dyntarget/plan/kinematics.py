@@ -3,7 +3,7 @@
 The paper plans in the image plane as if the NFOV sensor could take every
 pointing at once. Here the spacecraft moves and the sensor has finite agility.
 
-Model (documented in ``docs/kinematics.md``):
+Model (documented in ``docs/onboard.md``):
 
 * **Orbit**: circular, altitude ``h`` over a spherical, non-rotating Earth
   (mean radius 6371 km; GM = 3.986004418e14 m³/s², WGS 84). The orbital speed is
@@ -30,7 +30,8 @@ Model (documented in ``docs/kinematics.md``):
 those that cannot be taken inside their visibility window (or the budget);
 with ``reorder=True`` it first sorts the pointings by the time they leave the
 field of regard (earliest deadline first; the planner's order on ties), since
-points the spacecraft passes first must be taken first.
+points the spacecraft passes first must be taken first. :func:`make_feasible`
+flies whichever of the two keeps more pointings.
 """
 
 from __future__ import annotations
@@ -148,7 +149,7 @@ AGILITY: dict[str, Agility] = {
         field_of_regard_deg=30.0,
     ),
 }
-"""Agility presets (see ``docs/kinematics.md`` for where the numbers come from).
+"""Agility presets (see ``docs/onboard.md`` for where the numbers come from).
 
 * ``unlimited``: the paper's assumption — every pointing, no time, no limits.
 * ``fast``: a steerable-mirror NFOV sensor (degrees per second slews, tens of
@@ -376,6 +377,26 @@ def schedule(
         window_end_s=float(visible.max()) if len(visible) else geometry.start_s,
         agility=agility.name,
     )
+
+
+def make_feasible(
+    trajectory: Trajectory,
+    shape: tuple[int, int],
+    geometry: Geometry,
+    agility: Agility | str,
+    *,
+    budget_s: float | None = None,
+) -> Schedule:
+    """The better of flying the plan in its own order and reordered earliest-deadline-first.
+
+    Both are re-timed and trimmed by :func:`schedule`; the one that keeps more
+    pointings wins (the planner's order on ties). Reordering rescues points a
+    plan would visit too late, but interleaves transects across track and so
+    costs slews; which matters more depends on the plan and the agility.
+    """
+    as_planned = schedule(trajectory, shape, geometry, agility, budget_s=budget_s)
+    reordered = schedule(trajectory, shape, geometry, agility, reorder=True, budget_s=budget_s)
+    return reordered if len(reordered.kept) > len(as_planned.kept) else as_planned
 
 
 def agility_table() -> list[dict[str, object]]:
