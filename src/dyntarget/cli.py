@@ -121,6 +121,15 @@ def cmd_train(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _show_result(out: str, name: str, result: dict, columns: list[str]) -> None:
+    """Write an evaluation's table (md, csv, json), print it, say where it went."""
+    from dyntarget.evaluate.tables import markdown_table, write_result
+
+    paths = write_result(out, name, result, columns)
+    print(markdown_table(result["rows"], columns))
+    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+
+
 def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
     from dyntarget.evaluate.tables import markdown_table, write_result
@@ -315,7 +324,6 @@ def _plan_timed(args, wfov, classifier, config) -> int:
 
 def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
-    from dyntarget.evaluate.tables import markdown_table, write_result
 
     scenes = _load_labelled(args.data)
     result = evaluate_planners_on_truth(
@@ -326,15 +334,12 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         parts=Path(args.out) / "parts" / "planning",
     )
-    paths = write_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
-    print(markdown_table(result["rows"], PLANNING_COLUMNS))
-    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    _show_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
     return EXIT_OK
 
 
 def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
-    from dyntarget.evaluate.tables import markdown_table, write_result
 
     kw = {}
     if args.planners:
@@ -362,9 +367,7 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         parts=Path(args.out) / "parts" / "agility",
     )
-    paths = write_result(args.out, "agility", result, AGILITY_COLUMNS)
-    print(markdown_table(result["rows"], AGILITY_COLUMNS))
-    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    _show_result(args.out, "agility", result, AGILITY_COLUMNS)
     return EXIT_OK
 
 
@@ -567,7 +570,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
-    from dyntarget.evaluate.tables import markdown_table, write_result
     from dyntarget.pipeline import PipelineConfig
 
     kw = {}
@@ -594,9 +596,7 @@ def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
         parts=Path(args.out) / "parts" / "end-to-end",
     )
     result["timing"] = {"seconds": time.perf_counter() - t0}
-    paths = write_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)
-    print(markdown_table(result["rows"], TABLE2_COLUMNS))
-    _log("wrote " + ", ".join(str(p) for p in paths.values()))
+    _show_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)
     return EXIT_OK
 
 
