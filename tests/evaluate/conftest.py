@@ -3,9 +3,13 @@ from __future__ import annotations
 import pytest
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def cluster():
-    """The address of a dask LocalCluster with 2 single-threaded workers on loopback."""
+    """The address of a dask LocalCluster with 2 single-threaded workers on loopback.
+
+    Module-scoped on purpose: a live cluster's threads draw from the global ``random``
+    module, which Hypothesis (in other test modules) reports as flaky data generation.
+    """
     from distributed import LocalCluster
 
     with LocalCluster(
