@@ -65,3 +65,11 @@ def test_export_and_plan_with_onnx_cli(tiny_scenes, tmp_path, capsys):
         assert main([*args, "--out", str(out), *flag]) == 0, capsys.readouterr().err
         outs[len(flag)] = out.read_text()
     assert outs[0] == outs[1]  # the same mask, so the same trajectory
+
+
+@pytest.mark.parametrize("name", ["mlp", "unet-xception"])
+def test_export_is_byte_identical(name, tiny_scenes, tmp_path):
+    model = make_classifier(name, **FAST_KWARGS.get(name, {})).fit(tiny_scenes[:2])
+    a = export_onnx(model, tmp_path / "a").read_bytes()
+    b = export_onnx(model, tmp_path / "b").read_bytes()
+    assert a == b

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 import os
 import warnings
 from pathlib import Path
@@ -79,20 +80,26 @@ def _export_unet(classifier) -> bytes:
     _require("onnxscript")
     net = classifier.model.eval()
     example = torch.zeros(2, 4, classifier.tile, classifier.tile)
-    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
-        # the exporter's own progress lines and deprecation notices (torch internals)
-        warnings.simplefilter("ignore", FutureWarning)
-        warnings.simplefilter("ignore", DeprecationWarning)
-        program = torch.onnx.export(
-            net,
-            (example,),
-            dynamo=True,
-            input_names=["image"],
-            output_names=["logits"],
-            dynamic_shapes={"x": {0: torch.export.Dim("batch", min=1, max=4096)}},
-            opset_version=OPSET,
-            verbose=False,
-        )
+    exporter_log = logging.getLogger("torch.onnx")
+    level = exporter_log.level
+    exporter_log.setLevel(logging.ERROR)  # e.g. "torchvision is not installed", irrelevant here
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+            # the exporter's own progress lines and deprecation notices (torch internals)
+            warnings.simplefilter("ignore", FutureWarning)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            program = torch.onnx.export(
+                net,
+                (example,),
+                dynamo=True,
+                input_names=["image"],
+                output_names=["logits"],
+                dynamic_shapes={"x": {0: torch.export.Dim("batch", min=1, max=4096)}},
+                opset_version=OPSET,
+                verbose=False,
+            )
+    finally:
+        exporter_log.setLevel(level)
     buf = io.BytesIO()
     program.save(buf)
     return buf.getvalue()
@@ -109,6 +116,7 @@ def _export_sklearn(classifier) -> bytes:
         options={id(est): {"zipmap": False}},
         target_opset={"": OPSET, "ai.onnx.ml": 3},
     )
+    model.graph.name = classifier.name  # skl2onnx names the graph with a random UUID
     return model.SerializeToString()
 
 
