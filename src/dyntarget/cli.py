@@ -869,7 +869,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--grid",
         nargs="*",
         metavar="NAME=V1,V2",
-        help="parameters to sweep: step_fraction, denoise_iterations, min_area_fraction, factor",
+        help="parameters to sweep: step_fraction, denoise_iterations, min_area_fraction, factor, "
+        "agility (presets: unlimited, fast, slow)",
     )
     p.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
     p.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")

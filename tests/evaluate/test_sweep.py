@@ -8,7 +8,7 @@ import pytest
 
 from dyntarget import InvalidParameterError
 from dyntarget.cli import main
-from dyntarget.evaluate.sweep import SweepInterrupted, expand, parse_grid, sweep
+from dyntarget.evaluate.sweep import SweepInterrupted, expand, parse_grid, summary_figure, sweep
 
 # distributed leaves a listening socket to the garbage collector at cluster teardown (its own
 # internals, not ours); with warnings as errors that would fail unrelated tests.
@@ -169,3 +169,29 @@ def test_bad_scheduler(data, tmp_path, capsys):
         code == 2
         and "scheduler: expected local, processes or a scheduler address" in capsys.readouterr().err
     )
+
+
+def test_sweep_over_agility_presets(data, cluster, tmp_path):
+    table = sweep(
+        data,
+        tmp_path / "a",
+        classifiers=["band-threshold"],
+        planners=["lawnmower-transect", "track-center"],
+        grid=parse_grid(["agility=unlimited,slow"]),
+        folds=2,
+        scheduler=cluster,
+        progress=False,
+    )
+    with open(table) as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 6 * 2 * 2
+    by = {(r["scene"], r["planner"], r["agility"]): r for r in rows}
+    for (scene, planner, agility), r in by.items():
+        if agility == "unlimited":
+            assert float(r["feasible_fraction"]) == 1.0  # the paper's assumption: all taken
+        else:  # a slow sensor never takes more than the plan holds
+            assert int(r["pointings"]) <= int(by[(scene, planner, "unlimited")]["pointings"])
+    figure = summary_figure(table, tmp_path / "a.png")  # a categorical axis
+    assert figure.read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(InvalidParameterError, match="unknown preset"):
+        parse_grid(["agility=nimble"])

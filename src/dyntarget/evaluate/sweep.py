@@ -25,23 +25,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dyntarget.errors import InvalidParameterError
+from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.evaluate.distributed import Interrupted, check_scheduler, run_tasks, task_key
 from dyntarget.io.atomic import write_text
+from dyntarget.plan.kinematics import AGILITY, get_agility
 
 GRID_PARAMETERS: dict[str, type] = {
     "step_fraction": float,
     "denoise_iterations": int,
     "min_area_fraction": float,
     "factor": int,
+    "agility": str,
 }
 DEFAULTS: dict[str, Any] = {
     "step_fraction": 0.01,
     "denoise_iterations": 1,
     "min_area_fraction": 0.01,
     "factor": 4,
+    "agility": "unlimited",
 }
-METRICS = ("pixels_observed", "ratio_plume", "intensity", "gradient", "pointings")
+METRICS = (
+    "pixels_observed", "ratio_plume", "intensity", "gradient", "pointings", "feasible_fraction",
+)  # fmt: skip
 COLUMNS = (
     "task", "fold", "scene", "classifier", "planner", *GRID_PARAMETERS, *METRICS, "runtime_s",
 )  # fmt: skip
@@ -58,11 +63,14 @@ def parse_grid(items: Sequence[str]) -> dict[str, list]:
                 f"grid: {item!r} is not NAME=V1,V2,...; NAME one of: {', '.join(GRID_PARAMETERS)}"
             )
         try:
-            grid[name] = [GRID_PARAMETERS[name](v) for v in values.split(",")]
+            grid[name] = [GRID_PARAMETERS[name](v.strip()) for v in values.split(",")]
         except ValueError:
             raise InvalidParameterError(
                 f"grid: {item!r} holds a value that is not a {GRID_PARAMETERS[name].__name__}"
             ) from None
+        if name == "agility":
+            for preset in grid[name]:
+                get_agility(preset)  # unknown presets are refused with the valid names
     return grid
 
 
@@ -97,6 +105,7 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import DenoiseConfig, PipelineConfig, plan_scene
     from dyntarget.plan import PlanConfig
+    from dyntarget.plan.kinematics import Geometry, make_feasible
 
     p = task.params
     scene = read_scene(task.scene_path)
@@ -112,10 +121,21 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     t0 = time.perf_counter()
     mask = model.predict(wfov.image)
     classify_s = time.perf_counter() - t0
+    geometry = None
+    if p["agility"] != "unlimited":
+        if scene.gsd is None:
+            raise InvalidSceneError(
+                f"{task.scene_path}: no ground sampling distance; the agility presets need one"
+            )
+        geometry = Geometry(wfov_gsd_m=scene.gsd * p["factor"])
     rows = []
     for planner in planners:
         res = plan_scene(wfov.image, None, planner, mask=mask, valid=wfov.valid, config=config)
-        m = observe(res.trajectory, maps, factor=p["factor"])
+        flown, feasible = res.trajectory, 1.0
+        if geometry is not None:  # fly what the kinematics allow (see dyntarget.plan.kinematics)
+            sched = make_feasible(res.trajectory, wfov.shape, geometry, p["agility"])
+            flown, feasible = sched.trajectory, sched.fraction_feasible
+        m = observe(flown, maps, factor=p["factor"])
         rows.append(
             {
                 "task": task.key,
@@ -125,7 +145,8 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
                 "planner": planner,
                 **p,
                 **m.as_dict(),
-                "pointings": len(res.trajectory),
+                "pointings": len(flown),
+                "feasible_fraction": feasible,
                 "runtime_s": classify_s + res.timings["denoise"] + res.timings["plan"],
             }
         )
@@ -233,14 +254,25 @@ def summary_figure(table: Path, path: Path) -> Path | None:
         return None
     fig, axes = plt.subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
     for ax, param in zip(axes[0], swept, strict=True):
-        values = sorted({float(r[param]) for r in rows})
+        if GRID_PARAMETERS[param] is str:  # categorical (agility presets), in preset order
+            present = {r[param] for r in rows}
+            values = [v for v in AGILITY if v in present]
+
+            def value(r, param=param):
+                return r[param]
+        else:
+            values = sorted({float(r[param]) for r in rows})
+
+            def value(r, param=param):
+                return float(r[param])
+
         for planner in dict.fromkeys(r["planner"] for r in rows):
             means = [
                 np.mean(
                     [
                         float(r["ratio_plume"])
                         for r in rows
-                        if r["planner"] == planner and float(r[param]) == v
+                        if r["planner"] == planner and value(r) == v
                     ]
                 )
                 for v in values
