@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
+import time
 
 import pytest
 
@@ -70,32 +73,60 @@ def test_parse_and_expand_grid():
         parse_grid(["factor=two"])
 
 
-def test_killed_sweep_resumes_with_identical_results(data38, cluster, tmp_path):
-    """38 scenes x 3 classifiers x 6 planners on a 2-worker LocalCluster, killed halfway."""
-    kw = dict(
-        classifiers=["band-threshold", "decision-tree", "naive-bayes"],
-        folds=2,
-        scheduler=cluster,
-        progress=False,
-    )
-    # uninterrupted reference run
-    ref = sweep(data38, tmp_path / "ref", **kw)
-    ref_rows = _rows(ref)
-    assert len(ref_rows) == 38 * 3 * 6  # scenes x classifiers x planners
-    # a run killed halfway, then rerun
+KW38 = dict(classifiers=["band-threshold", "decision-tree", "naive-bayes"], folds=2, progress=False)
+
+
+@pytest.fixture(scope="module")
+def ref38(data38, cluster, tmp_path_factory):
+    """The uninterrupted sweep of 38 scenes x 3 classifiers x 6 planners."""
+    rows = _rows(sweep(data38, tmp_path_factory.mktemp("ref"), scheduler=cluster, **KW38))
+    assert len(rows) == 38 * 3 * 6  # scenes x classifiers x planners
+    return rows
+
+
+def _parts(out):
+    return [p for p in (out / "parts").glob("*.json") if not p.name.startswith(".")]
+
+
+def test_killed_sweep_resumes_with_identical_results(data38, ref38, cluster, tmp_path):
+    """38 scenes x 3 classifiers x 6 planners on a 2-worker LocalCluster, stopped halfway."""
     out = tmp_path / "resumed"
     with pytest.raises(SweepInterrupted):
-        sweep(data38, out, stop_after=57, **kw)
-    finished = {p.name for p in (out / "parts").iterdir()}
+        sweep(data38, out, stop_after=57, scheduler=cluster, **KW38)
+    finished = _parts(out)
     assert 57 <= len(finished) < 114 and not (out / "sweep.csv").exists()
-    mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "parts").iterdir()}
-    table = sweep(data38, out, models_dir=out / "models", **kw)
+    mtimes = {p.name: p.stat().st_mtime_ns for p in finished}
+    table = sweep(data38, out, models_dir=out / "models", scheduler=cluster, **KW38)
     rows = _rows(table)
-    assert rows == ref_rows  # identical, in the same order
+    assert rows == ref38  # identical, in the same order
     keys = [(r["task"], r["planner"]) for r in rows]
     assert len(keys) == len(set(keys))  # no duplicated rows
     # finished tasks were not redone
     assert all((out / "parts" / n).stat().st_mtime_ns == t for n, t in mtimes.items())
+
+
+def test_sweep_process_killed_with_sigkill_resumes(data38, ref38, cluster, tmp_path):
+    """The real thing: the sweep command's process is killed (SIGKILL) mid-run, then rerun."""
+    out = tmp_path / "killed"
+    command = [
+        sys.executable, "-m", "dyntarget.cli", "sweep", "--data", str(data38), "--out", str(out),
+        "--classifiers", ",".join(KW38["classifiers"]), "--folds", "2",
+        "--scheduler", cluster, "--quiet",
+    ]  # fmt: skip
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    give_up = time.monotonic() + 180
+    try:
+        while proc.poll() is None and time.monotonic() < give_up:
+            if (out / "parts").is_dir() and len(_parts(out)) >= 20:
+                break
+            time.sleep(0.02)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert 20 <= len(_parts(out)) < 114 and not (out / "sweep.csv").exists()
+    rows = _rows(sweep(data38, out, scheduler=cluster, **KW38))
+    assert rows == ref38
+    assert len({(r["task"], r["planner"]) for r in rows}) == len(rows)
 
 
 def test_sweep_grid_points(data, cluster, tmp_path):
