@@ -47,3 +47,13 @@ def write_raw_tif(path, data, **profile):
         with rasterio.open(path, "w", **full) as dst:
             dst.write(data)
     return path
+
+
+def synth_dir(tmp_path_factory, name: str, *, scenes: int, size: int, seed: int):
+    """A scene directory made by ``dyntarget synth`` (the command users run)."""
+    from dyntarget.cli import main
+
+    d = tmp_path_factory.mktemp(name)
+    args = ["synth", "--scenes", str(scenes), "--size", str(size), "--seed", str(seed)]
+    assert main([*args, "--out", str(d), "--quiet"]) == 0
+    return d

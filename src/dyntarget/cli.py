@@ -134,13 +134,12 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
     from dyntarget.evaluate.tables import markdown_table, write_result
 
-    names = tuple(args.classifiers.split(",")) if args.classifiers else None
     config = CVConfig(
         folds=args.folds,
         seed=args.seed,
         factor=args.factor,
         epochs=args.epochs,
-        **({"classifiers": names} if names else {}),
+        **_names(classifiers=args.classifiers),
     )
     scenes = _load_labelled(args.data)
     t0 = time.perf_counter()
@@ -221,8 +220,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
             )
     config = PipelineConfig(plan=_plan_config(args))
-    if args.planner == "utility-max" or args.agility:
-        return _plan_timed(args, wfov, classifier, config)
+    if args.planner == "utility-max":
+        return _plan_utility_max(args, wfov, classifier, config)
     fallback = load_classifier(args.fallback_model) if args.fallback_model else None
     result = plan_scene(
         wfov.image,
@@ -244,11 +243,20 @@ def cmd_plan(args: argparse.Namespace) -> int:
     traj = result.trajectory
     if len(traj) == 0:
         _log(f"{args.planner}: no plume found in {args.image[0]}; the trajectory is empty")
-    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
     times = ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
     _log(
         f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
     )
+    if args.agility:  # fly what the kinematics allow: re-timed, trimmed, maybe reordered
+        from dyntarget.plan.kinematics import get_agility, make_feasible
+
+        sched = make_feasible(
+            traj, wfov.shape, _geometry(args, wfov), get_agility(args.agility),
+            budget_s=args.budget_s,
+        )  # fmt: skip
+        _log_schedule(args.planner, sched)
+        traj = sched.trajectory
+    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
     print(out)
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
@@ -257,68 +265,63 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _plan_timed(args, wfov, classifier, config) -> int:
-    """``plan`` under an agility preset: schedule (or utility-max), write the timed pointings."""
-    import numpy as np
-
+def _geometry(args: argparse.Namespace, wfov):
+    """The observation geometry of ``plan``'s kinematics options for this WFOV image."""
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.pipeline import plan_scene
-    from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible, schedule
-    from dyntarget.plan.utility import utility_max
+    from dyntarget.plan.kinematics import Geometry
 
-    if not args.agility:
-        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
-    agility = get_agility(args.agility)
     gsd = args.wfov_gsd or wfov.gsd
     if gsd is None:
         raise InvalidParameterError(
             f"{args.image[0]}: no ground sampling distance known; give --wfov-gsd METRES"
         )
-    geometry = Geometry(
+    return Geometry(
         altitude_m=args.altitude_km * 1e3,
         look_ahead_m=args.look_ahead_km * 1e3,
         wfov_gsd_m=gsd,
         start_s=args.start_s,
     )
-    if args.planner == "utility-max":
-        if classifier is not None:
-            proba = classifier.predict_proba(wfov.image)
-        else:
-            proba = wfov.label.astype(np.float32)
-        proba = np.where(wfov.valid_mask, proba, 0.0).astype(np.float32)
-        step, _ = config.plan.resolved(wfov.shape)
-        traj = utility_max(
-            proba,
-            wfov.image,
-            geometry,
-            agility,
-            step=max(step, 1.0),
-            objective=args.objective,
-            budget_s=args.budget_s,
-            max_pointings=args.max_pointings,
-        )
-        sched = schedule(traj, wfov.shape, geometry, agility)
-    else:
-        result = plan_scene(
-            wfov.image,
-            classifier,
-            args.planner,
-            mask=wfov.label,
-            valid=wfov.valid,
-            denoise=not args.no_denoise,
-            config=config,
-        )
-        sched = make_feasible(
-            result.trajectory, wfov.shape, geometry, agility, budget_s=args.budget_s
-        )
-    out = sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs)
-    summary = sched.summary()
+
+
+def _log_schedule(planner: str, sched) -> None:
     _log(
-        f"{args.planner} under '{agility.name}' agility: {summary['kept']} of {summary['planned']} "
+        f"{planner} under '{sched.agility}' agility: {len(sched.kept)} of {sched.planned} "
         f"planned pointings feasible ({100 * sched.fraction_feasible:.0f} %), "
         f"done {sched.total_s:.1f} s after the start, {sched.time_left_s:.1f} s left in the window"
     )
-    print(out)
+
+
+def _plan_utility_max(args, wfov, classifier, config) -> int:
+    """``plan --planner utility-max``: plan under an agility preset, write the timed pointings."""
+    import numpy as np
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.plan.kinematics import get_agility, schedule
+    from dyntarget.plan.utility import utility_max
+
+    if not args.agility:
+        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
+    agility = get_agility(args.agility)
+    geometry = _geometry(args, wfov)
+    if classifier is not None:
+        proba = classifier.predict_proba(wfov.image)
+    else:
+        proba = wfov.label.astype(np.float32)
+    proba = np.where(wfov.valid_mask, proba, 0.0).astype(np.float32)
+    step, _ = config.plan.resolved(wfov.shape)
+    traj = utility_max(
+        proba,
+        wfov.image,
+        geometry,
+        agility,
+        step=max(step, 1.0),
+        objective=args.objective,
+        budget_s=args.budget_s,
+        max_pointings=args.max_pointings,
+    )
+    sched = schedule(traj, wfov.shape, geometry, agility)
+    _log_schedule("utility-max", sched)
+    print(sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs))
     return EXIT_OK
 
 
@@ -341,11 +344,6 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
 def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
 
-    kw = {}
-    if args.planners:
-        kw["planners"] = tuple(args.planners.split(","))
-    if args.agility:
-        kw["presets"] = tuple(args.agility.split(","))
     config = AgilityConfig(
         folds=args.folds,
         seed=args.seed,
@@ -356,7 +354,7 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
         altitude_m=args.altitude_km * 1e3,
         look_ahead_m=args.look_ahead_km * 1e3,
         plan=_plan_config(args),
-        **kw,
+        **_names(planners=args.planners, presets=args.agility),
     )
     scenes = _load_labelled(args.data)
     result = evaluate_agility(
@@ -503,6 +501,27 @@ def cmd_datasets_prepare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_evaluation_options(q: argparse.ArgumentParser, *, trains: bool = True) -> None:
+    """Options the evaluations share; with ``trains``, those of training classifiers too."""
+    q.add_argument("--data", required=True, help="scene directory with labels")
+    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
+    q.add_argument(
+        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
+    if trains:
+        q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+        q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
+        q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
+        q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def _names(**lists: str | None) -> dict[str, tuple[str, ...]]:
+    """Comma-separated CLI lists that were given, as keyword arguments of a config."""
+    return {key: tuple(text.split(",")) for key, text in lists.items() if text}
+
+
 def _add_plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--step", type=_positive_float, help="pixels between pointings (default 1%% of the width)"
@@ -572,18 +591,13 @@ def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
     from dyntarget.pipeline import PipelineConfig
 
-    kw = {}
-    if args.classifiers:
-        kw["classifiers"] = tuple(args.classifiers.split(","))
-    if args.planners:
-        kw["planners"] = tuple(args.planners.split(","))
     config = E2EConfig(
         folds=args.folds,
         seed=args.seed,
         factor=args.factor,
         epochs=args.epochs,
         pipeline=PipelineConfig(plan=_plan_config(args)),
-        **kw,
+        **_names(classifiers=args.classifiers, planners=args.planners),
     )
     scenes = _load_labelled(args.data)
     t0 = time.perf_counter()
@@ -682,35 +696,17 @@ def build_parser() -> argparse.ArgumentParser:
         dest="evaluation", required=True, metavar="EVALUATION", parser_class=_Parser
     )
     q = ev.add_parser("classification", help="k-fold cross-validation of the classifiers (Table 1)")
-    q.add_argument("--data", required=True, help="scene directory with labels")
-    q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
-    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
-    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+    _add_evaluation_options(q)
     q.add_argument("--classifiers", help="comma-separated subset (default: all)")
-    q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
-    q.add_argument(
-        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_classification)
     q = ev.add_parser("planning", help="the six planners on the true masks")
-    q.add_argument("--data", required=True, help="scene directory with labels")
-    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
-    q.add_argument(
-        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_evaluation_options(q, trains=False)
     _add_plan_options(q)
-    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_planning)
     q = ev.add_parser(
         "agility", help="planners and utility-max under orbit kinematics and agility presets"
     )
-    q.add_argument("--data", required=True, help="scene directory with labels")
-    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
-    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+    _add_evaluation_options(q)
     q.add_argument(
         "--classifier", default="unet-uavsar", help="classifier to plan on (default unet-uavsar)"
     )
@@ -729,14 +725,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=500.0,
         help="ground distance from nadir to the WFOV scene centre at acquisition (default 500)",
     )
-    q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
-    q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
-    q.add_argument(
-        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     _add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_agility)
 
@@ -840,20 +828,10 @@ def build_parser() -> argparse.ArgumentParser:
     q = ev.add_parser(
         "end-to-end", help="classify, denoise, plan and observe on held-out scenes (Table 2)"
     )
-    q.add_argument("--data", required=True, help="scene directory with labels")
-    q.add_argument("--folds", type=_positive_int, default=5, help="number of folds (default 5)")
-    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
-    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+    _add_evaluation_options(q)
     q.add_argument("--classifiers", help="comma-separated subset (default: all)")
     q.add_argument("--planners", help="comma-separated subset (default: all)")
-    q.add_argument("--epochs", type=_positive_int, default=50, help="U-Net epochs (default 50)")
-    q.add_argument(
-        "--factor", type=_positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_plan_options(q)
-    q.add_argument("--scheduler", type=_scheduler, help=SCHEDULER_HELP)
     q.set_defaults(func=cmd_evaluate_end_to_end)
 
     p = sub.add_parser(

@@ -5,14 +5,12 @@ import json
 import pytest
 
 from dyntarget.cli import main
+from helpers import synth_dir
 
 
 @pytest.fixture(scope="module")
 def scenes_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("agility-data")
-    args = ["synth", "--scenes", "4", "--size", "128", "--seed", "6", "--out", str(d), "--quiet"]
-    assert main(args) == 0
-    return d
+    return synth_dir(tmp_path_factory, "agility-data", scenes=4, size=128, seed=6)
 
 
 def test_evaluate_agility_table(scenes_dir, tmp_path, capsys):

@@ -10,6 +10,7 @@ import pytest
 from dyntarget import InvalidParameterError
 from dyntarget.cli import main
 from dyntarget.evaluate.distributed import Interrupted, run_tasks, task_key
+from helpers import synth_dir
 
 # distributed leaves a listening socket to the garbage collector at cluster teardown (its own
 # internals, not ours); with warnings as errors that would fail unrelated tests.
@@ -69,12 +70,7 @@ def test_run_tasks_refuses_bad_input(tmp_path):
 
 @pytest.fixture(scope="module")
 def scenes_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("dist-data")
-    assert (
-        main(["synth", "--scenes", "6", "--size", "64", "--seed", "5", "--out", str(d), "--quiet"])
-        == 0
-    )
-    return d
+    return synth_dir(tmp_path_factory, "dist-data", scenes=6, size=64, seed=5)
 
 
 def _table(path):

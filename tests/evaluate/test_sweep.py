@@ -12,6 +12,7 @@ import pytest
 from dyntarget import InvalidParameterError
 from dyntarget.cli import main
 from dyntarget.evaluate.sweep import SweepInterrupted, expand, parse_grid, summary_figure, sweep
+from helpers import synth_dir
 
 # distributed leaves a listening socket to the garbage collector at cluster teardown (its own
 # internals, not ours); with warnings as errors that would fail unrelated tests.
@@ -42,22 +43,12 @@ def _rows(path):
 
 @pytest.fixture(scope="module")
 def data38(tmp_path_factory):
-    d = tmp_path_factory.mktemp("sweep-data38")
-    assert (
-        main(["synth", "--scenes", "38", "--size", "64", "--seed", "4", "--out", str(d), "--quiet"])
-        == 0
-    )
-    return d
+    return synth_dir(tmp_path_factory, "sweep-data38", scenes=38, size=64, seed=4)
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
-    d = tmp_path_factory.mktemp("sweep-data")
-    assert (
-        main(["synth", "--scenes", "6", "--size", "64", "--seed", "2", "--out", str(d), "--quiet"])
-        == 0
-    )
-    return d
+    return synth_dir(tmp_path_factory, "sweep-data", scenes=6, size=64, seed=2)
 
 
 def test_parse_and_expand_grid():

@@ -130,10 +130,12 @@ def _agility_task(
     for preset in config.presets:
         kept = []
         for name, traj in plans.items():
-            as_planned = schedule(traj, w.shape, geometry, preset).fraction_feasible
-            flown = make_feasible(traj, w.shape, geometry, preset)
+            as_planned = schedule(traj, w.shape, geometry, preset)
+            flown = make_feasible(traj, w.shape, geometry, preset, as_planned=as_planned)
             kept.append(len(flown.kept))
-            records.append(record(preset, name, len(traj), as_planned, flown.trajectory))
+            records.append(
+                record(preset, name, len(traj), as_planned.fraction_feasible, flown.trajectory)
+            )
         budget = max(kept, default=0) if AGILITY[preset].unlimited else None
         traj = utility_max(
             proba,
@@ -173,7 +175,7 @@ def evaluate_agility(
             config.classifier, train, seed=config.seed, epochs=config.epochs, model_dir=model_dir
         )
     tasks = [(k, i) for k, test in enumerate(folds) for i in test]
-    run = task_key("agility", _config_dict(config), data_signature(scenes))
+    run = task_key("agility", asdict(config), data_signature(scenes))
     results = run_tasks(
         _agility_task,
         tasks,
@@ -188,7 +190,7 @@ def evaluate_agility(
     return {
         "rows": agility_rows(records, list(config.presets), [*config.planners, "utility-max"]),
         "records": records,
-        "config": _config_dict(config),
+        "config": asdict(config),
         "ground_speed_m_s": Geometry(altitude_m=config.altitude_m).ground_speed,
     }
 
@@ -226,9 +228,3 @@ def agility_rows(
                 }
             )
     return rows
-
-
-def _config_dict(config: AgilityConfig) -> dict[str, Any]:
-    d = asdict(config)
-    d["presets"], d["planners"] = list(config.presets), list(config.planners)
-    return d

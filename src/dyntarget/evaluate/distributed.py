@@ -145,9 +145,10 @@ def run_tasks(
 
     def finish(k: str, result: Any) -> None:
         nonlocal done
+        text = json.dumps(result)
         if parts is not None:
-            write_text(parts / f"{k}.json", json.dumps(result) + "\n")
-        results[k] = json.loads(json.dumps(result))  # the same types as a resumed result
+            write_text(parts / f"{k}.json", text + "\n")
+        results[k] = json.loads(text)  # the same types as a resumed result
         bar.update()
         done += 1
         if stop_after is not None and done >= stop_after:

@@ -37,7 +37,7 @@ flies whichever of the two keeps more pointings.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -276,16 +276,6 @@ class Schedule:
         """Between the end of the last observation and the end of the window."""
         return self.window_end_s - self.end_s
 
-    def summary(self) -> dict[str, float | int | str]:
-        return {
-            "agility": self.agility,
-            "planned": self.planned,
-            "kept": len(self.kept),
-            "fraction_feasible": self.fraction_feasible,
-            "total_s": self.total_s,
-            "time_left_s": self.time_left_s,
-        }
-
 
 class Timer:
     """Step-by-step timing of pointings: what the sensor tracks and when it is free.
@@ -386,19 +376,17 @@ def make_feasible(
     agility: Agility | str,
     *,
     budget_s: float | None = None,
+    as_planned: Schedule | None = None,
 ) -> Schedule:
     """The better of flying the plan in its own order and reordered earliest-deadline-first.
 
     Both are re-timed and trimmed by :func:`schedule`; the one that keeps more
     pointings wins (the planner's order on ties). Reordering rescues points a
     plan would visit too late, but interleaves transects across track and so
-    costs slews; which matters more depends on the plan and the agility.
+    costs slews; which matters more depends on the plan and the agility. Pass
+    ``as_planned`` when that schedule (same arguments, no reordering) is already at hand.
     """
-    as_planned = schedule(trajectory, shape, geometry, agility, budget_s=budget_s)
+    if as_planned is None:
+        as_planned = schedule(trajectory, shape, geometry, agility, budget_s=budget_s)
     reordered = schedule(trajectory, shape, geometry, agility, reorder=True, budget_s=budget_s)
     return reordered if len(reordered.kept) > len(as_planned.kept) else as_planned
-
-
-def agility_table() -> list[dict[str, object]]:
-    """The presets as rows (for docs and ``dyntarget agility``)."""
-    return [asdict(a) for a in AGILITY.values()]
