@@ -69,6 +69,12 @@ Plotly.animate(gd, [arguments[1]], {mode: 'immediate', frame: {duration: 0, redr
   .then(() => done(true), e => done(String(e)));
 """
 
+_HOVER = """
+const gd = document.getElementById(arguments[0]);
+const k = gd.data.map(t => t.name).indexOf(arguments[1]);
+Plotly.Fx.hover(gd, [{curveNumber: k, pointNumber: arguments[2]}]);
+"""
+
 
 @dataclass(frozen=True)
 class Rendered:
@@ -118,6 +124,7 @@ def render(
     window: tuple[int, int] = (1000, 900),
     timeout_s: float = 60.0,
     frame: int | None = None,
+    hover: int | None = None,
 ) -> Rendered:
     """Open ``path`` in headless Chromium, wait for the plot, read it back.
 
@@ -134,6 +141,8 @@ def render(
         How long to wait for the figure to be drawn.
     frame : int, optional
         For a pass view: move the time slider to this step (0-based) before reading.
+    hover : int, optional
+        Show the hover label of this pointing (0-based) before the screenshot.
 
     Returns
     -------
@@ -183,6 +192,8 @@ def render(
                 driver.set_script_timeout(timeout_s)
                 driver.execute_async_script(_ANIMATE, DIV_ID, str(int(frame)))
                 got = driver.execute_script(_READ, DIV_ID, POINTINGS)
+            if hover is not None:
+                driver.execute_script(_HOVER, DIV_ID, POINTINGS, int(hover))
             if screenshot is not None:
                 time.sleep(0.5)  # let the image layers decode before the picture
                 driver.save_screenshot(str(screenshot))

@@ -275,7 +275,15 @@ def _layout(go, shape, title: str, note: str) -> Any:
     aspect = h / w
     width = 900
     return go.Layout(
-        title={"text": html.escape(title)},
+        title={
+            "text": html.escape(title),
+            "subtitle": {"text": html.escape(note)},
+            "x": 0.02,
+            "xanchor": "left",
+            "y": 0.985,
+            "yref": "container",
+            "yanchor": "top",
+        },
         xaxis={
             "range": [-0.5, w - 0.5],
             "title": {"text": "column (WFOV px)"},
@@ -290,31 +298,21 @@ def _layout(go, shape, title: str, note: str) -> Any:
         width=width,
         height=int(min(1000, max(420, 140 + (width - 260) * aspect))),
         legend={"orientation": "h", "y": -0.12},
-        margin={"l": 60, "r": 40, "t": 90, "b": 110},
+        margin={"l": 60, "r": 40, "t": 120, "b": 110},
         updatemenus=[
             {
                 "type": "buttons",
                 "direction": "right",
                 "x": 0.0,
-                "y": 1.1,
+                "y": 1.01,
                 "xanchor": "left",
+                "yanchor": "bottom",
                 "buttons": buttons,
                 "showactive": True,
             }
         ],
-        annotations=[
-            {
-                "text": html.escape(note),
-                "showarrow": False,
-                "xref": "paper",
-                "yref": "paper",
-                "x": 1.0,
-                "y": 1.1,
-                "xanchor": "right",
-                "font": {"size": 11},
-            }
-        ],
         plot_bgcolor="black",
+        modebar={"orientation": "v"},
     )
 
 
