@@ -130,7 +130,7 @@ def test_planners_lists_the_paper_six_then_ours(capsys):
     assert [ln.split()[0] for ln in lines[6:]] == ["track-centerline", "utility-max"]
 
 
-def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):
+def test_plan_with_mask_writes_rfc7946_geojson_and_figure(tmp_path, capsys):
     import json
 
     d = _tiny_dir(tmp_path, capsys, n=1)
@@ -150,9 +150,9 @@ def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):
     )
     assert code == 0, err
     doc = json.loads((tmp_path / "t.geojson").read_text())
-    assert doc["crs"]["properties"]["name"] == "EPSG:32605"
-    x, y = doc["features"][-1]["geometry"]["coordinates"]
-    assert 200_000 < x < 300_000 and 2_100_000 < y < 2_200_000  # UTM metres, not pixels
+    assert "crs" not in doc  # RFC 7946: WGS 84 lon/lat, no crs member
+    lon, lat = doc["features"][-1]["geometry"]["coordinates"]
+    assert -156 < lon < -155 and 19 < lat < 20  # the synthetic scenes lie near Kilauea
     assert (tmp_path / "t.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -176,7 +176,7 @@ def test_plan_with_model(tmp_path, capsys):
         tmp_path / "t.csv",
     )
     assert code == 0, err
-    assert (tmp_path / "t.csv").read_text().startswith("order,x,y,part,X,Y")
+    assert (tmp_path / "t.csv").read_text().startswith("order,x,y,part,lon,lat")
 
 
 @pytest.mark.parametrize(

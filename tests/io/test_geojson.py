@@ -18,7 +18,7 @@ from dyntarget.io.geojson import (
     write_polygons,
     write_trajectory,
 )
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.trajectory import Trajectory
 
 pyogrio = pytest.importorskip("pyogrio", reason="pyogrio (GDAL's OGR) is in the test extra")
 

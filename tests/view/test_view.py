@@ -9,7 +9,7 @@ import pytest
 from shapely.geometry import box
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.trajectory import Trajectory
 
 pytest.importorskip("plotly", reason="the view needs plotly (extra 'view', in 'test')")
 
@@ -134,12 +134,12 @@ needs_chromium = pytest.mark.skipif(
 def planned(tmp_path_factory):
     """A synthetic georeferenced scene planned on its label, timed under the 'fast' agility."""
     from dyntarget.pipeline import plan_scene
-    from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible
+    from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
     from dyntarget.synth import generate_scene
 
     scene = generate_scene(3, 0, size=96)[0]
     result = plan_scene(scene.image, None, "lawnmower-transect", mask=scene.label)
-    geometry = Geometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=scene.gsd)
+    geometry = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=scene.gsd)
     sched = make_feasible(result.trajectory, scene.shape, geometry, get_agility("fast"))
     assert len(sched.trajectory) >= 5
     return scene, result, sched.trajectory

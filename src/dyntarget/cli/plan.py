@@ -13,6 +13,7 @@ from dyntarget.cli._common import (
     positive_int,
     preset_names,
 )
+from dyntarget.cli._outputs import add_output_options, write_outputs
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
@@ -103,8 +104,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
         )  # fmt: skip
         _log_schedule(args.planner, sched)
         traj = sched.trajectory
-    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
-    print(out)
+    write_outputs(
+        args, wfov, traj, polygons=result.polygons, probability=result.probability,
+        title=f"{wfov.id}: {args.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
+    )  # fmt: skip
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
 
@@ -168,7 +171,7 @@ def _plan_utility_max(args, wfov, classifier, config) -> int:
     )
     sched = schedule(traj, wfov.shape, geometry, agility)
     _log_schedule("utility-max", sched)
-    print(sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs))
+    write_outputs(args, wfov, sched.trajectory, probability=proba)
     return EXIT_OK
 
 
@@ -224,7 +227,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="planner name (see 'dyntarget planners'), or utility-max (with --agility)",
     )
-    p.add_argument("--out", required=True, help="trajectory file: .geojson or .csv")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="trajectory file: .geojson (RFC 7946 unless --crs native) or .csv",
+    )
     p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
     p.add_argument(
         "--factor",
@@ -244,6 +251,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     add_plan_options(p)
+    add_output_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
     k.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")

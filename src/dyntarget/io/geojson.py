@@ -260,7 +260,7 @@ def trajectory_geojson(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0, 0]), "demo",
     ...                times=np.array([0.0, 1.5]))
     >>> doc = trajectory_geojson(t, transform=Affine(10, 0, 500000, 0, -10, 0),
@@ -333,7 +333,7 @@ def polygons_geojson(
     ----------
     polygons : sequence of shapely Polygon or MultiPolygon
         In pixel coordinates ``(column, row)``, pixel centres at integers (as
-        :func:`dyntarget.perceive.denoise.denoise` returns them).
+        :func:`dyntarget.denoise.denoise` returns them).
     transform, crs, crs_mode, acquired, properties
         As for :func:`trajectory_geojson`.
 
@@ -432,7 +432,7 @@ def trajectory_csv(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[1.0, 2.0]]), np.array([0]), "demo", times=np.array([2.0]))
     >>> print(trajectory_csv(t, acquired="2024-05-01T10:00:00Z"), end="")
     order,x,y,part,time_s,time
@@ -518,7 +518,7 @@ def write_trajectory(
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 4.0]]), np.array([0, 0]), "demo")
     >>> out = write_trajectory(pathlib.Path(tempfile.mkdtemp()) / "t.geojson", t)
     >>> json.loads(out.read_text())["properties"]["coordinates"][:11]

@@ -385,7 +385,7 @@ def scene_view_html(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> img = np.random.default_rng(0).uniform(0, 1, (4, 16, 16)).astype(np.float32)
     >>> t = Trajectory(np.array([[2.0, 3.0], [5.0, 3.0]]), np.array([0, 0]), "demo")
     >>> page = scene_view_html(img, trajectory=t)
@@ -623,7 +623,7 @@ def pointing_truth(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> img = np.full((4, 4, 4), 0.5, np.float32)
     >>> lab = np.zeros((4, 4), bool); lab[:, :2] = True
     >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 0.0], [9.0, 0.0]]), np.zeros(3, int), "d")
