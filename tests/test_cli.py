@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import importlib.util
+
 import pytest
 import rasterio
 
@@ -32,6 +34,9 @@ def test_demo_writes_picture(tmp_path, capsys):
     assert code == 0, err
     assert (tmp_path / "scenes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "scenes.png" in out
+    if importlib.util.find_spec("plotly") is not None:  # the interactive view beside report.md
+        assert (tmp_path / "view.html").read_text().startswith("<!doctype html>")
+        assert "[view.html](view.html)" in (tmp_path / "report.md").read_text()
 
 
 def test_bad_argument_exit_2_no_traceback(tmp_path, capsys):

@@ -72,7 +72,7 @@ def test_hover_text_carries_order_time_utc_and_observed_values():
     page = _text(page)
     assert "<b>pointing 1</b> (part 0)<br>t = 62.000 s (2024-05-01T10:01:02.000Z)" in page
     assert "plume: 1.000" in page and "plume: –" in page
-    assert "time after acquisition (s)" in page
+    assert "time (s)<br>after acquisition" in page
 
 
 def test_untimed_pointings_are_coloured_by_order():

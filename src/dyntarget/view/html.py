@@ -251,7 +251,7 @@ def _traces(go, image, probability, polygons, traj, values, transform, crs, acqu
                 "line": {"color": "black", "width": 1},
                 "showscale": True,
                 "colorbar": {
-                    "title": {"text": "time after acquisition (s)" if timed else "order"},
+                    "title": {"text": "time (s)<br>after acquisition" if timed else "order"},
                     "x": 1.02,
                     "len": 0.5,
                     "y": 0.75,
@@ -298,7 +298,7 @@ def _layout(go, shape, title: str, note: str) -> Any:
         width=width,
         height=int(min(1000, max(420, 140 + (width - 260) * aspect))),
         legend={"orientation": "h", "y": -0.12},
-        margin={"l": 60, "r": 40, "t": 120, "b": 110},
+        margin={"l": 60, "r": 170, "t": 120, "b": 110},
         updatemenus=[
             {
                 "type": "buttons",
