@@ -188,3 +188,17 @@ def test_chromium_pass_slider_shows_each_frames_pointings(tmp_path, planned):
     assert second.errors == [], second.console
     np.testing.assert_allclose(second.pointings, traj.points, atol=1e-3)
     np.testing.assert_allclose(second.drawn, traj.points, atol=0.5 / second.px_per_unit + 1e-3)
+
+
+def test_importing_the_view_and_writers_loads_neither_plotly_nor_selenium():
+    import json
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, json, dyntarget.view, dyntarget.view.browser, dyntarget.io.geojson, "
+        "dyntarget.cli\n"
+        "print(json.dumps([m for m in ('plotly', 'selenium') if m in sys.modules]))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == []
