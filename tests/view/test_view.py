@@ -202,3 +202,25 @@ def test_importing_the_view_and_writers_loads_neither_plotly_nor_selenium():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert json.loads(done.stdout.strip().splitlines()[-1]) == []
+
+
+def test_pass_frames_with_their_own_transform_hover_their_own_lonlat():
+    from affine import Affine
+
+    t = Trajectory(np.array([[0.0, 0.0]]), np.zeros(1, np.int64), "t", times=np.array([1.0]))
+    # UTM 32N: pixel (0, 0)'s centre on the central meridian (9°E) at the equator, then
+    # the second frame's grid 30 m further north: 30 m / 0.9996 (UTM scale on the central
+    # meridian) / 110 574 m per degree of latitude at the equator (WGS 84) = 0.0002714°
+    first = Affine(30.0, 0.0, 499985.0, 0.0, -30.0, 15.0)
+    second = Affine(30.0, 0.0, 499985.0, 0.0, -30.0, 45.0)
+    page = _text(
+        pass_view_html(
+            [
+                PassFrame(0.0, _image(), trajectory=t, transform=first),
+                PassFrame(2.0, _image(), trajectory=t, transform=second),
+            ],
+            crs="EPSG:32632",
+        )
+    )
+    assert "lon 9.0000000, lat 0.0000000" in page
+    assert "lon 9.0000000, lat 0.0002714" in page

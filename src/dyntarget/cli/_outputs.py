@@ -62,9 +62,9 @@ def write_outputs(
     when = acquisition(args, args.image[0] if len(args.image) == 1 else None)
     georef = {"transform": wfov.transform, "crs": wfov.crs, "acquired": when}
     if args.html:  # plotly is optional: fail before anything is written
-        from dyntarget.view.html import _plotly
+        from dyntarget.view import require_plotly
 
-        _plotly()
+        require_plotly()
     print(write_trajectory(args.out, traj, crs_mode=args.crs, **georef))
     if args.polygons:
         print(write_polygons(args.polygons, polygons, crs_mode=args.crs, **georef))

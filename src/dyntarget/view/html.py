@@ -15,7 +15,7 @@ import itertools
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -58,6 +58,10 @@ class PassFrame:
         Per-pointing values for the hover (e.g. what each pointing observed).
     label : str
         Extra text for the slider step.
+    transform : affine.Affine or None
+        This frame's own pixel -> CRS transform (frames of a strip each cover
+        their own ground); ``None``: the pass's ``transform``. Used for the
+        hover's lon/lat.
     """
 
     time_s: float
@@ -67,10 +71,21 @@ class PassFrame:
     trajectory: Any = None
     point_values: Mapping[str, Sequence[float]] | None = None
     label: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
+    transform: Any = None
 
 
-def _plotly():
+def require_plotly():
+    """The ``plotly.graph_objects`` module, or :class:`InvalidParameterError` saying how to install it.
+
+    Returns
+    -------
+    module
+
+    Examples
+    --------
+    >>> require_plotly().__name__
+    'plotly.graph_objects'
+    """
     try:
         import plotly.graph_objects as go
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -78,6 +93,9 @@ def _plotly():
             "html: the interactive view needs plotly; pip install 'dyntarget[view]'"
         ) from exc
     return go
+
+
+_plotly = require_plotly  # the name callers used before it was public
 
 
 def _stretch(bands: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
@@ -392,7 +410,7 @@ def scene_view_html(
     >>> page.startswith("<!doctype html>"), "<title>dyntarget plan</title>" in page
     (True, True)
     """
-    go = _plotly()
+    go = require_plotly()
     image = check_image(image)
     shape = image.shape[1:]
     probability = _check_probability(probability, shape)
@@ -471,7 +489,7 @@ def pass_view_html(
     >>> page.count('"t = 5 s"') >= 1
     True
     """
-    go = _plotly()
+    go = require_plotly()
     frames = list(frames)
     if not frames:
         raise InvalidParameterError("frames: expected at least one PassFrame, got none")
@@ -517,7 +535,7 @@ def pass_view_html(
                 f.polygons,
                 f.trajectory,
                 f.point_values,
-                transform,
+                f.transform if f.transform is not None else transform,
                 crs,
                 when,
                 crange,
