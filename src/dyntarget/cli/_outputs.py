@@ -59,7 +59,7 @@ def write_outputs(
         raise InvalidParameterError(f"--polygons: expected a .geojson path, got {args.polygons!r}")
     if args.html and Path(args.html).suffix.lower() not in (".html", ".htm"):
         raise InvalidParameterError(f"--html: expected a .html path, got {args.html!r}")
-    when = acquisition(args, args.image[0] if len(args.image) == 1 else None)
+    when = acquisition(args, args.image[0])
     georef = {"transform": wfov.transform, "crs": wfov.crs, "acquired": when}
     if args.html:  # plotly is optional: fail before anything is written
         from dyntarget.view import require_plotly
