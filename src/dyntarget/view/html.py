@@ -589,6 +589,13 @@ def pass_view_html(
         },
     ]
     layout.height = layout.height + 80
+    layout.legend = {
+        "orientation": "h",
+        "x": 1.0,
+        "xanchor": "right",
+        "y": 1.01,
+        "yanchor": "bottom",
+    }
     fig = go.Figure(data=per_frame[0], layout=layout, frames=plot_frames)
     return _to_html(fig, title, animated=True)
 
