@@ -97,6 +97,11 @@ def test_agility_and_acquired_put_time_on_every_pointing_in_geojson_and_csv(tmp_
         t = datetime.fromisoformat(p["time"].replace("Z", "+00:00"))
         start = datetime.fromisoformat("2024-05-01T10:00:00+00:00")
         assert abs((t - start).total_seconds() - p["time_s"]) < 1e-3
+    # GDAL reads `time` as a DateTime field (what QGIS's temporal controller needs)
+    meta, _, _, fields = pyogrio.raw.read(tmp_path / "t.geojson", where="kind = 'pointing'")
+    k = list(meta["fields"]).index("time")
+    assert str(meta["dtypes"][k]).startswith("datetime64")
+    assert [str(v) for v in fields[k]] == [p["time"].rstrip("Z") for p in pts]
 
 
 def test_acquisition_time_is_read_from_the_tiff_tag(tmp_path, capsys):
