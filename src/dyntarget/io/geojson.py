@@ -530,6 +530,14 @@ def write_geojson(path: str | os.PathLike[str], doc: Mapping[str, Any]) -> Path:
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = write_geojson(pathlib.Path(tempfile.mkdtemp()) / "e.geojson",
+    ...                     {"type": "FeatureCollection", "features": []})
+    >>> print(out.read_text(), end="")
+    {"type":"FeatureCollection","features":[]}
     """
     return write_text(path, json.dumps(doc, separators=(",", ":"), allow_nan=False) + "\n")
 

@@ -445,6 +445,14 @@ def write_scene_view(path: str | os.PathLike[str], image: np.ndarray, **kwargs: 
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> img = np.random.default_rng(0).uniform(0, 1, (4, 8, 8)).astype(np.float32)
+    >>> out = write_scene_view(pathlib.Path(tempfile.mkdtemp()) / "v.html", img, title="demo")
+    >>> "<title>demo</title>" in out.read_text()
+    True
     """
     path = _check_html_path(path)
     return write_text(path, scene_view_html(image, **kwargs))
@@ -616,6 +624,15 @@ def write_pass_view(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> img = np.random.default_rng(0).uniform(0, 1, (4, 8, 8)).astype(np.float32)
+    >>> frames = [PassFrame(0.0, img), PassFrame(2.5, img, label="second look")]
+    >>> out = write_pass_view(pathlib.Path(tempfile.mkdtemp()) / "pass.html", frames)
+    >>> "t = 2.5 s · second look" in out.read_text()
+    True
     """
     path = _check_html_path(path)
     return write_text(path, pass_view_html(frames, **kwargs))
