@@ -53,7 +53,7 @@ def positive_float(text: str) -> float:
 
 
 def preset_names() -> list[str]:
-    from dyntarget.io.sensors import PRESETS
+    from dyntarget.io.presets import PRESETS
 
     return list(PRESETS)
 

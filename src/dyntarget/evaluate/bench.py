@@ -90,12 +90,26 @@ def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
     return {"median_s": float(np.median(times)), "min_s": float(np.min(times)), "peak_mib": peak}
 
 
+def _torch_threads() -> int | None:
+    try:
+        import torch
+    except ImportError:
+        return None
+    return torch.get_num_threads()
+
+
 def machine() -> dict[str, Any]:
+    import importlib.metadata
+
     import cv2
-    import sklearn
-    import torch
 
     import dyntarget
+
+    def version(dist: str) -> str | None:  # optional dependencies may be absent
+        try:
+            return importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return None
 
     cpu = platform.processor() or ""
     try:
@@ -109,13 +123,13 @@ def machine() -> dict[str, Any]:
         "platform": platform.platform(),
         "cpu": cpu,
         "cpus": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
+        "torch_threads": _torch_threads(),
         "python": platform.python_version(),
         "versions": {
             "dyntarget": dyntarget.__version__,
             "numpy": np.__version__,
-            "torch": torch.__version__,
-            "scikit-learn": sklearn.__version__,
+            "torch": version("torch"),
+            "scikit-learn": version("scikit-learn"),
             "opencv": cv2.__version__,
         },
     }

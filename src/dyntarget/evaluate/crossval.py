@@ -71,8 +71,9 @@ def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
 
     Examples
     --------
-    >>> [f.tolist() for f in kfold_indices(5, 2, seed=0)]
-    [[2, 4, 0], [3, 1]]
+    >>> folds = kfold_indices(5, 2, seed=0)
+    >>> [len(f) for f in folds], sorted(i for f in folds for i in f.tolist())
+    ([3, 2], [0, 1, 2, 3, 4])
     """
     if folds > n:
         raise InvalidParameterError(f"folds: {folds} folds need at least {folds} scenes, got {n}")
