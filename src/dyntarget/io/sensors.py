@@ -34,7 +34,7 @@ from dyntarget.errors import (
     InvalidSceneError,
 )
 from dyntarget.io import scenes as scene_io
-from dyntarget.io.presets import get_preset
+from dyntarget.io.presets import PRESETS, Preset, get_preset  # noqa: F401  (re-exported)
 from dyntarget.scene import Scene
 
 
