@@ -187,3 +187,22 @@ def test_plan_html_view_holds_the_geojson_pointings_in_chromium(tmp_path, capsys
     shown = render(tmp_path / "v.html")
     assert shown.errors == [], shown.console
     np.testing.assert_allclose(shown.drawn, px, atol=0.5 / shown.px_per_unit + 1e-3)
+
+
+def test_html_without_plotly_names_the_extra_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    import sys
+
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    monkeypatch.setitem(sys.modules, "plotly", None)  # as if the 'view' extra were absent
+    monkeypatch.setitem(sys.modules, "plotly.graph_objects", None)
+    out = tmp_path / "out"
+    code, _, err = run(
+        capsys, "plan", image, "--mask", mask, "--planner", "track-center",
+        "--out", out / "t.geojson", "--html", out / "v.html",
+    )  # fmt: skip
+    assert code == 2
+    assert err.strip().splitlines()[-1] == (
+        'dyntarget: error: plotly is not installed: pip install "dyntarget[view]"'
+    )
+    assert not out.exists() or list(out.iterdir()) == []
