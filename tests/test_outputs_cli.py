@@ -149,6 +149,8 @@ def test_image_without_crs_keeps_pixels_and_says_so(tmp_path, capsys):
         (["--html", "v.png"], "--html: expected a .html path"),
         (["--acquired", "noon"], "--acquired: expected an ISO-8601"),
         (["--crs", "utm"], "invalid choice: 'utm'"),
+        (["--polygons", "out/t.geojson"], "the same path as --out"),
+        (["--polygons", "out/d.geojson"], "is a directory"),
     ],
 )
 def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, message):
@@ -156,12 +158,14 @@ def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, me
     image, mask = _scene(tmp_path, crs, transform)
     extra = [str(tmp_path / e) if "." in e and not e.startswith("-") else e for e in extra]
     out = tmp_path / "out"
+    if "d.geojson" in " ".join(extra):
+        (out / "d.geojson").mkdir(parents=True)
     code, _, err = run(
         capsys, "plan", image, "--mask", mask, "--planner", "track-center",
         "--out", out / "t.geojson", *extra,
     )  # fmt: skip
     assert code == 2 and message in err and "Traceback" not in err
-    assert not out.exists() or list(out.iterdir()) == []
+    assert not out.exists() or [p.name for p in out.iterdir()] in ([], ["d.geojson"])
 
 
 @pytest.mark.slow
