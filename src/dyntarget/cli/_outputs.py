@@ -54,9 +54,7 @@ def write_outputs(
 
     # validate every output before writing any of them: nothing half-written
     if args.polygons and polygons is None:
-        raise InvalidParameterError(
-            f"--polygons: planner {args.planner} plans on the probability, without plume polygons"
-        )
+        raise InvalidParameterError(f"--polygons: planner {args.planner} made no plume polygons")
     if args.polygons and Path(args.polygons).suffix.lower() not in (".geojson", ".json"):
         raise InvalidParameterError(f"--polygons: expected a .geojson path, got {args.polygons!r}")
     if args.html and Path(args.html).suffix.lower() not in (".html", ".htm"):
