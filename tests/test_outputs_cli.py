@@ -149,6 +149,8 @@ def test_image_without_crs_keeps_pixels_and_says_so(tmp_path, capsys):
         (["--html", "v.png"], "--html: expected a .html path"),
         (["--acquired", "noon"], "--acquired: expected an ISO-8601"),
         (["--crs", "utm"], "invalid choice: 'utm'"),
+        (["--polygons", "out/t.geojson"], "the same path as --out"),
+        (["--polygons", "out/d.geojson"], "is a directory"),
     ],
 )
 def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, message):
@@ -156,12 +158,14 @@ def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, me
     image, mask = _scene(tmp_path, crs, transform)
     extra = [str(tmp_path / e) if "." in e and not e.startswith("-") else e for e in extra]
     out = tmp_path / "out"
+    if "d.geojson" in " ".join(extra):
+        (out / "d.geojson").mkdir(parents=True)
     code, _, err = run(
         capsys, "plan", image, "--mask", mask, "--planner", "track-center",
         "--out", out / "t.geojson", *extra,
     )  # fmt: skip
     assert code == 2 and message in err and "Traceback" not in err
-    assert not out.exists() or list(out.iterdir()) == []
+    assert not out.exists() or [p.name for p in out.iterdir()] in ([], ["d.geojson"])
 
 
 @pytest.mark.slow
@@ -187,3 +191,22 @@ def test_plan_html_view_holds_the_geojson_pointings_in_chromium(tmp_path, capsys
     shown = render(tmp_path / "v.html")
     assert shown.errors == [], shown.console
     np.testing.assert_allclose(shown.drawn, px, atol=0.5 / shown.px_per_unit + 1e-3)
+
+
+def test_html_without_plotly_names_the_extra_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    import sys
+
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    monkeypatch.setitem(sys.modules, "plotly", None)  # as if the 'view' extra were absent
+    monkeypatch.setitem(sys.modules, "plotly.graph_objects", None)
+    out = tmp_path / "out"
+    code, _, err = run(
+        capsys, "plan", image, "--mask", mask, "--planner", "track-center",
+        "--out", out / "t.geojson", "--html", out / "v.html",
+    )  # fmt: skip
+    assert code == 2
+    assert err.strip().splitlines()[-1] == (
+        'dyntarget: error: plotly is not installed: pip install "dyntarget[view]"'
+    )
+    assert not out.exists() or list(out.iterdir()) == []

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+_OUTPUT_FLAGS = ("--out", "--figure", "--polygons", "--html")
+
 
 def add_output_options(p: argparse.ArgumentParser) -> None:
     """``--crs``, ``--acquired``, ``--polygons``, ``--html`` (see docs/outputs.md)."""
@@ -52,13 +54,24 @@ def write_outputs(
 
     # validate every output before writing any of them: nothing half-written
     if args.polygons and polygons is None:
-        raise InvalidParameterError(
-            f"--polygons: planner {args.planner} plans on the probability, without plume polygons"
-        )
+        raise InvalidParameterError(f"--polygons: planner {args.planner} made no plume polygons")
     if args.polygons and Path(args.polygons).suffix.lower() not in (".geojson", ".json"):
         raise InvalidParameterError(f"--polygons: expected a .geojson path, got {args.polygons!r}")
     if args.html and Path(args.html).suffix.lower() not in (".html", ".htm"):
         raise InvalidParameterError(f"--html: expected a .html path, got {args.html!r}")
+    named = [(f, getattr(args, f.strip("-").replace("-", "_"), None)) for f in _OUTPUT_FLAGS]
+    seen: dict[Path, str] = {}
+    for flag, value in named:
+        if value is None:
+            continue
+        where = Path(value).absolute()
+        if where in seen:
+            raise InvalidParameterError(
+                f"{flag} {value}: the same path as {seen[where]}; expected different outputs"
+            )
+        if where.is_dir():
+            raise InvalidParameterError(f"{flag} {value}: is a directory; expected a file path")
+        seen[where] = flag
     when = acquisition(args, args.image[0])
     georef = {"transform": wfov.transform, "crs": wfov.crs, "acquired": when}
     if args.html:  # plotly is optional: fail before anything is written

@@ -75,7 +75,8 @@ class PassFrame:
 
 
 def require_plotly():
-    """The ``plotly.graph_objects`` module, or :class:`InvalidParameterError` saying how to install it.
+    """The ``plotly.graph_objects`` module, or :class:`~dyntarget.errors.MissingExtraError`
+    naming the ``view`` extra to install.
 
     Returns
     -------
@@ -89,9 +90,9 @@ def require_plotly():
     try:
         import plotly.graph_objects as go
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise InvalidParameterError(
-            "html: the interactive view needs plotly; pip install 'dyntarget[view]'"
-        ) from exc
+        from dyntarget.errors import missing_extra
+
+        raise (missing_extra(exc) or exc) from None
     return go
 
 
