@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from dyntarget import InvalidParameterError, Scene
+from dyntarget.denoise import denoise
 from dyntarget.observe import observe, observe_at
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import PAPER_PLANNERS, PlanConfig, Trajectory, plan
-from dyntarget.plan.kinematics import Geometry, make_feasible
+from dyntarget.schedule import OrbitGeometry, make_feasible
 from dyntarget.synth import generate_scene
 from dyntarget.synth.dynamic import TruthCache, World, sample_world
 
@@ -23,7 +23,7 @@ def test_zero_latency_static_truth_equals_todays_numbers_exactly(planner, footpr
     wfov = scene.to_wfov(FACTOR)
     cleaned = denoise(wfov.label)
     traj = plan(planner, cleaned.mask, cleaned.polygons, PlanConfig())
-    geometry = Geometry(wfov_gsd_m=scene.gsd * FACTOR)
+    geometry = OrbitGeometry(wfov_gsd_m=scene.gsd * FACTOR)
     timed = make_feasible(traj, wfov.shape, geometry, "fast").trajectory  # varied times
     for t in (traj, timed):
         expected = observe(t, scene, factor=FACTOR, footprint=footprint)

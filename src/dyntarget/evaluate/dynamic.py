@@ -11,7 +11,7 @@ planner and every latency:
    (:data:`MODES`; ``static`` is the paper's pipeline: denoise, then plan where
    the plume was seen);
 2. the plan is timed by the kinematic schedule
-   (:func:`~dyntarget.plan.kinematics.make_feasible`) starting ``latency`` seconds
+   (:func:`~dyntarget.schedule.make_feasible`) starting ``latency`` seconds
    after the decision frame (onboard latency: acquisition to decision);
 3. each pointing is scored against the truth at its own time
    (:func:`~dyntarget.observe.observe_at`): the decision frame's time plus its
@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError, UnknownNameError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
@@ -48,10 +49,9 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import observe_at
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.perceive.base import Classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.pipeline import PipelineConfig
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory, plan
-from dyntarget.plan.kinematics import AGILITY, Geometry, Schedule, make_feasible
+from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule, make_feasible
 from dyntarget.sequence import FrameSequence
 
 DEFAULT_LATENCIES: tuple[float, ...] = (0.0, 30.0, 60.0, 90.0, 180.0)
@@ -220,7 +220,7 @@ class DynamicConfig:
             )
         if not self.classifiers and not self.true_mask:
             raise InvalidParameterError("classifiers: give at least one, or keep the true mask")
-        Geometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
+        OrbitGeometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
 
 
 def _truth(seq: FrameSequence, step_s: float) -> Callable[[float], Any]:
@@ -250,7 +250,7 @@ def _dynamic_task(
     gsd = decision.gsd if decision.gsd is not None else 1.0
 
     def scheduler(latency: float) -> Callable[[Trajectory], Schedule]:
-        geometry = Geometry(
+        geometry = OrbitGeometry(
             altitude_m=config.altitude_m,
             look_ahead_m=config.look_ahead_m,
             wfov_gsd_m=gsd,
