@@ -504,6 +504,7 @@ def latency_figure(
         for ci, cname in enumerate(classifiers):
             ax = axes[wi, ci]
             planners = _order([r for r in wsel if r["classifier"] in (cname, "N/A")], "planner")
+            nb = 0
             for pi, pname in enumerate(planners):
                 mine = [
                     r for r in wsel if r["planner"] == pname and r["classifier"] in (cname, "N/A")
@@ -511,9 +512,11 @@ def latency_figure(
                 lats = sorted({r["latency_s"] for r in mine})
                 vals = [np.mean([r[metric] for r in mine if r["latency_s"] == lat]) for lat in lats]
                 baseline = pname in BASELINES
+                style = ["--", ":"][nb % 2] if baseline else "-"
+                nb += baseline
                 ax.plot(
                     lats, vals, marker="o", ms=3,
-                    ls="--" if baseline else "-", color="black" if baseline else cmap(pi % 10),
+                    ls=style, color="black" if baseline else cmap(pi % 10),
                     alpha=0.7 if baseline else 1.0, label=display(pname),
                 )  # fmt: skip
             n = len({r["scene"] for r in wsel})
