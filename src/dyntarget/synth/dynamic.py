@@ -205,6 +205,7 @@ class WorldSpec:
     vents: tuple[VentSpec, ...]
     clouds: tuple[CloudSpec, ...] = ()
     label_optical_depth: float = 0.35
+    plume_texture: float = 0.5
     tile: int = 512
     water_fraction: float = 0.0
     lava_fraction: float = 0.25
@@ -233,7 +234,13 @@ class WorldSpec:
             raise InvalidParameterError(
                 f"label_optical_depth: expected a positive number, got {self.label_optical_depth!r}"
             )
-        for name in ("water_fraction", "lava_fraction", "vegetation_fraction", "haze"):
+        for name in (
+            "water_fraction",
+            "lava_fraction",
+            "vegetation_fraction",
+            "haze",
+            "plume_texture",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v < 1.0):
                 raise InvalidParameterError(f"{name}: expected 0 <= value < 1, got {v!r}")
@@ -652,10 +659,10 @@ class World:
                 blob = np.outer(gy, gx)
                 tau[b0:b1, a0:a1] += blob
                 tau_ash[b0:b1, a0:a1] += blob * ash[j]
-        if tau.any():
+        if tau.any() and s.plume_texture > 0:
             # texture that moves with the flow, developing away from the vent
             tex = self._sample_shifted("plume", window, ux * t, uy * t).astype(np.float64)
-            amp = np.full((h, w), 0.5)
+            amp = np.full((h, w), s.plume_texture)
             for v in s.vents:
                 # downwind distance from the vent (plain distance in calm air): none upwind
                 rx, ry = xs[None, :] - v.x, ys[:, None] - v.y
@@ -663,7 +670,9 @@ class World:
                     d = np.maximum((rx * ux + ry * uy) / speed_px, 0.0)
                 else:
                     d = np.hypot(rx, ry)
-                amp = np.minimum(amp, 0.5 * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd))))
+                amp = np.minimum(
+                    amp, s.plume_texture * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd)))
+                )
             mult = np.exp(amp * tex - 0.5 * amp**2)
             tau *= mult
             tau_ash *= mult
