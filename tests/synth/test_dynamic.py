@@ -182,3 +182,18 @@ def test_steady_plume_matches_the_analytic_gaussian_plume():
                 * np.exp(-s_m / (u_mps * fade))
             )  # fmt: skip
             assert tau[100 + d_px, 20 + s_px] == pytest.approx(expected, rel=0.01)
+
+
+def test_strip_has_a_plume_at_every_vent_and_renders_in_pieces():
+    from dyntarget.synth.dynamic import sample_strip
+
+    spec, window = sample_strip(2, length=384, width=96, plumes=3, wind_mps=6.0)
+    assert window == (0, 0, 96, 384) and len(spec.vents) == 3
+    ys = sorted(v.y for v in spec.vents)
+    assert ys[0] < 128 <= ys[1] < 256 <= ys[2] < 384  # one vent per third of the strip
+    world = World(spec)
+    full = world.render(20.0, window)
+    for v in spec.vents:  # optical depth at the vent is the plume's, well above the label
+        assert full.tau[int(round(v.y)), int(round(v.x))] > spec.label_optical_depth
+    top = world.render(20.0, (0, 0, 96, 128))
+    np.testing.assert_array_equal(top.image, full.image[:, :128])
