@@ -194,6 +194,6 @@ def test_strip_has_a_plume_at_every_vent_and_renders_in_pieces():
     world = World(spec)
     full = world.render(20.0, window)
     for v in spec.vents:  # optical depth at the vent is the plume's, well above the label
-        assert full.tau[int(round(v.y)), int(round(v.x))] > spec.label_optical_depth
+        assert full.tau[round(v.y), round(v.x)] > spec.label_optical_depth
     top = world.render(20.0, (0, 0, 96, 128))
     np.testing.assert_array_equal(top.image, full.image[:, :128])
