@@ -490,15 +490,17 @@ def latency_figure(
     mode: str = "static",
 ) -> Path:
     """Ratio plume (or ``metric``) against latency: one panel per classifier x wind selection."""
-    from dyntarget.evaluate.figures import plt, save
+    from matplotlib import colormaps
+
+    from dyntarget.evaluate.figures import save, subplots
 
     sel = [r for r in records if r["mode"] == mode]
     classifiers = [c for c in _order(sel, "classifier") if c != "N/A"]
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         len(winds), max(len(classifiers), 1), figsize=(5.2 * max(len(classifiers), 1), 3.6 * len(winds)),
         squeeze=False, sharey=True,
     )  # fmt: skip
-    cmap = plt.get_cmap("tab10")
+    cmap = colormaps["tab10"]
     for wi, wind in enumerate(winds):
         wsel = [r for r in sel if wind is None or r["wind_bin"] == wind]
         for ci, cname in enumerate(classifiers):
