@@ -20,6 +20,10 @@ _EXPORTS = {
     "read_scene_dir": "dyntarget.io.scenes",
     "scene_ids": "dyntarget.io.scenes",
     "write_scene": "dyntarget.io.scenes",
+    "read_sequence": "dyntarget.io.sequences",
+    "read_sequence_dir": "dyntarget.io.sequences",
+    "sequence_ids": "dyntarget.io.sequences",
+    "write_sequence": "dyntarget.io.sequences",
 }
 
 __all__ = sorted(_EXPORTS)
