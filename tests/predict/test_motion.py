@@ -99,7 +99,6 @@ def test_real_texture_38cloud_patch_shifted():
 
     scene = read_patch(root / "38cloud-sample")
     img, cloud = scene.image, scene.label
-    h, w = cloud.shape
     # crop a window with a cloud in it, use the cloud's own texture over a fixed ground
     ground = np.flip(
         img, axis=(1, 2)

@@ -52,7 +52,7 @@ def _shift(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
 
 def _sweep(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """``max over s in [0, 1] of field(x - s (dx, dy))``: grey dilation with a line."""
-    r = int(math.ceil(max(abs(dx), abs(dy))))
+    r = math.ceil(max(abs(dx), abs(dy)))
     if r == 0:
         return field.copy()
     kernel = np.zeros((2 * r + 1, 2 * r + 1), np.uint8)
