@@ -8,7 +8,7 @@ pipeline (:func:`dyntarget.pipeline.plan_scene` with ``prediction=``) plans on
 the prediction. Method, assumptions and failure cases: ``docs/onboard.md``.
 """
 
-from dyntarget.predict.advect import check_lead, predict_field, predict_mask
+from dyntarget.predict.advect import Prediction, check_lead, predict_field, predict_mask
 from dyntarget.predict.motion import (
     CALM,
     LOW_CONFIDENCE,
@@ -27,6 +27,7 @@ __all__ = [
     "LOW_CONFIDENCE",
     "REGIMES",
     "Motion",
+    "Prediction",
     "brightness",
     "check_against_prior",
     "check_interval",

@@ -17,6 +17,7 @@ Pixels entering from beyond the border are background (0).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -123,3 +124,51 @@ def predict_mask(mask: np.ndarray, motion: Motion, lead_s: float) -> np.ndarray:
     if arr.dtype != bool and not np.issubdtype(arr.dtype, np.integer):
         raise InvalidSceneError(f"mask: expected a boolean or integer mask, got dtype {arr.dtype}")
     return predict_field((arr != 0).astype(np.float32), motion, lead_s) >= 0.5
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What the pipeline needs to plan on the plume as it will be.
+
+    ``motion`` says how the plume moves; ``lead_s`` is the time, in seconds
+    after the current look-ahead acquisition, the plan is drawn for (e.g. when
+    the NFOV will be there). With agility, the pipeline moves each pointing on
+    to its own scheduled time (:func:`dyntarget.pipeline.schedule_on_prediction`).
+
+    Examples
+    --------
+    >>> p = Prediction(Motion((1.0, 0.0)), 2)
+    >>> m = np.zeros((3, 6), bool); m[1, 0] = True
+    >>> p.mask(m)[1].astype(int).tolist()
+    [0, 0, 1, 0, 0, 0]
+    """
+
+    motion: Motion
+    lead_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.motion, Motion):
+            raise InvalidParameterError(
+                f"motion: expected a dyntarget.predict.Motion, got {type(self.motion).__name__}"
+            )
+        object.__setattr__(self, "lead_s", check_lead(self.lead_s))
+
+    def mask(self, mask: np.ndarray) -> np.ndarray:
+        """The mask at ``lead_s`` (:func:`predict_mask`)."""
+        return predict_mask(mask, self.motion, self.lead_s)
+
+    def field(self, field: np.ndarray) -> np.ndarray:
+        """A probability field at ``lead_s`` (:func:`predict_field`)."""
+        return predict_field(field, self.motion, self.lead_s)
+
+    def pointing_shift(self, dt_s: np.ndarray) -> np.ndarray:
+        """Pixels to move pointings observed ``dt_s`` seconds after ``lead_s``, shape (n, 2).
+
+        A detached cloud carries the pointed-at plume with it (``v dt``). An
+        attached plume's envelope only grows downwind, so a point inside it at
+        ``lead_s`` stays inside later: no shift.
+        """
+        dt = np.asarray(dt_s, np.float64).reshape(-1)
+        if self.motion.regime != "detached":
+            return np.zeros((len(dt), 2))
+        return np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
