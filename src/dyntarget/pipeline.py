@@ -267,7 +267,7 @@ def schedule_on_prediction(
 
     The plan was drawn for the plume at ``prediction.lead_s``; a pointing flown
     at ``t`` must aim where that part of the plume is at ``t``. Plan and schedule
-    are iterated: schedule (:func:`~dyntarget.plan.kinematics.make_feasible`),
+    are iterated: schedule (:func:`~dyntarget.schedule.make_feasible`),
     move every pointing by ``prediction.pointing_shift(t - lead_s)``, schedule
     again, until no kept pointing's time changes by more than ``tolerance_s`` (or
     ``max_iterations``). The returned schedule flies the moved pointings; its
@@ -279,9 +279,9 @@ def schedule_on_prediction(
     ----------
     trajectory : the plan from :func:`plan_scene` with ``prediction=``.
     shape : (H, W) of the WFOV image.
-    geometry, agility : as for :func:`dyntarget.plan.kinematics.schedule`.
+    geometry, agility : as for :func:`dyntarget.schedule.schedule`.
     prediction : the one the plan was drawn on.
-    budget_s : as for :func:`~dyntarget.plan.kinematics.make_feasible`.
+    budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
 
     Returns
     -------
@@ -289,15 +289,15 @@ def schedule_on_prediction(
 
     Examples
     --------
-    >>> from dyntarget.plan.kinematics import Geometry
+    >>> from dyntarget.schedule import OrbitGeometry
     >>> from dyntarget.predict import Motion
     >>> traj = Trajectory(np.array([[10.0, 10.0], [20.0, 10.0]]), np.zeros(2), "demo")
     >>> p = Prediction(Motion((0.5, 0.0)), 0.0)
-    >>> s = schedule_on_prediction(traj, (32, 32), Geometry(start_s=4.0), "unlimited", p)
+    >>> s = schedule_on_prediction(traj, (32, 32), OrbitGeometry(start_s=4.0), "unlimited", p)
     >>> s.trajectory.points[:, 0].tolist()  # flown at t = 4 s: moved 0.5 px/s x 4 s
     [12.0, 22.0]
     """
-    from dyntarget.plan.kinematics import make_feasible
+    from dyntarget.schedule import make_feasible
 
     if not isinstance(max_iterations, int) or max_iterations < 1:
         raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")

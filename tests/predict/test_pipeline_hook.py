@@ -7,8 +7,8 @@ import pytest
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.pipeline import plan_scene, schedule_on_prediction
-from dyntarget.plan.kinematics import Geometry
 from dyntarget.predict import Motion, Prediction
+from dyntarget.schedule import OrbitGeometry
 
 LOLA = ("trace-outline", "track-center", "diagonal-transect", "lawnmower-transect")
 
@@ -69,7 +69,7 @@ def test_each_pointing_is_placed_for_its_own_scheduled_time():
     lead = 60.0
     pred = Prediction(Motion(tuple(v), regime="detached"), lead)
     planned = plan_scene(image, None, "lawnmower-transect", mask=mask, prediction=pred).trajectory
-    geometry = Geometry(wfov_gsd_m=30.0, look_ahead_m=800e3, start_s=lead)
+    geometry = OrbitGeometry(wfov_gsd_m=30.0, look_ahead_m=800e3, start_s=lead)
     sched = schedule_on_prediction(planned, mask.shape, geometry, "slow", pred)
     assert len(sched.kept) >= 3
     times = sched.times
@@ -86,7 +86,7 @@ def test_attached_plume_pointings_are_not_moved():
     image, mask = _scene()
     pred = Prediction(Motion((0.4, 0.0), regime="attached"), 30.0)
     planned = plan_scene(image, None, "track-center", mask=mask, prediction=pred).trajectory
-    sched = schedule_on_prediction(planned, mask.shape, Geometry(start_s=30.0), "fast", pred)
+    sched = schedule_on_prediction(planned, mask.shape, OrbitGeometry(start_s=30.0), "fast", pred)
     np.testing.assert_array_equal(sched.trajectory.points, planned.points[sched.kept])
 
 
