@@ -211,6 +211,25 @@ def _to_u8(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip((a - lo) * scale, 0, 255).astype(np.uint8)
 
 
+FLOWS = {"dis": "DIS", "farneback": "Farneback"}
+
+
+def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "dis") -> np.ndarray:
+    """Dense optical flow from 8-bit image ``a`` to ``b``, ``float32 (H, W, 2)`` in px.
+
+    Examples
+    --------
+    >>> dense_flow(np.zeros((16, 16), np.uint8), np.zeros((16, 16), np.uint8)).shape
+    (16, 16, 2)
+    """
+    if flow == "dis":
+        dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        return dis.calc(a, b, None)
+    if flow == "farneback":
+        return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, 4, 15, 3, 5, 1.2, 0)
+    raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
+
+
 def _edges(mask: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     ys, xs = np.nonzero(mask)
     s = xs * u[0] + ys * u[1]
@@ -232,6 +251,7 @@ def estimate_motion(
     *,
     previous_mask: np.ndarray,
     current_mask: np.ndarray,
+    flow: str = "dis",
 ) -> Motion:
     """Estimate the plume's motion between two looks on the same grid.
 
@@ -243,6 +263,9 @@ def estimate_motion(
         Seconds from ``previous`` to ``current`` (> 0).
     previous_mask, current_mask : bool (H, W)
         The plume in each frame (hand label or classifier output).
+    flow : str
+        Dense optical flow: ``"dis"`` (OpenCV DIS, default) or ``"farneback"``
+        (OpenCV Farneback); see ``benchmarks/motion_methods.py`` for the comparison.
 
     Returns
     -------
@@ -273,6 +296,8 @@ def estimate_motion(
             f"previous: shape {prev.shape} does not match the current frame's {cur.shape}"
         )
     dt = check_interval(interval_s)
+    if flow not in FLOWS:
+        raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
     shape = cur.shape[1:]
     pm = _check_mask(previous_mask, shape, "previous_mask")
     cm = _check_mask(current_mask, shape, "current_mask")
@@ -290,9 +315,7 @@ def estimate_motion(
     bp, bc = brightness(prev), brightness(cur)
     lo, hi = np.percentile(np.concatenate([bp.ravel(), bc.ravel()]), [1, 99])
     p8, c8 = _to_u8(bp, lo, hi), _to_u8(bc, lo, hi)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    fwd = dis.calc(p8, c8, None)
-    bwd = dis.calc(c8, p8, None)
+    fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
 
     h, w = shape
     gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
@@ -347,7 +370,7 @@ def estimate_motion(
         vx, vy = mx / dt, my / dt
     confidence = min(1.0, texture_share / 0.3) * agreement * min(1.0, n_votes / 200.0)
     confidence = float(np.clip(confidence, 0.0, 1.0))
-    method = "DIS flow"
+    method = f"{FLOWS[flow]} flow"
     if confidence < LOW_CONFIDENCE:
         # the flow is not trusted: fall back on how the masks moved
         ys0, xs0 = np.nonzero(pm)
