@@ -1,6 +1,36 @@
-"""Procedural volcanic scenes: the built-in default data."""
+"""Procedural volcanic scenes: the built-in default data (static), and moving worlds."""
 
+from dyntarget.synth.dynamic import (
+    CloudSpec,
+    TruthCache,
+    VentSpec,
+    Wind,
+    World,
+    WorldFrame,
+    WorldSpec,
+    generate_sequences,
+    sample_world,
+    truth_provider,
+    world_sequence,
+)
 from dyntarget.synth.noise import fractal_noise
 from dyntarget.synth.volcano import SceneParams, generate_scene, generate_scenes, sample_params
 
-__all__ = ["SceneParams", "fractal_noise", "generate_scene", "generate_scenes", "sample_params"]
+__all__ = [
+    "CloudSpec",
+    "SceneParams",
+    "TruthCache",
+    "VentSpec",
+    "Wind",
+    "World",
+    "WorldFrame",
+    "WorldSpec",
+    "fractal_noise",
+    "generate_scene",
+    "generate_scenes",
+    "generate_sequences",
+    "sample_params",
+    "sample_world",
+    "truth_provider",
+    "world_sequence",
+]
