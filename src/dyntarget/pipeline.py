@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Polygon
@@ -262,6 +264,7 @@ def schedule_on_prediction(
     budget_s: float | None = None,
     max_iterations: int = 8,
     tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
 ):
     """Schedule a plan drawn on a prediction, each pointing placed for its own time.
 
@@ -282,6 +285,9 @@ def schedule_on_prediction(
     geometry, agility : as for :func:`dyntarget.schedule.schedule`.
     prediction : the one the plan was drawn on.
     budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
+    attached : with ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
+        denoised current mask: pointings there are not moved (see
+        :meth:`~dyntarget.predict.Prediction.pointing_shift`).
 
     Returns
     -------
@@ -299,28 +305,66 @@ def schedule_on_prediction(
     """
     from dyntarget.schedule import make_feasible
 
+    _, sched = iterate_on_prediction(
+        trajectory,
+        prediction,
+        lambda t: make_feasible(t, shape, geometry, agility, budget_s=budget_s),
+        max_iterations=max_iterations,
+        tolerance_s=tolerance_s,
+        attached=attached,
+    )
+    return sched
+
+
+def iterate_on_prediction(
+    trajectory: Trajectory,
+    prediction: Prediction,
+    schedule: Callable[[Trajectory], Any],
+    *,
+    max_iterations: int = 8,
+    tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
+) -> tuple[Trajectory, Any]:
+    """:func:`schedule_on_prediction` with any scheduler ``schedule(trajectory) -> Schedule``.
+
+    Returns ``(moved, schedule)``: the whole planned trajectory with every pointing
+    moved on to its (last estimated) time, and its schedule (``schedule(moved)``).
+
+    Examples
+    --------
+    >>> from dyntarget.predict import Motion
+    >>> from dyntarget.schedule import OrbitGeometry, make_feasible
+    >>> traj = Trajectory(np.array([[10.0, 10.0]]), np.zeros(1), "demo")
+    >>> fly = lambda t: make_feasible(t, (32, 32), OrbitGeometry(start_s=2.0), "unlimited")
+    >>> moved, s = iterate_on_prediction(traj, Prediction(Motion((0.0, 1.0)), 0.0), fly)
+    >>> moved.points.tolist()
+    [[10.0, 12.0]]
+    """
     if not isinstance(max_iterations, int) or max_iterations < 1:
         raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")
     base = trajectory.points
     times = np.full(len(trajectory), prediction.lead_s)
-    sched, iterations = None, 0
-    while iterations < max_iterations:
+    iterations = 0
+    while True:
         iterations += 1
         moved = Trajectory(
-            base + prediction.pointing_shift(times - prediction.lead_s),
+            base + prediction.pointing_shift(times - prediction.lead_s, base, attached),
             trajectory.part, trajectory.planner, dict(trajectory.params),
         )  # fmt: skip
-        sched = make_feasible(moved, shape, geometry, agility, budget_s=budget_s)
+        sched = schedule(moved)
         used = times[sched.kept]
         change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
         times = times.copy()
         times[sched.kept] = sched.times
-        if change <= tolerance_s:
+        if change <= tolerance_s or iterations >= max_iterations:
             break
     residual = float(
-        np.max(np.hypot(*prediction.pointing_shift(sched.times - used).T), initial=0.0)
+        np.max(
+            np.hypot(*prediction.pointing_shift(sched.times - used, base[sched.kept], attached).T),
+            initial=0.0,
+        )
     )
     sched.trajectory.params.update(
         prediction_iterations=iterations, prediction_residual_px=residual
     )
-    return sched
+    return moved, sched

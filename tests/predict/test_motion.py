@@ -105,18 +105,29 @@ def test_real_texture_38cloud_patch_shifted():
     ).copy()  # the patch turned 180 degrees: a fixed textured ground
     v = np.array([1.2, 0.6])  # px/s
 
+    crop = (slice(32, -32), slice(32, -32))  # a window of the moving field: no fill ever seen
+
     def look(t):
         moved = nd_shift(img, (0, v[1] * t, v[0] * t), order=1, mode="constant")
         m = nd_shift(cloud.astype(float), (v[1] * t, v[0] * t), order=1, mode="constant") >= 0.5
-        return np.where(m[None], moved, ground).astype(np.float32), m
+        frame = np.where(m[None], moved, ground).astype(np.float32)
+        return frame[(slice(None), *crop)], m[crop]
 
     (a, ma), (b, mb) = look(0.0), look(INTERVAL)
     if not ma.any() or ma.mean() > 0.8:
         pytest.skip("the sample patch has no usable cloud")
     m = estimate_motion(a, b, INTERVAL, previous_mask=ma, current_mask=mb)
     assert math.hypot(*(np.array(m.velocity) - v)) <= 0.1 * math.hypot(*v), m.summary()
-    _, truth = look(INTERVAL + 10 * INTERVAL)
-    assert iou(predict_mask(mb, m, 10 * INTERVAL), truth) >= 0.9
+    lead = 10 * INTERVAL
+    _, truth = look(INTERVAL + lead)
+    # cloud drifting in across the upwind border is unknowable from inside the frame: score
+    # the pixels whose position at the current look was inside it
+    h, w = truth.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    sx, sy = xx - v[0] * lead, yy - v[1] * lead
+    known = (sx >= 0) & (sx <= w - 1) & (sy >= 0) & (sy <= h - 1)
+    predicted = predict_mask(mb, m, lead)
+    assert iou(predicted & known, truth & known) >= 0.9
 
 
 def test_no_plume_gives_zero_confidence():

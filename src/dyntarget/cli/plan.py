@@ -109,8 +109,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
             sched = make_feasible(traj, wfov.shape, geometry, agility, budget_s=args.budget_s)
         else:  # each pointing moved on to the plume at its own scheduled time
             sched = schedule_on_prediction(
-                traj, wfov.shape, geometry, agility, prediction, budget_s=args.budget_s
-            )
+                traj, wfov.shape, geometry, agility, prediction, budget_s=args.budget_s,
+                attached=prediction.attached_mask(result.mask),
+            )  # fmt: skip
         _log_schedule(args.planner, sched)
         traj = sched.trajectory
     out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)

@@ -5,10 +5,16 @@
   ``f_t(x) = f_0(x - v t)`` (semi-Lagrangian step, bilinear sampling; with one
   velocity per plume the back-trajectory is exact in one step).
 * **attached** plume: the vent keeps emitting and the puffs move at ``v``, so
-  the envelope at ``t`` is everything the current plume sweeps when carried by
-  ``v s`` for ``0 <= s <= t``: ``f_t(x) = max_s f_0(x - v s)``. The vent end
-  stays; the far end moves by ``v t`` (the envelope stretches). Evaluated as a
-  grey dilation with a line of length ``|v t|`` (OpenCV), no loop over ``s``.
+  the envelope at ``t`` is everything the current plume sweeps when its front
+  advances at the front speed ``f`` along the flow direction ``u`` for
+  ``0 <= s <= t``: ``f_t(x) = max_s f_0(x - u f s)``. The vent end stays; the
+  far end moves by ``f t`` (the envelope stretches). ``f`` is what the two looks
+  measured (the downwind edge's speed: the full wind speed for a young plume,
+  0 for a mature one whose far end fades or has left the image); with a wind
+  prior alone it is the wind speed. Evaluated as a grey dilation with a line of
+  length ``f t`` (OpenCV), no loop over ``s``.
+* **mixed**: plumes of the mask near a vent of ``Motion.attached`` are attached,
+  the others (detached clouds) are carried as a whole.
 * **calm**: unchanged.
 
 Pixels entering from beyond the border are background (0).
@@ -17,7 +23,7 @@ Pixels entering from beyond the border are background (0).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -99,9 +105,64 @@ def predict_field(field: np.ndarray, motion: Motion, lead_s: float) -> np.ndarra
     dx, dy = motion.displacement(lead)
     if motion.regime == "calm" or (dx == 0 and dy == 0):
         return arr.copy()
+    if motion.regime == "detached":
+        return _shift(arr, dx, dy)
+    attached = attached_region(arr >= 0.5, motion)
+    if not attached.all():  # a margin so the attached plume's soft edge goes with it
+        attached = cv2.dilate(attached.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
+    swept = _sweep(np.where(attached, arr, 0.0).astype(np.float32), dx * front, dy * front)
+    moved = _shift(np.where(attached, 0.0, arr).astype(np.float32), dx, dy)
+    return np.maximum(swept, moved)
+
+
+VENT_RADIUS = 3.0
+"""A plume of the mask within this many pixels of a measured vent is that vent's plume."""
+
+
+def front_speed(motion: Motion) -> float:
+    """How fast attached plumes' far ends advance, px/s: the fastest measured front, or
+    the full speed when none was measured (wind prior).
+
+    Examples
+    --------
+    >>> front_speed(Motion((3.0, 4.0), regime="attached"))
+    5.0
+    """
+    if motion.attached:
+        return max(a[2] for a in motion.attached)
+    return motion.speed
+
+
+def attached_region(mask: np.ndarray, motion: Motion) -> np.ndarray:
+    """The pixels of ``mask`` that belong to attached plumes (bool (H, W)).
+
+    ``attached``: every plume; ``mixed``: the 8-connected plumes within
+    :data:`VENT_RADIUS` px of a vent of ``motion.attached``; otherwise none.
+
+    Examples
+    --------
+    >>> m = np.zeros((1, 9), bool); m[0, :2] = m[0, 6:] = True
+    >>> mo = Motion((1.0, 0.0), regime="mixed", attached=((0.0, 0.0, 0.0),))
+    >>> attached_region(m, mo).astype(int).tolist()
+    [[1, 1, 0, 0, 0, 0, 0, 0, 0]]
+    """
+    m = np.asarray(mask, bool)
     if motion.regime == "attached":
-        return _sweep(arr, dx, dy)
-    return _shift(arr, dx, dy)
+        return m.copy()
+    if motion.regime != "mixed" or not motion.attached:
+        return np.zeros_like(m)
+    _, labels = cv2.connectedComponents(m.astype(np.uint8), connectivity=8)
+    h, w = m.shape
+    ids: set[int] = set()
+    r = math.ceil(VENT_RADIUS)
+    for x, y, _ in motion.attached:
+        cx, cy = round(x), round(y)
+        win = labels[
+            max(cy - r, 0) : max(min(cy + r + 1, h), 0), max(cx - r, 0) : max(min(cx + r + 1, w), 0)
+        ]
+        ids.update(int(v) for v in np.unique(win) if v > 0)
+    return np.isin(labels, sorted(ids))
 
 
 def predict_mask(mask: np.ndarray, motion: Motion, lead_s: float) -> np.ndarray:
@@ -161,14 +222,40 @@ class Prediction:
         """A probability field at ``lead_s`` (:func:`predict_field`)."""
         return predict_field(field, self.motion, self.lead_s)
 
-    def pointing_shift(self, dt_s: np.ndarray) -> np.ndarray:
+    def attached_mask(self, mask: np.ndarray) -> np.ndarray:
+        """Where the attached plumes of the current ``mask`` will be at ``lead_s`` (bool).
+
+        For :meth:`pointing_shift`: pointings there are not moved.
+        """
+        m = np.asarray(mask, bool)
+        region = attached_region(m, self.motion)
+        if not region.any():
+            return region
+        return predict_mask(region, replace(self.motion, regime="attached"), self.lead_s)
+
+    def pointing_shift(
+        self,
+        dt_s: np.ndarray,
+        points: np.ndarray | None = None,
+        attached: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Pixels to move pointings observed ``dt_s`` seconds after ``lead_s``, shape (n, 2).
 
         A detached cloud carries the pointed-at plume with it (``v dt``). An
         attached plume's envelope only grows downwind, so a point inside it at
-        ``lead_s`` stays inside later: no shift.
+        ``lead_s`` stays inside later: no shift. With ``mixed`` plumes, the
+        pointings at ``points`` inside ``attached`` (:meth:`attached_mask`) stay,
+        the others move; without them, none moves.
         """
         dt = np.asarray(dt_s, np.float64).reshape(-1)
-        if self.motion.regime != "detached":
+        shift = np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
+        regime = self.motion.regime
+        if regime == "detached":
+            return shift
+        if regime != "mixed" or points is None or attached is None:
             return np.zeros((len(dt), 2))
-        return np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        h, w = attached.shape
+        rows = np.clip(np.floor(pts[:, 1] + 0.5).astype(int), 0, h - 1)
+        cols = np.clip(np.floor(pts[:, 0] + 0.5).astype(int), 0, w - 1)
+        return np.where(attached[rows, cols][:, None], 0.0, shift)
