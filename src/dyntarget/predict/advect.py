@@ -4,15 +4,14 @@
   field at time ``t`` is the current field traced back along the flow,
   ``f_t(x) = f_0(x - v t)`` (semi-Lagrangian step, bilinear sampling; with one
   velocity per plume the back-trajectory is exact in one step).
-* **attached** plume: the vent keeps emitting and the puffs move at ``v``, so
-  the envelope at ``t`` is everything the current plume sweeps when its front
-  advances at the front speed ``f`` along the flow direction ``u`` for
-  ``0 <= s <= t``: ``f_t(x) = max_s f_0(x - u f s)``. The vent end stays; the
-  far end moves by ``f t`` (the envelope stretches). ``f`` is what the two looks
-  measured (the downwind edge's speed: the full wind speed for a young plume,
-  0 for a mature one whose far end fades or has left the image); with a wind
-  prior alone it is the wind speed. Evaluated as a grey dilation with a line of
-  length ``f t`` (OpenCV), no loop over ``s``.
+* **attached** plume: the puffs already emitted are carried like a detached
+  cloud, ``f_0(x - v t)``, and the vent keeps emitting: the plume's source end
+  (its upwind :data:`SOURCE_BAND_PX`) is swept downwind from the vent over
+  ``v t``, ``max_{0<=s<=t} f_src(x - v s)`` (a grey dilation with a line,
+  OpenCV). The vent end stays; the far end advances by ``v t``. Spreading and
+  fading of the puffs are not modelled. (``ATTACHED_MODEL = "sweep"``: the
+  whole envelope swept forward at the measured front speed ``Motion.attached``,
+  a first model that fills gaps the truth keeps; see ``docs/onboard.md``.)
 * **mixed**: plumes of the mask near a vent of ``Motion.attached`` are attached,
   the others (detached clouds) are carried as a whole.
 * **calm**: unchanged.
@@ -110,10 +109,41 @@ def predict_field(field: np.ndarray, motion: Motion, lead_s: float) -> np.ndarra
     attached = attached_region(arr >= 0.5, motion)
     if not attached.all():  # a margin so the attached plume's soft edge goes with it
         attached = cv2.dilate(attached.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
-    swept = _sweep(np.where(attached, arr, 0.0).astype(np.float32), dx * front, dy * front)
+    plume = np.where(attached, arr, 0.0).astype(np.float32)
     moved = _shift(np.where(attached, 0.0, arr).astype(np.float32), dx, dy)
-    return np.maximum(swept, moved)
+    if ATTACHED_MODEL == "sweep":
+        front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
+        return np.maximum(_sweep(plume, dx * front, dy * front), moved)
+    # puffs: the attached plume's pattern is carried downwind like a detached cloud ...
+    carried = _shift(plume, dx, dy)
+    # ... while the vent keeps emitting: its source end, swept from the vent downwind
+    source = _source_end(plume, motion.velocity)
+    return np.maximum(np.maximum(carried, _sweep(source, dx, dy)), moved)
+
+
+ATTACHED_MODEL = "advect"
+"""How attached plumes are predicted: ``"advect"`` (puffs carried, source end swept) or
+``"sweep"`` (the envelope swept forward at the measured front speed)."""
+SOURCE_BAND_PX = 3.0
+"""Depth (px along the flow) of an attached plume's source end, the part the vent refills."""
+
+
+def _source_end(field: np.ndarray, velocity: tuple[float, float]) -> np.ndarray:
+    """The field on each plume's upwind ``SOURCE_BAND_PX`` (its source end), zero elsewhere."""
+    speed = math.hypot(*velocity)
+    n, labels = cv2.connectedComponents((field >= 0.5).astype(np.uint8), connectivity=8)
+    if n <= 1 or speed == 0:
+        return np.zeros_like(field)
+    ux, uy = velocity[0] / speed, velocity[1] / speed
+    h, w = field.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    s = xx * ux + yy * uy
+    keep = np.zeros(field.shape, bool)
+    for i in range(1, n):
+        comp = labels == i
+        keep |= comp & (s <= s[comp].min() + SOURCE_BAND_PX)
+    keep = cv2.dilate(keep.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    return np.where(keep, field, 0.0).astype(np.float32)
 
 
 VENT_RADIUS = 3.0
