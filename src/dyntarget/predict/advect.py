@@ -272,8 +272,8 @@ class Prediction:
         """Pixels to move pointings observed ``dt_s`` seconds after ``lead_s``, shape (n, 2).
 
         A detached cloud carries the pointed-at plume with it (``v dt``). An
-        attached plume's envelope only grows downwind, so a point inside it at
-        ``lead_s`` stays inside later: no shift. With ``mixed`` plumes, the
+        attached plume's near-vent part is steady and a point inside it at
+        ``lead_s`` stays inside a continuous plume seconds later: no shift. With ``mixed`` plumes, the
         pointings at ``points`` inside ``attached`` (:meth:`attached_mask`) stay,
         the others move; without them, none moves.
         """
