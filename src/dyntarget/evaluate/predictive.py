@@ -25,7 +25,12 @@ import numpy as np
 from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.dynamic import ModeContext, static_mode
-from dyntarget.pipeline import iterate_on_prediction, plan_scene
+from dyntarget.pipeline import (
+    iterate_on_prediction,
+    plan_segmentation,
+    predict_segmentation,
+    segment,
+)
 from dyntarget.predict import Motion, Prediction, estimate_motion, wind_motion
 from dyntarget.trajectory import Trajectory
 
@@ -37,17 +42,19 @@ def _clean(mask: np.ndarray, valid: np.ndarray | None, ctx: ModeContext) -> np.n
 
 
 def plan_on_motion(ctx: ModeContext, motion: Motion) -> Trajectory:
-    """Plan on the plume predicted for the start of pointing, each pointing at its own time."""
+    """Plan on the plume predicted for the start of pointing, each pointing at its own time.
+
+    The same stages as the ``static`` mode (segment, plan), with the predict stage
+    between them (:func:`dyntarget.pipeline.predict_segmentation`).
+    """
     decision = ctx.frames.frames[-1]
     prediction = Prediction(motion, ctx.latency_s)
-    result = plan_scene(
-        decision.image, None, ctx.planner, mask=ctx.mask, valid=decision.valid,
-        config=ctx.pipeline, prediction=prediction,
-    )  # fmt: skip
-    if len(result.trajectory) == 0:
-        return result.trajectory
-    attached = prediction.attached_mask(result.mask)
-    moved, _ = iterate_on_prediction(result.trajectory, prediction, ctx.schedule, attached=attached)
+    seg = segment(decision.image, mask=ctx.mask, valid=decision.valid, config=ctx.pipeline)
+    trajectory = plan_segmentation(predict_segmentation(seg, prediction), ctx.planner, ctx.pipeline)
+    if len(trajectory) == 0:
+        return trajectory
+    attached = prediction.attached_mask(seg.mask)
+    moved, _ = iterate_on_prediction(trajectory, prediction, ctx.schedule, attached=attached)
     return moved
 
 
