@@ -176,3 +176,13 @@ def test_bad_inputs_raise_named_errors(kwargs, err, text):
             previous_mask=args["previous_mask"], current_mask=args["current_mask"],
         )  # fmt: skip
     assert isinstance(info.value, DynTargetError)
+
+
+def test_same_inputs_same_motion_and_bytes():
+    world = RigidCloud(velocity=(1.5, -0.8))
+    args = (world.frame(0.0), world.frame(INTERVAL), INTERVAL)
+    kw = {"previous_mask": world.mask(0.0), "current_mask": world.mask(INTERVAL)}
+    a, b = estimate_motion(*args, **kw), estimate_motion(*args, **kw)
+    assert a == b
+    pa, pb = predict_mask(kw["current_mask"], a, 33.0), predict_mask(kw["current_mask"], b, 33.0)
+    assert pa.tobytes() == pb.tobytes()
