@@ -8,8 +8,9 @@
   cloud, ``f_0(x - v t)``, and the vent keeps emitting: the plume's source end
   (its upwind :data:`SOURCE_BAND_PX`) is swept downwind from the vent over
   ``v t``, ``max_{0<=s<=t} f_src(x - v s)`` (a grey dilation with a line,
-  OpenCV). The vent end stays; the far end advances by ``v t``. Spreading and
-  fading of the puffs are not modelled. (``ATTACHED_MODEL = "sweep"``: the
+  OpenCV). The vent end stays. Puffs fade, so the carried puffs stop at the
+  plume's far end plus the measured front speed times ``t`` (two looks only).
+  Spreading of the puffs is not modelled. (``ATTACHED_MODEL = "sweep"``: the
   whole envelope swept forward at the measured front speed ``Motion.attached``,
   a first model that fills gaps the truth keeps; see ``docs/onboard.md``.)
 * **mixed**: plumes of the mask near a vent of ``Motion.attached`` are attached,
