@@ -1,9 +1,10 @@
-"""Algorithm 1 of the paper as one call: classify -> denoise -> plan."""
+"""Algorithm 1 of the paper as one call: classify -> denoise -> (predict) -> plan."""
 
 from __future__ import annotations
 
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -16,6 +17,7 @@ from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
 from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
+from dyntarget.predict import Prediction
 from dyntarget.scene import check_image
 
 
@@ -52,6 +54,10 @@ class PlanResult:
     """The planner that made the trajectory (the last resort's under a missed deadline)."""
     schedule: Any = None
     """With ``kinematics``: the :class:`dyntarget.schedule.Schedule` flown."""
+    prediction: Prediction | None = None
+    """The motion and lead time the plan was drawn for (``None``: the plume as seen)."""
+    predicted_mask: np.ndarray | None = None
+    """The (denoised) mask carried to ``prediction.lead_s``: what the planner planned on."""
 
     @property
     def deadline_met(self) -> bool | None:
@@ -324,6 +330,7 @@ def plan_scene(
     deadline_s: float | None = None,
     fallback: Classifier | None = None,
     kinematics: Kinematics | None = None,
+    prediction: Prediction | None = None,
 ) -> PlanResult:
     """Plan an NFOV trajectory for a WFOV image (Algorithm 1).
 
@@ -342,6 +349,11 @@ def plan_scene(
     fallback : a cheaper fitted classifier (e.g. ``band-threshold``) for the deadline.
     kinematics : schedule the plan under this geometry and agility
         (``PlanResult.schedule``); needed by ``utility-max``.
+    prediction : plan on the plume as it will be ``prediction.lead_s`` seconds after
+        the acquisition (:mod:`dyntarget.predict`): the denoised mask is advected
+        there and the planner runs on it (``PlanResult.predicted_mask``). With
+        ``kinematics``, each pointing is moved on to the plume at its own scheduled
+        time (:func:`iterate_on_prediction`).
 
     Returns
     -------
@@ -353,31 +365,85 @@ def plan_scene(
     if deadline_s is not None:
         result = _plan_with_deadline(
             image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback,
-            kinematics,
+            kinematics, prediction,
         )  # fmt: skip
     else:
-        result = _plan_once(image, classifier, planner, mask, valid, denoise, config, kinematics)
+        result = _plan_once(
+            image, classifier, planner, mask, valid, denoise, config, kinematics, prediction
+        )
     if kinematics is not None:
-        flown = schedule_plan(result.trajectory, image.shape[1:], result.planner, kinematics)
+        shape = image.shape[1:]
+
+        def fly(trajectory: Trajectory):
+            return schedule_plan(trajectory, shape, result.planner, kinematics)
+
+        if result.prediction is None:
+            flown = fly(result.trajectory)
+        else:  # each pointing moved on to the plume at its own scheduled time
+            attached = result.prediction.attached_mask(result.mask)
+            _, flown = iterate_on_prediction(
+                result.trajectory, result.prediction, fly, attached=attached
+            )
         result = replace(result, schedule=flown)
     return result
 
 
-def _plan_once(image, classifier, planner, mask, valid, denoise, config, kinematics) -> PlanResult:
-    seg = segment(image, classifier, mask=mask, valid=valid, denoise=denoise, config=config)
+def predict_segmentation(segmentation: Segmentation, prediction: Prediction) -> Segmentation:
+    """The predict stage: the segmentation carried to ``prediction.lead_s`` (nodata stays off).
+
+    The denoised mask is advected (:meth:`~dyntarget.predict.Prediction.mask`), its
+    polygons found again, and the probability (if any) advected too, so every
+    planner, ``utility-max`` included, plans on the plume as it will be.
+    ``timings`` gains ``predict``.
+
+    Examples
+    --------
+    >>> from dyntarget.predict import Motion
+    >>> m = np.zeros((40, 40), bool); m[10:20, 5:15] = True
+    >>> seg = segment(np.zeros((4, 40, 40), np.float32), mask=m, denoise=False)
+    >>> moved = predict_segmentation(seg, Prediction(Motion((1.0, 0.0)), 10.0))
+    >>> int(np.argmax(moved.mask.any(axis=0)))   # the plume's west edge moved 10 px east
+    15
+    """
     t0 = time.perf_counter()
-    trajectory = plan_segmentation(seg, planner, config, kinematics=kinematics)
-    timings = {**seg.timings, "plan": time.perf_counter() - t0}
+    predicted = prediction.mask(segmentation.mask)
+    probability = segmentation.probability
+    if probability is not None:
+        probability = prediction.field(probability)
+    raw = prediction.mask(segmentation.raw_mask)
+    if segmentation.valid is not None:
+        predicted &= segmentation.valid
+        raw &= segmentation.valid
+    timings = {**segmentation.timings, "predict": time.perf_counter() - t0}
+    return replace(
+        segmentation, mask=predicted, raw_mask=raw, polygons=mask_to_polygons(predicted),
+        probability=probability, timings=timings,
+    )  # fmt: skip
+
+
+def _plan_once(
+    image, classifier, planner, mask, valid, denoise, config, kinematics, prediction=None
+) -> PlanResult:
+    seg = segment(image, classifier, mask=mask, valid=valid, denoise=denoise, config=config)
+    target = seg if prediction is None else predict_segmentation(seg, prediction)
+    t0 = time.perf_counter()
+    trajectory = plan_segmentation(target, planner, config, kinematics=kinematics)
+    timings = {**target.timings, "plan": time.perf_counter() - t0}
     path = [f"classify: {classifier.name}" if mask is None else "classify: given mask"]
+    if prediction is not None:
+        m = prediction.motion
+        path.append(f"predict: {m.regime}, {prediction.lead_s:g} s ahead ({m.source})")
     return PlanResult(
         seg.probability,
         seg.raw_mask,
         seg.mask,
-        seg.polygons,
+        target.polygons,
         trajectory,
         timings,
         [*path, f"plan: {planner}"],
         planner=planner,
+        prediction=prediction,
+        predicted_mask=None if prediction is None else target.mask,
     )
 
 
@@ -417,8 +483,9 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
 
 
 def _plan_with_deadline(
-    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, kinematics
-) -> PlanResult:
+    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, kinematics,
+    prediction=None,
+) -> PlanResult:  # fmt: skip
     """Algorithm 1 under a deadline: the full path, a cheaper classifier, or the last resort."""
     if not (np.isfinite(deadline_s) and deadline_s > 0):
         raise InvalidParameterError(f"deadline_s: expected seconds > 0, got {deadline_s!r}")
@@ -449,7 +516,9 @@ def _plan_with_deadline(
         )
         path = [*notes, "classify: none (no classifier fits the deadline)", f"plan: {LAST_RESORT}"]
     else:
-        result = _plan_once(image, chosen, planner, mask, valid, denoise, config, kinematics)
+        result = _plan_once(
+            image, chosen, planner, mask, valid, denoise, config, kinematics, prediction
+        )
         path = [*notes, *result.path]
     timings = dict(result.timings)
     timings["overhead"] = (time.perf_counter() - start) - sum(result.timings.values())
@@ -463,4 +532,122 @@ def _plan_with_deadline(
         path,
         deadline_s,
         planner=result.planner,
+        prediction=result.prediction,
+        predicted_mask=result.predicted_mask,
     )
+
+
+def schedule_on_prediction(
+    trajectory: Trajectory,
+    shape: tuple[int, int],
+    geometry,
+    agility,
+    prediction: Prediction,
+    *,
+    budget_s: float | None = None,
+    max_iterations: int = 8,
+    tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
+):
+    """Schedule a plan drawn on a prediction, each pointing placed for its own time.
+
+    The plan was drawn for the plume at ``prediction.lead_s``; a pointing flown
+    at ``t`` must aim where that part of the plume is at ``t``. Plan and schedule
+    are iterated: schedule (:func:`~dyntarget.schedule.make_feasible`),
+    move every pointing by ``prediction.pointing_shift(t - lead_s)``, schedule
+    again, until no kept pointing's time changes by more than ``tolerance_s`` (or
+    ``max_iterations``). The returned schedule flies the moved pointings; its
+    trajectory's ``params`` record ``prediction_iterations`` and
+    ``prediction_residual_px`` (the largest gap, in pixels, between where a kept
+    pointing aims and where the plume is at its final time).
+
+    Parameters
+    ----------
+    trajectory : the plan from :func:`plan_scene` with ``prediction=``.
+    shape : (H, W) of the WFOV image.
+    geometry, agility : as for :func:`dyntarget.schedule.schedule`.
+    prediction : the one the plan was drawn on.
+    budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
+    attached : with ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
+        denoised current mask: pointings there are not moved (see
+        :meth:`~dyntarget.predict.Prediction.pointing_shift`).
+
+    Returns
+    -------
+    Schedule
+
+    Examples
+    --------
+    >>> from dyntarget.schedule import OrbitGeometry
+    >>> from dyntarget.predict import Motion
+    >>> traj = Trajectory(np.array([[10.0, 10.0], [20.0, 10.0]]), np.zeros(2), "demo")
+    >>> p = Prediction(Motion((0.5, 0.0)), 0.0)
+    >>> s = schedule_on_prediction(traj, (32, 32), OrbitGeometry(start_s=4.0), "unlimited", p)
+    >>> s.trajectory.points[:, 0].tolist()  # flown at t = 4 s: moved 0.5 px/s x 4 s
+    [12.0, 22.0]
+    """
+    from dyntarget.schedule import make_feasible
+
+    _, sched = iterate_on_prediction(
+        trajectory,
+        prediction,
+        lambda t: make_feasible(t, shape, geometry, agility, budget_s=budget_s),
+        max_iterations=max_iterations,
+        tolerance_s=tolerance_s,
+        attached=attached,
+    )
+    return sched
+
+
+def iterate_on_prediction(
+    trajectory: Trajectory,
+    prediction: Prediction,
+    schedule: Callable[[Trajectory], Any],
+    *,
+    max_iterations: int = 8,
+    tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
+) -> tuple[Trajectory, Any]:
+    """:func:`schedule_on_prediction` with any scheduler ``schedule(trajectory) -> Schedule``.
+
+    Returns ``(moved, schedule)``: the whole planned trajectory with every pointing
+    moved on to its (last estimated) time, and its schedule (``schedule(moved)``).
+
+    Examples
+    --------
+    >>> from dyntarget.predict import Motion
+    >>> from dyntarget.schedule import OrbitGeometry, make_feasible
+    >>> traj = Trajectory(np.array([[10.0, 10.0]]), np.zeros(1), "demo")
+    >>> fly = lambda t: make_feasible(t, (32, 32), OrbitGeometry(start_s=2.0), "unlimited")
+    >>> moved, s = iterate_on_prediction(traj, Prediction(Motion((0.0, 1.0)), 0.0), fly)
+    >>> moved.points.tolist()
+    [[10.0, 12.0]]
+    """
+    if not isinstance(max_iterations, int) or max_iterations < 1:
+        raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")
+    base = trajectory.points
+    times = np.full(len(trajectory), prediction.lead_s)
+    iterations = 0
+    while True:
+        iterations += 1
+        moved = Trajectory(
+            base + prediction.pointing_shift(times - prediction.lead_s, base, attached),
+            trajectory.part, trajectory.planner, dict(trajectory.params),
+        )  # fmt: skip
+        sched = schedule(moved)
+        used = times[sched.kept]
+        change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
+        times = times.copy()
+        times[sched.kept] = sched.times
+        if change <= tolerance_s or iterations >= max_iterations:
+            break
+    residual = float(
+        np.max(
+            np.hypot(*prediction.pointing_shift(sched.times - used, base[sched.kept], attached).T),
+            initial=0.0,
+        )
+    )
+    sched.trajectory.params.update(
+        prediction_iterations=iterations, prediction_residual_px=residual
+    )
+    return moved, sched

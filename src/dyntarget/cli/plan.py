@@ -15,6 +15,7 @@ from dyntarget.cli._common import (
     preset_names,
 )
 from dyntarget.cli._outputs import add_output_options, write_outputs
+from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
@@ -80,18 +81,23 @@ def cmd_plan(args: argparse.Namespace) -> int:
             objective=args.objective,
             max_pointings=args.max_pointings,
         )
+    prediction, mask = None, wfov.label
+    if wants_prediction(args):  # two looks or a wind prior: plan for the plume as it will be
+        prediction, raw = prediction_for(args, wfov, classifier, config.threshold)
+        mask = mask if raw is None else raw
     fallback = load_classifier(args.fallback_model) if args.fallback_model else None
     result = plan_scene(
         wfov.image,
         classifier,
         args.planner,
-        mask=wfov.label,
+        mask=mask,
         valid=wfov.valid,
         denoise=not args.no_denoise,
         config=config,
         deadline_s=args.deadline_s,
         fallback=fallback,
         kinematics=kinematics,
+        prediction=prediction,
     )
     if args.deadline_s is not None:
         met = "met" if result.deadline_met else "MISSED"
@@ -116,7 +122,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
 
-        print(trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=wfov.id))
+        shown = result.mask if result.predicted_mask is None else result.predicted_mask
+        print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
     return EXIT_OK
 
 
@@ -222,6 +229,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     add_plan_options(p)
+    add_predict_options(p)
     add_output_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")

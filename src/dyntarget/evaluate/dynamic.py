@@ -145,6 +145,8 @@ def static_mode(ctx: ModeContext) -> Trajectory:
 
 MODES: dict[str, Mode | str] = {
     "static": static_mode,
+    "predictive": "dyntarget.evaluate.predictive:predictive_mode",
+    "wind-prior": "dyntarget.evaluate.predictive:wind_prior_mode",
 }
 """Mode name -> ``fn(ModeContext) -> Trajectory`` or a lazy ``"module:function"``."""
 
