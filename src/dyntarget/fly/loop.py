@@ -1,0 +1,587 @@
+"""The pass loop: look-ahead frames along a strip, Algorithm 1 per frame, one shared NFOV.
+
+Model (documented in ``docs/onboard.md``, section "Flying a pass"):
+
+* **Frames.** The strip's WFOV grid (``factor`` x coarser than the world) is
+  cut into frames ``frame_px`` rows high and as wide as the strip. Frame 0 is
+  the bottom of the strip (the first ground reached: image "up" is the flight
+  direction); frame ``k`` lies ``k * step`` WFOV rows further up, ``step =
+  round(frame_px * (1 - overlap))``. The spacecraft flies ``step * gsd`` metres
+  between frames, so frames are taken every ``cadence_s = step * gsd / v``
+  seconds (``v``: ground speed of the nadir point); frame ``k`` is acquired at
+  ``t_k = k * cadence_s``, its centre ``look_ahead_m`` ahead of nadir — the
+  kinematics' geometry (:mod:`dyntarget.plan.kinematics`) holds in every frame.
+* **Latency.** One process handles the frames in order: frame ``k`` starts at
+  ``max(t_k, end of frame k-1)`` (a frame waits while the loop is behind), and
+  its plan is ready after the measured compute (classify, denoise, plan,
+  schedule) or a fixed ``compute_budget_s``. ``latency_s`` = ready - ``t_k``.
+  With ``deadline_s``, the time left after the wait is the deadline of
+  :func:`dyntarget.pipeline.plan_scene` (its fallbacks apply); a frame whose
+  wait alone exceeds the deadline is dropped.
+* **One NFOV.** Pointings are timed with the kinematics' :class:`Timer`, whose
+  state (when the sensor is free, what it tracks) carries over from frame to
+  frame: a new frame's pointings queue behind those already committed. Of the
+  plan in its own order and earliest-deadline-first, the order keeping more
+  pointings is flown (as :func:`~dyntarget.plan.kinematics.make_feasible`).
+* **Never twice.** The pass keeps the strip's covered WFOV pixels: a
+  pointing on a covered pixel is dropped before scheduling, and a plume
+  (connected component of the frame's denoised mask) at least half of whose
+  pointings were flown marks its whole area covered, so a plume seen again by
+  the next, overlapping frame gets no new pointings.
+* **Scoring.** Each flown pointing is scored against the truth *at its own
+  time* (``World.truth_at``) over its NFOV footprint: plume fraction,
+  intensity and gradient utility (the paper's metrics, summed over the pass).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+from dyntarget.errors import InvalidParameterError, InvalidSceneError
+from dyntarget.fly.world import WfovTruth, World, wfov_truth
+from dyntarget.perceive.base import Classifier
+from dyntarget.pipeline import PipelineConfig, plan_scene
+from dyntarget.plan.kinematics import Agility, Geometry, Timer, get_agility, visibility_windows
+from dyntarget.plan.trajectory import Trajectory
+from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
+
+STAGES = ("classify", "denoise", "predict", "plan", "schedule")
+"""Stages whose wall time each timeline row reports."""
+
+COVERED_PLUME_FRACTION = 0.5
+"""A plume at least this fraction of whose planned pointings were flown counts as covered."""
+
+
+@dataclass(frozen=True)
+class PassConfig:
+    """Settings of one pass (see the module docstring for the model).
+
+    Parameters
+    ----------
+    planner : registered planner name.
+    agility : agility preset name (``dyntarget agility``).
+    factor : high-res -> WFOV downsampling factor.
+    frame_px : frame height in WFOV pixels (default: the strip's width, square frames).
+    overlap : fraction of a frame's rows the next frame sees again, in [0, 1).
+    altitude_m, look_ahead_m : orbit geometry (see :class:`~dyntarget.plan.kinematics.Geometry`).
+    compute_budget_s : fixed compute time per frame instead of the measured one
+        (a deterministic timeline).
+    deadline_s : time allowed from acquisition to plan, per frame (fallbacks apply).
+    footprint : NFOV footprint in WFOV pixels (odd).
+    denoise : apply Algorithm 2.
+    """
+
+    planner: str = "lawnmower-transect"
+    agility: str = "fast"
+    factor: int = 4
+    frame_px: int | None = None
+    overlap: float = 0.5
+    altitude_m: float = 500e3
+    look_ahead_m: float = 500e3
+    compute_budget_s: float | None = None
+    deadline_s: float | None = None
+    footprint: int = 1
+    denoise: bool = True
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+
+    def __post_init__(self) -> None:
+        get_agility(self.agility)
+        if not (0.0 <= self.overlap < 1.0):
+            raise InvalidParameterError(
+                f"overlap: expected a fraction in [0, 1), got {self.overlap!r}"
+            )
+        for name in ("compute_budget_s", "deadline_s"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"{name}: expected seconds > 0, got {v!r}")
+        if self.frame_px is not None and (
+            isinstance(self.frame_px, bool)
+            or not isinstance(self.frame_px, int)
+            or self.frame_px < 8
+        ):
+            raise InvalidParameterError(
+                f"frame_px: expected an integer >= 8 WFOV pixels, got {self.frame_px!r}"
+            )
+        fp = self.footprint
+        if isinstance(fp, bool) or not isinstance(fp, int) or fp < 1 or fp % 2 == 0:
+            raise InvalidParameterError(
+                f"footprint: expected an odd positive number of WFOV pixels, got {fp!r}"
+            )
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d.pop("pipeline")
+        return d
+
+
+@dataclass(frozen=True)
+class FramePlan:
+    """Where the frames of a pass lie on the strip's WFOV grid, and when they are taken."""
+
+    wfov_shape: tuple[int, int]
+    frame_px: int
+    step: int
+    cadence_s: float
+    tops: tuple[int, ...]
+    geometry: Geometry
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.tops)
+
+    def acquired_s(self, k: int) -> float:
+        return k * self.cadence_s
+
+
+def frame_plan(world: World, config: PassConfig) -> FramePlan:
+    """Cut the strip into look-ahead frames (see the module docstring).
+
+    Parameters
+    ----------
+    world : the strip.
+    config : the pass settings.
+
+    Returns
+    -------
+    FramePlan: frame tops (WFOV rows, bottom frame first), step and cadence.
+
+    Examples
+    --------
+    >>> from dyntarget.scene import Scene
+    >>> from dyntarget.fly.world import StaticWorld
+    >>> img = np.zeros((4, 256, 64), np.float32); lab = np.zeros((256, 64), bool)
+    >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
+    >>> fp = frame_plan(w, PassConfig(factor=4))
+    >>> fp.tops, fp.step, round(fp.cadence_s * fp.geometry.ground_speed, 6)
+    ((48, 40, 32, 24, 16, 8, 0), 8, 256.0)
+    """
+    factor = check_factor(config.factor, world.shape)
+    hw, ww = world.shape[0] // factor, world.shape[1] // factor
+    frame_px = config.frame_px or ww
+    if frame_px > hw:
+        raise InvalidParameterError(
+            f"frame_px: a frame of {frame_px} WFOV rows does not fit the strip's {hw} rows "
+            f"(at factor {factor}); give a longer strip or smaller frames"
+        )
+    step = max(1, round(frame_px * (1.0 - config.overlap)))
+    n = (hw - frame_px) // step + 1
+    tops = tuple(hw - frame_px - k * step for k in range(n))
+    gsd_w = world.gsd * factor
+    geometry = Geometry(
+        altitude_m=config.altitude_m, look_ahead_m=config.look_ahead_m, wfov_gsd_m=gsd_w
+    )
+    return FramePlan((hw, ww), frame_px, step, step * gsd_w / geometry.ground_speed, tops, geometry)
+
+
+@dataclass
+class FrameRecord:
+    """One row of the timeline."""
+
+    frame: int
+    acquired_s: float
+    start_s: float
+    ready_s: float
+    latency_s: float
+    stage_s: dict[str, float]
+    deadline_met: bool | None
+    path: str
+    planned: int
+    skipped_covered: int
+    flown: int
+    plume_px: float
+    intensity: float
+    gradient: float
+    new_plumes: int
+    dropped: bool = False
+
+    def row(self, *, measured: bool) -> dict[str, Any]:
+        """The timeline row; stage times only when latency was measured (else not deterministic)."""
+        out: dict[str, Any] = {
+            "frame": self.frame,
+            "acquired_s": f"{self.acquired_s:.4f}",
+            "start_s": f"{self.start_s:.4f}",
+            "ready_s": f"{self.ready_s:.4f}",
+            "latency_s": f"{self.latency_s:.4f}",
+        }
+        for s in STAGES:
+            out[f"{s}_s"] = f"{self.stage_s.get(s, 0.0):.4f}" if measured else ""
+        out |= {
+            "deadline_met": "" if self.deadline_met is None else str(self.deadline_met).lower(),
+            "pointings_planned": self.planned,
+            "pointings_skipped_covered": self.skipped_covered,
+            "pointings_flown": self.flown,
+            "plume_px_gained": f"{self.plume_px:.4f}",
+            "utility_gained": f"{self.intensity:.4f}",
+            "gradient_gained": f"{self.gradient:.4f}",
+            "new_plumes": self.new_plumes,
+            "dropped": str(self.dropped).lower(),
+            "path": self.path,
+        }
+        return out
+
+
+TIMELINE_COLUMNS = tuple(
+    FrameRecord(0, 0, 0, 0, 0, {}, None, "", 0, 0, 0, 0, 0, 0, 0).row(measured=True)
+)
+
+
+@dataclass
+class Flown:
+    """The pointings flown so far, on the strip's WFOV grid, with their pass times."""
+
+    x: list[float] = field(default_factory=list)
+    y: list[float] = field(default_factory=list)
+    t: list[float] = field(default_factory=list)
+    frame: list[int] = field(default_factory=list)
+    part: list[int] = field(default_factory=list)
+    plume: list[float] = field(default_factory=list)
+    intensity: list[float] = field(default_factory=list)
+    plume_id: list[int] = field(default_factory=list)
+
+    def trajectory(self, planner: str, params: dict[str, Any]) -> Trajectory:
+        """The flown pointings as one timed trajectory (strip WFOV pixels, pass seconds)."""
+        if not self.x:
+            return Trajectory.empty(planner, params)
+        return Trajectory(
+            np.column_stack([self.x, self.y]), np.asarray(self.part), planner, params, self.t
+        )
+
+
+@dataclass
+class PassState:
+    """Everything the loop carries from frame to frame."""
+
+    covered: np.ndarray
+    timer_t: float = 0.0
+    target: tuple[float, float] | None = None  # (along, cross) in pass ground coordinates, m
+    busy_until: float = 0.0  # when the loop finished its last frame
+    parts: int = 0
+    plumes_seen: set[int] = field(default_factory=set)
+    records: list[FrameRecord] = field(default_factory=list)
+    flown: Flown = field(default_factory=Flown)
+
+
+@dataclass(frozen=True, eq=False)
+class PassResult:
+    """A flown pass: the timeline, the flown pointings and the totals."""
+
+    world_id: str
+    config: PassConfig
+    frames: FramePlan
+    records: list[FrameRecord]
+    flown: Flown
+    plumes_total: int
+    stopped: bool = False
+
+    @property
+    def measured(self) -> bool:
+        return self.config.compute_budget_s is None
+
+    def totals(self) -> dict[str, Any]:
+        """One row of pass results (what a campaign table holds)."""
+        lat = np.array([r.latency_s for r in self.records if not r.dropped]) if self.records else []
+        return {
+            "strip": self.world_id,
+            "planner": self.config.planner,
+            "agility": self.config.agility,
+            "frames": len(self.records),
+            "frames_dropped": sum(r.dropped for r in self.records),
+            "deadlines_missed": sum(r.deadline_met is False for r in self.records),
+            "pointings_flown": len(self.flown.x),
+            "plume_px": round(float(sum(self.flown.plume)), 4),
+            "utility": round(float(sum(self.flown.intensity)), 4),
+            "ratio_plume": round(float(np.mean(self.flown.plume)), 4) if self.flown.x else 0.0,
+            "plumes_observed": len({i for i in self.flown.plume_id if i > 0}),
+            "plumes_total": self.plumes_total,
+            "latency_median_s": round(float(np.median(lat)), 4) if len(lat) else None,
+            "latency_max_s": round(float(np.max(lat)), 4) if len(lat) else None,
+        }
+
+
+class _TruthCache:
+    """Truth on the WFOV footprints, rebuilt only when the world's truth object changes."""
+
+    def __init__(self, world: World, factor: int, footprint: int) -> None:
+        self.world, self.factor, self.footprint = world, factor, footprint
+        self._key: int | None = None
+        self._value: WfovTruth | None = None
+
+    def at(self, t: float) -> WfovTruth:
+        truth = self.world.truth_at(t)
+        if self._key != id(truth) or self._value is None:
+            self._value = wfov_truth(truth, self.factor, self.footprint)
+            self._key = id(truth)
+        return self._value
+
+
+def fly_pass(
+    world: World,
+    classifier: Classifier | None,
+    config: PassConfig,
+    *,
+    fallback: Classifier | None = None,
+    on_frame: Callable[[PassResult], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    progress: bool = False,
+) -> PassResult:
+    """Fly a pass over ``world`` (see the module docstring for the model).
+
+    Parameters
+    ----------
+    world : the strip (:class:`~dyntarget.fly.world.World`).
+    classifier : a fitted classifier; ``None`` plans on the truth mask at each
+        frame's acquisition time (the oracle classifier).
+    config : pass settings.
+    fallback : a cheaper classifier for the deadline.
+    on_frame : called with the pass so far after every frame (e.g. to write outputs).
+    should_stop : polled after every frame; true ends the pass early (``stopped``).
+    progress : show a progress bar (tqdm) over the frames.
+
+    Returns
+    -------
+    PassResult
+
+    Examples
+    --------
+    >>> from dyntarget.scene import Scene
+    >>> from dyntarget.fly.world import StaticWorld
+    >>> img = np.full((4, 256, 64), 0.05, np.float32); lab = np.zeros((256, 64), bool)
+    >>> lab[100:120, 20:40] = True; img[:, lab] = 0.8
+    >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
+    >>> r = fly_pass(w, None, PassConfig(agility="unlimited", compute_budget_s=0.01))
+    >>> r.totals()["plumes_observed"], r.totals()["frames"]
+    (1, 7)
+    """
+    from tqdm import tqdm
+
+    frames = frame_plan(world, config)
+    agility = get_agility(config.agility)
+    truth = _TruthCache(world, config.factor, config.footprint)
+    state = PassState(covered=np.zeros(frames.wfov_shape, bool))
+    plumes_total = int(world.truth_at(0.0).ids.max())
+    stopped = False
+
+    def result() -> PassResult:
+        return PassResult(
+            world.id, config, frames, list(state.records), state.flown, plumes_total, stopped
+        )
+
+    bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
+    try:
+        for k in range(frames.n_frames):
+            state.records.append(
+                _fly_frame(k, world, classifier, fallback, config, frames, agility, truth, state)
+            )
+            bar.update()
+            if on_frame is not None:
+                on_frame(result())
+            if should_stop is not None and should_stop() and k + 1 < frames.n_frames:
+                stopped = True
+                break
+    finally:
+        bar.close()
+    return result()
+
+
+def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float):
+    top = frames.tops[k]
+    hr = world.image_at(t, top * factor, (top + frames.frame_px) * factor)
+    expected = (4, frames.frame_px * factor, frames.wfov_shape[1] * factor)
+    if hr.shape[0] != 4 or hr.shape[1] != expected[1] or hr.shape[2] < expected[2]:
+        raise InvalidSceneError(
+            f"world {world.id!r}: frame {k} image has shape {hr.shape}, expected {expected}"
+        )
+    image = block_mean(np.asarray(hr, np.float32)[:, :, : expected[2]], factor)
+    valid = None
+    if world.valid is not None:
+        v = world.valid[top * factor : (top + frames.frame_px) * factor, : expected[2]]
+        valid = block_mean(v[None].astype(np.float32), factor)[0] == 1.0
+    return image, valid
+
+
+def _fly_frame(
+    k: int,
+    world: World,
+    classifier: Classifier | None,
+    fallback: Classifier | None,
+    config: PassConfig,
+    frames: FramePlan,
+    agility: Agility,
+    truth: _TruthCache,
+    state: PassState,
+) -> FrameRecord:
+    t_k = frames.acquired_s(k)
+    top = frames.tops[k]
+    start = max(t_k, state.busy_until)
+    wait = start - t_k
+    deadline = config.deadline_s
+    if deadline is not None and wait >= deadline:  # the loop is too far behind: skip the frame
+        return FrameRecord(
+            k, t_k, start, start, wait, {}, False, "dropped: loop behind", 0, 0, 0, 0, 0, 0, 0, True
+        )
+    image, valid = _frame_image(world, frames, k, config.factor, t_k)
+    mask = None
+    if classifier is None:  # the oracle: the truth at acquisition time, on the WFOV grid
+        f, width = config.factor, frames.wfov_shape[1] * config.factor
+        label = world.truth_at(t_k).maps.label[top * f : (top + frames.frame_px) * f, :width]
+        mask = block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+    result = plan_scene(
+        image,
+        classifier,
+        config.planner,
+        mask=mask,
+        valid=valid,
+        denoise=config.denoise,
+        config=config.pipeline,
+        deadline_s=None if deadline is None else deadline - wait,
+        fallback=fallback,
+    )
+    stage = {s: float(result.timings.get(s, 0.0)) for s in ("classify", "denoise", "plan")}
+    stage["plan"] += float(result.timings.get("overhead", 0.0))
+    stage["predict"] = 0.0
+    t0 = time.perf_counter()
+    traj = result.trajectory
+    planned = len(traj)
+    shape = (frames.frame_px, frames.wfov_shape[1])
+    # drop pointings on covered strip pixels (and repeats of a pixel within the plan)
+    cols = np.clip(np.floor(traj.points[:, 0] + 0.5).astype(np.int64), 0, shape[1] - 1)
+    rows = np.clip(np.floor(traj.points[:, 1] + 0.5).astype(np.int64), 0, shape[0] - 1)
+    flat = (rows + top) * shape[1] + cols
+    _, first = np.unique(flat, return_index=True)
+    repeat = np.ones(len(flat), bool)
+    repeat[first] = False
+    skip = state.covered.ravel()[flat] | repeat
+    keep = np.flatnonzero(~skip)
+    # schedule what is left behind what the NFOV has already committed to
+    budget = config.compute_budget_s
+    if budget is not None:
+        ready = start + budget
+        sched_idx, sched_t, timer = _schedule(
+            traj.points[keep], shape, frames.geometry, agility, t_k, state, ready
+        )
+        stage["schedule"] = time.perf_counter() - t0
+    else:  # timed once to measure it, then re-timed from when the plan is really ready
+        ready = start + sum(stage.values())
+        _schedule(traj.points[keep], shape, frames.geometry, agility, t_k, state, ready)
+        stage["schedule"] = time.perf_counter() - t0
+        ready = start + sum(stage.values())
+        sched_idx, sched_t, timer = _schedule(
+            traj.points[keep], shape, frames.geometry, agility, t_k, state, ready
+        )
+    met = None if deadline is None else (ready - t_k) <= deadline
+    flown_local = keep[sched_idx]
+    state.busy_until = ready
+    if len(flown_local):
+        state.timer_t = timer.t + t_k
+        along, cross = timer.target
+        state.target = (along + frames.geometry.ground_speed * t_k, cross)
+    # score each flown pointing against the truth at its own time
+    plume_sum = inten_sum = grad_sum = 0.0
+    new_plumes = 0
+    fl = state.flown
+    part_of = {}
+    for j, t_local in zip(flown_local, sched_t, strict=True):
+        r, c = int(rows[j]) + top, int(cols[j])
+        t_pass = t_k + float(t_local)
+        w = truth.at(t_pass)
+        ok = bool(w.valid[r, c])
+        pl = float(w.plume[r, c]) if ok else 0.0
+        it = float(w.intensity[r, c]) if ok else 0.0
+        gr = float(w.gradient[r, c]) if ok else 0.0
+        pid = int(w.ids[r, c]) if ok and pl > 0 else 0
+        plume_sum, inten_sum, grad_sum = plume_sum + pl, inten_sum + it, grad_sum + gr
+        if pid and pid not in state.plumes_seen:
+            state.plumes_seen.add(pid)
+            new_plumes += 1
+        p = int(traj.part[j])
+        if p not in part_of:
+            part_of[p] = state.parts
+            state.parts += 1
+        fl.x.append(float(traj.points[j, 0]))
+        fl.y.append(float(traj.points[j, 1]) + top)
+        fl.t.append(t_pass)
+        fl.frame.append(k)
+        fl.part.append(part_of[p])
+        fl.plume.append(pl)
+        fl.intensity.append(it)
+        fl.plume_id.append(pid)
+        state.covered[r, c] = True
+    _cover_plumes(result.mask, rows, cols, flown_local, planned, top, state)
+    return FrameRecord(
+        k,
+        t_k,
+        start,
+        ready,
+        ready - t_k,
+        stage,
+        met,
+        "; ".join(result.path),
+        planned,
+        int(np.count_nonzero(skip)),
+        len(flown_local),
+        plume_sum,
+        inten_sum,
+        grad_sum,
+        new_plumes,
+    )
+
+
+def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> None:
+    """Mark the area of every plume of the frame's mask that was flown enough as covered."""
+    if planned == 0 or not mask.any():
+        return
+    n, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    on = comp[rows, cols]
+    planned_per = np.bincount(on, minlength=n)
+    flown_per = np.bincount(on[flown], minlength=n) if len(flown) else np.zeros(n, np.int64)
+    h = mask.shape[0]
+    for i in range(1, n):
+        if planned_per[i] and flown_per[i] >= COVERED_PLUME_FRACTION * planned_per[i]:
+            state.covered[top : top + h][comp == i] = True
+
+
+def _schedule(
+    points: np.ndarray,
+    shape: tuple[int, int],
+    base: Geometry,
+    agility: Agility,
+    t_k: float,
+    state: PassState,
+    ready: float,
+) -> tuple[np.ndarray, np.ndarray, Timer]:
+    """Time pointings of frame ``k`` behind the committed ones; the better of two orders.
+
+    Returns the kept indices (into ``points``, in flight order), their start
+    times (seconds after the frame's acquisition) and the timer after them.
+    """
+    v = base.ground_speed
+    geometry = Geometry(base.altitude_m, base.look_ahead_m, base.wfov_gsd_m, ready - t_k)
+    along, cross = geometry.ground(points, shape)
+    t_in, t_out = visibility_windows(geometry, agility, along, cross)
+    best: tuple[np.ndarray, np.ndarray, Timer] | None = None
+    for order in (np.arange(len(points)), np.argsort(t_out, kind="stable")):
+        timer = Timer(geometry, agility)
+        timer.t = max(ready, state.timer_t) - t_k
+        if state.target is not None:
+            timer.target = (state.target[0] - v * t_k, state.target[1])
+        kept, times = [], []
+        for j in order:
+            if t_in[j] > t_out[j]:
+                continue
+            begin = float(timer.arrival(along[j : j + 1], cross[j : j + 1], t_in[j : j + 1])[0])
+            if begin + agility.dwell_s > t_out[j]:
+                continue
+            timer.take(along[j], cross[j], begin)
+            kept.append(j)
+            times.append(begin)
+        if best is None or len(kept) > len(best[0]):
+            best = (np.asarray(kept, np.int64), np.asarray(times, np.float64), timer)
+    assert best is not None
+    return best
