@@ -10,6 +10,12 @@ from dyntarget.io.scenes import (
     scene_ids,
     write_scene,
 )
+from dyntarget.io.sequences import (
+    read_sequence,
+    read_sequence_dir,
+    sequence_ids,
+    write_sequence,
+)
 
 __all__ = [
     "DEFAULT_SCALE",
@@ -18,8 +24,12 @@ __all__ = [
     "read_label",
     "read_scene",
     "read_scene_dir",
+    "read_sequence",
+    "read_sequence_dir",
     "scene_ids",
+    "sequence_ids",
     "write_bytes",
     "write_scene",
+    "write_sequence",
     "write_text",
 ]

@@ -431,10 +431,13 @@ def _geojson_geometries(doc: object, path: Path) -> list[dict]:
     raise DataFileError(f"{path}: unsupported GeoJSON type {kind!r}")
 
 
-def write_scene(scene: Scene, directory: str | os.PathLike[str]) -> list[Path]:
+def write_scene(
+    scene: Scene, directory: str | os.PathLike[str], *, tags: dict[str, str] | None = None
+) -> list[Path]:
     """Write ``<id>.tif`` (float32, deflate) and, if labelled, ``<id>_mask.tif``.
 
-    Files are written atomically; the GSD goes into the ``DYNTARGET_GSD`` tag.
+    Files are written atomically; the GSD goes into the ``DYNTARGET_GSD`` tag,
+    ``tags`` (e.g. acquisition times) into the image's dataset tags.
     Returns the paths written.
     """
     directory = Path(directory)
@@ -469,6 +472,8 @@ def write_scene(scene: Scene, directory: str | os.PathLike[str]) -> list[Path]:
                 dst.set_band_description(i, band)
             if scene.gsd is not None:
                 dst.update_tags(**{GSD_TAG: repr(scene.gsd)})
+            if tags:
+                dst.update_tags(**tags)
     written.append(image_path)
     if scene.label is not None:
         mask_path = directory / f"{scene.id}{MASK_SUFFIX}.tif"

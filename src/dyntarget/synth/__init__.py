@@ -1,6 +1,34 @@
-"""Procedural volcanic scenes: the built-in default data."""
+"""Procedural volcanic scenes: the built-in default data (static), and moving worlds."""
 
+from dyntarget.synth.dynamic import (
+    CloudSpec,
+    TruthCache,
+    VentSpec,
+    Wind,
+    World,
+    WorldFrame,
+    WorldSpec,
+    sample_world,
+    truth_provider,
+    world_sequence,
+)
 from dyntarget.synth.noise import fractal_noise
 from dyntarget.synth.volcano import SceneParams, generate_scene, generate_scenes, sample_params
 
-__all__ = ["SceneParams", "fractal_noise", "generate_scene", "generate_scenes", "sample_params"]
+__all__ = [
+    "CloudSpec",
+    "SceneParams",
+    "TruthCache",
+    "VentSpec",
+    "Wind",
+    "World",
+    "WorldFrame",
+    "WorldSpec",
+    "fractal_noise",
+    "generate_scene",
+    "generate_scenes",
+    "sample_params",
+    "sample_world",
+    "truth_provider",
+    "world_sequence",
+]

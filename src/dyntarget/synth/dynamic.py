@@ -1,0 +1,898 @@
+"""A moving world: time-evolving synthetic volcanic scenes, rendered on any window at any time.
+
+A :class:`WorldSpec` (a small, JSON-serialisable set of numbers) fixes one world;
+:class:`World` renders it deterministically on any integer pixel window of its
+grid at any time ``t`` (seconds after the look-ahead acquisition):
+
+* a **fixed ground** (terrain, land cover, hillshade, haze) from periodic noise
+  tiles, so any window, however far from the origin, is defined;
+* **attached plumes**: each vent emits continuously since ``eruption_age_s``
+  before ``t = 0``; the emission is a train of Gaussian puffs (the Gaussian puff
+  model) that are carried downwind with the wind and spread (diffusion plus
+  turbulent relative dispersion), and fade with age. The vent end stays put,
+  the envelope stretches downwind;
+* **detached clouds** (volcanic ash/steam clouds, part of the truth; and
+  meteorological cumulus, not part of it) that drift with the wind as a whole;
+* texture that moves with the flow: the plume's multiplicative texture is
+  sampled at ``x - u t``, so motion is visible between frames.
+
+The truth is the plume optical depth (attached plumes + volcanic clouds) and
+the mask where it exceeds ``label_optical_depth``, like the static generator's
+label. Physics, parameter ranges and sources: ``docs/synthetic-scenes.md``,
+section "Moving scenes".
+
+Conventions: ``x`` = column, ``y`` = row of the world grid (GSD ``gsd`` m,
+north up); wind speed in m/s and the direction it blows *from*, degrees
+clockwise from north (meteorological convention).
+
+Examples
+--------
+>>> spec = sample_world(0, 0, size=64, wind_mps=10.0, wind_from_deg=270.0)
+>>> world = World(spec)
+>>> frame = world.render(30.0)
+>>> frame.image.shape, frame.image.dtype, frame.mask.dtype
+((4, 64, 64), dtype('float32'), dtype('bool'))
+>>> world.render(30.0, window=(10, 20, 16, 8)).image.shape
+(4, 8, 16)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import OrderedDict
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import cv2
+import numpy as np
+from affine import Affine
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.scene import Scene
+from dyntarget.sequence import FrameSequence
+from dyntarget.synth.noise import fractal_noise
+from dyntarget.synth.volcano import (
+    ASH_PLUME,
+    CLOUD,
+    HAZE,
+    ORIGIN_EASTING,
+    ORIGIN_NORTHING,
+    STEAM,
+    SURFACE_SPECTRA,
+    UTM_5N,
+)
+
+SPEC_VERSION = 1
+"""Version of the :class:`WorldSpec` JSON layout."""
+
+EPOCH = "2026-01-01T00:00:00Z"
+"""Default acquisition time (ISO-8601 UTC) of ``t = 0``."""
+
+PAD = 8
+"""Pixels rendered around a window and cropped, so neighbourhood operations
+(blur, gradients) give the same values whatever the window."""
+
+Window = tuple[int, int, int, int]
+"""``(col0, row0, width, height)`` on the world grid, integers."""
+
+
+@dataclass(frozen=True)
+class Wind:
+    """Wind: speed in m/s and the direction it blows *from*, degrees clockwise from north.
+
+    Examples
+    --------
+    >>> Wind(10.0, 0.0).velocity_px(8.0)  # from the north: moves south, down the image
+    (-0.0, 1.25)
+    """
+
+    speed_mps: float
+    from_deg: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.speed_mps) and 0.0 <= self.speed_mps <= 60.0):
+            raise InvalidParameterError(f"wind speed: expected 0..60 m/s, got {self.speed_mps!r}")
+        if not math.isfinite(self.from_deg):
+            raise InvalidParameterError(
+                f"wind direction: expected degrees from north, got {self.from_deg!r}"
+            )
+
+    def velocity_px(self, gsd: float) -> tuple[float, float]:
+        """``(dx/dt, dy/dt)`` in pixels per second on a north-up grid of ``gsd`` m."""
+        rad = math.radians(self.from_deg)
+        east = -self.speed_mps * math.sin(rad)
+        north = -self.speed_mps * math.cos(rad)
+        return east / gsd, -north / gsd
+
+
+@dataclass(frozen=True)
+class VentSpec:
+    """A vent emitting an attached plume (positions in world pixels, times in s).
+
+    ``emission_optical_depth``: centreline optical depth near the vent;
+    ``source_sigma_m``: puff radius at release; ``eruption_age_s``: how long the
+    vent has emitted at ``t = 0``; ``fade_s``: e-folding time of a puff's
+    optical depth (dilution, fallout); ``diffusivity_m2s``: small-scale
+    diffusion; ``turbulence``: relative dispersion, sigma grows by
+    ``turbulence * wind * age``; ``gustiness``: log-normal sigma of the puff
+    masses; ``meander``: std of each puff's crosswind velocity as a fraction
+    of the wind; ``ash_fraction``/``ash_fade_s``: ash near the vent, steam downwind;
+    ``pulsation``: std of the log emission rate, a smooth random function of the
+    release time with periods around ``pulse_period_s`` (pulsing eruptions).
+    """
+
+    x: float
+    y: float
+    emission_optical_depth: float = 3.0
+    source_sigma_m: float = 60.0
+    eruption_age_s: float = 600.0
+    fade_s: float = 600.0
+    diffusivity_m2s: float = 20.0
+    turbulence: float = 0.1
+    gustiness: float = 0.25
+    meander: float = 0.05
+    ash_fraction: float = 0.5
+    ash_fade_s: float = 300.0
+    pulsation: float = 0.0
+    pulse_period_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        for name in ("x", "y"):
+            if not math.isfinite(getattr(self, name)):
+                raise InvalidParameterError(f"vent {name}: expected a finite pixel coordinate")
+        for name in (
+            "emission_optical_depth",
+            "source_sigma_m",
+            "fade_s",
+            "ash_fade_s",
+            "pulse_period_s",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"vent {name}: expected a positive number, got {v!r}")
+        for name in (
+            "eruption_age_s",
+            "diffusivity_m2s",
+            "turbulence",
+            "gustiness",
+            "meander",
+            "pulsation",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"vent {name}: expected a number >= 0, got {v!r}")
+        if not 0.0 <= self.ash_fraction <= 1.0:
+            raise InvalidParameterError(
+                f"vent ash_fraction: expected 0..1, got {self.ash_fraction!r}"
+            )
+
+
+@dataclass(frozen=True)
+class CloudSpec:
+    """A cloud drifting with the wind as a whole; ``volcanic`` clouds are part of the truth.
+
+    ``x``, ``y``: centre at ``t = 0`` (world pixels); ``radius_m``: Gaussian
+    envelope radius; ``optical_depth``: peak optical depth before texture;
+    ``ash_fraction``: colour between steam (0) and ash (1) for volcanic clouds.
+    """
+
+    x: float
+    y: float
+    radius_m: float = 300.0
+    optical_depth: float = 2.0
+    volcanic: bool = True
+    ash_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.x) and math.isfinite(self.y)):
+            raise InvalidParameterError("cloud x, y: expected finite pixel coordinates")
+        for name in ("radius_m", "optical_depth"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidParameterError(f"cloud {name}: expected a positive number, got {v!r}")
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    """Everything that fixes one moving world; ``to_json``/``from_json`` round-trip exactly."""
+
+    seed: int
+    size: int
+    gsd: float
+    wind: Wind
+    vents: tuple[VentSpec, ...]
+    clouds: tuple[CloudSpec, ...] = ()
+    label_optical_depth: float = 0.35
+    tile: int = 512
+    water_fraction: float = 0.0
+    lava_fraction: float = 0.25
+    vegetation_fraction: float = 0.4
+    sun_azimuth_deg: float = 135.0
+    sun_elevation_deg: float = 45.0
+    haze: float = 0.05
+    noise_sigma: float = 0.005
+    origin_easting: float = ORIGIN_EASTING
+    origin_northing: float = ORIGIN_NORTHING
+    crs: str = UTM_5N
+    epoch: str = EPOCH
+    id: str = "world"
+    version: int = SPEC_VERSION
+
+    def __post_init__(self) -> None:
+        if isinstance(self.size, bool) or not isinstance(self.size, int) or self.size < 16:
+            raise InvalidParameterError(f"size: expected an integer >= 16, got {self.size!r}")
+        if not (math.isfinite(self.gsd) and self.gsd > 0):
+            raise InvalidParameterError(
+                f"gsd: expected a positive number of metres, got {self.gsd!r}"
+            )
+        if not isinstance(self.tile, int) or self.tile < 64 or self.tile & (self.tile - 1):
+            raise InvalidParameterError(f"tile: expected a power of two >= 64, got {self.tile!r}")
+        if not (math.isfinite(self.label_optical_depth) and self.label_optical_depth > 0):
+            raise InvalidParameterError(
+                f"label_optical_depth: expected a positive number, got {self.label_optical_depth!r}"
+            )
+        for name in ("water_fraction", "lava_fraction", "vegetation_fraction", "haze"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and 0.0 <= v < 1.0):
+                raise InvalidParameterError(f"{name}: expected 0 <= value < 1, got {v!r}")
+        if self.version != SPEC_VERSION:
+            raise InvalidParameterError(
+                f"world spec version: expected {SPEC_VERSION}, got {self.version!r}"
+            )
+        object.__setattr__(self, "vents", tuple(self.vents))
+        object.__setattr__(self, "clouds", tuple(self.clouds))
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def to_json(self) -> str:
+        """Canonical JSON (sorted keys); floats round-trip exactly."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> WorldSpec:
+        """Rebuild a spec from :meth:`to_dict` output; unknown keys are refused."""
+        if not isinstance(d, dict):
+            raise InvalidParameterError(
+                f"world spec: expected a JSON object, got {type(d).__name__}"
+            )
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise InvalidParameterError(f"world spec: unknown field(s) {', '.join(unknown)}")
+        try:
+            d = dict(d)
+            d["wind"] = Wind(**d["wind"])
+            d["vents"] = tuple(VentSpec(**v) for v in d["vents"])
+            d["clouds"] = tuple(CloudSpec(**c) for c in d.get("clouds", ()))
+            return cls(**d)
+        except (KeyError, TypeError) as exc:
+            raise InvalidParameterError(f"world spec: malformed ({exc})") from None
+
+    @classmethod
+    def from_json(cls, text: str) -> WorldSpec:
+        try:
+            d = json.loads(text)
+        except ValueError as exc:
+            raise InvalidParameterError(f"world spec: not JSON ({exc})") from None
+        return cls.from_dict(d)
+
+
+def sample_world(
+    seed: int,
+    index: int,
+    *,
+    size: int = 512,
+    gsd: float = 8.0,
+    wind_mps: float | None = None,
+    wind_from_deg: float | None = None,
+) -> WorldSpec:
+    """Draw world ``index`` of the set with ``seed`` (ranges documented in the docs).
+
+    Wind speed is drawn uniformly in 0..16 m/s (so every wind bin from calm to
+    gale is covered evenly) and its direction uniformly, unless given.
+    World ``i`` depends only on ``(seed, i)`` and the arguments.
+
+    Examples
+    --------
+    >>> sample_world(0, 3, size=64, wind_mps=5.0).wind.speed_mps
+    5.0
+    """
+    if isinstance(size, bool) or not isinstance(size, int) or size < 16:
+        raise InvalidParameterError(f"size: expected an integer >= 16, got {size!r}")
+    rng = np.random.default_rng([int(seed), int(index), 0xD1])
+    u = rng.uniform
+    speed = float(u(0.0, 16.0)) if wind_mps is None else float(wind_mps)
+    direction = float(u(0.0, 360.0)) if wind_from_deg is None else float(wind_from_deg)
+    wind = Wind(speed, direction)
+    extent_m = size * gsd
+    # upwind part of the scene for the vent, so the plume has room downwind
+    vx, vy = wind.velocity_px(gsd)
+    norm = math.hypot(vx, vy)
+    back = 0.25 * size
+    cx = 0.5 * size - (back * vx / norm if norm > 0 else 0.0)
+    cy = 0.5 * size - (back * vy / norm if norm > 0 else 0.0)
+    vent = VentSpec(
+        x=float(cx + u(-0.1, 0.1) * size),
+        y=float(cy + u(-0.1, 0.1) * size),
+        emission_optical_depth=float(u(2.0, 5.0)),
+        source_sigma_m=float(u(0.012, 0.025) * extent_m),
+        # plume front somewhere past mid-scene at t = 0; capped for calm air
+        eruption_age_s=float(min(u(0.4, 1.2) * extent_m / max(speed, 0.5), 1800.0)),
+        fade_s=float(u(300.0, 900.0)),
+        diffusivity_m2s=float(u(5.0, 40.0)),
+        turbulence=float(u(0.05, 0.15)),
+        gustiness=float(u(0.1, 0.4)),
+        meander=float(u(0.0, 0.08)),
+        ash_fraction=float(u(0.0, 1.0)),
+        ash_fade_s=float(u(120.0, 600.0)),
+        pulsation=float(u(0.2, 0.9)),
+        pulse_period_s=float(u(60.0, 300.0)),
+    )
+    clouds: list[CloudSpec] = []
+    if u() < 0.5:  # a detached volcanic cloud (an earlier burst), downwind of the vent
+        dist = u(0.2, 0.6) * size
+        ang = math.atan2(vy, vx) if norm > 0 else u(0, 2 * math.pi)
+        ang += u(-0.3, 0.3)
+        clouds.append(
+            CloudSpec(
+                x=float(vent.x + dist * math.cos(ang)),
+                y=float(vent.y + dist * math.sin(ang)),
+                radius_m=float(u(0.04, 0.09) * extent_m),
+                optical_depth=float(u(1.0, 3.0)),
+                volcanic=True,
+                ash_fraction=float(u(0.0, 1.0)),
+            )
+        )
+    for _ in range(int(rng.integers(0, 4)) if u() < 0.6 else 0):  # meteorological cumulus
+        clouds.append(
+            CloudSpec(
+                x=float(u(-0.1, 1.1) * size),
+                y=float(u(-0.1, 1.1) * size),
+                radius_m=float(u(0.03, 0.08) * extent_m),
+                optical_depth=float(u(2.0, 6.0)),
+                volcanic=False,
+                ash_fraction=0.0,
+            )
+        )
+    tile = 1 << max(9, (size - 1).bit_length())
+    tile_m = size * gsd * 1.5
+    return WorldSpec(
+        seed=int(seed),
+        size=size,
+        gsd=float(gsd),
+        wind=wind,
+        vents=(vent,),
+        clouds=tuple(clouds),
+        label_optical_depth=float(u(0.25, 0.5)),
+        tile=tile,
+        water_fraction=float(u(0.0, 0.3)) if u() < 0.5 else 0.0,
+        lava_fraction=float(u(0.1, 0.4)),
+        vegetation_fraction=float(u(0.2, 0.7)),
+        sun_azimuth_deg=float(u(0.0, 360.0)),
+        sun_elevation_deg=float(u(25.0, 70.0)),
+        haze=float(u(0.0, 0.12)),
+        noise_sigma=float(u(0.002, 0.008)),
+        origin_easting=ORIGIN_EASTING + (index % 20) * tile_m,
+        origin_northing=ORIGIN_NORTHING - 200_000.0 - (index // 20) * tile_m,
+        id=f"dyn-{int(seed):04d}-{int(index):04d}",
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class WorldFrame:
+    """One rendering: ``image`` (4, H, W) float32, truth ``mask`` bool, plume optical depth ``tau``."""
+
+    image: np.ndarray
+    mask: np.ndarray
+    tau: np.ndarray
+    t: float
+    window: Window
+
+
+def check_window(window: object, size: int) -> Window:
+    """Validate ``(col0, row0, width, height)``; ``None`` is the world's own tile ``(0, 0, size, size)``."""
+    if window is None:
+        return (0, 0, size, size)
+    try:
+        vals = tuple(window)  # type: ignore[arg-type]
+    except TypeError:
+        vals = ()
+    if len(vals) != 4 or not all(
+        isinstance(v, int | np.integer) and not isinstance(v, bool) for v in vals
+    ):
+        raise InvalidParameterError(
+            f"window: expected (col0, row0, width, height) integers, got {window!r}"
+        )
+    c0, r0, w, h = (int(v) for v in vals)
+    if w < 1 or h < 1 or w * h > 16384 * 16384:
+        raise InvalidParameterError(f"window: expected a positive size, got {w} x {h}")
+    return (c0, r0, w, h)
+
+
+def _check_time(t: object) -> float:
+    if isinstance(t, bool) or not isinstance(t, int | float | np.integer | np.floating):
+        raise InvalidParameterError(f"t: expected seconds (a number), got {t!r}")
+    t = float(t)
+    if not (math.isfinite(t) and abs(t) <= 86_400.0):
+        raise InvalidParameterError(f"t: expected finite seconds within a day of t = 0, got {t!r}")
+    return t
+
+
+class World:
+    """Renders a :class:`WorldSpec` on any window at any time (see the module docstring).
+
+    Parameters
+    ----------
+    spec : WorldSpec
+        The world; build one with :func:`sample_world` or by hand.
+
+    Examples
+    --------
+    >>> w = World(sample_world(1, 0, size=32, wind_mps=0.0))
+    >>> bool((w.render(0.0).mask == w.render(0.0).mask).all())
+    True
+    """
+
+    PUFF_BLOCK = 1024
+
+    def __init__(self, spec: WorldSpec) -> None:
+        if not isinstance(spec, WorldSpec):
+            raise InvalidParameterError(f"spec: expected a WorldSpec, got {type(spec).__name__}")
+        self.spec = spec
+        self._tiles: dict[str, np.ndarray] = {}
+        self._thresholds: dict[str, float] = {}
+        self._ground_cache: OrderedDict[Window, np.ndarray] = OrderedDict()
+        self._puff_blocks: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+        self._build_tiles()
+
+    # ------------------------------------------------------------------ noise tiles
+    def _build_tiles(self) -> None:
+        s = self.spec
+        rng = np.random.default_rng([s.seed, s.size, 0xD2])
+        shape = (s.tile, s.tile)
+        for name, beta in (
+            ("elev", 3.6),
+            ("lava", 2.6),
+            ("basalt", 2.4),
+            ("veg", 2.6),
+            ("texture", 1.6),
+            ("haze", 3.5),
+            ("plume", 2.0),
+            ("cloud", 2.8),
+        ):
+            self._tiles[name] = fractal_noise(rng, shape, beta=beta)
+        self._tiles["white"] = rng.standard_normal(shape).astype(np.float32)
+        t = self._tiles
+        self._thresholds = {
+            "water": float(np.quantile(t["elev"], s.water_fraction))
+            if s.water_fraction
+            else -np.inf,
+            "lava": float(np.quantile(t["lava"], 1.0 - s.lava_fraction)),
+            "veg": float(np.quantile(t["veg"], 1.0 - s.vegetation_fraction)),
+        }
+
+    def _sample(self, name: str, window: Window, pad: int = 0) -> np.ndarray:
+        """Tile values at integer pixels of ``window`` (+ ``pad`` around), periodic."""
+        c0, r0, w, h = window
+        p = self.spec.tile
+        rows = np.arange(r0 - pad, r0 + h + pad) % p
+        cols = np.arange(c0 - pad, c0 + w + pad) % p
+        return self._tiles[name][np.ix_(rows, cols)]
+
+    def _sample_shifted(self, name: str, window: Window, dx: float, dy: float) -> np.ndarray:
+        """Tile values at ``(x - dx, y - dy)`` for the pixels of ``window`` (bilinear, periodic)."""
+        c0, r0, w, h = window
+        p = self.spec.tile
+        xs = np.mod(np.arange(c0, c0 + w, dtype=np.float64) - dx, p).astype(np.float32)
+        ys = np.mod(np.arange(r0, r0 + h, dtype=np.float64) - dy, p).astype(np.float32)
+        mx, my = np.meshgrid(xs, ys)
+        return cv2.remap(
+            self._tiles[name], mx, my, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP
+        )
+
+    # ------------------------------------------------------------------ ground
+    def _ground(self, window: Window) -> np.ndarray:
+        """Surface reflectance (4, h, w): fixed in time; cached for recent windows."""
+        cached = self._ground_cache.get(window)
+        if cached is not None:
+            self._ground_cache.move_to_end(window)
+            return cached
+        s = self.spec
+        c0, r0, w, h = window
+        pad = PAD
+        yy, xx = np.mgrid[r0 - pad : r0 + h + pad, c0 - pad : c0 + w + pad].astype(np.float32)
+        vent = s.vents[0] if s.vents else None
+        if vent is not None:
+            r_vent = np.hypot(xx - vent.x, yy - vent.y) / s.size
+            cone, lava_bias = 2.5 * np.exp(-r_vent / 0.2), 2.0 * np.exp(-r_vent / 0.15)
+        else:
+            cone = lava_bias = np.zeros_like(xx)
+        elev_noise = self._sample("elev", window, pad)
+        elev = elev_noise + cone
+        water = elev_noise < self._thresholds["water"]
+        water &= cone < 0.5  # the volcano's flank stays dry
+        land = ~water
+        lava = land & (self._sample("lava", window, pad) + lava_bias > self._thresholds["lava"])
+        basalt = self._sample("basalt", window, pad) > 0.0
+        rest = land & ~lava
+        veg = rest & (self._sample("veg", window, pad) > self._thresholds["veg"])
+        classes = {
+            "water": water,
+            "basalt": lava & basalt,
+            "ash": lava & ~basalt,
+            "vegetation": veg,
+            "soil": rest & ~veg,
+        }
+        surface = np.zeros((4, *xx.shape), np.float32)
+        for name, m in classes.items():
+            wgt = cv2.GaussianBlur(m.astype(np.float32), (0, 0), 1.0)
+            surface += np.asarray(SURFACE_SPECTRA[name], np.float32)[:, None, None] * wgt
+        surface *= (1.0 + 0.12 * self._sample("texture", window, pad))[None]
+        gy, gx = np.gradient(elev * (0.015 * s.size))
+        az, el = math.radians(s.sun_azimuth_deg), math.radians(s.sun_elevation_deg)
+        sx, sy, sz = math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)
+        shade = (-gx * sx - gy * sy + sz) / np.sqrt(1.0 + gx**2 + gy**2) / sz
+        shade = np.where(water, 1.0, np.clip(shade, 0.15, 1.6)).astype(np.float32)
+        surface = (surface * shade[None])[:, pad:-pad, pad:-pad]
+        haze = s.haze * (0.6 + 0.4 * np.tanh(self._sample("haze", window)))
+        surface = (
+            surface * (1.0 - haze[None]) + np.asarray(HAZE, np.float32)[:, None, None] * haze[None]
+        )
+        surface = np.ascontiguousarray(surface, dtype=np.float32)
+        self._ground_cache[window] = surface
+        if len(self._ground_cache) > 4:
+            self._ground_cache.popitem(last=False)
+        return surface
+
+    # ------------------------------------------------------------------ plumes
+    def _puffs(self, vi: int, k: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-puff random draws (mass factor, crosswind velocity) for puff indices ``k``."""
+        out = {"gust": np.empty(len(k)), "cross": np.empty(len(k))}
+        blocks = k // self.PUFF_BLOCK
+        for b in np.unique(blocks):
+            key = (vi, int(b))
+            if key not in self._puff_blocks:
+                rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD3, vi, int(b)])
+                self._puff_blocks[key] = {
+                    "gust": rng.standard_normal(self.PUFF_BLOCK),
+                    "cross": rng.standard_normal(self.PUFF_BLOCK),
+                }
+            sel = blocks == b
+            idx = k[sel] % self.PUFF_BLOCK
+            out["gust"][sel] = self._puff_blocks[key]["gust"][idx]
+            out["cross"][sel] = self._puff_blocks[key]["cross"][idx]
+        return out
+
+    def _pulse(self, vi: int, vent: VentSpec, release: np.ndarray) -> np.ndarray:
+        """Smooth unit-variance random function of release time (8 random cosines)."""
+        rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD5, vi])
+        freq = rng.uniform(0.5, 2.0, 8) / vent.pulse_period_s
+        phase = rng.uniform(0.0, 2.0 * math.pi, 8)
+        return 0.5 * np.cos(2.0 * math.pi * np.outer(release, freq) + phase).sum(axis=1)
+
+    def puff_step_s(self, vent: VentSpec) -> float:
+        """Time between puff releases: spacing ``wind * step`` at most 0.4 source sigma."""
+        return float(
+            np.clip(0.4 * vent.source_sigma_m / max(self.spec.wind.speed_mps, 1e-6), 0.5, 20.0)
+        )
+
+    def _plume_tau(self, t: float, window: Window) -> tuple[np.ndarray, np.ndarray]:
+        """Attached plumes: ``(tau, tau_ash)`` on ``window`` at time ``t``."""
+        s = self.spec
+        c0, r0, w, h = window
+        tau = np.zeros((h, w), np.float64)
+        tau_ash = np.zeros((h, w), np.float64)
+        ux, uy = s.wind.velocity_px(s.gsd)  # px/s
+        speed_px = math.hypot(ux, uy)
+        nx, ny = (-uy / speed_px, ux / speed_px) if speed_px > 0 else (0.0, 0.0)
+        xs = np.arange(c0, c0 + w, dtype=np.float64)
+        ys = np.arange(r0, r0 + h, dtype=np.float64)
+        for vi, v in enumerate(s.vents):
+            start = -v.eruption_age_s
+            if t <= start:
+                continue
+            step = self.puff_step_s(v)
+            sigma0 = v.source_sigma_m / s.gsd
+            # puff k carries the emission over [start + k step, start + (k+1) step), clipped at t
+            k_last = math.floor((t - start) / step)
+            k_first = max(0, math.floor((t - start - 8.0 * v.fade_s) / step))
+            k = np.arange(k_first, k_last + 1)
+            t0 = start + k * step
+            t1 = np.minimum(t0 + step, t)
+            keep = t1 > t0
+            k, t0, t1 = k[keep], t0[keep], t1[keep]
+            if len(k) == 0:
+                continue
+            age = t - 0.5 * (t0 + t1)  # age of the puff's centre of emission
+            draws = self._puffs(vi, k)
+            # line-source normalisation: a steady train of puffs has centreline
+            # optical depth ~ emission_optical_depth near the vent
+            u_norm = max(speed_px, 1.0 / s.gsd)  # px/s; at least 1 m/s so calm air stays finite
+            q = v.emission_optical_depth * u_norm * math.sqrt(2.0 * math.pi) * sigma0  # per s
+            log_rate = v.gustiness * draws["gust"] - 0.5 * v.gustiness**2
+            if v.pulsation > 0:
+                log_rate = log_rate + v.pulsation * self._pulse(vi, v, 0.5 * (t0 + t1))
+                log_rate -= 0.5 * v.pulsation**2
+            mass = q * (t1 - t0) * np.exp(log_rate) * np.exp(-age / v.fade_s)
+            sig = np.sqrt(
+                sigma0**2
+                + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age
+                + (v.turbulence * speed_px * age) ** 2
+            )
+            cross = v.meander * speed_px * draws["cross"] * age
+            px = v.x + ux * age + nx * cross
+            py = v.y + uy * age + ny * cross
+            ash = v.ash_fraction * np.exp(-age / v.ash_fade_s)
+            reach = 4.0 * sig
+            inside = (
+                (px + reach >= c0)
+                & (px - reach <= c0 + w - 1)
+                & (py + reach >= r0)
+                & (py - reach <= r0 + h - 1)
+                & (mass / (2 * math.pi * sig**2) > 1e-5)
+            )
+            for j in np.flatnonzero(inside):
+                # pixels within 4 sigma of the centre (the same ones in any window)
+                a0 = max(math.ceil(px[j] - reach[j]) - c0, 0)
+                a1 = min(math.floor(px[j] + reach[j]) - c0 + 1, w)
+                b0 = max(math.ceil(py[j] - reach[j]) - r0, 0)
+                b1 = min(math.floor(py[j] + reach[j]) - r0 + 1, h)
+                inv = 0.5 / sig[j] ** 2
+                gx = np.exp(-((xs[a0:a1] - px[j]) ** 2) * inv)
+                gy = np.exp(-((ys[b0:b1] - py[j]) ** 2) * inv) * (mass[j] * inv / math.pi)
+                blob = np.outer(gy, gx)
+                tau[b0:b1, a0:a1] += blob
+                tau_ash[b0:b1, a0:a1] += blob * ash[j]
+        if tau.any():
+            # texture that moves with the flow, developing away from the vent
+            tex = self._sample_shifted("plume", window, ux * t, uy * t).astype(np.float64)
+            amp = np.full((h, w), 0.5)
+            for v in s.vents:
+                # downwind distance from the vent (plain distance in calm air): none upwind
+                rx, ry = xs[None, :] - v.x, ys[:, None] - v.y
+                if speed_px > 0:
+                    d = np.maximum((rx * ux + ry * uy) / speed_px, 0.0)
+                else:
+                    d = np.hypot(rx, ry)
+                amp = np.minimum(amp, 0.5 * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd))))
+            mult = np.exp(amp * tex - 0.5 * amp**2)
+            tau *= mult
+            tau_ash *= mult
+        return tau.astype(np.float32), tau_ash.astype(np.float32)
+
+    def _cloud_tau(
+        self, t: float, window: Window, *, volcanic: bool, shift: tuple[float, float] = (0.0, 0.0)
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Drifting clouds of one kind: ``(tau, tau_ash)``; rigid translation with the wind."""
+        s = self.spec
+        c0, r0, w, h = window
+        tau = np.zeros((h, w), np.float32)
+        tau_ash = np.zeros((h, w), np.float32)
+        ux, uy = s.wind.velocity_px(s.gsd)
+        dx, dy = ux * t + shift[0], uy * t + shift[1]
+        xs = np.arange(c0, c0 + w, dtype=np.float64)
+        ys = np.arange(r0, r0 + h, dtype=np.float64)
+        for ci, c in enumerate(s.clouds):
+            if c.volcanic != volcanic:
+                continue
+            cx, cy, rad = c.x + dx, c.y + dy, c.radius_m / s.gsd
+            if (
+                cx + 4 * rad < c0
+                or cx - 4 * rad > c0 + w
+                or cy + 4 * rad < r0
+                or cy - 4 * rad > r0 + h
+            ):
+                continue
+            # each cloud its own texture: the tile seen through an offset per cloud
+            tex = self._sample_shifted("cloud", window, dx + 37.0 * ci, dy + 53.0 * ci)
+            env = np.exp(-0.5 * ((ys[:, None] - cy) ** 2 + (xs[None, :] - cx) ** 2) / rad**2)
+            layer = c.optical_depth * np.maximum(env * np.exp(0.8 * tex - 0.32) - 0.25, 0.0)
+            tau += layer.astype(np.float32)
+            tau_ash += (layer * c.ash_fraction).astype(np.float32)
+        return tau, tau_ash
+
+    # ------------------------------------------------------------------ public
+    def truth(self, t: float, window: Window | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(mask bool, tau float32)``: the true plume at time ``t`` on ``window``.
+
+        ``tau`` is the optical depth of attached plumes and volcanic clouds; the
+        mask is ``tau > label_optical_depth``.
+        """
+        t = _check_time(t)
+        window = check_window(window, self.spec.size)
+        tau, _ = self._plume_tau(t, window)
+        vtau, _ = self._cloud_tau(t, window, volcanic=True)
+        tau = tau + vtau
+        return tau > self.spec.label_optical_depth, tau
+
+    def render(self, t: float, window: Window | None = None, *, noise: bool = True) -> WorldFrame:
+        """Render the world at time ``t`` (s after ``epoch``) on ``window``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds after the look-ahead acquisition (``spec.epoch``).
+        window : (col0, row0, width, height) or None
+            Integer pixel window of the world grid; ``None``: ``(0, 0, size, size)``.
+            Overlapping windows agree pixel for pixel.
+        noise : bool
+            Add sensor noise (deterministic in ``t`` and the pixel position).
+
+        Returns
+        -------
+        WorldFrame
+            ``image`` (4, H, W) float32 reflectance, ``mask`` bool truth, ``tau`` plume optical depth.
+
+        Examples
+        --------
+        >>> w = World(sample_world(0, 1, size=32))
+        >>> f = w.render(0.0, window=(-8, 4, 12, 10))
+        >>> f.image.shape, f.mask.shape
+        ((4, 10, 12), (10, 12))
+        """
+        t = _check_time(t)
+        window = check_window(window, self.spec.size)
+        s = self.spec
+        image = self._ground(window).copy()
+        tau, tau_ash = self._plume_tau(t, window)
+        vtau, vash = self._cloud_tau(t, window, volcanic=True)
+        mtau, _ = self._cloud_tau(t, window, volcanic=False)
+        # cloud shadows: the same clouds seen offset away from the sun
+        az = math.radians(s.sun_azimuth_deg)
+        off = 0.05 * s.size / math.tan(math.radians(s.sun_elevation_deg))
+        shift = (-off * math.sin(az), off * math.cos(az))
+        shadow, _ = self._cloud_tau(t, window, volcanic=False, shift=shift)
+        image *= np.exp(-0.6 * shadow)[None]
+        ptau = tau + vtau
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ash = np.where(ptau > 1e-6, (tau_ash + vash) / np.maximum(ptau, 1e-6), 0.0)
+        colour = np.asarray(ASH_PLUME, np.float32)[:, None, None] * ash[None] + np.asarray(
+            STEAM, np.float32
+        )[:, None, None] * (1.0 - ash[None])
+        trans = np.exp(-ptau)[None]
+        image = image * trans + colour * (1.0 - trans)
+        trans = np.exp(-mtau)[None]
+        image = image * trans + np.asarray(CLOUD, np.float32)[:, None, None] * (1.0 - trans)
+        if noise and s.noise_sigma > 0:
+            frame_rng = np.random.default_rng([s.seed, 0xD4, round(t * 1000.0) & 0xFFFFFFFF])
+            ox, oy = (int(v) for v in frame_rng.integers(0, s.tile, 2))
+            for b in range(4):
+                c0, r0, w, h = window
+                image[b] += s.noise_sigma * self._sample(
+                    "white", (c0 + ox + 97 * b, r0 + oy + 31 * b, w, h)
+                )
+        image = np.clip(image, 0.0, 1.0).astype(np.float32)
+        return WorldFrame(image, ptau > s.label_optical_depth, ptau.astype(np.float32), t, window)
+
+    def transform(self, window: Window | None = None) -> Affine:
+        """Pixel -> CRS transform of ``window`` (north up, ``gsd`` m pixels)."""
+        c0, r0, _, _ = check_window(window, self.spec.size)
+        s = self.spec
+        return Affine.translation(
+            s.origin_easting + c0 * s.gsd, s.origin_northing - r0 * s.gsd
+        ) @ Affine.scale(s.gsd, -s.gsd)
+
+    def scene(self, t: float, window: Window | None = None, *, id: str | None = None) -> Scene:
+        """The rendering at ``t`` as a labelled, georeferenced :class:`~dyntarget.scene.Scene`.
+
+        Examples
+        --------
+        >>> World(sample_world(0, 2, size=32)).scene(60.0).id
+        'dyn-0000-0002-t0060.000'
+        """
+        f = self.render(t, window)
+        return Scene(
+            f.image,
+            label=f.mask,
+            gsd=self.spec.gsd,
+            crs=self.spec.crs,
+            transform=self.transform(window),
+            id=id or f"{self.spec.id}-t{f.t:08.3f}".replace("-t-", "-tm"),
+        )
+
+
+@dataclass
+class TruthCache:
+    """A truth provider ``t -> Scene`` for a world, caching recent times (quantised).
+
+    ``step_s`` rounds the requested times to a grid (0: exact times), so that
+    pointings a few milliseconds apart share one rendering.
+
+    Examples
+    --------
+    >>> truth = TruthCache(World(sample_world(0, 0, size=32)), step_s=1.0)
+    >>> truth(0.4) is truth(0.0)
+    True
+    """
+
+    world: World
+    step_s: float = 1.0
+    window: Window | None = None
+    capacity: int = 16
+    _cache: OrderedDict = field(default_factory=OrderedDict, repr=False)
+
+    def __call__(self, t: float) -> Scene:
+        t = _check_time(t)
+        if self.step_s > 0:
+            t = round(t / self.step_s) * self.step_s
+        hit = self._cache.get(t)
+        if hit is not None:
+            self._cache.move_to_end(t)
+            return hit
+        scene = self.world.scene(t, self.window)
+        self._cache[t] = scene
+        if len(self._cache) > self.capacity:
+            self._cache.popitem(last=False)
+        return scene
+
+
+def world_sequence(
+    world: World,
+    *,
+    frames: int,
+    interval_s: float,
+    window: Window | None = None,
+    truth_step_s: float = 1.0,
+) -> FrameSequence:
+    """Look-ahead frames at ``t = 0, S, 2S, ...`` with the world as truth provider.
+
+    Parameters
+    ----------
+    world : World
+    frames : int
+        Number of frames (>= 1).
+    interval_s : float
+        Seconds between frames (> 0).
+    window : (col0, row0, width, height) or None
+        Where to render; ``None``: the world's own tile.
+    truth_step_s : float
+        Time quantum of the truth provider's cache (see :class:`TruthCache`).
+
+    Returns
+    -------
+    FrameSequence
+        With ``meta["world"]`` the spec (from which the truth is rebuilt) and ``meta["window"]``.
+
+    Examples
+    --------
+    >>> seq = world_sequence(World(sample_world(0, 0, size=32)), frames=3, interval_s=10.0)
+    >>> seq.times.tolist(), seq.truth_at(95.0).label.shape
+    ([0.0, 10.0, 20.0], (32, 32))
+    """
+    if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 1:
+        raise InvalidParameterError(f"frames: expected an integer >= 1, got {frames!r}")
+    if not (isinstance(interval_s, int | float) and math.isfinite(interval_s) and interval_s > 0):
+        raise InvalidParameterError(f"frame interval: expected seconds > 0, got {interval_s!r}")
+    window = check_window(window, world.spec.size)
+    times = [i * float(interval_s) for i in range(int(frames))]
+    scenes = [world.scene(t, window, id=f"f{i:03d}") for i, t in enumerate(times)]
+    return FrameSequence(
+        scenes,
+        times,
+        epoch=world.spec.epoch,
+        id=world.spec.id,
+        truth=TruthCache(world, step_s=truth_step_s, window=window),
+        meta={"world": world.spec.to_dict(), "window": list(window)},
+    )
+
+
+def truth_provider(meta: dict[str, Any], *, step_s: float = 1.0) -> TruthCache | None:
+    """Rebuild the truth provider of a sequence from its stored ``meta`` (``None`` without a world).
+
+    Examples
+    --------
+    >>> seq = world_sequence(World(sample_world(0, 0, size=32)), frames=1, interval_s=1.0)
+    >>> bool((truth_provider(seq.meta)(40.0).label == seq.truth_at(40.0).label).all())
+    True
+    """
+    spec = meta.get("world") if isinstance(meta, dict) else None
+    if spec is None:
+        return None
+    window = meta.get("window")
+    return TruthCache(
+        World(WorldSpec.from_dict(spec)),
+        step_s=step_s,
+        window=tuple(int(v) for v in window) if window is not None else None,
+    )

@@ -1,0 +1,157 @@
+"""The moving world: physics checks worked out by hand, determinism, windows, static unchanged."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from dyntarget import DynTargetError, InvalidParameterError
+from dyntarget.synth import generate_scene
+from dyntarget.synth.dynamic import (
+    CloudSpec,
+    VentSpec,
+    Wind,
+    World,
+    WorldSpec,
+    sample_world,
+    truth_provider,
+    world_sequence,
+)
+
+GSD = 8.0
+
+
+def _spec(wind: Wind, vents=(), clouds=(), size=128) -> WorldSpec:
+    return WorldSpec(
+        seed=5, size=size, gsd=GSD, wind=wind, vents=tuple(vents), clouds=tuple(clouds)
+    )
+
+
+def _centroid(mask: np.ndarray) -> np.ndarray:
+    rows, cols = np.nonzero(mask)
+    return np.array([cols.mean(), rows.mean()])
+
+
+# the static generator's bytes, recorded before the moving world existed
+STATIC_SHA256 = {
+    (0, 0, 64): "21111fe0697a9727555b52ff08c6005f7eef29c52adf69df7f18858425b9ca56",
+    (7, 3, 96): "089bbb61fdb2e3870f0433e9b1f3a4d5432efec29577e4c86a087404a4aeab85",
+}
+
+
+@pytest.mark.parametrize(("seed", "index", "size"), list(STATIC_SHA256))
+def test_static_scenes_are_byte_identical_to_before(seed, index, size):
+    scene, _ = generate_scene(seed, index, size=size)
+    digest = hashlib.sha256(scene.image.tobytes() + scene.label.tobytes()).hexdigest()
+    assert digest == STATIC_SHA256[(seed, index, size)]
+
+
+def test_wind_convention_from_north_blows_south_from_east_blows_west():
+    # meteorological: the direction the wind comes FROM, clockwise from north; image north up
+    assert Wind(8.0, 0.0).velocity_px(GSD) == pytest.approx((0.0, 1.0))  # down the image
+    assert Wind(8.0, 90.0).velocity_px(GSD) == pytest.approx((-1.0, 0.0))  # to the west
+    assert Wind(8.0, 225.0).velocity_px(GSD) == pytest.approx((np.sqrt(0.5), -np.sqrt(0.5)))
+
+
+def test_detached_cloud_drifts_wind_times_time_within_a_pixel():
+    wind = Wind(10.0, 250.0)  # from WSW
+    world = World(
+        _spec(wind, clouds=[CloudSpec(x=40.0, y=70.0, radius_m=200.0, optical_depth=3.0)], size=160)
+    )
+    t = 60.0
+    m0, _ = world.truth(0.0)
+    m1, _ = world.truth(t)
+    assert m0.sum() > 50
+    # by hand: 10 m/s * 60 s = 600 m = 75 px toward 70 deg (clockwise from north)
+    dx, dy = 75.0 * np.sin(np.radians(70.0)), -75.0 * np.cos(np.radians(70.0))
+    moved = _centroid(m1) - _centroid(m0)
+    assert np.hypot(moved[0] - dx, moved[1] - dy) < 1.0
+    assert m1.sum() == pytest.approx(m0.sum(), rel=0.05)  # drifts as a whole
+
+
+def test_plume_in_calm_air_does_not_move():
+    vent = VentSpec(x=64.0, y=64.0, eruption_age_s=1800.0, source_sigma_m=80.0)
+    world = World(_spec(Wind(0.0, 0.0), vents=[vent]))
+    masks = [world.truth(t)[0] for t in (0.0, 90.0, 180.0)]
+    assert masks[0].sum() > 30
+    for m in masks[1:]:
+        assert np.hypot(*(_centroid(m) - _centroid(masks[0]))) < 1.0
+    assert np.hypot(*(_centroid(masks[0]) - [64.0, 64.0])) < 1.0  # centred on the vent
+
+
+def test_attached_plume_vent_stays_far_end_moves_downwind():
+    # a young plume (60 s of emission at t = 0) in a 10 m/s wind from the west: moves +x
+    vent = VentSpec(
+        x=20.0, y=64.0, eruption_age_s=60.0, gustiness=0.0, meander=0.0, pulsation=0.0,
+        fade_s=900.0,
+    )  # fmt: skip
+    world = World(_spec(Wind(10.0, 270.0), vents=[vent], size=256))
+    ends = []
+    for t in (0.0, 60.0):
+        m, _ = world.truth(t)
+        cols = np.nonzero(m.any(axis=0))[0]
+        ends.append((cols.min(), cols.max()))
+    (up0, far0), (up1, far1) = ends
+    assert abs(int(up1) - int(up0)) <= 1  # the vent end stays within a pixel
+    # the front moves with the wind: 10 m/s * 60 s / 8 m = 75 px (diffusion adds a little)
+    assert 0.8 * 75 <= far1 - far0 <= 1.2 * 75
+
+
+def test_same_seed_same_bytes_and_spec_round_trip():
+    a = sample_world(3, 4, size=64)
+    assert a == sample_world(3, 4, size=64)
+    assert a != sample_world(4, 4, size=64)
+    b = WorldSpec.from_json(a.to_json())
+    assert b == a
+    fa, fb = World(a).render(47.5), World(b).render(47.5)
+    assert fa.image.tobytes() == fb.image.tobytes()
+    assert fa.mask.tobytes() == fb.mask.tobytes()
+    other = World(sample_world(4, 4, size=64)).render(47.5)
+    assert fa.image.tobytes() != other.image.tobytes()
+
+
+def test_windows_agree_pixel_for_pixel_with_the_full_render():
+    world = World(sample_world(0, 3, size=96, wind_mps=9.0))
+    full = world.render(75.0)
+    for c0, r0, w, h in [(10, 20, 30, 17), (0, 0, 96, 5), (60, 50, 36, 46)]:
+        sub = world.render(75.0, window=(c0, r0, w, h))
+        np.testing.assert_array_equal(sub.image, full.image[:, r0 : r0 + h, c0 : c0 + w])
+        np.testing.assert_array_equal(sub.mask, full.mask[r0 : r0 + h, c0 : c0 + w])
+    far = world.render(75.0, window=(-500, 4000, 16, 16))  # anywhere on the plane
+    assert far.image.shape == (4, 16, 16) and np.isfinite(far.image).all()
+
+
+def test_sequence_truth_rebuilt_from_stored_spec_at_any_time():
+    world = World(sample_world(1, 2, size=48, wind_mps=12.0))
+    seq = world_sequence(world, frames=3, interval_s=20.0)
+    assert seq.times.tolist() == [0.0, 20.0, 40.0]
+    np.testing.assert_array_equal(seq.frames[1].label, world.truth(20.0)[0])
+    rebuilt = truth_provider(seq.meta, step_s=0.0)
+    for t in (0.0, 133.0, 300.0):
+        np.testing.assert_array_equal(rebuilt(t).label, world.truth(t)[0])
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: Wind(-1.0, 0.0),
+        lambda: Wind(5.0, float("nan")),
+        lambda: World(sample_world(0, 0, size=32)).render(float("nan")),
+        lambda: World(sample_world(0, 0, size=32)).render(0.0, window=(0, 0, 0, 5)),
+        lambda: World(sample_world(0, 0, size=32)).render(0.0, window=(0.5, 0, 4, 5)),
+        lambda: VentSpec(x=0.0, y=0.0, fade_s=0.0),
+        lambda: WorldSpec.from_json('{"seed": 1}'),
+        lambda: WorldSpec.from_json("not json"),
+        lambda: sample_world(0, 0, size=8),
+    ],
+)
+def test_bad_input_raises_a_named_error(call):
+    with pytest.raises(DynTargetError):
+        call()
+
+
+def test_window_error_names_the_argument():
+    with pytest.raises(InvalidParameterError, match="window"):
+        World(sample_world(0, 0, size=32)).render(0.0, window=(1, 2, 3))
