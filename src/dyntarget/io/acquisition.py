@@ -1,0 +1,181 @@
+"""When an image was acquired: parse ISO-8601, read it from image tags or a sidecar.
+
+Inside the library time is seconds from the look-ahead acquisition; at the
+edges (files, GeoJSON, HTML) it becomes an ISO-8601 UTC instant, e.g.
+``2024-05-01T10:00:03.250Z``. The acquisition instant comes from, in order:
+
+1. the user (``--acquired 2024-05-01T10:00:00Z``);
+2. a sidecar ``<image stem>.meta.json`` beside the image holding
+   ``{"acquired": "2024-05-01T10:00:00Z"}``;
+3. the image's tags: ``ACQUISITIONDATETIME`` (GDAL's ``IMAGERY`` metadata
+   domain, e.g. Sentinel-2 and DIMAP products) or ``TIFFTAG_DATETIME``
+   (``YYYY:MM:DD HH:MM:SS``; TIFF gives no zone, taken as UTC as satellite
+   products write it).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+from dyntarget.errors import DataFileError, InvalidParameterError
+
+SIDECAR_SUFFIX = ".meta.json"
+"""Suffix of the sidecar file that may hold ``{"acquired": ISO-8601}`` beside an image."""
+
+_TIFF_DATETIME = re.compile(r"^(\d{4}):(\d{2}):(\d{2})[ T](\d{2}):(\d{2}):(\d{2})$")
+
+
+def parse_acquired(text: str | datetime, *, name: str = "acquired") -> datetime:
+    """An ISO-8601 instant as an aware UTC :class:`~datetime.datetime`.
+
+    A time without a zone is taken as UTC; one with an offset is converted.
+
+    Parameters
+    ----------
+    text : str or datetime
+        ``2024-05-01T10:00:00Z``, ``2024-05-01T12:00:00+02:00``, ``2024-05-01 10:00``…
+    name : str
+        The argument's name, for the error message.
+
+    Returns
+    -------
+    datetime
+        Aware, in UTC.
+
+    Raises
+    ------
+    InvalidParameterError
+        When ``text`` is not an ISO-8601 date-time.
+
+    Examples
+    --------
+    >>> parse_acquired("2024-05-01T12:00:00+02:00").isoformat()
+    '2024-05-01T10:00:00+00:00'
+    >>> parse_acquired("2024-05-01T10:00:00Z") == parse_acquired("2024-05-01 10:00")
+    True
+    """
+    if isinstance(text, datetime):
+        when = text
+    else:
+        if not isinstance(text, str):
+            raise InvalidParameterError(
+                f"{name}: expected an ISO-8601 date-time string, got {type(text).__name__}"
+            )
+        try:
+            when = datetime.fromisoformat(text.strip())
+        except ValueError:
+            raise InvalidParameterError(
+                f"{name}: expected an ISO-8601 date-time such as 2024-05-01T10:00:00Z, got {text!r}"
+            ) from None
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=UTC)
+    return when.astimezone(UTC)
+
+
+def iso_utc(acquired: datetime, seconds: float) -> str:
+    """The instant ``seconds`` after ``acquired`` as ISO-8601 UTC with milliseconds and ``Z``.
+
+    Parameters
+    ----------
+    acquired : datetime
+        The acquisition instant (aware; naive is taken as UTC).
+    seconds : float
+        Seconds after it.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> iso_utc(parse_acquired("2024-05-01T10:00:00Z"), 63.25)
+    '2024-05-01T10:01:03.250Z'
+    """
+    when = parse_acquired(acquired) + timedelta(seconds=float(seconds))
+    return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def read_acquired(path: str | os.PathLike[str]) -> datetime | None:
+    """The acquisition instant of an image file, from its sidecar or tags; ``None`` if unknown.
+
+    Parameters
+    ----------
+    path : path-like
+        The image (GeoTIFF or anything GDAL reads). ``<stem>.meta.json`` beside it
+        is read first when it exists.
+
+    Returns
+    -------
+    datetime or None
+        Aware, in UTC.
+
+    Raises
+    ------
+    DataFileError
+        When the sidecar exists but is not JSON with a valid ``acquired`` string,
+        or a tag holds a time that cannot be read.
+
+    Examples
+    --------
+    >>> import json, tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "s.meta.json").write_text(json.dumps({"acquired": "2024-05-01T10:00:00Z"}))
+    >>> read_acquired(d / "s.tif").isoformat()
+    '2024-05-01T10:00:00+00:00'
+    """
+    path = Path(path)
+    sidecar = path.with_name(path.stem + SIDECAR_SUFFIX)
+    if sidecar.is_file():
+        try:
+            doc = json.loads(sidecar.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise DataFileError(
+                f"{sidecar}: expected JSON with an 'acquired' time ({exc})"
+            ) from None
+        if not isinstance(doc, dict) or "acquired" not in doc:
+            raise DataFileError(
+                f"{sidecar}: expected a JSON object with an 'acquired' ISO-8601 time, got {doc!r:.80}"
+            )
+        try:
+            return parse_acquired(doc["acquired"], name=f"{sidecar}: acquired")
+        except InvalidParameterError as exc:
+            raise DataFileError(str(exc)) from None
+    if not path.is_file():
+        return None
+    return _tag_time(path)
+
+
+def _tag_time(path: Path) -> datetime | None:
+    import warnings
+
+    import rasterio
+    from rasterio.errors import NotGeoreferencedWarning, RasterioError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            with rasterio.open(path) as src:
+                imagery = src.tags(ns="IMAGERY")
+                default = src.tags()
+    except RasterioError:
+        return None  # not a raster GDAL reads (e.g. .npz): no tags to look at
+    value = imagery.get("ACQUISITIONDATETIME") or default.get("ACQUISITIONDATETIME")
+    if value:
+        try:
+            return parse_acquired(value.strip(), name=f"{path}: ACQUISITIONDATETIME")
+        except InvalidParameterError as exc:
+            raise DataFileError(str(exc)) from None
+    value = default.get("TIFFTAG_DATETIME")
+    if value:
+        m = _TIFF_DATETIME.match(value.strip())
+        if m is None:
+            raise DataFileError(f"{path}: TIFFTAG_DATETIME {value!r} is not 'YYYY:MM:DD HH:MM:SS'")
+        try:
+            return datetime(*(int(g) for g in m.groups()), tzinfo=UTC)
+        except ValueError:
+            raise DataFileError(f"{path}: TIFFTAG_DATETIME {value!r} is not a valid date") from None
+    return None

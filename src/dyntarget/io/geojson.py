@@ -1,0 +1,588 @@
+"""GeoJSON and CSV writers for pointings and plume polygons (RFC 7946 by default).
+
+Three coordinate forms, chosen by the scene's georeferencing and ``crs_mode``:
+
+``rfc7946`` (default, georeferenced scene)
+    WGS 84 longitude, latitude in degrees (RFC 7946), reprojected from the
+    image's CRS with PROJ (``rasterio.warp.transform``); no ``crs`` member;
+    polygons follow the right-hand rule (exterior counter-clockwise); a
+    ``bbox``. Coordinates are rounded to :data:`LONLAT_DECIMALS` = 7 decimals:
+    1e-7 degree is 1.1 cm of latitude (less of longitude), so rounding moves a
+    point by at most about 6 mm per axis, 1/80 of the 0.5 m NFOV pixel the paper
+    simulates and far below a tenth of any WFOV pixel. (RFC 7946's suggested 6
+    decimals, 11 cm, would be a fifth of that NFOV pixel.)
+``native`` (``--crs native``, georeferenced scene)
+    The image's own CRS (e.g. UTM metres), with the legacy (2008 draft)
+    ``crs`` member that GDAL, and so QGIS, reads; rounded to :data:`METRE_DECIMALS`
+    (millimetres). Web maps and RFC 7946 readers will misplace it.
+pixels (no CRS known)
+    WFOV pixel coordinates ``(column, row)``, pixel centres at integers, rounded
+    to :data:`PIXEL_DECIMALS`; the collection's ``properties.coordinates`` says so.
+
+Pixel ``(x, y)`` maps to the CRS as the pixel centre ``transform * (x + 0.5, y + 0.5)``.
+Every feature also carries its pixel position (``x_px``, ``y_px``), so the WFOV
+grid position survives any reprojection. Fields and units: ``docs/outputs.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+from affine import Affine
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.io.acquisition import iso_utc, parse_acquired
+from dyntarget.io.atomic import write_text
+
+CRS_MODES = ("rfc7946", "native")
+"""``crs_mode`` values: WGS 84 lon/lat (RFC 7946) or the image's own CRS (legacy ``crs`` member)."""
+LONLAT_DECIMALS = 7
+"""Decimals of longitude/latitude: 1e-7 degree <= 1.1 cm (see the module docstring)."""
+METRE_DECIMALS = 3
+"""Decimals of native (projected) coordinates: millimetres."""
+PIXEL_DECIMALS = 3
+"""Decimals of pixel coordinates: a thousandth of a WFOV pixel."""
+TIME_DECIMALS = 3
+"""Decimals of ``time_s``: milliseconds."""
+WGS84 = "EPSG:4326"
+
+
+class Pointings(Protocol):
+    """What the writers read from a trajectory (``dyntarget`` ``Trajectory`` has it)."""
+
+    points: np.ndarray
+    part: np.ndarray
+    planner: str
+    params: dict[str, Any]
+    times: np.ndarray | None
+
+
+def _check_mode(crs_mode: str) -> str:
+    if crs_mode not in CRS_MODES:
+        raise InvalidParameterError(
+            f"crs_mode: expected one of {', '.join(CRS_MODES)}, got {crs_mode!r}"
+        )
+    return crs_mode
+
+
+def coordinate_form(transform: Affine | None, crs: object | None, crs_mode: str) -> str:
+    """Which coordinates the writers will use: ``"lonlat"``, ``"native"`` or ``"pixels"``.
+
+    Parameters
+    ----------
+    transform : affine.Affine or None
+        Pixel -> CRS transform of the WFOV grid.
+    crs : str, rasterio CRS or None
+        The grid's CRS.
+    crs_mode : {"rfc7946", "native"}
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> coordinate_form(None, None, "rfc7946")
+    'pixels'
+    >>> coordinate_form(Affine.translation(0, 0), "EPSG:32632", "native")
+    'native'
+    """
+    _check_mode(crs_mode)
+    if transform is None or crs is None:
+        return "pixels"
+    return "lonlat" if crs_mode == "rfc7946" else "native"
+
+
+def pixels_to_crs(points: np.ndarray, transform: Affine) -> np.ndarray:
+    """Pixel ``(x, y)`` (pixel centres at integers) to the transform's CRS.
+
+    Parameters
+    ----------
+    points : array (N, 2)
+        Pixel ``(column, row)``.
+    transform : affine.Affine
+        Pixel-corner transform (GDAL convention).
+
+    Returns
+    -------
+    ndarray (N, 2)
+
+    Examples
+    --------
+    >>> pixels_to_crs(np.array([[0.0, 0.0]]), Affine(10, 0, 500000, 0, -10, 4000000)).tolist()
+    [[500005.0, 3999995.0]]
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    a, b, c, d, e, f = tuple(transform)[:6]
+    x, y = pts[:, 0] + 0.5, pts[:, 1] + 0.5
+    return np.column_stack([a * x + b * y + c, d * x + e * y + f])
+
+
+def crs_to_lonlat(xy: np.ndarray, crs: object) -> np.ndarray:
+    """Coordinates in ``crs`` to WGS 84 ``(longitude, latitude)`` in degrees (PROJ).
+
+    Parameters
+    ----------
+    xy : array (N, 2)
+    crs : str or rasterio CRS
+
+    Returns
+    -------
+    ndarray (N, 2)
+        Longitude, latitude (always in that order, whatever the CRS's axis order).
+
+    Examples
+    --------
+    >>> crs_to_lonlat(np.array([[500000.0, 0.0]]), "EPSG:32632").round(9).tolist()
+    [[9.0, 0.0]]
+    """
+    from rasterio.crs import CRS
+    from rasterio.warp import transform as warp
+
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    if len(xy) == 0:
+        return xy.copy()
+    lon, lat = warp(CRS.from_user_input(crs), CRS.from_user_input(WGS84), xy[:, 0], xy[:, 1])
+    out = np.column_stack([lon, lat])
+    if not np.isfinite(out).all():
+        raise InvalidParameterError(
+            f"crs: some coordinates do not reproject from {crs} to WGS 84 (outside the CRS's area)"
+        )
+    return out
+
+
+def _project(points_px: np.ndarray, transform, crs, form: str) -> np.ndarray:
+    pts = np.asarray(points_px, np.float64).reshape(-1, 2)
+    if form == "pixels":
+        return pts.round(PIXEL_DECIMALS)
+    world = pixels_to_crs(pts, transform)
+    if form == "native":
+        return world.round(METRE_DECIMALS)
+    return crs_to_lonlat(world, crs).round(LONLAT_DECIMALS)
+
+
+def _crs_name(crs: object) -> str:
+    """The legacy ``crs`` member's name: an OGC URN when the CRS has an EPSG code, else WKT."""
+    from rasterio.crs import CRS
+
+    c = CRS.from_user_input(crs)
+    epsg = c.to_epsg()
+    return f"urn:ogc:def:crs:EPSG::{epsg}" if epsg else c.to_wkt()
+
+
+def _collection_properties(transform, crs, form: str, acquired) -> dict[str, Any]:
+    from rasterio.crs import CRS
+
+    props: dict[str, Any] = {}
+    if form == "lonlat":
+        props["coordinates"] = "WGS 84 longitude, latitude in degrees (RFC 7946)"
+    elif form == "native":
+        props["coordinates"] = f"{CRS.from_user_input(crs).to_string()} (the image's CRS)"
+    else:
+        props["coordinates"] = (
+            "WFOV pixels (column, row), pixel centres at integers; no CRS known for the image"
+        )
+    if form != "pixels":
+        props["source_crs"] = CRS.from_user_input(crs).to_string()
+        props["pixel_transform"] = [float(v) for v in tuple(transform)[:6]]
+    if acquired is not None:
+        props["acquired"] = iso_utc(acquired, 0.0)
+    return props
+
+
+def _finish(doc: dict[str, Any], coords: np.ndarray, form: str, crs) -> dict[str, Any]:
+    if form == "native":
+        doc["crs"] = {"type": "name", "properties": {"name": _crs_name(crs)}}
+    if form == "lonlat" and len(coords):
+        lo, hi = coords.min(axis=0), coords.max(axis=0)
+        doc["bbox"] = [float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])]
+    return doc
+
+
+def _point_extras(point_properties: Mapping[str, Sequence[Any]] | None, n: int) -> dict:
+    extras = dict(point_properties or {})
+    for key, values in extras.items():
+        if len(values) != n:
+            raise InvalidParameterError(
+                f"point_properties[{key!r}]: expected {n} values (one per pointing), got {len(values)}"
+            )
+    return extras
+
+
+def _json_value(v: Any) -> Any:
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float):
+        return round(v, 6) if np.isfinite(v) else None
+    return v
+
+
+def trajectory_geojson(
+    traj: Pointings,
+    *,
+    transform: Affine | None = None,
+    crs: object | None = None,
+    crs_mode: str = "rfc7946",
+    acquired: datetime | str | None = None,
+    point_properties: Mapping[str, Sequence[Any]] | None = None,
+    properties: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """A trajectory as a GeoJSON FeatureCollection: the path, then one Point per pointing.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The ordered pointings (``points`` in WFOV pixels, ``part``, optional ``times``).
+    transform, crs : affine.Affine, CRS-like or None
+        The WFOV grid's georeferencing; without both, coordinates stay in pixels.
+    crs_mode : {"rfc7946", "native"}
+        WGS 84 lon/lat without a ``crs`` member (default) or the image's CRS with one.
+    acquired : datetime, ISO-8601 str or None
+        Acquisition instant; with ``traj.times`` each pointing gets an ISO-8601 ``time``.
+    point_properties : mapping of name -> sequence, optional
+        Extra per-pointing values (e.g. ``{"utility": [...]}``), one per pointing.
+    properties : mapping, optional
+        Extra collection properties (e.g. ``{"scene": "etna"}``).
+
+    Returns
+    -------
+    dict
+        ``{"type": "FeatureCollection", "features": [...], "properties": {...}}``.
+        The path is a ``LineString`` feature (``kind="path"``, only with two or
+        more pointings); each pointing is a ``Point`` with ``kind="pointing"``,
+        ``order``, ``part``, ``x_px``, ``y_px`` and, when timed, ``time_s`` (and ``time``).
+
+    Examples
+    --------
+    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> t = Trajectory(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0, 0]), "demo",
+    ...                times=np.array([0.0, 1.5]))
+    >>> doc = trajectory_geojson(t, transform=Affine(10, 0, 500000, 0, -10, 0),
+    ...                          crs="EPSG:32632", acquired="2024-05-01T10:00:00Z")
+    >>> doc["features"][2]["geometry"]["coordinates"]
+    [9.0001348, -4.52e-05]
+    >>> doc["features"][2]["properties"]["time"], "crs" in doc
+    ('2024-05-01T10:00:01.500Z', False)
+    """
+    form = coordinate_form(transform, crs, crs_mode)
+    when = None if acquired is None else parse_acquired(acquired)
+    n = len(traj.points)
+    coords = _project(traj.points, transform, crs, form)
+    extras = _point_extras(point_properties, n)
+    props = _collection_properties(transform, crs, form, when)
+    props |= {"planner": traj.planner, "params": traj.params, "pointings": n}
+    props |= dict(properties or {})
+    times = traj.times
+    feats: list[dict[str, Any]] = []
+    if n >= 2:
+        path_props: dict[str, Any] = {"kind": "path", "planner": traj.planner, "pointings": n}
+        if times is not None:
+            path_props |= {"time_s_start": round(float(times[0]), TIME_DECIMALS)}
+            path_props |= {"time_s_end": round(float(times[-1]), TIME_DECIMALS)}
+        feats.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "LineString", "coordinates": coords.tolist()},
+                "properties": path_props,
+            }
+        )
+    px = np.asarray(traj.points, np.float64).reshape(-1, 2).round(PIXEL_DECIMALS)
+    for i in range(n):
+        p: dict[str, Any] = {
+            "kind": "pointing",
+            "order": i,
+            "part": int(traj.part[i]),
+            "x_px": float(px[i, 0]),
+            "y_px": float(px[i, 1]),
+        }
+        if times is not None:
+            p["time_s"] = round(float(times[i]), TIME_DECIMALS)
+            if when is not None:
+                p["time"] = iso_utc(when, float(times[i]))
+        for key, values in extras.items():
+            p[key] = _json_value(values[i])
+        feats.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": coords[i].tolist()},
+                "properties": p,
+            }
+        )
+    doc = {"type": "FeatureCollection", "features": feats, "properties": props}
+    return _finish(doc, coords, form, crs)
+
+
+def polygons_geojson(
+    polygons: Sequence[Any],
+    *,
+    transform: Affine | None = None,
+    crs: object | None = None,
+    crs_mode: str = "rfc7946",
+    acquired: datetime | str | None = None,
+    properties: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Plume polygons (shapely, in WFOV pixel coordinates) as a GeoJSON FeatureCollection.
+
+    Parameters
+    ----------
+    polygons : sequence of shapely Polygon or MultiPolygon
+        In pixel coordinates ``(column, row)``, pixel centres at integers (as
+        :func:`dyntarget.perceive.denoise.denoise` returns them).
+    transform, crs, crs_mode, acquired, properties
+        As for :func:`trajectory_geojson`.
+
+    Returns
+    -------
+    dict
+        One feature per polygon with ``kind="plume"``, ``index`` (largest first as
+        given), ``area_px`` (WFOV pixels) and, when the CRS is projected in metres,
+        ``area_m2``. Rings follow the right-hand rule in the output coordinates.
+
+    Examples
+    --------
+    >>> from shapely.geometry import box
+    >>> doc = polygons_geojson([box(0, 0, 2, 1)])
+    >>> doc["features"][0]["geometry"]["coordinates"][0]
+    [[2.0, 0.0], [2.0, 1.0], [0.0, 1.0], [0.0, 0.0], [2.0, 0.0]]
+    >>> doc["features"][0]["properties"]["area_px"]
+    2.0
+    """
+    import shapely
+    from rasterio.crs import CRS
+    from shapely.geometry import mapping
+    from shapely.geometry.polygon import orient
+
+    form = coordinate_form(transform, crs, crs_mode)
+    when = None if acquired is None else parse_acquired(acquired)
+    metres = None
+    if form != "pixels":
+        c = CRS.from_user_input(crs)
+        if c.is_projected and c.linear_units in ("metre", "meter"):
+            metres = abs(transform.determinant)
+
+    def project(coords: np.ndarray) -> np.ndarray:
+        return _project(coords, transform, crs, form)
+
+    feats: list[dict[str, Any]] = []
+    everything: list[np.ndarray] = []
+    for i, poly in enumerate(polygons):
+        if not isinstance(poly, shapely.Geometry) or poly.geom_type not in (
+            "Polygon",
+            "MultiPolygon",
+        ):
+            raise InvalidParameterError(
+                f"polygons[{i}]: expected a shapely Polygon or MultiPolygon, got {type(poly).__name__}"
+            )
+        if poly.is_empty:
+            raise InvalidParameterError(f"polygons[{i}]: the polygon is empty")
+        out = shapely.transform(poly, project)
+        parts = list(out.geoms) if out.geom_type == "MultiPolygon" else [out]
+        parts = [orient(p, sign=1.0) for p in parts]
+        out = parts[0] if len(parts) == 1 else shapely.MultiPolygon(parts)
+        everything.append(shapely.get_coordinates(out))
+        p: dict[str, Any] = {"kind": "plume", "index": i, "area_px": round(float(poly.area), 3)}
+        if metres is not None:
+            p["area_m2"] = round(float(poly.area) * metres, 3)
+        feats.append({"type": "Feature", "geometry": _lists(mapping(out)), "properties": p})
+    props = _collection_properties(transform, crs, form, when)
+    props |= {"polygons": len(feats)} | dict(properties or {})
+    doc = {"type": "FeatureCollection", "features": feats, "properties": props}
+    coords = np.concatenate(everything) if everything else np.zeros((0, 2))
+    return _finish(doc, coords, form, crs)
+
+
+def _lists(obj: Any) -> Any:
+    """shapely's ``mapping`` gives tuples; JSON wants lists (and plain floats)."""
+    if isinstance(obj, dict):
+        return {k: _lists(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_lists(v) for v in obj]
+    return float(obj) if isinstance(obj, (float, np.floating)) else obj
+
+
+def trajectory_csv(
+    traj: Pointings,
+    *,
+    transform: Affine | None = None,
+    crs: object | None = None,
+    crs_mode: str = "rfc7946",
+    acquired: datetime | str | None = None,
+    point_properties: Mapping[str, Sequence[Any]] | None = None,
+) -> str:
+    """A trajectory as CSV: one row per pointing, the same fields as the GeoJSON points.
+
+    Columns: ``order,x,y,part`` (pixels), then ``lon,lat`` (RFC 7946 form) or
+    ``X,Y`` (native form) when georeferenced, ``time_s`` when timed, ``time``
+    when the acquisition instant is known too, then any ``point_properties``.
+
+    Parameters
+    ----------
+    traj, transform, crs, crs_mode, acquired, point_properties
+        As for :func:`trajectory_geojson`.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> t = Trajectory(np.array([[1.0, 2.0]]), np.array([0]), "demo", times=np.array([2.0]))
+    >>> print(trajectory_csv(t, acquired="2024-05-01T10:00:00Z"), end="")
+    order,x,y,part,time_s,time
+    0,1.000,2.000,0,2.000,2024-05-01T10:00:02.000Z
+    """
+    form = coordinate_form(transform, crs, crs_mode)
+    when = None if acquired is None else parse_acquired(acquired)
+    n = len(traj.points)
+    extras = _point_extras(point_properties, n)
+    times = traj.times
+    header = ["order", "x", "y", "part"]
+    if form == "lonlat":
+        header += ["lon", "lat"]
+    elif form == "native":
+        header += ["X", "Y"]
+    if times is not None:
+        header.append("time_s")
+        if when is not None:
+            header.append("time")
+    header += list(extras)
+    world = _project(traj.points, transform, crs, form) if form != "pixels" else None
+    fmt = "{:.7f}" if form == "lonlat" else "{:.3f}"
+    lines = [",".join(header)]
+    for i, (x, y) in enumerate(np.asarray(traj.points, np.float64).reshape(-1, 2)):
+        row = [str(i), f"{x:.3f}", f"{y:.3f}", str(int(traj.part[i]))]
+        if world is not None:
+            row += [fmt.format(world[i, 0]), fmt.format(world[i, 1])]
+        if times is not None:
+            row.append(f"{float(times[i]):.3f}")
+            if when is not None:
+                row.append(iso_utc(when, float(times[i])))
+        for values in extras.values():
+            v = _json_value(values[i])
+            row.append("" if v is None else str(v))
+        lines.append(",".join(row))
+    return "\n".join(lines) + "\n"
+
+
+def write_geojson(path: str | os.PathLike[str], doc: Mapping[str, Any]) -> Path:
+    """Write a GeoJSON document atomically (compact, UTF-8, trailing newline).
+
+    Parameters
+    ----------
+    path : path-like
+    doc : mapping
+
+    Returns
+    -------
+    Path
+    """
+    return write_text(path, json.dumps(doc, separators=(",", ":"), allow_nan=False) + "\n")
+
+
+def write_trajectory(
+    path: str | os.PathLike[str],
+    traj: Pointings,
+    *,
+    transform: Affine | None = None,
+    crs: object | None = None,
+    crs_mode: str = "rfc7946",
+    acquired: datetime | str | None = None,
+    point_properties: Mapping[str, Sequence[Any]] | None = None,
+    properties: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write a trajectory as ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        The suffix picks the format.
+    traj, transform, crs, crs_mode, acquired, point_properties, properties
+        As for :func:`trajectory_geojson` (``properties`` is GeoJSON only).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InvalidParameterError
+        For another suffix or a bad ``crs_mode``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 4.0]]), np.array([0, 0]), "demo")
+    >>> out = write_trajectory(pathlib.Path(tempfile.mkdtemp()) / "t.geojson", t)
+    >>> json.loads(out.read_text())["properties"]["coordinates"][:11]
+    'WFOV pixels'
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    kw: dict[str, Any] = dict(
+        transform=transform,
+        crs=crs,
+        crs_mode=crs_mode,
+        acquired=acquired,
+        point_properties=point_properties,
+    )
+    if suffix in (".geojson", ".json"):
+        return write_geojson(path, trajectory_geojson(traj, properties=properties, **kw))
+    if suffix == ".csv":
+        return write_text(path, trajectory_csv(traj, **kw))
+    raise InvalidParameterError(
+        f"{path}: trajectory files must end in .geojson, .json or .csv, got {suffix or 'no suffix'!r}"
+    )
+
+
+def write_polygons(
+    path: str | os.PathLike[str],
+    polygons: Sequence[Any],
+    *,
+    transform: Affine | None = None,
+    crs: object | None = None,
+    crs_mode: str = "rfc7946",
+    acquired: datetime | str | None = None,
+    properties: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write plume polygons as GeoJSON (``.geojson``/``.json``), atomically.
+
+    Parameters
+    ----------
+    path : path-like
+    polygons, transform, crs, crs_mode, acquired, properties
+        As for :func:`polygons_geojson`.
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from shapely.geometry import box
+    >>> out = write_polygons(pathlib.Path(tempfile.mkdtemp()) / "p.geojson", [box(0, 0, 1, 1)])
+    >>> json.loads(out.read_text())["features"][0]["properties"]["kind"]
+    'plume'
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".geojson", ".json"):
+        raise InvalidParameterError(
+            f"{path}: polygon files must end in .geojson or .json, got {path.suffix or 'no suffix'!r}"
+        )
+    doc = polygons_geojson(
+        polygons,
+        transform=transform,
+        crs=crs,
+        crs_mode=crs_mode,
+        acquired=acquired,
+        properties=properties,
+    )
+    return write_geojson(path, doc)
