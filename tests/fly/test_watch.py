@@ -9,7 +9,7 @@ import time
 import pytest
 
 from dyntarget.errors import DataFileError
-from dyntarget.fly.watch import FRAMES, REJECTED, Watcher, WatchConfig, candidates
+from dyntarget.fly.watch import FRAMES, REJECTED, WatchConfig, Watcher, candidates
 from dyntarget.io import read_scene, write_scene
 from dyntarget.perceive import make_classifier
 from dyntarget.pipeline import plan_scene
@@ -137,4 +137,3 @@ def test_stop_request_returns_between_frames(tmp_path, classifier):
 def test_missing_directory_is_refused(tmp_path, classifier):
     with pytest.raises(DataFileError, match="not a directory"):
         Watcher(tmp_path / "nope", tmp_path / "out", classifier, _config())
-

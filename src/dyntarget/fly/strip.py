@@ -79,7 +79,9 @@ def strip_spec(
         raise InvalidParameterError(
             f"length: a strip is longer than wide; got length {length} < width {width}"
         )
-    base = sample_world(seed, 0, size=width, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg)
+    base = sample_world(
+        seed, 0, size=width, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
+    )
     wind = base.wind
     vents, clouds = [], []
     stretch = length / plumes
@@ -124,7 +126,7 @@ class MovingStrip:
             )
         self.spec, self.window = spec, tuple(int(v) for v in window)
         self.world = MovingWorld(spec)
-        c0, r0, w, h = self.window
+        _, _, w, h = self.window
         self.shape = (h, w)
         self.gsd = float(spec.gsd)
         self.crs = spec.crs
