@@ -10,7 +10,7 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   between frames, so frames are taken every ``cadence_s = step * gsd / v``
   seconds (``v``: ground speed of the nadir point); frame ``k`` is acquired at
   ``t_k = k * cadence_s``, its centre ``look_ahead_m`` ahead of nadir — the
-  kinematics' geometry (:mod:`dyntarget.plan.kinematics`) holds in every frame.
+  kinematics' geometry (:mod:`dyntarget.schedule`) holds in every frame.
 * **Latency.** One process handles the frames in order: frame ``k`` starts at
   ``max(t_k, end of frame k-1)`` (a frame waits while the loop is behind), and
   its plan is ready after the measured compute (classify, denoise, plan,
@@ -22,7 +22,7 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   state (when the sensor is free, what it tracks) carries over from frame to
   frame: a new frame's pointings queue behind those already committed. Of the
   plan in its own order and earliest-deadline-first, the order keeping more
-  pointings is flown (as :func:`~dyntarget.plan.kinematics.make_feasible`).
+  pointings is flown (as :func:`~dyntarget.schedule.make_feasible`).
 * **Never twice.** The pass keeps the strip's covered WFOV pixels: a
   pointing on a covered pixel is dropped before scheduling, and a plume
   (connected component of the frame's denoised mask) at least half of whose
@@ -48,9 +48,9 @@ from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.fly.world import WfovTruth, World, wfov_truth
 from dyntarget.perceive.base import Classifier
 from dyntarget.pipeline import PipelineConfig, plan_scene
-from dyntarget.plan.kinematics import Agility, Geometry, Timer, get_agility, visibility_windows
-from dyntarget.plan.trajectory import Trajectory
 from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
+from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
+from dyntarget.trajectory import Trajectory
 
 STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 """Stages whose wall time each timeline row reports."""
@@ -70,7 +70,7 @@ class PassConfig:
     factor : high-res -> WFOV downsampling factor.
     frame_px : frame height in WFOV pixels (default: the strip's width, square frames).
     overlap : fraction of a frame's rows the next frame sees again, in [0, 1).
-    altitude_m, look_ahead_m : orbit geometry (see :class:`~dyntarget.plan.kinematics.Geometry`).
+    altitude_m, look_ahead_m : orbit geometry (see :class:`~dyntarget.schedule.OrbitGeometry`).
     compute_budget_s : fixed compute time per frame instead of the measured one
         (a deterministic timeline).
     deadline_s : time allowed from acquisition to plan, per frame (fallbacks apply).
@@ -130,7 +130,7 @@ class FramePlan:
     step: int
     cadence_s: float
     tops: tuple[int, ...]
-    geometry: Geometry
+    geometry: OrbitGeometry
 
     @property
     def n_frames(self) -> int:
@@ -174,7 +174,7 @@ def frame_plan(world: World, config: PassConfig) -> FramePlan:
     n = (hw - frame_px) // step + 1
     tops = tuple(hw - frame_px - k * step for k in range(n))
     gsd_w = world.gsd * factor
-    geometry = Geometry(
+    geometry = OrbitGeometry(
         altitude_m=config.altitude_m, look_ahead_m=config.look_ahead_m, wfov_gsd_m=gsd_w
     )
     return FramePlan((hw, ww), frame_px, step, step * gsd_w / geometry.ground_speed, tops, geometry)
@@ -550,7 +550,7 @@ def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> No
 def _schedule(
     points: np.ndarray,
     shape: tuple[int, int],
-    base: Geometry,
+    base: OrbitGeometry,
     agility: Agility,
     t_k: float,
     state: PassState,
@@ -562,7 +562,7 @@ def _schedule(
     times (seconds after the frame's acquisition) and the timer after them.
     """
     v = base.ground_speed
-    geometry = Geometry(base.altitude_m, base.look_ahead_m, base.wfov_gsd_m, ready - t_k)
+    geometry = OrbitGeometry(base.altitude_m, base.look_ahead_m, base.wfov_gsd_m, ready - t_k)
     along, cross = geometry.ground(points, shape)
     t_in, t_out = visibility_windows(geometry, agility, along, cross)
     best: tuple[np.ndarray, np.ndarray, Timer] | None = None

@@ -38,7 +38,7 @@ from dyntarget.errors import DataFileError, DynTargetError, InvalidParameterErro
 from dyntarget.io.atomic import write_text
 from dyntarget.perceive.base import Classifier
 from dyntarget.pipeline import PipelineConfig, plan_scene
-from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible
+from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
 
 FRAMES = "frames.csv"
 REJECTED = "rejected.csv"
@@ -226,10 +226,10 @@ class Watcher:
         )
         traj = result.trajectory
         if cfg.agility is not None:
-            geometry = Geometry(
+            geometry = OrbitGeometry(
                 altitude_m=cfg.altitude_m,
                 look_ahead_m=cfg.look_ahead_m,
-                wfov_gsd_m=scene.gsd or Geometry().wfov_gsd_m,
+                wfov_gsd_m=scene.gsd or OrbitGeometry().wfov_gsd_m,
                 start_s=result.runtime,
             )
             traj = make_feasible(traj, scene.shape, geometry, cfg.agility).trajectory
