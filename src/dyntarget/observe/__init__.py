@@ -1,5 +1,11 @@
 """Observation: the NFOV simulator and utility metrics."""
 
-from dyntarget.observe.nfov import ObservationMetrics, UtilityMaps, observe, observed_pixels
+from dyntarget.observe.nfov import (
+    ObservationMetrics,
+    UtilityMaps,
+    observe,
+    observe_at,
+    observed_pixels,
+)
 
-__all__ = ["ObservationMetrics", "UtilityMaps", "observe", "observed_pixels"]
+__all__ = ["ObservationMetrics", "UtilityMaps", "observe", "observe_at", "observed_pixels"]

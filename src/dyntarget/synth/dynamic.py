@@ -41,6 +41,7 @@ from __future__ import annotations
 import json
 import math
 from collections import OrderedDict
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -318,8 +319,14 @@ def sample_world(
         y=float(cy + u(-0.1, 0.1) * size),
         emission_optical_depth=float(u(2.0, 5.0)),
         source_sigma_m=float(u(0.012, 0.025) * extent_m),
-        # plume front somewhere past mid-scene at t = 0; capped for calm air
-        eruption_age_s=float(min(u(0.4, 1.2) * extent_m / max(speed, 0.5), 1800.0)),
+        # mostly a mature plume (front beyond the scene); one in five young, its
+        # front still inside the scene; capped for calm air
+        eruption_age_s=float(
+            min(
+                (u(0.3, 0.9) if u() < 0.2 else u(1.0, 2.0)) * extent_m / max(speed, 0.5),
+                2400.0,
+            )
+        ),
         fade_s=float(u(300.0, 900.0)),
         diffusivity_m2s=float(u(5.0, 40.0)),
         turbulence=float(u(0.05, 0.15)),
@@ -327,7 +334,7 @@ def sample_world(
         meander=float(u(0.0, 0.08)),
         ash_fraction=float(u(0.0, 1.0)),
         ash_fade_s=float(u(120.0, 600.0)),
-        pulsation=float(u(0.2, 0.9)),
+        pulsation=float(u(0.1, 0.5)),
         pulse_period_s=float(u(60.0, 300.0)),
     )
     clouds: list[CloudSpec] = []
@@ -896,3 +903,30 @@ def truth_provider(meta: dict[str, Any], *, step_s: float = 1.0) -> TruthCache |
         step_s=step_s,
         window=tuple(int(v) for v in window) if window is not None else None,
     )
+
+
+def generate_sequences(
+    n: int,
+    *,
+    size: int = 512,
+    seed: int = 0,
+    gsd: float = 8.0,
+    frames: int = 2,
+    interval_s: float = 10.0,
+    wind_mps: float | None = None,
+    wind_from_deg: float | None = None,
+) -> Iterator[FrameSequence]:
+    """Yield sequences ``0 .. n-1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
+
+    Examples
+    --------
+    >>> [s.id for s in generate_sequences(2, size=32, frames=1)]
+    ['dyn-0000-0000', 'dyn-0000-0001']
+    """
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise InvalidParameterError(f"scenes: expected an integer >= 1, got {n!r}")
+    for i in range(n):
+        spec = sample_world(
+            seed, i, size=size, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
+        )
+        yield world_sequence(World(spec), frames=frames, interval_s=interval_s)
