@@ -6,10 +6,10 @@ import re
 
 import numpy as np
 import pytest
+from dyntarget.plan.trajectory import Trajectory
 from shapely.geometry import box
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.plan.trajectory import Trajectory
 
 pytest.importorskip("plotly", reason="the view needs plotly (extra 'view', in 'test')")
 
@@ -133,8 +133,9 @@ needs_chromium = pytest.mark.skipif(
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory):
     """A synthetic georeferenced scene planned on its label, timed under the 'fast' agility."""
-    from dyntarget.pipeline import plan_scene
     from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible
+
+    from dyntarget.pipeline import plan_scene
     from dyntarget.synth import generate_scene
 
     scene = generate_scene(3, 0, size=96)[0]

@@ -92,7 +92,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def _fly(args: argparse.Namespace) -> int:
     from dyntarget.fly import fly_pass
-    from dyntarget.fly.report import write_pass, write_progress
+    from dyntarget.fly.report import ViewCollector, write_pass, write_progress
     from dyntarget.fly.strip import load_world
 
     if "," in args.planner or "," in args.agility:
@@ -106,17 +106,21 @@ def _fly(args: argparse.Namespace) -> int:
 
         fallback = load_classifier(args.fallback_model)
     out = Path(args.out)
+    views = None if args.no_html else ViewCollector()
     with stop_on_signals() as stop:
         result = fly_pass(
             world,
             classifier,
             config,
             fallback=fallback,
-            on_frame=lambda r: write_progress(r, world, out),
+            on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
             should_stop=stop.is_set,
             progress=not args.quiet,
+            frame_sink=views,
         )
-    written = write_pass(result, world, out, picture=not args.no_picture)
+    written = write_pass(
+        result, world, out, picture=not args.no_picture, views=views, crs_mode=args.crs
+    )
     t = result.totals()
     log(
         f"{t['frames']} frames, {t['pointings_flown']} pointings flown, "
@@ -254,6 +258,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     p.add_argument("--no-picture", action="store_true", help="skip pass.png")
+    p.add_argument("--no-html", action="store_true", help="skip pass.html (interactive view)")
+    p.add_argument(
+        "--crs",
+        choices=["rfc7946", "native"],
+        default="rfc7946",
+        help="pointings.geojson in WGS 84 lon/lat (RFC 7946, default) or the strip's own CRS "
+        "(legacy 'crs' member, for GIS)",
+    )
     p.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     live = p.add_argument_group("live mode (--watch)")

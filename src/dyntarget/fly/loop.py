@@ -305,6 +305,22 @@ class PassResult:
         }
 
 
+@dataclass(frozen=True, eq=False)
+class FrameView:
+    """What one frame saw and sent: for views of the pass (not kept by the loop itself).
+
+    ``image`` is the frame's WFOV image, ``plan`` the pipeline's result on it,
+    ``flown`` the slice of :attr:`PassResult.flown` its plan added.
+    """
+
+    frame: int
+    top: int
+    image: np.ndarray
+    plan: Any
+    first: int
+    end: int
+
+
 class _TruthCache:
     """Truth on the WFOV footprints, rebuilt only when the world's truth object changes."""
 
@@ -330,6 +346,7 @@ def fly_pass(
     on_frame: Callable[[PassResult], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     progress: bool = False,
+    frame_sink: Callable[[FrameView], None] | None = None,
 ) -> PassResult:
     """Fly a pass over ``world`` (see the module docstring for the model).
 
@@ -343,6 +360,7 @@ def fly_pass(
     on_frame : called with the pass so far after every frame (e.g. to write outputs).
     should_stop : polled after every frame; true ends the pass early (``stopped``).
     progress : show a progress bar (tqdm) over the frames.
+    frame_sink : called with every frame's :class:`FrameView` (e.g. to draw the pass).
 
     Returns
     -------
@@ -376,9 +394,13 @@ def fly_pass(
     bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
     try:
         for k in range(frames.n_frames):
-            state.records.append(
-                _fly_frame(k, world, classifier, fallback, config, frames, agility, truth, state)
+            before = len(state.flown.x)
+            record, image, planned = _fly_frame(
+                k, world, classifier, fallback, config, frames, agility, truth, state
             )
+            state.records.append(record)
+            if frame_sink is not None and image is not None:
+                frame_sink(FrameView(k, frames.tops[k], image, planned, before, len(state.flown.x)))
             bar.update()
             if on_frame is not None:
                 on_frame(result())
@@ -416,16 +438,17 @@ def _fly_frame(
     agility: Agility,
     truth: _TruthCache,
     state: PassState,
-) -> FrameRecord:
+) -> tuple[FrameRecord, np.ndarray | None, Any]:
     t_k = frames.acquired_s(k)
     top = frames.tops[k]
     start = max(t_k, state.busy_until)
     wait = start - t_k
     deadline = config.deadline_s
     if deadline is not None and wait >= deadline:  # the loop is too far behind: skip the frame
-        return FrameRecord(
+        record = FrameRecord(
             k, t_k, start, start, wait, {}, False, "dropped: loop behind", 0, 0, 0, 0, 0, 0, 0, True
         )
+        return record, None, None
     image, valid = _frame_image(world, frames, k, config.factor, t_k)
     mask = None
     if classifier is None:  # the oracle: the truth at acquisition time, on the WFOV grid
@@ -514,7 +537,7 @@ def _fly_frame(
         fl.plume_id.append(pid)
         state.covered[r, c] = True
     _cover_plumes(result.mask, rows, cols, flown_local, planned, top, state)
-    return FrameRecord(
+    record = FrameRecord(
         k,
         t_k,
         start,
@@ -531,6 +554,7 @@ def _fly_frame(
         grad_sum,
         new_plumes,
     )
+    return record, image, result
 
 
 def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> None:

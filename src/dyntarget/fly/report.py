@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dyntarget.fly.loop import STAGES, TIMELINE_COLUMNS, PassResult
+from dyntarget.fly.loop import STAGES, TIMELINE_COLUMNS, FrameView, PassResult
 from dyntarget.fly.world import World
 from dyntarget.io.atomic import atomic_path, write_text
 
@@ -25,6 +24,9 @@ POINTINGS = "pointings.geojson"
 SUMMARY = "summary.md"
 PICTURE = "pass.png"
 MEASURED = "stage_times.csv"
+VIEW = "pass.html"
+MAX_VIEW_FRAMES = 64
+"""Passes with more frames get no HTML view (each frame's image is embedded)."""
 
 
 def timeline_csv(result: PassResult) -> str:
@@ -65,36 +67,51 @@ def measured_csv(result: PassResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def pointings_geojson(result: PassResult, world: World) -> dict[str, Any]:
-    """The flown pointings as GeoJSON: the path, and one Point per pointing.
+def pointings_geojson(
+    result: PassResult, world: World, *, crs_mode: str = "rfc7946"
+) -> dict[str, Any]:
+    """The flown pointings as GeoJSON (:func:`dyntarget.io.geojson.trajectory_geojson`).
 
-    Each Point carries ``order``, ``part`` (plume visited, numbered over the
-    pass), ``time_s`` (seconds after the first frame's acquisition) and
-    ``frame`` (the frame whose plan it came from). Coordinates are in the
-    strip's CRS when it has one, else in strip WFOV pixels.
+    RFC 7946 (WGS 84 lon/lat) for a georeferenced strip, unless ``crs_mode`` is
+    ``"native"``; pixel coordinates of the strip's WFOV grid otherwise. Each
+    pointing carries ``order``, ``part`` (plume visited, numbered over the
+    pass), ``time_s`` (seconds after the first frame's acquisition; with the
+    strip's acquisition time, an ISO-8601 ``time``), ``frame`` (whose plan it
+    came from) and ``plume_fraction`` (what it observed of the truth at its time).
     """
+    from dyntarget.io.geojson import trajectory_geojson
+
     traj = result.flown.trajectory(result.config.planner, result.config.as_dict())
     transform = None
     if world.transform is not None:
         from affine import Affine
 
         transform = world.transform @ Affine.scale(result.config.factor)
-    doc = traj.to_geojson(transform=transform, crs=world.crs)
-    points = [f for f in doc["features"] if f["geometry"]["type"] == "Point"]
-    for f, frame, plume in zip(points, result.flown.frame, result.flown.plume, strict=True):
-        f["properties"]["frame"] = frame
-        f["properties"]["plume_fraction"] = round(plume, 4)
-    doc["properties"] |= {"strip": result.world_id, "frames": len(result.records)}
-    return doc
+    return trajectory_geojson(
+        traj,
+        transform=transform,
+        crs=world.crs,
+        crs_mode=crs_mode,
+        acquired=getattr(world, "acquired", None),
+        point_properties={
+            "frame": list(result.flown.frame),
+            "plume_fraction": [round(p, 4) for p in result.flown.plume],
+        },
+        properties={"strip": result.world_id, "frames": len(result.records)},
+    )
 
 
-def write_progress(result: PassResult, world: World, out: str | os.PathLike[str]) -> None:
+def write_progress(
+    result: PassResult, world: World, out: str | os.PathLike[str], *, crs_mode: str = "rfc7946"
+) -> None:
     """Rewrite ``timeline.csv`` and ``pointings.geojson`` (after every frame)."""
+    from dyntarget.io.geojson import write_geojson
+
     out = Path(out)
     write_text(out / TIMELINE, timeline_csv(result))
     if not result.measured:
         write_text(out / MEASURED, measured_csv(result))
-    write_text(out / POINTINGS, json.dumps(pointings_geojson(result, world)) + "\n")
+    write_geojson(out / POINTINGS, pointings_geojson(result, world, crs_mode=crs_mode))
 
 
 def summary_md(result: PassResult, picture: str | None, note: str | None = None) -> str:
@@ -208,19 +225,102 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
     return Path(path)
 
 
+class ViewCollector:
+    """Collects :class:`~dyntarget.fly.loop.FrameView` s during a pass for :func:`write_view`.
+
+    Keeps at most ``max_frames`` frames (each holds its WFOV image); beyond that
+    the view is not written.
+    """
+
+    def __init__(self, max_frames: int = MAX_VIEW_FRAMES) -> None:
+        self.views: list[FrameView] = []
+        self.max_frames = max_frames
+        self.overflow = False
+
+    def __call__(self, view: FrameView) -> None:
+        if len(self.views) >= self.max_frames:
+            self.overflow = True
+            self.views.clear()
+        if not self.overflow:
+            self.views.append(view)
+
+
+def write_view(
+    result: PassResult, views: list[FrameView], path: str | os.PathLike[str]
+) -> Path | None:
+    """The interactive HTML view of the pass: one slider step per frame (plotly, inline).
+
+    Each step shows the frame's WFOV image, the classifier's probability, the
+    denoised polygons and the pointings flown from that frame's plan (frame
+    pixels, coloured by their time in the pass). ``None`` when plotly is not
+    installed (the lean onboard install).
+    """
+    try:
+        from dyntarget.view.html import PassFrame, write_pass_view
+        from dyntarget.view.html import _plotly as need_plotly
+
+        need_plotly()
+    except Exception:  # plotly absent: no view
+        return None
+    from dyntarget.trajectory import Trajectory
+
+    fl = result.flown
+    steps = []
+    for v in views:
+        sl = slice(v.first, v.end)
+        n = v.end - v.first
+        traj = None
+        if n:
+            pts = np.column_stack([fl.x[sl], np.asarray(fl.y[sl]) - v.top])
+            traj = Trajectory(pts, np.asarray(fl.part[sl]), result.config.planner, times=fl.t[sl])
+        steps.append(
+            PassFrame(
+                time_s=round(result.frames.acquired_s(v.frame), 3),
+                image=v.image,
+                probability=v.plan.probability,
+                polygons=v.plan.polygons,
+                trajectory=traj,
+                point_values={"plume_fraction": fl.plume[sl]} if n else None,
+                label=f"frame {v.frame}: {n} flown",
+            )
+        )
+    if not steps:
+        return None
+    title = f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
+    return write_pass_view(path, steps, title=title)
+
+
 def write_pass(
-    result: PassResult, world: World, out: str | os.PathLike[str], *, picture: bool = True
+    result: PassResult,
+    world: World,
+    out: str | os.PathLike[str],
+    *,
+    picture: bool = True,
+    views: ViewCollector | None = None,
+    crs_mode: str = "rfc7946",
 ) -> list[Path]:
-    """Write every output of a (possibly stopped) pass into ``out``; return the paths."""
+    """Write every output of a (possibly stopped) pass into ``out``; return the paths.
+
+    ``views``: frames collected during the pass for ``pass.html`` (none: no view).
+    """
     out = Path(out)
-    write_progress(result, world, out)
+    write_progress(result, world, out, crs_mode=crs_mode)
     written = [out / TIMELINE, out / POINTINGS]
-    note = None
+    notes = []
     pic = draw_pass(result, world, out / PICTURE) if picture else None
     if picture and pic is None:
-        note = "No picture: matplotlib is not installed (the lean onboard install)."
+        notes.append("No picture: matplotlib is not installed (the lean onboard install).")
     if pic is not None:
         written.append(pic)
-    write_text(out / SUMMARY, summary_md(result, PICTURE if pic else None, note))
+    if views is not None:
+        page = None if views.overflow else write_view(result, views.views, out / VIEW)
+        if page is not None:
+            written.append(page)
+            notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")
+        elif views.overflow:
+            notes.append(f"No {VIEW}: more than {views.max_frames} frames.")
+        else:
+            notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
+    write_text(out / SUMMARY, summary_md(result, PICTURE if pic else None, " ".join(notes) or None))
     written.append(out / SUMMARY)
     return written

@@ -133,6 +133,8 @@ class MovingStrip:
         self.transform = self.world.transform(self.window)
         self.valid = None
         self.id = spec.id
+        self.acquired = spec.epoch
+        """ISO-8601 UTC of t = 0 (the first frame's acquisition)."""
         self.truth_step_s = truth_step_s
         self._cache: OrderedDict[float, Truth] = OrderedDict()
         self._capacity = capacity
@@ -224,7 +226,10 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
         spec = WorldSpec.from_dict(doc.get("world"))
         return MovingStrip(spec, tuple(int(v) for v in window), truth_step_s=truth_step_s)
     from dyntarget.io import read_scene
+    from dyntarget.io.acquisition import read_acquired
 
     if not path.exists():
         raise DataFileError(f"--scene {path}: no such file")
-    return StaticWorld(read_scene(path))
+    world = StaticWorld(read_scene(path))
+    world.acquired = read_acquired(path)
+    return world

@@ -118,6 +118,7 @@ class StaticWorld:
                 "give it (GeoTIFF in metres, the DYNTARGET_GSD tag, or --gsd)"
             )
         self.scene = scene
+        self.acquired: object | None = None  # the acquisition instant of t = 0, when known
         self.shape = scene.shape
         self.gsd = float(scene.gsd)
         self.crs, self.transform, self.valid, self.id = (
