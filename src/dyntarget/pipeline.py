@@ -1,4 +1,4 @@
-"""Algorithm 1 of the paper as one call: classify -> denoise -> plan."""
+"""Algorithm 1 of the paper as one call: classify -> denoise -> (predict) -> plan."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
 from dyntarget.plan import PlanConfig, Trajectory, plan
+from dyntarget.predict import Prediction
 from dyntarget.scene import check_image
 
 
@@ -46,6 +47,10 @@ class PlanResult:
     """What ran, in order (``classify: NAME``, ``plan: NAME``), with the reason for any
     fallback a deadline forced."""
     deadline_s: float | None = None
+    prediction: Prediction | None = None
+    """The motion and lead time the plan was drawn for (``None``: the plume as seen)."""
+    predicted_mask: np.ndarray | None = None
+    """The (denoised) mask carried to ``prediction.lead_s``: what the planner planned on."""
 
     @property
     def deadline_met(self) -> bool | None:
@@ -69,6 +74,7 @@ def plan_scene(
     config: PipelineConfig | None = None,
     deadline_s: float | None = None,
     fallback: Classifier | None = None,
+    prediction: Prediction | None = None,
 ) -> PlanResult:
     """Plan an NFOV trajectory for a WFOV image (Algorithm 1).
 
@@ -84,13 +90,19 @@ def plan_scene(
         is always returned; if the full path would overrun, cheaper ones are taken
         (see :func:`choose_path`), and ``PlanResult.path`` says which and why.
     fallback : a cheaper fitted classifier (e.g. ``band-threshold``) for the deadline.
+    prediction : plan on the plume as it will be ``prediction.lead_s`` seconds after
+        the acquisition (:mod:`dyntarget.predict`): the denoised mask is advected
+        there and the planner runs on it; ``PlanResult.predicted_mask`` holds it.
+        With agility, :func:`schedule_on_prediction` moves each pointing on to its
+        own scheduled time.
     """
     config = config or PipelineConfig()
     image = check_image(image)
     if deadline_s is not None:
         return _plan_with_deadline(
-            image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback
-        )
+            image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback,
+            prediction,
+        )  # fmt: skip
     timings: dict[str, float] = {}
     probability = None
     t0 = time.perf_counter()
@@ -122,8 +134,17 @@ def plan_scene(
     else:
         clean, polygons = raw, mask_to_polygons(raw)
     timings["denoise"] = time.perf_counter() - t0
+    predicted = None
+    if prediction is not None:
+        t0 = time.perf_counter()
+        predicted = prediction.mask(clean)
+        if valid is not None:
+            predicted &= np.asarray(valid, bool)
+        polygons = denoising.mask_to_polygons(predicted)
+        timings["predict"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    trajectory = plan(planner, clean, polygons, config.plan)
+    target = clean if predicted is None else predicted
+    trajectory = plan(planner, target, polygons, config.plan)
     if valid is not None and len(trajectory):
         rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, raw.shape[0] - 1)
         cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, raw.shape[1] - 1)
@@ -132,9 +153,13 @@ def plan_scene(
         )  # never point at nodata
     timings["plan"] = time.perf_counter() - t0
     path = [f"classify: {classifier.name}" if mask is None else "classify: given mask"]
+    if prediction is not None:
+        m = prediction.motion
+        path.append(f"predict: {m.regime}, {prediction.lead_s:g} s ahead ({m.source})")
     return PlanResult(
-        probability, raw, clean, polygons, trajectory, timings, [*path, f"plan: {planner}"]
-    )
+        probability, raw, clean, polygons, trajectory, timings, [*path, f"plan: {planner}"],
+        prediction=prediction, predicted_mask=predicted,
+    )  # fmt: skip
 
 
 SAFETY = 2.0
@@ -173,7 +198,7 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
 
 
 def _plan_with_deadline(
-    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback
+    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, prediction
 ) -> PlanResult:
     """Algorithm 1 under a deadline: the full path, a cheaper classifier, or the last resort."""
     if not (np.isfinite(deadline_s) and deadline_s > 0):
@@ -207,8 +232,9 @@ def _plan_with_deadline(
         path = [*notes, "classify: none (no classifier fits the deadline)", f"plan: {LAST_RESORT}"]
     else:
         result = plan_scene(
-            image, chosen, planner, mask=mask, valid=valid, denoise=denoise, config=config
-        )
+            image, chosen, planner, mask=mask, valid=valid, denoise=denoise, config=config,
+            prediction=prediction,
+        )  # fmt: skip
         path = [*notes, *result.path]
     timings = dict(result.timings)
     timings["overhead"] = (time.perf_counter() - start) - sum(result.timings.values())
@@ -221,4 +247,80 @@ def _plan_with_deadline(
         timings,
         path,
         deadline_s,
+        result.prediction,
+        result.predicted_mask,
     )
+
+
+def schedule_on_prediction(
+    trajectory: Trajectory,
+    shape: tuple[int, int],
+    geometry,
+    agility,
+    prediction: Prediction,
+    *,
+    budget_s: float | None = None,
+    max_iterations: int = 8,
+    tolerance_s: float = 0.05,
+):
+    """Schedule a plan drawn on a prediction, each pointing placed for its own time.
+
+    The plan was drawn for the plume at ``prediction.lead_s``; a pointing flown
+    at ``t`` must aim where that part of the plume is at ``t``. Plan and schedule
+    are iterated: schedule (:func:`~dyntarget.schedule.make_feasible`),
+    move every pointing by ``prediction.pointing_shift(t - lead_s)``, schedule
+    again, until no kept pointing's time changes by more than ``tolerance_s`` (or
+    ``max_iterations``). The returned schedule flies the moved pointings; its
+    trajectory's ``params`` record ``prediction_iterations`` and
+    ``prediction_residual_px`` (the largest gap, in pixels, between where a kept
+    pointing aims and where the plume is at its final time).
+
+    Parameters
+    ----------
+    trajectory : the plan from :func:`plan_scene` with ``prediction=``.
+    shape : (H, W) of the WFOV image.
+    geometry, agility : as for :func:`dyntarget.schedule.schedule`.
+    prediction : the one the plan was drawn on.
+    budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
+
+    Returns
+    -------
+    Schedule
+
+    Examples
+    --------
+    >>> from dyntarget.schedule import OrbitGeometry
+    >>> from dyntarget.predict import Motion
+    >>> traj = Trajectory(np.array([[10.0, 10.0], [20.0, 10.0]]), np.zeros(2), "demo")
+    >>> p = Prediction(Motion((0.5, 0.0)), 0.0)
+    >>> s = schedule_on_prediction(traj, (32, 32), OrbitGeometry(start_s=4.0), "unlimited", p)
+    >>> s.trajectory.points[:, 0].tolist()  # flown at t = 4 s: moved 0.5 px/s x 4 s
+    [12.0, 22.0]
+    """
+    from dyntarget.schedule import make_feasible
+
+    if not isinstance(max_iterations, int) or max_iterations < 1:
+        raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")
+    base = trajectory.points
+    times = np.full(len(trajectory), prediction.lead_s)
+    sched, iterations = None, 0
+    while iterations < max_iterations:
+        iterations += 1
+        moved = Trajectory(
+            base + prediction.pointing_shift(times - prediction.lead_s),
+            trajectory.part, trajectory.planner, dict(trajectory.params),
+        )  # fmt: skip
+        sched = make_feasible(moved, shape, geometry, agility, budget_s=budget_s)
+        used = times[sched.kept]
+        change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
+        times = times.copy()
+        times[sched.kept] = sched.times
+        if change <= tolerance_s:
+            break
+    residual = float(
+        np.max(np.hypot(*prediction.pointing_shift(sched.times - used).T), initial=0.0)
+    )
+    sched.trajectory.params.update(
+        prediction_iterations=iterations, prediction_residual_px=residual
+    )
+    return sched

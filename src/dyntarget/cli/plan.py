@@ -13,6 +13,7 @@ from dyntarget.cli._common import (
     positive_int,
     preset_names,
 )
+from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
@@ -67,6 +68,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
             )
     config = PipelineConfig(plan=plan_config(args))
+    prediction, mask = None, wfov.label
+    if wants_prediction(args):  # two looks or a wind prior: plan for the plume as it will be
+        prediction, raw = prediction_for(args, wfov, classifier, config.threshold)
+        mask = mask if raw is None else raw
     if args.planner == "utility-max":
         return _plan_utility_max(args, wfov, classifier, config)
     fallback = load_classifier(args.fallback_model) if args.fallback_model else None
@@ -74,12 +79,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         wfov.image,
         classifier,
         args.planner,
-        mask=wfov.label,
+        mask=mask,
         valid=wfov.valid,
         denoise=not args.no_denoise,
         config=config,
         deadline_s=args.deadline_s,
         fallback=fallback,
+        prediction=prediction,
     )
     if args.deadline_s is not None:
         met = "met" if result.deadline_met else "MISSED"
@@ -95,12 +101,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
         f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
     )
     if args.agility:  # fly what the kinematics allow: re-timed, trimmed, maybe reordered
+        from dyntarget.pipeline import schedule_on_prediction
         from dyntarget.schedule import get_agility, make_feasible
 
-        sched = make_feasible(
-            traj, wfov.shape, _geometry(args, wfov), get_agility(args.agility),
-            budget_s=args.budget_s,
-        )  # fmt: skip
+        geometry, agility = _geometry(args, wfov), get_agility(args.agility)
+        if prediction is None:
+            sched = make_feasible(traj, wfov.shape, geometry, agility, budget_s=args.budget_s)
+        else:  # each pointing moved on to the plume at its own scheduled time
+            sched = schedule_on_prediction(
+                traj, wfov.shape, geometry, agility, prediction, budget_s=args.budget_s
+            )
         _log_schedule(args.planner, sched)
         traj = sched.trajectory
     out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
@@ -108,7 +118,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
 
-        print(trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=wfov.id))
+        shown = result.mask if result.predicted_mask is None else result.predicted_mask
+        print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
     return EXIT_OK
 
 
@@ -244,6 +255,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     add_plan_options(p)
+    add_predict_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
     k.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")

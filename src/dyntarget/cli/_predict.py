@@ -1,0 +1,174 @@
+"""``dyntarget plan`` prediction options: two looks (``--previous``) or a wind prior.
+
+The plan is drawn for the plume as predicted ``--lead-s`` seconds after the
+current image was taken (see ``docs/onboard.md``, "Predictive targeting").
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from dyntarget.cli._common import log
+
+
+def add_predict_options(p: argparse.ArgumentParser) -> None:
+    """The ``prediction`` option group of ``dyntarget plan``."""
+    g = p.add_argument_group(
+        "prediction (plan for the plume as it will be; two looks and/or a wind prior)"
+    )
+    g.add_argument("--previous", help="the previous look-ahead frame (same grid and CRS)")
+    g.add_argument(
+        "--previous-mask", help="plume mask of --previous (with --mask; --model classifies it)"
+    )
+    g.add_argument("--interval-s", type=float, help="seconds from --previous to the image")
+    g.add_argument(
+        "--lead-s",
+        type=float,
+        help="plan for the plume this many seconds after the image was taken "
+        "(with --agility each pointing is moved on to its own scheduled time)",
+    )
+    g.add_argument("--wind-mps", type=float, help="wind speed prior, m/s")
+    g.add_argument(
+        "--wind-from-deg",
+        type=float,
+        help="direction the wind blows FROM, degrees clockwise from north (meteorological)",
+    )
+    g.add_argument(
+        "--regime",
+        choices=["detached", "attached"],
+        default="detached",
+        help="with the wind prior alone: how the plume moves (default detached: see docs)",
+    )
+
+
+def wants_prediction(args: argparse.Namespace) -> bool:
+    """Whether any prediction option was given (then they are checked together)."""
+    names = ("previous", "previous_mask", "interval_s", "lead_s", "wind_mps", "wind_from_deg")
+    return any(getattr(args, n) is not None for n in names)
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.predict import check_interval, check_lead
+
+    two_looks = args.previous is not None
+    wind = args.wind_mps is not None or args.wind_from_deg is not None
+    if args.interval_s is not None and not two_looks:
+        raise InvalidParameterError(
+            "--previous: missing; --interval-s is the time between --previous and the image"
+        )
+    if args.previous_mask is not None and not two_looks:
+        raise InvalidParameterError("--previous: missing; --previous-mask is its mask")
+    if wind and (args.wind_mps is None or args.wind_from_deg is None):
+        raise InvalidParameterError("wind prior: give both --wind-mps and --wind-from-deg")
+    if not (two_looks or wind):
+        raise InvalidParameterError(
+            "--lead-s: a prediction needs --previous PREVIOUS.tif --interval-s S "
+            "or --wind-mps M --wind-from-deg D"
+        )
+    if args.lead_s is None:
+        raise InvalidParameterError("--lead-s: missing; seconds after the image to plan for")
+    check_lead(args.lead_s)
+    if two_looks:
+        if args.interval_s is None:
+            raise InvalidParameterError(
+                f"--interval-s: missing; seconds from {args.previous} to the image"
+            )
+        check_interval(args.interval_s)
+        if args.mask is not None and args.previous_mask is None:
+            raise InvalidParameterError(
+                "--previous-mask: missing; with --mask give the previous frame's mask too "
+                "(or use --model to classify both)"
+            )
+    if args.planner == "utility-max":
+        raise InvalidParameterError(
+            "--planner utility-max does not plan on a prediction yet; use a look-ahead planner"
+        )
+
+
+def _read_previous(args: argparse.Namespace, wfov):
+    from dyntarget.errors import InvalidSceneError
+    from dyntarget.io.sensors import read_any
+
+    prev = read_any(
+        [args.previous], label=args.previous_mask, bands=args.bands, preset=args.preset,
+        scale=args.scale, offset=args.offset, factor=args.factor,
+    )  # fmt: skip
+    if prev.shape != wfov.shape:
+        raise InvalidSceneError(
+            f"--previous {args.previous}: {prev.shape[0]} x {prev.shape[1]} px does not match "
+            f"the image's {wfov.shape[0]} x {wfov.shape[1]} px (frames must share a grid)"
+        )
+    if _crs_key(prev.crs) != _crs_key(wfov.crs):
+        raise InvalidSceneError(
+            f"--previous {args.previous}: CRS {prev.crs} does not match the image's {wfov.crs}"
+        )
+    return prev
+
+
+def _crs_key(crs) -> str | None:
+    if crs is None:
+        return None
+    from rasterio.crs import CRS
+
+    return CRS.from_user_input(crs).to_wkt()
+
+
+def _mask_of(scene, classifier, threshold: float):
+    from dyntarget.denoise import denoise
+
+    if scene.label is not None:
+        raw = scene.label
+    else:
+        raw = classifier.predict_proba(scene.image) >= threshold
+    if scene.valid is not None:
+        raw = raw & scene.valid
+    return raw, denoise(raw).mask
+
+
+def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float):
+    """``(Prediction, current raw mask or None)`` from the options; logs the motion seen.
+
+    With ``--model`` the current image is classified here (once) and its raw
+    mask returned, so the pipeline plans on it without classifying again.
+    """
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.predict import Prediction, check_against_prior, estimate_motion, wind_motion
+
+    _check_args(args)
+    prior = None
+    if args.wind_mps is not None:
+        gsd = args.wfov_gsd or wfov.gsd
+        transform = wfov.transform
+        if wfov.crs is not None and transform is not None:
+            from rasterio.crs import CRS
+
+            if CRS.from_user_input(wfov.crs).is_geographic:
+                transform = None  # degrees: use the GSD and assume north-up
+                if gsd is None:
+                    raise InvalidParameterError(
+                        f"{args.image[0]}: CRS {wfov.crs} is in degrees; give --wfov-gsd METRES"
+                    )
+        prior = wind_motion(
+            args.wind_mps, args.wind_from_deg, transform=transform, gsd_m=gsd,
+            regime=args.regime,
+        )  # fmt: skip
+    current_raw = None
+    if args.previous is None:
+        motion = prior
+    else:
+        prev = _read_previous(args, wfov)
+        _, prev_mask = _mask_of(prev, classifier, threshold)
+        current_raw, cur_mask = _mask_of(wfov, classifier, threshold)
+        motion = estimate_motion(
+            prev.image, wfov.image, args.interval_s, previous_mask=prev_mask,
+            current_mask=cur_mask,
+        )  # fmt: skip
+        if prior is not None:
+            motion = check_against_prior(motion, prior)
+    log(f"motion: {motion.summary()}")
+    if not motion.reliable:
+        log("motion: LOW CONFIDENCE; the prediction may be wrong (see docs/onboard.md)")
+    if wfov.label is not None:
+        current_raw = None  # the pipeline reads the given mask itself
+    return Prediction(motion, args.lead_s), current_raw

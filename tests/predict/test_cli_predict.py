@@ -1,0 +1,154 @@
+"""``dyntarget plan`` with a prediction: two looks or a wind prior; bad inputs exit 2."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import rasterio
+from affine import Affine
+
+from dyntarget.cli import main
+from motion_worlds import RigidCloud
+
+GSD = 30.0
+TRANSFORM = Affine(GSD, 0.0, 240_000.0, 0.0, -GSD, 2_160_000.0)
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _write(path, data, crs="EPSG:32605"):
+    data = np.asarray(data)
+    if data.ndim == 2:
+        data = data[None].astype(np.uint8)
+    with rasterio.open(
+        path, "w", driver="GTiff", height=data.shape[1], width=data.shape[2],
+        count=data.shape[0], dtype=data.dtype.name, crs=crs, transform=TRANSFORM,
+    ) as dst:  # fmt: skip
+        dst.write(data)
+    return path
+
+
+@pytest.fixture
+def looks(tmp_path):
+    """Two looks 4 s apart of a cloud drifting (1.5, -0.8) px/s, their masks, as GeoTIFFs."""
+    world = RigidCloud(velocity=(1.5, -0.8))
+    return {
+        "prev": _write(tmp_path / "prev.tif", world.frame(0.0)),
+        "cur": _write(tmp_path / "cur.tif", world.frame(4.0)),
+        "prev_mask": _write(tmp_path / "prev_mask.tif", world.mask(0.0)),
+        "cur_mask": _write(tmp_path / "cur_mask.tif", world.mask(4.0)),
+        "world": world,
+    }
+
+
+def _points(path):
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    return np.array([[float(r["X"]), float(r["Y"])] for r in rows])
+
+
+def _plan(capsys, looks, out, *extra):
+    code, _, err = run(
+        capsys, "plan", looks["cur"], "--mask", looks["cur_mask"], "--planner", "lawnmower-transect",
+        "--out", out, *extra,
+    )  # fmt: skip
+    return code, err
+
+
+def test_two_looks_move_the_plan_by_velocity_times_lead(tmp_path, capsys, looks):
+    code, err = _plan(capsys, looks, tmp_path / "still.csv")
+    assert code == 0, err
+    lead = 40.0
+    code, err = _plan(
+        capsys, looks, tmp_path / "moved.csv", "--previous", looks["prev"],
+        "--previous-mask", looks["prev_mask"], "--interval-s", 4, "--lead-s", lead,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "motion: detached plume" in err
+    shift = _points(tmp_path / "moved.csv").mean(0) - _points(tmp_path / "still.csv").mean(0)
+    # (1.5, -0.8) px/s for 40 s = (60, -32) px = 1800 m east, 960 m north (rows go south)
+    assert shift[0] == pytest.approx(1800.0, abs=0.1 * 1800 + GSD)
+    assert shift[1] == pytest.approx(960.0, abs=0.1 * 960 + GSD)
+
+
+def test_wind_prior_alone_in_the_image_crs(tmp_path, capsys, looks):
+    code, err = _plan(capsys, looks, tmp_path / "still.geojson")
+    assert code == 0, err
+    code, err = _plan(
+        capsys, looks, tmp_path / "wind.geojson", "--wind-mps", 10, "--wind-from-deg", 270,
+        "--lead-s", 30,
+    )  # fmt: skip
+    assert code == 0, err
+
+    def centre(p):
+        doc = json.loads(p.read_text())
+        assert doc["crs"]["properties"]["name"] == "EPSG:32605"  # stays in the image's CRS
+        pts = [
+            f["geometry"]["coordinates"]
+            for f in doc["features"]
+            if f["geometry"]["type"] == "Point"
+        ]
+        return np.mean(pts, axis=0)
+
+    # from the west at 10 m/s for 30 s: 300 m east, none north
+    shift = centre(tmp_path / "wind.geojson") - centre(tmp_path / "still.geojson")
+    assert shift == pytest.approx([300.0, 0.0], abs=GSD / 2)
+
+
+def test_two_looks_checked_against_the_wind(tmp_path, capsys, looks):
+    # truth: 1.5 px/s east = 45 m/s east... give a wind from the north instead: disagreement noted
+    code, err = _plan(
+        capsys, looks, tmp_path / "t.csv", "--previous", looks["prev"], "--previous-mask",
+        looks["prev_mask"], "--interval-s", 4, "--lead-s", 10, "--wind-mps", 20,
+        "--wind-from-deg", 0,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "DISAGREES with the wind prior" in err
+
+
+def test_agility_places_each_pointing_at_its_own_time(tmp_path, capsys, looks):
+    code, err = _plan(
+        capsys, looks, tmp_path / "t.csv", "--wind-mps", 10, "--wind-from-deg", 270,
+        "--lead-s", 60, "--agility", "slow", "--start-s", 60, "--look-ahead-km", 800,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "time_s" in (tmp_path / "t.csv").read_text().splitlines()[0]
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--previous", "small", "--previous-mask", "small_mask", "--interval-s", "2", "--lead-s", "5"], "does not match the image"),
+        (["--previous", "geo4326", "--previous-mask", "prev_mask", "--interval-s", "2", "--lead-s", "5"], "CRS"),
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--interval-s", "0", "--lead-s", "5"], "interval_s"),
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--interval-s", "-3", "--lead-s", "5"], "interval_s"),
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--interval-s", "2", "--lead-s", "-1"], "lead_s"),
+        (["--interval-s", "2", "--lead-s", "5"], "--previous: missing"),
+        (["--previous", "MISSING", "--previous-mask", "prev_mask", "--interval-s", "2", "--lead-s", "5"], "MISSING"),
+        (["--previous", "prev", "--interval-s", "2", "--lead-s", "5"], "--previous-mask: missing"),
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--lead-s", "5"], "--interval-s: missing"),
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--interval-s", "2"], "--lead-s: missing"),
+        (["--wind-mps", "5", "--lead-s", "5"], "--wind-from-deg"),
+        (["--wind-mps", "-5", "--wind-from-deg", "90", "--lead-s", "5"], "wind_mps"),
+        (["--lead-s", "5"], "a prediction needs"),
+    ],
+)  # fmt: skip
+def test_bad_prediction_inputs_exit_2_with_one_line(tmp_path, capsys, looks, extra, message):
+    world = looks["world"]
+    _write(tmp_path / "small.tif", world.frame(0.0)[:, :100, :120])
+    _write(tmp_path / "small_mask.tif", world.mask(0.0)[:100, :120])
+    _write(tmp_path / "geo4326.tif", world.frame(0.0), crs="EPSG:32606")
+    names = {"small", "small_mask", "geo4326", "prev", "prev_mask", "MISSING"}
+    extra = [str(tmp_path / f"{e}.tif") if e in names else e for e in extra]
+    code, err = _plan(capsys, looks, tmp_path / "t.geojson", *extra)
+    assert code == 2, err
+    assert message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "t.geojson").exists()

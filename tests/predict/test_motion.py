@@ -1,0 +1,158 @@
+"""Motion from two looks, and the predicted plume (issue 16's "Done when")."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dyntarget.errors import DynTargetError, InvalidParameterError, InvalidSceneError
+from dyntarget.predict import LOW_CONFIDENCE, estimate_motion, predict_mask
+from motion_worlds import AttachedPlume, RigidCloud, iou
+
+INTERVAL = 2.0
+
+
+def _two_looks(world, t1=INTERVAL):
+    return estimate_motion(
+        world.frame(0.0), world.frame(t1), t1,
+        previous_mask=world.mask(0.0), current_mask=world.mask(t1),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("velocity", [(1.5, -0.8), (-2.5, 0.0), (0.7, 1.9)])
+def test_rigid_cloud_velocity_within_10_percent_and_future_mask_iou(velocity):
+    world = RigidCloud(velocity=velocity)
+    m = _two_looks(world)
+    err = math.hypot(m.velocity[0] - velocity[0], m.velocity[1] - velocity[1])
+    assert err <= 0.10 * math.hypot(*velocity), m.summary()
+    assert m.regime == "detached" and m.reliable, m.summary()
+    lead = 10 * INTERVAL  # 10x the interval after the current look
+    predicted = predict_mask(world.mask(INTERVAL), m, lead)
+    truth = world.mask(INTERVAL + lead)
+    assert iou(predicted, truth) >= 0.9
+    # without prediction the plan would aim at the old plume: far worse
+    assert iou(world.mask(INTERVAL), truth) < 0.6
+
+
+def test_misregistered_ground_is_removed_from_the_plume_velocity():
+    world = RigidCloud(velocity=(1.5, 0.0))
+    prev, cur = world.frame(0.0), world.frame(INTERVAL)
+    cur = np.roll(cur, 2, axis=2)  # the whole second look shifted 2 px to the right
+    cur_mask = np.roll(world.mask(INTERVAL), 2, axis=1)
+    m = estimate_motion(prev, cur, INTERVAL, previous_mask=world.mask(0.0), current_mask=cur_mask)
+    assert m.ground_shift[0] == pytest.approx(2.0, abs=0.3)
+    assert m.velocity[0] == pytest.approx(1.5, rel=0.1)
+
+
+def test_attached_plume_vent_predicted_within_2_px():
+    world = AttachedPlume(velocity=(2.0, 1.0))
+    m = _two_looks(world)
+    assert m.regime == "attached", m.summary()
+    assert m.vent is not None
+    lead = 20.0
+    predicted = predict_mask(world.mask(INTERVAL), m, lead)
+    truth = world.mask(INTERVAL + lead)
+    u = np.array([2.0, 1.0]) / math.hypot(2.0, 1.0)
+
+    def upwind_end(mask):
+        ys, xs = np.nonzero(mask)
+        s = xs * u[0] + ys * u[1]
+        near = s <= s.min() + 1.0
+        return np.array([xs[near].mean(), ys[near].mean()])
+
+    true_end = world.upwind_end()
+    assert np.hypot(*(upwind_end(truth) - true_end)) <= 1.5  # the fixture's own check
+    assert np.hypot(*(upwind_end(predicted) - true_end)) <= 2.0
+    # the far end moved downwind with the wind: the stretched envelope matches the truth
+    assert iou(predicted, truth) >= 0.8
+
+
+def test_calm_air_predicts_no_motion():
+    world = RigidCloud(velocity=(0.0, 0.0))
+    m = _two_looks(world)
+    assert m.regime == "calm", m.summary()
+    assert m.velocity == (0.0, 0.0)
+    mask = world.mask(INTERVAL)
+    assert np.array_equal(predict_mask(mask, m, 300.0), mask)
+
+
+def test_texture_poor_plume_reports_a_clear_low_confidence():
+    world = RigidCloud(velocity=(1.5, -0.8), textured=False)
+    m = _two_looks(world)
+    assert m.confidence < LOW_CONFIDENCE and not m.reliable, m.summary()
+    assert "unreliable" in m.method
+    # not a wild estimate: the fallback (masks' shift) stays near the truth
+    assert math.hypot(m.velocity[0] - 1.5, m.velocity[1] + 0.8) < 0.5
+
+
+def test_real_texture_38cloud_patch_shifted():
+    from helpers import shared_data
+
+    root = shared_data()
+    if root is None or not (root / "38cloud-sample" / "gt.tif").exists():
+        pytest.skip("the 38-Cloud sample is not in ../shared/data")
+    from scipy.ndimage import shift as nd_shift
+
+    from dyntarget.datasets.cloud38 import read_patch
+
+    scene = read_patch(root / "38cloud-sample")
+    img, cloud = scene.image, scene.label
+    # crop a window with a cloud in it, use the cloud's own texture over a fixed ground
+    ground = np.flip(
+        img, axis=(1, 2)
+    ).copy()  # the patch turned 180 degrees: a fixed textured ground
+    v = np.array([1.2, 0.6])  # px/s
+
+    def look(t):
+        moved = nd_shift(img, (0, v[1] * t, v[0] * t), order=1, mode="constant")
+        m = nd_shift(cloud.astype(float), (v[1] * t, v[0] * t), order=1, mode="constant") >= 0.5
+        return np.where(m[None], moved, ground).astype(np.float32), m
+
+    (a, ma), (b, mb) = look(0.0), look(INTERVAL)
+    if not ma.any() or ma.mean() > 0.8:
+        pytest.skip("the sample patch has no usable cloud")
+    m = estimate_motion(a, b, INTERVAL, previous_mask=ma, current_mask=mb)
+    assert math.hypot(*(np.array(m.velocity) - v)) <= 0.1 * math.hypot(*v), m.summary()
+    _, truth = look(INTERVAL + 10 * INTERVAL)
+    assert iou(predict_mask(mb, m, 10 * INTERVAL), truth) >= 0.9
+
+
+def test_no_plume_gives_zero_confidence():
+    world = RigidCloud()
+    empty = np.zeros((world.size, world.size), bool)
+    m = estimate_motion(
+        world.frame(0), world.frame(1), 1.0, previous_mask=empty, current_mask=world.mask(1)
+    )
+    assert m.confidence == 0.0 and m.velocity == (0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "err", "text"),
+    [
+        ({"interval_s": 0.0}, InvalidParameterError, "interval_s"),
+        ({"interval_s": -1.0}, InvalidParameterError, "interval_s"),
+        ({"interval_s": float("nan")}, InvalidParameterError, "interval_s"),
+        ({"current": np.zeros((4, 32, 40), np.float32)}, InvalidSceneError, "previous"),
+        ({"previous_mask": np.zeros((8, 8), bool)}, InvalidSceneError, "previous_mask"),
+        ({"current_mask": np.zeros((32, 32))}, InvalidSceneError, "current_mask"),
+        ({"previous": np.full((4, 32, 32), np.nan, np.float32)}, InvalidSceneError, "previous"),
+        ({"previous": np.zeros((3, 32, 32), np.float32)}, InvalidSceneError, "previous"),
+    ],
+)
+def test_bad_inputs_raise_named_errors(kwargs, err, text):
+    args = {
+        "previous": np.zeros((4, 32, 32), np.float32),
+        "current": np.zeros((4, 32, 32), np.float32),
+        "interval_s": 1.0,
+        "previous_mask": np.zeros((32, 32), bool),
+        "current_mask": np.zeros((32, 32), bool),
+        **kwargs,
+    }
+    with pytest.raises(err, match=text) as info:
+        estimate_motion(
+            args["previous"], args["current"], args["interval_s"],
+            previous_mask=args["previous_mask"], current_mask=args["current_mask"],
+        )  # fmt: skip
+    assert isinstance(info.value, DynTargetError)
