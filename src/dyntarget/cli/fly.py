@@ -69,6 +69,9 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
         deadline_s=args.deadline_s,
         footprint=args.footprint,
         denoise=not args.no_denoise,
+        predict=args.predict,
+        wind_mps=args.wind_mps,
+        wind_from_deg=args.wind_from_deg,
         pipeline=PipelineConfig(plan=plan_config(args)),
     )
 
@@ -257,6 +260,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="time quantum of a moving strip's truth (default 1 s)",
     )
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
+    pr = p.add_argument_group(
+        "prediction (plan for the plume as it will be when the NFOV is there)"
+    )
+    pr.add_argument(
+        "--predict",
+        choices=["none", "wind", "two-looks"],
+        default="none",
+        help="none: plan on the look as it is (static, default); wind: carry the plume with a "
+        "wind prior; two-looks: motion from this frame's overlap with the previous one, "
+        "checked against the wind prior when there is one",
+    )
+    pr.add_argument(
+        "--wind-mps",
+        type=float,
+        help="wind prior speed, m/s (default: a synthetic strip's own wind, an ideal forecast)",
+    )
+    pr.add_argument(
+        "--wind-from-deg",
+        type=float,
+        help="direction the wind blows from, degrees clockwise from north",
+    )
     p.add_argument("--no-picture", action="store_true", help="skip pass.png")
     p.add_argument("--no-html", action="store_true", help="skip pass.html (interactive view)")
     p.add_argument(

@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -47,13 +47,17 @@ import numpy as np
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.fly.world import WfovTruth, World, wfov_truth
 from dyntarget.perceive.base import Classifier
-from dyntarget.pipeline import PipelineConfig, plan_scene
+from dyntarget.pipeline import LAST_RESORT, PipelineConfig, plan_scene
+from dyntarget.predict import Prediction, check_against_prior, estimate_motion, wind_motion
 from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
 from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
 from dyntarget.trajectory import Trajectory
 
 STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 """Stages whose wall time each timeline row reports."""
+
+PREDICT_MODES = ("none", "wind", "two-looks")
+"""How a pass plans: on the look as it is, or on the plume as predicted."""
 
 COVERED_PLUME_FRACTION = 0.5
 """A plume at least this fraction of whose planned pointings were flown counts as covered."""
@@ -76,6 +80,12 @@ class PassConfig:
     deadline_s : time allowed from acquisition to plan, per frame (fallbacks apply).
     footprint : NFOV footprint in WFOV pixels (odd).
     denoise : apply Algorithm 2.
+    predict : ``"none"`` (plan on the look as it is), ``"wind"`` (carry the plume
+        with a wind prior to when the NFOV will be there) or ``"two-looks"``
+        (motion from the overlap of this frame and the previous one, checked
+        against the wind prior when there is one).
+    wind_mps, wind_from_deg : the wind prior (meteorological convention); by
+        default a moving strip's own wind (an ideal forecast).
     """
 
     planner: str = "lawnmower-transect"
@@ -89,10 +99,19 @@ class PassConfig:
     deadline_s: float | None = None
     footprint: int = 1
     denoise: bool = True
+    predict: str = "none"
+    wind_mps: float | None = None
+    wind_from_deg: float | None = None
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:
         get_agility(self.agility)
+        if self.predict not in PREDICT_MODES:
+            raise InvalidParameterError(
+                f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
+            )
+        if self.wind_mps is not None and not (math.isfinite(self.wind_mps) and self.wind_mps >= 0):
+            raise InvalidParameterError(f"wind_mps: expected m/s >= 0, got {self.wind_mps!r}")
         if not (0.0 <= self.overlap < 1.0):
             raise InvalidParameterError(
                 f"overlap: expected a fraction in [0, 1), got {self.overlap!r}"
@@ -262,6 +281,7 @@ class PassState:
     timer_t: float = 0.0
     target: tuple[float, float] | None = None  # (along, cross) in pass ground coordinates, m
     busy_until: float = 0.0  # when the loop finished its last frame
+    previous: tuple[int, np.ndarray, np.ndarray] | None = None  # (frame, image, mask) last seen
     parts: int = 0
     plumes_seen: set[int] = field(default_factory=set)
     records: list[FrameRecord] = field(default_factory=list)
@@ -381,6 +401,11 @@ def fly_pass(
 
     frames = frame_plan(world, config)
     agility = get_agility(config.agility)
+    if config.predict == "wind" and _wind(config, world) is None:
+        raise InvalidParameterError(
+            "predict: 'wind' needs a wind: give wind_mps and wind_from_deg (--wind-mps, "
+            "--wind-from-deg); only synthetic strips carry their own"
+        )
     truth = _TruthCache(world, config.factor, config.footprint)
     state = PassState(covered=np.zeros(frames.wfov_shape, bool))
     plumes_total = int(world.truth_at(0.0).ids.max())
@@ -455,10 +480,11 @@ def _fly_frame(
         f, width = config.factor, frames.wfov_shape[1] * config.factor
         label = world.truth_at(t_k).maps.label[top * f : (top + frames.frame_px) * f, :width]
         mask = block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+    predictive = config.predict != "none"
     result = plan_scene(
         image,
         classifier,
-        config.planner,
+        LAST_RESORT if predictive else config.planner,  # predictive: plan below, on the prediction
         mask=mask,
         valid=valid,
         denoise=config.denoise,
@@ -469,10 +495,35 @@ def _fly_frame(
     stage = {s: float(result.timings.get(s, 0.0)) for s in ("classify", "denoise", "plan")}
     stage["plan"] += float(result.timings.get("overhead", 0.0))
     stage["predict"] = 0.0
+    prediction = None
+    if predictive:
+        t0 = time.perf_counter()
+        motion = _motion(k, image, result.mask, config, frames, world, state)
+        if motion is not None:
+            prediction = Prediction(motion, _lead_s(frames, agility, state, t_k, start))
+        stage["predict"] = time.perf_counter() - t0
+        state.previous = (k, image, result.mask)
+        again = plan_scene(
+            image,
+            None,
+            config.planner,
+            mask=result.mask,
+            valid=valid,
+            denoise=False,
+            config=config.pipeline,
+            prediction=prediction,
+        )
+        stage["predict"] += float(again.timings.get("predict", 0.0))
+        stage["plan"] += sum(float(again.timings.get(s, 0.0)) for s in ("classify", "plan"))
+        path = [*result.path[:-1], *again.path[1:]]
+        if prediction is None:
+            path.insert(-1, "predict: no motion known (planned on the look as it is)")
+        result = replace(again, probability=result.probability, raw_mask=result.raw_mask, path=path)
     t0 = time.perf_counter()
     traj = result.trajectory
     planned = len(traj)
     shape = (frames.frame_px, frames.wfov_shape[1])
+    hw, ww = frames.wfov_shape
     # drop pointings on covered strip pixels (and repeats of a pixel within the plan)
     cols = np.clip(np.floor(traj.points[:, 0] + 0.5).astype(np.int64), 0, shape[1] - 1)
     rows = np.clip(np.floor(traj.points[:, 1] + 0.5).astype(np.int64), 0, shape[0] - 1)
@@ -482,22 +533,24 @@ def _fly_frame(
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
+    base = traj.points[keep]
+
+    def fly_from(ready: float):
+        return _schedule_predicted(
+            base, shape, frames.geometry, agility, t_k, state, ready, prediction
+        )
+
     # schedule what is left behind what the NFOV has already committed to
     budget = config.compute_budget_s
     if budget is not None:
         ready = start + budget
-        sched_idx, sched_t, timer = _schedule(
-            traj.points[keep], shape, frames.geometry, agility, t_k, state, ready
-        )
+        sched_idx, sched_t, timer, points = fly_from(ready)
         stage["schedule"] = time.perf_counter() - t0
     else:  # timed once to measure it, then re-timed from when the plan is really ready
-        ready = start + sum(stage.values())
-        _schedule(traj.points[keep], shape, frames.geometry, agility, t_k, state, ready)
+        fly_from(start + sum(stage.values()))
         stage["schedule"] = time.perf_counter() - t0
         ready = start + sum(stage.values())
-        sched_idx, sched_t, timer = _schedule(
-            traj.points[keep], shape, frames.geometry, agility, t_k, state, ready
-        )
+        sched_idx, sched_t, timer, points = fly_from(ready)
     met = None if deadline is None else (ready - t_k) <= deadline
     flown_local = keep[sched_idx]
     state.busy_until = ready
@@ -510,11 +563,12 @@ def _fly_frame(
     new_plumes = 0
     fl = state.flown
     part_of = {}
-    for j, t_local in zip(flown_local, sched_t, strict=True):
-        r, c = int(rows[j]) + top, int(cols[j])
+    for j, (x, y), t_local in zip(flown_local, points, sched_t, strict=True):
+        r, c = int(np.floor(y + 0.5)) + top, int(np.floor(x + 0.5))
         t_pass = t_k + float(t_local)
-        w = truth.at(t_pass)
-        ok = bool(w.valid[r, c])
+        ok = 0 <= r < hw and 0 <= c < ww
+        w = truth.at(t_pass) if ok else None
+        ok = ok and bool(w.valid[r, c])
         pl = float(w.plume[r, c]) if ok else 0.0
         it = float(w.intensity[r, c]) if ok else 0.0
         gr = float(w.gradient[r, c]) if ok else 0.0
@@ -527,16 +581,18 @@ def _fly_frame(
         if p not in part_of:
             part_of[p] = state.parts
             state.parts += 1
-        fl.x.append(float(traj.points[j, 0]))
-        fl.y.append(float(traj.points[j, 1]) + top)
+        fl.x.append(float(x))
+        fl.y.append(float(y) + top)
         fl.t.append(t_pass)
         fl.frame.append(k)
         fl.part.append(part_of[p])
         fl.plume.append(pl)
         fl.intensity.append(it)
         fl.plume_id.append(pid)
-        state.covered[r, c] = True
-    _cover_plumes(result.mask, rows, cols, flown_local, planned, top, state)
+        if 0 <= r < hw and 0 <= c < ww:
+            state.covered[r, c] = True
+    target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
+    _cover_plumes(target_mask, rows, cols, flown_local, planned, top, state)
     record = FrameRecord(
         k,
         t_k,
@@ -555,6 +611,84 @@ def _fly_frame(
         new_plumes,
     )
     return record, image, result
+
+
+def _frame_transform(world: World, config: PassConfig, top: int):
+    if world.transform is None:
+        return None
+    from affine import Affine
+
+    return world.transform @ Affine.scale(config.factor) @ Affine.translation(0, top)
+
+
+def _wind(config: PassConfig, world: World) -> tuple[float, float] | None:
+    if config.wind_mps is not None:
+        return (config.wind_mps, config.wind_from_deg or 0.0)
+    wind = getattr(world, "wind", None)
+    return None if wind is None else (wind.speed_mps, wind.from_deg)
+
+
+def _motion(k, image, clean, config: PassConfig, frames: FramePlan, world: World, state):
+    """The plume's motion for frame ``k``: a wind prior, or two looks checked against it."""
+    top = frames.tops[k]
+    prior = None
+    wind = _wind(config, world)
+    if wind is not None:
+        prior = wind_motion(
+            wind[0],
+            wind[1],
+            transform=_frame_transform(world, config, top),
+            gsd_m=world.gsd * config.factor,
+        )
+    if config.predict == "wind" or state.previous is None:
+        return prior
+    k0, prev_image, prev_mask = state.previous
+    offset = (k - k0) * frames.step  # rows frame k0 lies below frame k
+    overlap = frames.frame_px - offset
+    if overlap < 8:
+        return prior
+    est = estimate_motion(
+        prev_image[:, :overlap],
+        image[:, offset:],
+        (k - k0) * frames.cadence_s,
+        previous_mask=prev_mask[:overlap],
+        current_mask=clean[offset:],
+    )
+    if est.vent is not None:  # from the overlap's rows to the frame's
+        est = replace(est, vent=(est.vent[0], est.vent[1] + offset))
+    return est if prior is None else check_against_prior(est, prior)
+
+
+def _lead_s(frames: FramePlan, agility: Agility, state: PassState, t_k: float, start: float):
+    """When the NFOV will be on the frame: its centre enters the field of regard, or later."""
+    g = frames.geometry
+    t_in, _ = visibility_windows(g, agility, np.array([g.look_ahead_m]), np.array([0.0]))
+    enter = float(t_in[0]) if np.isfinite(t_in[0]) else 0.0
+    return max(enter, max(start, state.timer_t) - t_k, 0.0)
+
+
+def _schedule_predicted(base, shape, geometry, agility, t_k, state, ready, prediction):
+    """:func:`_schedule`, each pointing moved on to its own time when the plume drifts.
+
+    As :func:`dyntarget.pipeline.schedule_on_prediction`: schedule, move every
+    pointing by ``prediction.pointing_shift(t - lead_s)``, schedule again, until
+    no kept pointing's time changes by more than 0.05 s (8 rounds at most).
+    Returns kept indices, their times, the timer, and the points flown.
+    """
+    if prediction is None or prediction.motion.regime != "detached" or len(base) == 0:
+        idx, times, timer = _schedule(base, shape, geometry, agility, t_k, state, ready)
+        return idx, times, timer, base[idx]
+    lead = prediction.lead_s
+    when = np.full(len(base), lead)
+    for _ in range(8):
+        moved = base + prediction.pointing_shift(when - lead)
+        idx, times, timer = _schedule(moved, shape, geometry, agility, t_k, state, ready)
+        change = float(np.max(np.abs(times - when[idx]), initial=0.0))
+        when = when.copy()
+        when[idx] = times
+        if change <= 0.05:
+            break
+    return idx, times, timer, moved[idx]
 
 
 def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> None:

@@ -134,6 +134,8 @@ class MovingStrip:
         self.valid = None
         self.id = spec.id
         self.acquired = spec.epoch
+        self.wind = spec.wind
+        """The strip's true wind (what ``predict="wind"`` uses unless a wind is given)."""
         """ISO-8601 UTC of t = 0 (the first frame's acquisition)."""
         self.truth_step_s = truth_step_s
         self._cache: OrderedDict[float, Truth] = OrderedDict()
