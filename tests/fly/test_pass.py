@@ -160,3 +160,57 @@ def test_frames_larger_than_the_strip_are_refused():
 def test_a_strip_without_label_is_refused():
     with pytest.raises(InvalidSceneError, match="label"):
         StaticWorld(Scene(np.zeros((4, 64, 16), np.float32), gsd=8.0))
+
+
+class DriftingCloud:
+    """A bright square cloud drifting east at ``speed`` m/s over dark ground (a test world)."""
+
+    def __init__(self, speed: float, *, rows=1024, cols=128, box=(880, 920, 16, 56)) -> None:
+        self.shape, self.gsd, self.speed, self.box = (rows, cols), GSD, speed, box
+        self.crs = self.transform = self.valid = self.acquired = None
+        self.id = "drift"
+        self._cache: dict[float, object] = {}
+
+    def _label(self, t: float) -> np.ndarray:
+        r0, r1, c0, c1 = self.box
+        dx = int(round(self.speed * t / self.gsd))
+        label = np.zeros(self.shape, bool)
+        label[r0:r1, max(c0 + dx, 0) : max(c1 + dx, 0)] = True
+        return label
+
+    def _image(self, label: np.ndarray) -> np.ndarray:
+        image = np.full((4, *self.shape), 0.05, np.float32)
+        image[:, label] = 0.8
+        return image
+
+    def image_at(self, t, top, bottom):
+        return self._image(self._label(t))[:, top:bottom]
+
+    def truth_at(self, t):
+        from dyntarget.fly.world import Truth
+        from dyntarget.observe.nfov import UtilityMaps
+
+        t = float(round(t))
+        if t not in self._cache:
+            label = self._label(t)
+            scene = Scene(self._image(label), label=label, gsd=GSD)
+            self._cache[t] = Truth(UtilityMaps.from_scene(scene), label.astype(np.int32))
+        return self._cache[t]
+
+
+def test_a_wind_prior_keeps_pointings_on_a_drifting_cloud():
+    # 8 m/s east = 0.25 WFOV px/s: in the ~30-70 s before the NFOV gets there the cloud
+    # (10 WFOV px wide) moves 7-17 px, so a plan on the look misses most of it
+    world = DriftingCloud(8.0)
+    common = dict(agility="fast", compute_budget_s=0.05)
+    static = fly_pass(world, None, PassConfig(**common)).totals()
+    wind = PassConfig(**common, predict="wind", wind_mps=8.0, wind_from_deg=270.0)
+    predicted = fly_pass(world, None, wind).totals()
+    assert static["ratio_plume"] < 0.5
+    assert predicted["ratio_plume"] >= 0.9
+    assert predicted["plume_px"] > 2 * static["plume_px"]
+
+
+def test_a_wind_prediction_needs_a_wind():
+    with pytest.raises(InvalidParameterError, match="wind"):
+        fly_pass(DriftingCloud(8.0), None, PassConfig(predict="wind", compute_budget_s=0.1))

@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
-import signal
-import threading
-from collections.abc import Iterator
 from pathlib import Path
 
 from dyntarget.cli._common import (
@@ -20,25 +16,7 @@ from dyntarget.cli._common import (
     scheduler_address,
 )
 from dyntarget.errors import InvalidParameterError
-
-
-@contextlib.contextmanager
-def stop_on_signals() -> Iterator[threading.Event]:
-    """An event set by SIGINT/SIGTERM while inside (the old handlers restored after)."""
-    stop = threading.Event()
-    caught: list[int] = []
-
-    def handler(signum, _frame):
-        caught.append(signum)
-        stop.set()
-
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    stop.caught = caught  # type: ignore[attr-defined]
-    try:
-        yield stop
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+from dyntarget.fly.signals import stop_on_signals
 
 
 def _classifier(args: argparse.Namespace):
@@ -131,8 +109,8 @@ def _fly(args: argparse.Namespace) -> int:
         + (" (stopped)" if result.stopped else "")
     )
     log("wrote " + ", ".join(str(p) for p in written))
-    if result.stopped and stop.caught:  # type: ignore[attr-defined]
-        return 128 + stop.caught[0]  # type: ignore[attr-defined]
+    if result.stopped and stop.caught:
+        return 128 + stop.caught[0]
     return EXIT_OK
 
 
