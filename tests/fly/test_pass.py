@@ -173,7 +173,7 @@ class DriftingCloud:
 
     def _label(self, t: float) -> np.ndarray:
         r0, r1, c0, c1 = self.box
-        dx = int(round(self.speed * t / self.gsd))
+        dx = round(self.speed * t / self.gsd)
         label = np.zeros(self.shape, bool)
         label[r0:r1, max(c0 + dx, 0) : max(c1 + dx, 0)] = True
         return label
