@@ -33,7 +33,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     scenes = read_scene_dir(data, require_labels=True)
     scenes_fig = scenes_figure(scenes, out / "scenes.png", max_scenes=4)
-    names = tuple(n for n in CLASSIFIERS.available() if args.unets or not n.startswith("unet-"))
+    names = tuple(
+        n for n in CLASSIFIERS.available() if args.unets or CLASSIFIERS.get(n).kind != "unet"
+    )
     folds = min(5, len(scenes))
     table1, table2, figures = evaluate_all(
         scenes,

@@ -33,24 +33,13 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_export_onnx(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from dyntarget.perceive import load_classifier
-    from dyntarget.perceive.onnx import TOLERANCE, export_onnx, load_onnx
+    from dyntarget.perceive.onnx import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)
-    path = export_onnx(native, args.model)
     check = generate_scene(args.seed, 0, size=args.check_size)[0].image
-    diff = float(
-        np.abs(load_onnx(args.model).predict_proba(check) - native.predict_proba(check)).max()
-    )
-    if diff > TOLERANCE:
-        path.unlink()
-        raise RuntimeError(
-            f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
-            f"(> {TOLERANCE:g}); export removed"
-        )
+    path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
     return EXIT_OK

@@ -82,7 +82,7 @@ def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
 
 def classifier_kwargs(name: str, *, seed: int, epochs: int) -> dict[str, Any]:
     kwargs: dict[str, Any] = {"seed": seed}
-    if name.startswith("unet-"):
+    if CLASSIFIERS.get(name).kind == "unet":
         kwargs["epochs"] = epochs
     return kwargs
 
