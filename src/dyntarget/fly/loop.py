@@ -219,6 +219,8 @@ class FrameRecord:
     gradient: float
     new_plumes: int
     dropped: bool = False
+    loop_s: float = 0.0
+    """Wall time of the onboard work on this frame (frame in hand -> plan scheduled), all of it."""
 
     def row(self, *, measured: bool) -> dict[str, Any]:
         """The timeline row; stage times only when latency was measured (else not deterministic)."""
@@ -231,6 +233,7 @@ class FrameRecord:
         }
         for s in STAGES:
             out[f"{s}_s"] = f"{self.stage_s.get(s, 0.0):.4f}" if measured else ""
+        out["loop_s"] = f"{self.loop_s:.4f}" if measured else ""
         out |= {
             "deadline_met": "" if self.deadline_met is None else str(self.deadline_met).lower(),
             "pointings_planned": self.planned,
@@ -480,6 +483,7 @@ def _fly_frame(
         f, width = config.factor, frames.wfov_shape[1] * config.factor
         label = world.truth_at(t_k).maps.label[top * f : (top + frames.frame_px) * f, :width]
         mask = block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+    t_loop = time.perf_counter()
     predictive = config.predict != "none"
     result = plan_scene(
         image,
@@ -546,9 +550,11 @@ def _fly_frame(
         ready = start + budget
         sched_idx, sched_t, timer, points = fly_from(ready)
         stage["schedule"] = time.perf_counter() - t0
+        loop_s = time.perf_counter() - t_loop
     else:  # timed once to measure it, then re-timed from when the plan is really ready
         fly_from(start + sum(stage.values()))
         stage["schedule"] = time.perf_counter() - t0
+        loop_s = time.perf_counter() - t_loop
         ready = start + sum(stage.values())
         sched_idx, sched_t, timer, points = fly_from(ready)
     met = None if deadline is None else (ready - t_k) <= deadline
@@ -609,6 +615,7 @@ def _fly_frame(
         inten_sum,
         grad_sum,
         new_plumes,
+        loop_s=loop_s,
     )
     return record, image, result
 

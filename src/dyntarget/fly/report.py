@@ -61,9 +61,10 @@ def timeline_csv(result: PassResult) -> str:
 
 def measured_csv(result: PassResult) -> str:
     """Measured stage wall times per frame (written beside a fixed-budget timeline)."""
-    lines = ["frame," + ",".join(f"{s}_s" for s in STAGES)]
+    lines = ["frame," + ",".join(f"{s}_s" for s in STAGES) + ",loop_s"]
     for rec in result.records:
-        lines.append(f"{rec.frame}," + ",".join(f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES))
+        stages = ",".join(f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES)
+        lines.append(f"{rec.frame},{stages},{rec.loop_s:.6f}")
     return "\n".join(lines) + "\n"
 
 
