@@ -59,6 +59,9 @@ STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 PREDICT_MODES = ("none", "wind", "two-looks")
 """How a pass plans: on the look as it is, or on the plume as predicted."""
 
+CHUNK = 32
+"""Pointings screened at once by the scheduler (a speed setting; the result does not depend on it)."""
+
 COVERED_PLUME_FRACTION = 0.5
 """A plume at least this fraction of whose planned pointings were flown counts as covered."""
 
@@ -737,15 +740,29 @@ def _schedule(
         if state.target is not None:
             timer.target = (state.target[0] - v * t_k, state.target[1])
         kept, times = [], []
-        for j in order:
-            if t_in[j] > t_out[j]:
+        floor = agility.settle_s + agility.dwell_s  # a pointing ends at least this after timer.t
+        pos = 0
+        while pos < len(order):
+            # the first pointing of the next CHUNK in order that can still be taken: the
+            # timer does not move while pointings are skipped, so screening a chunk at
+            # once (Timer.arrival is elementwise) gives exactly the one-by-one result
+            chunk = order[pos : pos + CHUNK]
+            maybe = (t_in[chunk] <= t_out[chunk]) & (timer.t + floor <= t_out[chunk])
+            ok = np.zeros(len(chunk), bool)
+            begin = np.zeros(len(chunk))
+            if maybe.any():
+                c = chunk[maybe]
+                begin[maybe] = timer.arrival(along[c], cross[c], t_in[c])
+                ok[maybe] = begin[maybe] + agility.dwell_s <= t_out[c]
+            if not ok.any():
+                pos += len(chunk)
                 continue
-            begin = float(timer.arrival(along[j : j + 1], cross[j : j + 1], t_in[j : j + 1])[0])
-            if begin + agility.dwell_s > t_out[j]:
-                continue
-            timer.take(along[j], cross[j], begin)
+            i = int(np.argmax(ok))
+            j = int(chunk[i])
+            timer.take(along[j], cross[j], float(begin[i]))
             kept.append(j)
-            times.append(begin)
+            times.append(float(begin[i]))
+            pos += i + 1
         if best is None or len(kept) > len(best[0]):
             best = (np.asarray(kept, np.int64), np.asarray(times, np.float64), timer)
     assert best is not None
