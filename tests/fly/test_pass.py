@@ -229,7 +229,7 @@ def test_first_frame_schedule_equals_the_kinematics_one_by_one(agility):
     shape = (512, 512)
     geometry = OrbitGeometry(wfov_gsd_m=32.0)
     state = PassState(covered=np.zeros(shape, bool))
-    kept, times, _ = _schedule(points, shape, geometry, get_agility(agility), 0.0, state, 0.7)
+    kept, times, _, _ = _schedule(points, shape, geometry, get_agility(agility), 0.0, state, 0.7)
     traj = Trajectory(points, np.zeros(len(points)), "demo")
     ref = make_feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
     assert kept.tolist() == ref.kept.tolist()

@@ -686,13 +686,17 @@ def _schedule_predicted(base, shape, geometry, agility, t_k, state, ready, predi
     Returns kept indices, their times, the timer, and the points flown.
     """
     if prediction is None or prediction.motion.regime != "detached" or len(base) == 0:
-        idx, times, timer = _schedule(base, shape, geometry, agility, t_k, state, ready)
+        idx, times, timer, _ = _schedule(base, shape, geometry, agility, t_k, state, ready)
         return idx, times, timer, base[idx]
     lead = prediction.lead_s
     when = np.full(len(base), lead)
-    for _ in range(8):
+    orders = ("planned", "deadline")
+    for _ in range(8):  # after the first round, keep the order it chose
         moved = base + prediction.pointing_shift(when - lead)
-        idx, times, timer = _schedule(moved, shape, geometry, agility, t_k, state, ready)
+        idx, times, timer, used = _schedule(
+            moved, shape, geometry, agility, t_k, state, ready, orders
+        )
+        orders = (used,)
         change = float(np.max(np.abs(times - when[idx]), initial=0.0))
         when = when.copy()
         when[idx] = times
@@ -723,18 +727,22 @@ def _schedule(
     t_k: float,
     state: PassState,
     ready: float,
-) -> tuple[np.ndarray, np.ndarray, Timer]:
+    orders: tuple[str, ...] = ("planned", "deadline"),
+) -> tuple[np.ndarray, np.ndarray, Timer, str]:
     """Time pointings of frame ``k`` behind the committed ones; the better of two orders.
 
+    ``orders``: the plan's own order (``"planned"``) and earliest deadline first
+    (``"deadline"``); the one keeping more pointings wins (the first on ties).
     Returns the kept indices (into ``points``, in flight order), their start
-    times (seconds after the frame's acquisition) and the timer after them.
+    times (seconds after the frame's acquisition), the timer after them and the order used.
     """
     v = base.ground_speed
     geometry = OrbitGeometry(base.altitude_m, base.look_ahead_m, base.wfov_gsd_m, ready - t_k)
     along, cross = geometry.ground(points, shape)
     t_in, t_out = visibility_windows(geometry, agility, along, cross)
-    best: tuple[np.ndarray, np.ndarray, Timer] | None = None
-    for order in (np.arange(len(points)), np.argsort(t_out, kind="stable")):
+    best: tuple[np.ndarray, np.ndarray, Timer, str] | None = None
+    for name in orders:
+        order = np.arange(len(points)) if name == "planned" else np.argsort(t_out, kind="stable")
         timer = Timer(geometry, agility)
         timer.t = max(ready, state.timer_t) - t_k
         if state.target is not None:
@@ -764,6 +772,6 @@ def _schedule(
             times.append(float(begin[i]))
             pos += i + 1
         if best is None or len(kept) > len(best[0]):
-            best = (np.asarray(kept, np.int64), np.asarray(times, np.float64), timer)
+            best = (np.asarray(kept, np.int64), np.asarray(times, np.float64), timer, name)
     assert best is not None
     return best
