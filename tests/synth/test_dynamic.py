@@ -155,3 +155,45 @@ def test_bad_input_raises_a_named_error(call):
 def test_window_error_names_the_argument():
     with pytest.raises(InvalidParameterError, match="window"):
         World(sample_world(0, 0, size=32)).render(0.0, window=(1, 2, 3))
+
+
+def test_steady_plume_matches_the_analytic_gaussian_plume():
+    # With steady emission and no texture, the puff train must approach the steady
+    # slender-plume solution of the advection-diffusion equation (Seinfeld & Pandis,
+    # ch. 18): tau(s, d) = tau0 * sigma0 / sigma(s) * exp(-d^2 / 2 sigma(s)^2) * exp(-s / (U T)),
+    # sigma(s)^2 = sigma0^2 + 2 K s / U + (i s)^2, worked out here, not taken from the module.
+    u_mps, k_m2s, turb, fade, tau0, sigma0_m = 8.0, 20.0, 0.08, 600.0, 3.0, 60.0
+    vent = VentSpec(
+        x=20.0, y=100.0, emission_optical_depth=tau0, source_sigma_m=sigma0_m,
+        eruption_age_s=3000.0, fade_s=fade, diffusivity_m2s=k_m2s, turbulence=turb,
+        gustiness=0.0, meander=0.0, pulsation=0.0,
+    )  # fmt: skip
+    spec = WorldSpec(
+        seed=1, size=200, gsd=GSD, wind=Wind(u_mps, 270.0), vents=(vent,), plume_texture=0.0
+    )
+    _, tau = World(spec).truth(0.0)
+    for s_px in (40, 80, 140):
+        s_m = s_px * GSD
+        sigma_m = np.sqrt(sigma0_m**2 + 2 * k_m2s * s_m / u_mps + (turb * s_m) ** 2)
+        for d_px in (0, 5, 10):
+            expected = (
+                tau0 * sigma0_m / sigma_m
+                * np.exp(-((d_px * GSD) ** 2) / (2 * sigma_m**2))
+                * np.exp(-s_m / (u_mps * fade))
+            )  # fmt: skip
+            assert tau[100 + d_px, 20 + s_px] == pytest.approx(expected, rel=0.01)
+
+
+def test_strip_has_a_plume_at_every_vent_and_renders_in_pieces():
+    from dyntarget.synth.dynamic import sample_strip
+
+    spec, window = sample_strip(2, length=384, width=96, plumes=3, wind_mps=6.0)
+    assert window == (0, 0, 96, 384) and len(spec.vents) == 3
+    ys = sorted(v.y for v in spec.vents)
+    assert ys[0] < 128 <= ys[1] < 256 <= ys[2] < 384  # one vent per third of the strip
+    world = World(spec)
+    full = world.render(20.0, window)
+    for v in spec.vents:  # optical depth at the vent is the plume's, well above the label
+        assert full.tau[round(v.y), round(v.x)] > spec.label_optical_depth
+    top = world.render(20.0, (0, 0, 96, 128))
+    np.testing.assert_array_equal(top.image, full.image[:, :128])

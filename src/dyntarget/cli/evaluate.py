@@ -6,6 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
+from dyntarget.cli import dynamic
 from dyntarget.cli._common import (
     EXIT_OK,
     Parser,
@@ -19,7 +20,7 @@ from dyntarget.cli._common import (
     show_result,
 )
 
-EVALUATIONS: tuple = ()
+EVALUATIONS: tuple = (dynamic,)
 """Further command modules adding an evaluation: each has ``register_evaluation(ev)``
 (``ev`` the ``evaluate`` sub-commands); import the module here and list it."""
 

@@ -10,7 +10,7 @@ from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
-    if args.strip:
+    if getattr(args, "strip", False):  # demo calls this with the static options only
         return _synth_strips(args)
     from tqdm import tqdm
 
@@ -20,6 +20,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
     out = Path(args.out)
     t0 = time.perf_counter()
     n_files = 0
+    if getattr(args, "frames", None) is not None:  # demo calls this with the static options only
+        return _synth_sequences(args, out, t0)
+    if (
+        getattr(args, "wind_mps", None) is not None
+        or getattr(args, "wind_from_deg", None) is not None
+    ):
+        log("note: --wind-mps/--wind-from-deg apply to moving scenes (--frames) only")
     gen = generate_scenes(args.scenes, size=args.size, seed=args.seed, gsd=args.gsd)
     for scene, _params in tqdm(
         gen, total=args.scenes, desc="synth", unit="scene", disable=args.quiet
@@ -52,6 +59,52 @@ def _synth_strips(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _synth_sequences(args: argparse.Namespace, out: Path, t0: float) -> int:
+    from tqdm import tqdm
+
+    from dyntarget.io import write_sequence
+    from dyntarget.synth import generate_sequences
+
+    gen = generate_sequences(
+        args.scenes,
+        size=args.size,
+        seed=args.seed,
+        gsd=args.gsd,
+        frames=args.frames,
+        interval_s=args.frame_interval_s,
+        wind_mps=args.wind_mps,
+        wind_from_deg=args.wind_from_deg,
+    )
+    n_files = 0
+    for seq in tqdm(gen, total=args.scenes, desc="synth", unit="sequence", disable=args.quiet):
+        n_files += len(write_sequence(seq, out))
+    log(
+        f"wrote {args.scenes} moving-scene sequences of {args.frames} frame(s) "
+        f"({n_files} files) to {out} in {time.perf_counter() - t0:.1f} s"
+    )
+    return EXIT_OK
+
+
+def _wind_speed(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected m/s, got {text!r}") from None
+    if not 0 <= value <= 60:
+        raise argparse.ArgumentTypeError(f"expected a wind speed in 0..60 m/s, got {text!r}")
+    return value
+
+
+def _degrees(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected degrees, got {text!r}") from None
+    if not -360 <= value <= 360:
+        raise argparse.ArgumentTypeError(f"expected degrees in -360..360, got {text!r}")
+    return value
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this module's command(s) to the ``dyntarget`` sub-commands."""
     p = sub.add_parser("synth", help="generate synthetic volcanic scenes (GeoTIFF + mask)")
@@ -63,6 +116,31 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gsd", type=positive_float, default=8.0, help="metres per pixel (default 8)")
     p.add_argument("--out", required=True, help="output scene directory")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    g = p.add_argument_group(
+        "moving scenes",
+        "with --frames, each scene is a folder <id>/ of look-ahead frames f000.tif, f001.tif, "
+        "... (+ _mask.tif) at t = 0, S, 2S, ... and sequence.json (times, and the world spec "
+        "from which the true plume at any time is rebuilt); see docs/synthetic-scenes.md",
+    )
+    g.add_argument(
+        "--frames", type=positive_int, help="number of look-ahead frames per moving scene"
+    )
+    g.add_argument(
+        "--frame-interval-s",
+        type=positive_float,
+        default=10.0,
+        help="seconds between frames (default 10)",
+    )
+    g.add_argument(
+        "--wind-mps",
+        type=_wind_speed,
+        help="wind speed in m/s for every scene (default: drawn per scene, 0-16)",
+    )
+    g.add_argument(
+        "--wind-from-deg",
+        type=_degrees,
+        help="direction the wind blows from, degrees clockwise from north (default: drawn)",
+    )
     s = p.add_argument_group("strips to fly ('dyntarget fly'; --scenes strips, --size px wide)")
     s.add_argument(
         "--strip",

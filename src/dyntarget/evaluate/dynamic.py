@@ -490,20 +490,23 @@ def latency_figure(
     mode: str = "static",
 ) -> Path:
     """Ratio plume (or ``metric``) against latency: one panel per classifier x wind selection."""
-    from dyntarget.evaluate.figures import plt, save
+    from matplotlib import colormaps
+
+    from dyntarget.evaluate.figures import save, subplots
 
     sel = [r for r in records if r["mode"] == mode]
     classifiers = [c for c in _order(sel, "classifier") if c != "N/A"]
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         len(winds), max(len(classifiers), 1), figsize=(5.2 * max(len(classifiers), 1), 3.6 * len(winds)),
         squeeze=False, sharey=True,
     )  # fmt: skip
-    cmap = plt.get_cmap("tab10")
+    cmap = colormaps["tab10"]
     for wi, wind in enumerate(winds):
         wsel = [r for r in sel if wind is None or r["wind_bin"] == wind]
         for ci, cname in enumerate(classifiers):
             ax = axes[wi, ci]
             planners = _order([r for r in wsel if r["classifier"] in (cname, "N/A")], "planner")
+            nb = 0
             for pi, pname in enumerate(planners):
                 mine = [
                     r for r in wsel if r["planner"] == pname and r["classifier"] in (cname, "N/A")
@@ -511,9 +514,11 @@ def latency_figure(
                 lats = sorted({r["latency_s"] for r in mine})
                 vals = [np.mean([r[metric] for r in mine if r["latency_s"] == lat]) for lat in lats]
                 baseline = pname in BASELINES
+                style = ["--", ":"][nb % 2] if baseline else "-"
+                nb += baseline
                 ax.plot(
                     lats, vals, marker="o", ms=3,
-                    ls="--" if baseline else "-", color="black" if baseline else cmap(pi % 10),
+                    ls=style, color="black" if baseline else cmap(pi % 10),
                     alpha=0.7 if baseline else 1.0, label=display(pname),
                 )  # fmt: skip
             n = len({r["scene"] for r in wsel})

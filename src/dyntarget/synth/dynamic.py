@@ -205,6 +205,7 @@ class WorldSpec:
     vents: tuple[VentSpec, ...]
     clouds: tuple[CloudSpec, ...] = ()
     label_optical_depth: float = 0.35
+    plume_texture: float = 0.5
     tile: int = 512
     water_fraction: float = 0.0
     lava_fraction: float = 0.25
@@ -233,7 +234,13 @@ class WorldSpec:
             raise InvalidParameterError(
                 f"label_optical_depth: expected a positive number, got {self.label_optical_depth!r}"
             )
-        for name in ("water_fraction", "lava_fraction", "vegetation_fraction", "haze"):
+        for name in (
+            "water_fraction",
+            "lava_fraction",
+            "vegetation_fraction",
+            "haze",
+            "plume_texture",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v < 1.0):
                 raise InvalidParameterError(f"{name}: expected 0 <= value < 1, got {v!r}")
@@ -510,12 +517,12 @@ class World:
         c0, r0, w, h = window
         pad = PAD
         yy, xx = np.mgrid[r0 - pad : r0 + h + pad, c0 - pad : c0 + w + pad].astype(np.float32)
-        vent = s.vents[0] if s.vents else None
-        if vent is not None:
+        cone = np.zeros_like(xx)
+        lava_bias = np.zeros_like(xx)
+        for vent in s.vents:  # a volcanic cone under every vent
             r_vent = np.hypot(xx - vent.x, yy - vent.y) / s.size
-            cone, lava_bias = 2.5 * np.exp(-r_vent / 0.2), 2.0 * np.exp(-r_vent / 0.15)
-        else:
-            cone = lava_bias = np.zeros_like(xx)
+            cone = np.maximum(cone, 2.5 * np.exp(-r_vent / 0.2))
+            lava_bias = np.maximum(lava_bias, 2.0 * np.exp(-r_vent / 0.15))
         elev_noise = self._sample("elev", window, pad)
         elev = elev_noise + cone
         water = elev_noise < self._thresholds["water"]
@@ -652,10 +659,10 @@ class World:
                 blob = np.outer(gy, gx)
                 tau[b0:b1, a0:a1] += blob
                 tau_ash[b0:b1, a0:a1] += blob * ash[j]
-        if tau.any():
+        if tau.any() and s.plume_texture > 0:
             # texture that moves with the flow, developing away from the vent
             tex = self._sample_shifted("plume", window, ux * t, uy * t).astype(np.float64)
-            amp = np.full((h, w), 0.5)
+            amp = np.full((h, w), s.plume_texture)
             for v in s.vents:
                 # downwind distance from the vent (plain distance in calm air): none upwind
                 rx, ry = xs[None, :] - v.x, ys[:, None] - v.y
@@ -663,7 +670,9 @@ class World:
                     d = np.maximum((rx * ux + ry * uy) / speed_px, 0.0)
                 else:
                     d = np.hypot(rx, ry)
-                amp = np.minimum(amp, 0.5 * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd))))
+                amp = np.minimum(
+                    amp, s.plume_texture * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd)))
+                )
             mult = np.exp(amp * tex - 0.5 * amp**2)
             tau *= mult
             tau_ash *= mult
@@ -930,3 +939,59 @@ def generate_sequences(
             seed, i, size=size, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
         )
         yield world_sequence(World(spec), frames=frames, interval_s=interval_s)
+
+
+def sample_strip(
+    seed: int,
+    *,
+    length: int,
+    width: int = 512,
+    plumes: int = 4,
+    gsd: float = 8.0,
+    wind_mps: float | None = None,
+    wind_from_deg: float | None = None,
+) -> tuple[WorldSpec, Window]:
+    """A long world with several vents, for pass simulations; returns ``(spec, strip window)``.
+
+    The strip runs along the image rows (row 0 at the top, ``length`` rows,
+    ``width`` columns); vents are spread along it, one per ``length / plumes``
+    rows, each with its own draws as in :func:`sample_world`. Render the whole
+    strip with ``World(spec).render(t, window)`` or any sub-window of it.
+
+    Examples
+    --------
+    >>> spec, window = sample_strip(0, length=256, width=64, plumes=2)
+    >>> len(spec.vents), window
+    (2, (0, 0, 64, 256))
+    """
+    if isinstance(plumes, bool) or not isinstance(plumes, int) or plumes < 1:
+        raise InvalidParameterError(f"plumes: expected an integer >= 1, got {plumes!r}")
+    if isinstance(length, bool) or not isinstance(length, int) or length < width:
+        raise InvalidParameterError(
+            f"length: expected an integer >= width ({width}), got {length!r}"
+        )
+    base = sample_world(
+        seed, 0, size=width, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
+    )
+    rng = np.random.default_rng([int(seed), 0xD6])
+    vents, clouds = [], list(base.clouds)
+    seg = length / plumes
+    for k in range(plumes):
+        v = sample_world(seed, k, size=width, gsd=gsd, wind_mps=base.wind.speed_mps,
+                         wind_from_deg=base.wind.from_deg).vents[0]  # fmt: skip
+        y = seg * (k + float(rng.uniform(0.3, 0.7)))
+        x = width * float(rng.uniform(0.25, 0.75))
+        vents.append(
+            VentSpec(**{**asdict(v), "x": x, "y": y})  # same plume draws, placed along the strip
+        )
+    tile = 1 << max(9, (max(width, length) - 1).bit_length())
+    spec = WorldSpec(
+        **{
+            **{f.name: getattr(base, f.name) for f in fields(WorldSpec)},
+            "vents": tuple(vents),
+            "clouds": tuple(clouds),
+            "tile": min(tile, 2048),
+            "id": f"strip-{int(seed):04d}",
+        }
+    )
+    return spec, (0, 0, int(width), int(length))
