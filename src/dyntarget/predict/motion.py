@@ -53,6 +53,10 @@ MIN_EIGEN = 25.0
 """A pixel carries trackable texture when the smaller eigenvalue of its 5 x 5 structure
 tensor (``cv2.cornerMinEigenVal``, 3 x 3 Sobel) on the 8-bit brightness exceeds this; a
 flat plume interior with 0.4 % reflectance noise stays near 1, an edge alone near 10."""
+CROP_MARGIN = 24
+"""Pixels around the plumes' bounding box over which the flow is computed."""
+MIN_REGISTRATION_RESPONSE = 0.05
+"""Weakest phase-correlation peak trusted for the ground's shift."""
 ATTACHED_UPWIND = 0.5
 """Upwind edge moving less than this share of the flow displacement: attached plume."""
 
@@ -211,6 +215,63 @@ def _to_u8(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip((a - lo) * scale, 0, 255).astype(np.uint8)
 
 
+FLOWS = {"dis": "DIS", "farneback": "Farneback"}
+
+
+def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndarray:
+    """Dense optical flow from 8-bit image ``a`` to ``b``, ``float32 (H, W, 2)`` in px.
+
+    Examples
+    --------
+    >>> dense_flow(np.zeros((16, 16), np.uint8), np.zeros((16, 16), np.uint8)).shape
+    (16, 16, 2)
+    """
+    if flow == "dis":
+        dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        return dis.calc(a, b, None)
+    if flow == "farneback":  # Gaussian 9 px window, 5 iterations: the most accurate we measured
+        return cv2.calcOpticalFlowFarneback(
+            a, b, None, 0.5, 4, 9, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
+        )
+    raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
+
+
+def _ground_shift(bp: np.ndarray, bc: np.ndarray, plume: np.ndarray) -> tuple[float, float, bool]:
+    """How far the fixed ground moved between the looks: phase correlation (OpenCV) of the
+    brightness with the plume's neighbourhood filled by the ground's mean; ``ok`` False
+    when the correlation peak is too weak to trust (e.g. a featureless sea)."""
+    ground = ~plume
+    if ground.sum() < 256:
+        return 0.0, 0.0, False
+    a, b = bp.copy(), bc.copy()
+    a[plume], b[plume] = float(bp[ground].mean()), float(bc[ground].mean())
+    window = cv2.createHanningWindow(a.shape[::-1], cv2.CV_32F)
+    (dx, dy), response = cv2.phaseCorrelate(a.astype(np.float32), b.astype(np.float32), window)
+    if response < MIN_REGISTRATION_RESPONSE:
+        return 0.0, 0.0, False
+    return _snap_still(dx), _snap_still(dy), True
+
+
+def _snap_still(v: float) -> float:
+    """Sub-tenth-pixel registration offsets are noise: 0."""
+    return 0.0 if abs(v) < 0.1 else float(v)
+
+
+def _mode(x: np.ndarray, y: np.ndarray, bin_px: float = 0.1, sigma_bins: float = 2.0):
+    """The densest displacement of the votes (smoothed 2-D histogram peak, refined by the
+    mean of the votes within 0.6 px). Over semi-transparent plume parts the flow mixes the
+    still ground into the plume's motion; the mode keeps to the plume's own motion where
+    a median is pulled towards zero."""
+    r = float(max(np.abs(x).max(), np.abs(y).max())) + 1.0
+    n = int(2 * r / bin_px) + 1
+    hist, xe, ye = np.histogram2d(x, y, bins=n, range=[[-r, r], [-r, r]])
+    hist = cv2.GaussianBlur(hist.astype(np.float32), (0, 0), sigma_bins)
+    i, j = np.unravel_index(int(np.argmax(hist)), hist.shape)
+    px, py = (xe[i] + xe[i + 1]) / 2, (ye[j] + ye[j + 1]) / 2
+    near = np.hypot(x - px, y - py) < 3 * bin_px * sigma_bins
+    return float(x[near].mean()), float(y[near].mean())
+
+
 def _edges(mask: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     ys, xs = np.nonzero(mask)
     s = xs * u[0] + ys * u[1]
@@ -232,6 +293,7 @@ def estimate_motion(
     *,
     previous_mask: np.ndarray,
     current_mask: np.ndarray,
+    flow: str = "farneback",
 ) -> Motion:
     """Estimate the plume's motion between two looks on the same grid.
 
@@ -243,6 +305,9 @@ def estimate_motion(
         Seconds from ``previous`` to ``current`` (> 0).
     previous_mask, current_mask : bool (H, W)
         The plume in each frame (hand label or classifier output).
+    flow : str
+        Dense optical flow: ``"farneback"`` (OpenCV Farneback, default) or ``"dis"``
+        (OpenCV DIS); ``benchmarks/motion_methods.py`` compares them (and pysteps).
 
     Returns
     -------
@@ -273,6 +338,8 @@ def estimate_motion(
             f"previous: shape {prev.shape} does not match the current frame's {cur.shape}"
         )
     dt = check_interval(interval_s)
+    if flow not in FLOWS:
+        raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
     shape = cur.shape[1:]
     pm = _check_mask(previous_mask, shape, "previous_mask")
     cm = _check_mask(current_mask, shape, "current_mask")
@@ -289,36 +356,40 @@ def estimate_motion(
 
     bp, bc = brightness(prev), brightness(cur)
     lo, hi = np.percentile(np.concatenate([bp.ravel(), bc.ravel()]), [1, 99])
-    p8, c8 = _to_u8(bp, lo, hi), _to_u8(bc, lo, hi)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    fwd = dis.calc(p8, c8, None)
-    bwd = dis.calc(c8, p8, None)
+    near_plume = cv2.dilate((pm | cm).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
 
+    # dense flow on the plume's bounding box (plus a margin): cost follows the plume, not the image
+    ys, xs = np.nonzero(pm | cm)
     h, w = shape
-    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+    y0, y1 = max(int(ys.min()) - CROP_MARGIN, 0), min(int(ys.max()) + CROP_MARGIN + 1, h)
+    x0, x1 = max(int(xs.min()) - CROP_MARGIN, 0), min(int(xs.max()) + CROP_MARGIN + 1, w)
+    p8 = _to_u8(bp[y0:y1, x0:x1], lo, hi)
+    c8 = _to_u8(bc[y0:y1, x0:x1], lo, hi)
+    fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
+    gy, gx = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float32)
     back_at = cv2.remap(
         bwd, gx + fwd[..., 0], gy + fwd[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     )
     fb_err = np.hypot(fwd[..., 0] + back_at[..., 0], fwd[..., 1] + back_at[..., 1])
     consistent = fb_err < 1.0
-
     # texture that pins the flow down in both directions (not just an edge): the smaller
     # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
     textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, 3) > MIN_EIGEN
-    near_plume = cv2.dilate((pm | cm).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
-    ground = ~near_plume
 
-    # the ground's apparent motion: misregistration of the two looks
-    ground_votes = ground & textured & consistent
+    # the fixed ground's apparent motion (misregistration): the flow over textured ground
+    # around the plume; where the margin has too little, phase correlation of the frames
+    ground_votes = ~near_plume[y0:y1, x0:x1] & textured & consistent
     if ground_votes.sum() >= 50:
-        gdx = float(np.median(fwd[..., 0][ground_votes]))
-        gdy = float(np.median(fwd[..., 1][ground_votes]))
+        gdx = _snap_still(float(np.median(fwd[..., 0][ground_votes])))
+        gdy = _snap_still(float(np.median(fwd[..., 1][ground_votes])))
+        ground_ok = True
     else:
-        gdx = gdy = 0.0
+        gdx, gdy, ground_ok = _ground_shift(bp, bc, near_plume)
 
-    inner = cv2.erode(pm.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    pm_c = pm[y0:y1, x0:x1]
+    inner = cv2.erode(pm_c.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     if not inner.any():
-        inner = pm
+        inner = pm_c
     votes = inner & textured & consistent
     n_votes = int(votes.sum())
     rel_x = fwd[..., 0][votes] - gdx
@@ -328,7 +399,9 @@ def estimate_motion(
     n_moving = int(moving.sum())
     texture_share = n_votes / max(int(inner.sum()), 1)
     notes: list[str] = []
-    if abs(gdx) > STILL_PX or abs(gdy) > STILL_PX:
+    if not ground_ok:
+        notes.append("ground registration failed (no texture outside the plume): assumed aligned")
+    elif abs(gdx) > STILL_PX or abs(gdy) > STILL_PX:
         notes.append(f"ground moved by ({gdx:+.2f}, {gdy:+.2f}) px between the looks (removed)")
 
     calm = n_votes > 0 and n_moving < CALM_FRACTION * n_votes
@@ -339,15 +412,15 @@ def estimate_motion(
         vx = vy = 0.0
         agreement = 1.0 - n_moving / n_votes
     else:
-        mx, my = float(np.median(rel_x[moving])), float(np.median(rel_y[moving]))
+        mx, my = _mode(rel_x[moving], rel_y[moving])
         spread = float(
             np.median(np.hypot(rel_x[moving] - mx, rel_y[moving] - my))
-        )  # median absolute deviation, px
+        )  # median distance of the votes from the mode, px
         agreement = max(0.0, 1.0 - spread / max(math.hypot(mx, my), 1e-6))
         vx, vy = mx / dt, my / dt
     confidence = min(1.0, texture_share / 0.3) * agreement * min(1.0, n_votes / 200.0)
     confidence = float(np.clip(confidence, 0.0, 1.0))
-    method = "DIS flow"
+    method = f"{FLOWS[flow]} flow"
     if confidence < LOW_CONFIDENCE:
         # the flow is not trusted: fall back on how the masks moved
         ys0, xs0 = np.nonzero(pm)
