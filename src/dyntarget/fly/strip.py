@@ -31,7 +31,7 @@ from dyntarget.fly.world import StaticWorld, Truth, World
 from dyntarget.io.atomic import write_text
 from dyntarget.observe.nfov import UtilityMaps
 from dyntarget.synth.dynamic import World as MovingWorld
-from dyntarget.synth.dynamic import WorldSpec, sample_world
+from dyntarget.synth.dynamic import WorldSpec, sample_strip
 
 STRIP_FORMAT = "dyntarget-strip"
 SIDECAR = ".world.json"
@@ -47,12 +47,10 @@ def strip_spec(
     wind_mps: float | None = None,
     wind_from_deg: float | None = None,
 ) -> tuple[WorldSpec, tuple[int, int, int, int]]:
-    """A moving world with ``plumes`` vents spread along a ``width`` x ``length`` px strip.
+    """A moving world with ``plumes`` vents along a ``width`` x ``length`` px strip.
 
-    Vent ``i`` (and any detached volcanic cloud or cumulus drawn with it) comes
-    from :func:`~dyntarget.synth.dynamic.sample_world` ``(seed, i)`` on a
-    ``width`` px tile, moved to the ``i``-th of ``plumes`` equal stretches of
-    the strip; one wind for the whole strip (drawn from world 0 unless given).
+    The world is :func:`dyntarget.synth.dynamic.sample_strip`'s (one wind for
+    the whole strip, one vent per ``length / plumes`` rows), named ``strip-<seed>``.
 
     Parameters
     ----------
@@ -69,31 +67,22 @@ def strip_spec(
     Examples
     --------
     >>> spec, window = strip_spec(0, width=64, length=256, plumes=2, wind_mps=5.0)
-    >>> len(spec.vents), window
-    (2, (0, 0, 64, 256))
+    >>> len(spec.vents), window, spec.id
+    (2, (0, 0, 64, 256), 'strip-0000')
     """
     for name, v, lo in (("width", width, 32), ("length", length, 64), ("plumes", plumes, 1)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise InvalidParameterError(f"{name}: expected an integer >= {lo}, got {v!r}")
-    if length < width:
-        raise InvalidParameterError(
-            f"length: a strip is longer than wide; got length {length} < width {width}"
-        )
-    base = sample_world(
-        seed, 0, size=width, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
+    spec, window = sample_strip(
+        seed,
+        length=length,
+        width=width,
+        plumes=plumes,
+        gsd=gsd,
+        wind_mps=wind_mps,
+        wind_from_deg=wind_from_deg,
     )
-    wind = base.wind
-    vents, clouds = [], []
-    stretch = length / plumes
-    for i in range(plumes):
-        s = sample_world(
-            seed, i, size=width, gsd=gsd, wind_mps=wind.speed_mps, wind_from_deg=wind.from_deg
-        )
-        dy = (i + 0.5) * stretch - width / 2.0
-        vents += [replace(v, y=v.y + dy) for v in s.vents]
-        clouds += [replace(c, y=c.y + dy) for c in s.clouds]
-    spec = replace(base, vents=tuple(vents), clouds=tuple(clouds), id=f"strip-{seed:04d}")
-    return spec, (0, 0, width, length)
+    return replace(spec, id=f"strip-{seed:04d}"), window
 
 
 class MovingStrip:
