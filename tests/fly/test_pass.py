@@ -235,3 +235,8 @@ def test_first_frame_schedule_equals_the_kinematics_one_by_one(agility):
     assert kept.tolist() == ref.kept.tolist()
     np.testing.assert_allclose(times, ref.times, rtol=0, atol=1e-9)
     assert 0 < len(kept) < len(points)
+    from dyntarget.fly.loop import feasible
+
+    flown = feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
+    np.testing.assert_allclose(flown.points, ref.trajectory.points, rtol=0, atol=0)
+    np.testing.assert_allclose(flown.times, ref.times, rtol=0, atol=1e-9)

@@ -719,6 +719,49 @@ def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> No
             state.covered[top : top + h][comp == i] = True
 
 
+def feasible(
+    trajectory: Trajectory,
+    shape: tuple[int, int],
+    geometry: OrbitGeometry,
+    agility: Agility | str,
+) -> Trajectory:
+    """What :func:`dyntarget.schedule.make_feasible` flies, computed a chunk at a time.
+
+    Same pointings, same order, same times (tested), for a sensor starting at
+    nadir at ``geometry.start_s``; faster when many pointings are dropped.
+
+    Parameters
+    ----------
+    trajectory : the plan.
+    shape : (H, W) of its WFOV image.
+    geometry : orbit geometry; ``start_s`` is when the plan is ready.
+    agility : agility preset or name.
+
+    Returns
+    -------
+    Trajectory: the kept pointings in flight order, with ``times``.
+
+    Examples
+    --------
+    >>> from dyntarget.schedule import OrbitGeometry
+    >>> t = Trajectory(np.array([[5.0, 5.0], [6.0, 5.0]]), np.zeros(2), "demo")
+    >>> len(feasible(t, (16, 16), OrbitGeometry(), "fast"))
+    2
+    """
+    agility = get_agility(agility) if isinstance(agility, str) else agility
+    state = PassState(covered=np.zeros((1, 1), bool))
+    idx, times, _, _ = _schedule(
+        trajectory.points, shape, geometry, agility, 0.0, state, geometry.start_s
+    )
+    return Trajectory(
+        trajectory.points[idx],
+        trajectory.part[idx],
+        trajectory.planner,
+        {**trajectory.params, "agility": agility.name},
+        times,
+    )
+
+
 def _schedule(
     points: np.ndarray,
     shape: tuple[int, int],
