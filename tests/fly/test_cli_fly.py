@@ -140,3 +140,32 @@ def test_sigterm_mid_pass_leaves_complete_outputs(tmp_path):
     assert frames <= set(range(n))
     assert f"stopped** after {n} of 255 frames" in (out / "summary.md").read_text()
     assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temporary file left
+
+
+@pytest.mark.slow
+def test_watch_plans_frames_until_sigint(tmp_path, tiny_scenes):
+    from dyntarget.perceive import make_classifier
+
+    model = tmp_path / "model"
+    make_classifier("band-threshold").fit([s.to_wfov(4) for s in tiny_scenes]).save(model)
+    watched, out = tmp_path / "in", tmp_path / "out"
+    watched.mkdir()
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    cmd = [sys.executable, "-m", "dyntarget", "fly", "--watch", str(watched), "--model", str(model)]
+    cmd += ["--out", str(out), "--settle-s", "0.2", "--poll-s", "0.05", "--agility", "fast"]
+    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True)
+    frame = write_scene(tiny_scenes[0], tmp_path / "src")[0]
+    part = watched / f"{frame.name}.part"
+    part.write_bytes(frame.read_bytes())
+    part.rename(watched / frame.name)  # the writer's convention: .part, then rename
+    plan = out / f"{frame.stem}.geojson"
+    deadline = time.monotonic() + 120
+    while not plan.exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    assert plan.exists()
+    rows = (out / "frames.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].startswith(frame.name + ",")
+    assert "planned 1 frame(s)" in err
