@@ -97,6 +97,10 @@ def latency(args) -> None:
         "stage_sum_worst_s": float(stages.max()),
         "classify_median_s": float(np.median(cls)),
         "ratio_median": float(np.median(loop) / np.median(stages)),
+        "stage_median_s": {
+            k: float(np.median([r.stage_s.get(k, 0.0) for r in recs]))
+            for k in ("classify", "denoise", "predict", "plan", "schedule")
+        },
         "per_frame_loop_s": loop.round(4).tolist(),
         "per_frame_stage_sum_s": stages.round(4).tolist(),
     }
@@ -106,7 +110,8 @@ def latency(args) -> None:
         "| | median (s) | worst (s) |\n|---|---|---|\n"
         f"| loop (all onboard work on a frame) | {data['loop_median_s']:.3f} | {data['loop_worst_s']:.3f} |\n"
         f"| in-process stage sum | {data['stage_sum_median_s']:.3f} | {data['stage_sum_worst_s']:.3f} |\n"
-        f"| of which classify | {data['classify_median_s']:.3f} | |\n\n"
+        + "".join(f"| of which {k} | {v:.3f} | |\n" for k, v in data["stage_median_s"].items())
+        + "\n"
         f"loop / stage sum (medians): {data['ratio_median']:.2f}\n"
     )
     _save(Path(args.out), "fly_latency", data, table)
