@@ -303,7 +303,8 @@ class PassResult:
     frames: FramePlan
     records: list[FrameRecord]
     flown: Flown
-    plumes_total: int
+    plumes_at_start: frozenset[int]
+    """Plume ids in the strip's truth at t = 0."""
     stopped: bool = False
 
     @property
@@ -313,6 +314,7 @@ class PassResult:
     def totals(self) -> dict[str, Any]:
         """One row of pass results (what a campaign table holds)."""
         lat = np.array([r.latency_s for r in self.records if not r.dropped]) if self.records else []
+        observed = {i for i in self.flown.plume_id if i > 0}
         return {
             "strip": self.world_id,
             "planner": self.config.planner,
@@ -324,8 +326,8 @@ class PassResult:
             "plume_px": round(float(sum(self.flown.plume)), 4),
             "utility": round(float(sum(self.flown.intensity)), 4),
             "ratio_plume": round(float(np.mean(self.flown.plume)), 4) if self.flown.x else 0.0,
-            "plumes_observed": len({i for i in self.flown.plume_id if i > 0}),
-            "plumes_total": self.plumes_total,
+            "plumes_observed": len(observed),
+            "plumes_total": len(self.plumes_at_start | observed),  # a cloud may drift in later
             "latency_median_s": round(float(np.median(lat)), 4) if len(lat) else None,
             "latency_max_s": round(float(np.max(lat)), 4) if len(lat) else None,
         }
@@ -414,12 +416,13 @@ def fly_pass(
         )
     truth = _TruthCache(world, config.factor, config.footprint)
     state = PassState(covered=np.zeros(frames.wfov_shape, bool))
-    plumes_total = int(world.truth_at(0.0).ids.max())
+    ids0 = world.truth_at(0.0).ids
+    plumes_at_start = frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
     stopped = False
 
     def result() -> PassResult:
         return PassResult(
-            world.id, config, frames, list(state.records), state.flown, plumes_total, stopped
+            world.id, config, frames, list(state.records), state.flown, plumes_at_start, stopped
         )
 
     bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
