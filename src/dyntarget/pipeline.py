@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import time
 import weakref
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Polygon
 
+from dyntarget import defaults
 from dyntarget import denoise as denoising
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
-from dyntarget.plan import PlanConfig, Trajectory, plan
+from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
 from dyntarget.predict import Prediction
 from dyntarget.scene import check_image
 
@@ -30,7 +33,7 @@ class DenoiseConfig:
 class PipelineConfig:
     plan: PlanConfig = field(default_factory=PlanConfig)
     denoise: DenoiseConfig = field(default_factory=DenoiseConfig)
-    threshold: float = 0.5
+    threshold: float = defaults.THRESHOLD
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +50,10 @@ class PlanResult:
     """What ran, in order (``classify: NAME``, ``plan: NAME``), with the reason for any
     fallback a deadline forced."""
     deadline_s: float | None = None
+    planner: str = ""
+    """The planner that made the trajectory (the last resort's under a missed deadline)."""
+    schedule: Any = None
+    """With ``kinematics``: the :class:`dyntarget.schedule.Schedule` flown."""
     prediction: Prediction | None = None
     """The motion and lead time the plan was drawn for (``None``: the plume as seen)."""
     predicted_mask: np.ndarray | None = None
@@ -63,6 +70,254 @@ class PlanResult:
         return float(sum(self.timings.values()))
 
 
+@dataclass(frozen=True)
+class Kinematics:
+    """What ``plan_scene`` schedules under (the observation geometry and agility), and the
+    budgets of the kinematic planners (``utility-max``).
+
+    Parameters
+    ----------
+    geometry : dyntarget.schedule.OrbitGeometry
+        Where the scene lies and when the plan starts.
+    agility : str
+        Agility preset (``dyntarget agility``).
+    budget_s : float or None
+        Time budget from the start, seconds.
+    objective : str
+        What ``utility-max`` maximises.
+    max_pointings : int or None
+        Pointing budget of ``utility-max``.
+    """
+
+    geometry: Any
+    agility: str
+    budget_s: float | None = None
+    objective: str = "gradient"
+    max_pointings: int | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Algorithm 1 up to the planner: the probability, the raw and denoised masks, the polygons.
+
+    ``timings`` holds ``classify`` and ``denoise`` wall seconds.
+    """
+
+    probability: np.ndarray | None
+    raw_mask: np.ndarray
+    mask: np.ndarray
+    polygons: list[Polygon]
+    valid: np.ndarray | None
+    image: np.ndarray
+    timings: dict[str, float]
+
+
+def classify(image: np.ndarray, classifier: Classifier) -> np.ndarray:
+    """Plume probability of ``image`` (the classify stage, timed by the callers).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    classifier : Classifier
+        Fitted (native or ONNX).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32 probability.
+    """
+    return classifier.predict_proba(image)
+
+
+def clean(raw: np.ndarray, config: PipelineConfig, *, denoise: bool = True):
+    """The denoise stage (Algorithm 2, settings from ``config``), or the raw mask's polygons.
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        ``(H, W)`` bool mask.
+    config : PipelineConfig
+        Its ``denoise`` settings.
+    denoise : bool
+        ``False``: keep the mask, only find its polygons.
+
+    Returns
+    -------
+    tuple
+        ``(mask, polygons)``.
+    """
+    if not denoise:
+        return raw, mask_to_polygons(raw)
+    cfg = config.denoise
+    result = denoising.denoise(
+        raw, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction
+    )
+    return result.mask, result.polygons
+
+
+def segment(
+    image: np.ndarray,
+    classifier: Classifier | None = None,
+    *,
+    mask: np.ndarray | None = None,
+    probability: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
+    denoise: bool = True,
+    config: PipelineConfig | None = None,
+) -> Segmentation:
+    """Algorithm 1 before planning: classify (or take a mask or probability), threshold,
+    keep valid pixels, denoise.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    classifier : Classifier or None
+        Fitted classifier; not needed with ``mask`` or ``probability``.
+    mask : numpy.ndarray or None
+        A plume mask to plan on instead of classifying.
+    probability : numpy.ndarray or None
+        A plume probability computed before (thresholded at ``config.threshold``).
+    valid : numpy.ndarray or None
+        ``False`` on nodata pixels: never plume.
+    denoise : bool
+        Apply Algorithm 2.
+    config : PipelineConfig or None
+        Threshold and denoising settings (defaults: the paper's).
+
+    Returns
+    -------
+    Segmentation
+        Probability, raw and denoised masks, polygons, stage timings.
+
+    Examples
+    --------
+    >>> img = np.zeros((4, 40, 40), np.float32); m = np.zeros((40, 40), bool)
+    >>> m[10:30, 5:35] = True; m[2, 2] = True       # a plume and a speck
+    >>> seg = segment(img, mask=m)
+    >>> len(seg.polygons), int(seg.mask.sum())
+    (1, 600)
+    """
+    config = config or PipelineConfig()
+    image = check_image(image)
+    t0 = time.perf_counter()
+    if mask is not None:
+        raw = check_mask(mask)
+        if raw.shape != image.shape[1:]:
+            raise InvalidSceneError(
+                f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
+            )
+    else:
+        if probability is None:
+            if classifier is None:
+                raise InvalidParameterError("plan_scene: give a classifier or a mask")
+            probability = classify(image, classifier)
+        elif np.shape(probability) != image.shape[1:]:
+            raise InvalidSceneError(
+                f"probability: shape {np.shape(probability)} does not match the image's "
+                f"{image.shape[1:]}"
+            )
+        raw = probability >= config.threshold
+    if valid is not None:
+        if np.shape(valid) != raw.shape:
+            raise InvalidSceneError(
+                f"valid: shape {np.shape(valid)} does not match the image's {raw.shape}"
+            )
+        valid = np.asarray(valid, bool)
+        raw = raw & valid
+    timings = {"classify": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    clean_mask, polygons = clean(raw, config, denoise=denoise)
+    timings["denoise"] = time.perf_counter() - t0
+    return Segmentation(probability, raw, clean_mask, polygons, valid, image, timings)
+
+
+def plan_segmentation(
+    segmentation: Segmentation,
+    planner: str,
+    config: PipelineConfig | None = None,
+    *,
+    kinematics: Kinematics | None = None,
+) -> Trajectory:
+    """The plan stage: ``planner`` on a segmentation; pointings on nodata are dropped.
+
+    Parameters
+    ----------
+    segmentation : Segmentation
+        From :func:`segment`.
+    planner : str
+        Registered planner name.
+    config : PipelineConfig or None
+        Its ``plan`` settings.
+    kinematics : Kinematics or None
+        Needed by the kinematic planners (``utility-max``).
+
+    Returns
+    -------
+    Trajectory
+        The planned pointings.
+    """
+    config = config or PipelineConfig()
+    seg = segmentation
+    context = None
+    if kinematics is not None:
+        proba = seg.probability if seg.probability is not None else seg.raw_mask
+        if seg.valid is not None:
+            proba = np.where(seg.valid, proba, 0.0)
+        context = PlanContext(
+            probability=np.asarray(proba, np.float32),
+            image=seg.image,
+            geometry=kinematics.geometry,
+            agility=kinematics.agility,
+            objective=kinematics.objective,
+            budget_s=kinematics.budget_s,
+            max_pointings=kinematics.max_pointings,
+        )
+    trajectory = plan(planner, seg.mask, seg.polygons, config.plan, context)
+    if seg.valid is not None and len(trajectory):
+        shape = seg.raw_mask.shape
+        rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, shape[0] - 1)
+        cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, shape[1] - 1)
+        trajectory = trajectory.without(~seg.valid[rows, cols])  # never point at nodata
+    return trajectory
+
+
+def schedule_plan(
+    trajectory: Trajectory, shape: tuple[int, int], planner: str, kinematics: Kinematics
+):
+    """The schedule stage: time the pointings under the kinematics, keep the feasible.
+
+    A planner that plans under the kinematics (``timed``) is flown as planned; the
+    others fly the better of their own order and earliest-deadline-first
+    (:func:`dyntarget.schedule.make_feasible`).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        As planned.
+    shape : tuple of int
+        WFOV ``(H, W)``.
+    planner : str
+        The planner that made it.
+    kinematics : Kinematics
+        Geometry, agility, budget.
+
+    Returns
+    -------
+    dyntarget.schedule.Schedule
+        What is flown (``.trajectory``) and what was dropped.
+    """
+    from dyntarget.plan import PLANNERS
+    from dyntarget.schedule import make_feasible, schedule
+
+    if getattr(PLANNERS.get(planner), "timed", False):
+        return schedule(trajectory, shape, kinematics.geometry, kinematics.agility)
+    return make_feasible(
+        trajectory, shape, kinematics.geometry, kinematics.agility, budget_s=kinematics.budget_s
+    )
+
+
 def plan_scene(
     image: np.ndarray,
     classifier: Classifier | None,
@@ -74,6 +329,7 @@ def plan_scene(
     config: PipelineConfig | None = None,
     deadline_s: float | None = None,
     fallback: Classifier | None = None,
+    kinematics: Kinematics | None = None,
     prediction: Prediction | None = None,
 ) -> PlanResult:
     """Plan an NFOV trajectory for a WFOV image (Algorithm 1).
@@ -86,80 +342,109 @@ def plan_scene(
     mask : a plume mask to plan on instead of classifying (e.g. a hand label).
     valid : ``False`` on nodata pixels (``Scene.valid``): never plume, never pointed at.
     denoise : apply Algorithm 2 before planning (as the paper does).
+    config : threshold, denoising and planner settings.
     deadline_s : wall-clock seconds allowed for classify + denoise + plan. A plan
         is always returned; if the full path would overrun, cheaper ones are taken
         (see :func:`choose_path`), and ``PlanResult.path`` says which and why.
     fallback : a cheaper fitted classifier (e.g. ``band-threshold``) for the deadline.
+    kinematics : schedule the plan under this geometry and agility
+        (``PlanResult.schedule``); needed by ``utility-max``.
     prediction : plan on the plume as it will be ``prediction.lead_s`` seconds after
         the acquisition (:mod:`dyntarget.predict`): the denoised mask is advected
-        there and the planner runs on it; ``PlanResult.predicted_mask`` holds it.
-        With agility, :func:`schedule_on_prediction` moves each pointing on to its
-        own scheduled time.
+        there and the planner runs on it (``PlanResult.predicted_mask``). With
+        ``kinematics``, each pointing is moved on to the plume at its own scheduled
+        time (:func:`iterate_on_prediction`).
+
+    Returns
+    -------
+    PlanResult
+        Masks, polygons, the trajectory, per-stage timings (and the schedule).
     """
     config = config or PipelineConfig()
     image = check_image(image)
     if deadline_s is not None:
-        return _plan_with_deadline(
+        result = _plan_with_deadline(
             image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback,
-            prediction,
+            kinematics, prediction,
         )  # fmt: skip
-    timings: dict[str, float] = {}
-    probability = None
-    t0 = time.perf_counter()
-    if mask is None:
-        if classifier is None:
-            raise InvalidParameterError("plan_scene: give a classifier or a mask")
-        probability = classifier.predict_proba(image)
-        raw = probability >= config.threshold
     else:
-        raw = check_mask(mask)
-        if raw.shape != image.shape[1:]:
-            raise InvalidSceneError(
-                f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
-            )
-    if valid is not None:
-        if np.shape(valid) != raw.shape:
-            raise InvalidSceneError(
-                f"valid: shape {np.shape(valid)} does not match the image's {raw.shape}"
-            )
-        raw = raw & np.asarray(valid, bool)
-    timings["classify"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    if denoise:
-        cfg = config.denoise
-        result = denoising.denoise(
-            raw, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction
+        result = _plan_once(
+            image, classifier, planner, mask, valid, denoise, config, kinematics, prediction
         )
-        clean, polygons = result.mask, result.polygons
-    else:
-        clean, polygons = raw, mask_to_polygons(raw)
-    timings["denoise"] = time.perf_counter() - t0
-    predicted = None
-    if prediction is not None:
-        t0 = time.perf_counter()
-        predicted = prediction.mask(clean)
-        if valid is not None:
-            predicted &= np.asarray(valid, bool)
-        polygons = denoising.mask_to_polygons(predicted)
-        timings["predict"] = time.perf_counter() - t0
+    if kinematics is not None:
+        shape = image.shape[1:]
+
+        def fly(trajectory: Trajectory):
+            return schedule_plan(trajectory, shape, result.planner, kinematics)
+
+        if result.prediction is None:
+            flown = fly(result.trajectory)
+        else:  # each pointing moved on to the plume at its own scheduled time
+            attached = result.prediction.attached_mask(result.mask)
+            _, flown = iterate_on_prediction(
+                result.trajectory, result.prediction, fly, attached=attached
+            )
+        result = replace(result, schedule=flown)
+    return result
+
+
+def predict_segmentation(segmentation: Segmentation, prediction: Prediction) -> Segmentation:
+    """The predict stage: the segmentation carried to ``prediction.lead_s`` (nodata stays off).
+
+    The denoised mask is advected (:meth:`~dyntarget.predict.Prediction.mask`), its
+    polygons found again, and the probability (if any) advected too, so every
+    planner, ``utility-max`` included, plans on the plume as it will be.
+    ``timings`` gains ``predict``.
+
+    Examples
+    --------
+    >>> from dyntarget.predict import Motion
+    >>> m = np.zeros((40, 40), bool); m[10:20, 5:15] = True
+    >>> seg = segment(np.zeros((4, 40, 40), np.float32), mask=m, denoise=False)
+    >>> moved = predict_segmentation(seg, Prediction(Motion((1.0, 0.0)), 10.0))
+    >>> int(np.argmax(moved.mask.any(axis=0)))   # the plume's west edge moved 10 px east
+    15
+    """
     t0 = time.perf_counter()
-    target = clean if predicted is None else predicted
-    trajectory = plan(planner, target, polygons, config.plan)
-    if valid is not None and len(trajectory):
-        rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, raw.shape[0] - 1)
-        cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, raw.shape[1] - 1)
-        trajectory = trajectory.without(
-            ~np.asarray(valid, bool)[rows, cols]
-        )  # never point at nodata
-    timings["plan"] = time.perf_counter() - t0
+    predicted = prediction.mask(segmentation.mask)
+    probability = segmentation.probability
+    if probability is not None:
+        probability = prediction.field(probability)
+    raw = prediction.mask(segmentation.raw_mask)
+    if segmentation.valid is not None:
+        predicted &= segmentation.valid
+        raw &= segmentation.valid
+    timings = {**segmentation.timings, "predict": time.perf_counter() - t0}
+    return replace(
+        segmentation, mask=predicted, raw_mask=raw, polygons=mask_to_polygons(predicted),
+        probability=probability, timings=timings,
+    )  # fmt: skip
+
+
+def _plan_once(
+    image, classifier, planner, mask, valid, denoise, config, kinematics, prediction=None
+) -> PlanResult:
+    seg = segment(image, classifier, mask=mask, valid=valid, denoise=denoise, config=config)
+    target = seg if prediction is None else predict_segmentation(seg, prediction)
+    t0 = time.perf_counter()
+    trajectory = plan_segmentation(target, planner, config, kinematics=kinematics)
+    timings = {**target.timings, "plan": time.perf_counter() - t0}
     path = [f"classify: {classifier.name}" if mask is None else "classify: given mask"]
     if prediction is not None:
         m = prediction.motion
         path.append(f"predict: {m.regime}, {prediction.lead_s:g} s ahead ({m.source})")
     return PlanResult(
-        probability, raw, clean, polygons, trajectory, timings, [*path, f"plan: {planner}"],
-        prediction=prediction, predicted_mask=predicted,
-    )  # fmt: skip
+        seg.probability,
+        seg.raw_mask,
+        seg.mask,
+        target.polygons,
+        trajectory,
+        timings,
+        [*path, f"plan: {planner}"],
+        planner=planner,
+        prediction=prediction,
+        predicted_mask=None if prediction is None else target.mask,
+    )
 
 
 SAFETY = 2.0
@@ -198,8 +483,9 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
 
 
 def _plan_with_deadline(
-    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, prediction
-) -> PlanResult:
+    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, kinematics,
+    prediction=None,
+) -> PlanResult:  # fmt: skip
     """Algorithm 1 under a deadline: the full path, a cheaper classifier, or the last resort."""
     if not (np.isfinite(deadline_s) and deadline_s > 0):
         raise InvalidParameterError(f"deadline_s: expected seconds > 0, got {deadline_s!r}")
@@ -225,16 +511,14 @@ def _plan_with_deadline(
                 f"{candidate.name} skipped: estimated {estimate:.3f} s, {max(left(), 0):.3f} s left"
             )
     if mask is None and chosen is None:
-        result = plan_scene(
-            image, None, LAST_RESORT, mask=np.zeros(image.shape[1:], bool), valid=valid,
-            denoise=False, config=config,
-        )  # fmt: skip
+        result = _plan_once(
+            image, None, LAST_RESORT, np.zeros(image.shape[1:], bool), valid, False, config, None
+        )
         path = [*notes, "classify: none (no classifier fits the deadline)", f"plan: {LAST_RESORT}"]
     else:
-        result = plan_scene(
-            image, chosen, planner, mask=mask, valid=valid, denoise=denoise, config=config,
-            prediction=prediction,
-        )  # fmt: skip
+        result = _plan_once(
+            image, chosen, planner, mask, valid, denoise, config, kinematics, prediction
+        )
         path = [*notes, *result.path]
     timings = dict(result.timings)
     timings["overhead"] = (time.perf_counter() - start) - sum(result.timings.values())
@@ -247,8 +531,9 @@ def _plan_with_deadline(
         timings,
         path,
         deadline_s,
-        result.prediction,
-        result.predicted_mask,
+        planner=result.planner,
+        prediction=result.prediction,
+        predicted_mask=result.predicted_mask,
     )
 
 
@@ -262,6 +547,7 @@ def schedule_on_prediction(
     budget_s: float | None = None,
     max_iterations: int = 8,
     tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
 ):
     """Schedule a plan drawn on a prediction, each pointing placed for its own time.
 
@@ -282,6 +568,9 @@ def schedule_on_prediction(
     geometry, agility : as for :func:`dyntarget.schedule.schedule`.
     prediction : the one the plan was drawn on.
     budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
+    attached : with ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
+        denoised current mask: pointings there are not moved (see
+        :meth:`~dyntarget.predict.Prediction.pointing_shift`).
 
     Returns
     -------
@@ -299,28 +588,66 @@ def schedule_on_prediction(
     """
     from dyntarget.schedule import make_feasible
 
+    _, sched = iterate_on_prediction(
+        trajectory,
+        prediction,
+        lambda t: make_feasible(t, shape, geometry, agility, budget_s=budget_s),
+        max_iterations=max_iterations,
+        tolerance_s=tolerance_s,
+        attached=attached,
+    )
+    return sched
+
+
+def iterate_on_prediction(
+    trajectory: Trajectory,
+    prediction: Prediction,
+    schedule: Callable[[Trajectory], Any],
+    *,
+    max_iterations: int = 8,
+    tolerance_s: float = 0.05,
+    attached: np.ndarray | None = None,
+) -> tuple[Trajectory, Any]:
+    """:func:`schedule_on_prediction` with any scheduler ``schedule(trajectory) -> Schedule``.
+
+    Returns ``(moved, schedule)``: the whole planned trajectory with every pointing
+    moved on to its (last estimated) time, and its schedule (``schedule(moved)``).
+
+    Examples
+    --------
+    >>> from dyntarget.predict import Motion
+    >>> from dyntarget.schedule import OrbitGeometry, make_feasible
+    >>> traj = Trajectory(np.array([[10.0, 10.0]]), np.zeros(1), "demo")
+    >>> fly = lambda t: make_feasible(t, (32, 32), OrbitGeometry(start_s=2.0), "unlimited")
+    >>> moved, s = iterate_on_prediction(traj, Prediction(Motion((0.0, 1.0)), 0.0), fly)
+    >>> moved.points.tolist()
+    [[10.0, 12.0]]
+    """
     if not isinstance(max_iterations, int) or max_iterations < 1:
         raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")
     base = trajectory.points
     times = np.full(len(trajectory), prediction.lead_s)
-    sched, iterations = None, 0
-    while iterations < max_iterations:
+    iterations = 0
+    while True:
         iterations += 1
         moved = Trajectory(
-            base + prediction.pointing_shift(times - prediction.lead_s),
+            base + prediction.pointing_shift(times - prediction.lead_s, base, attached),
             trajectory.part, trajectory.planner, dict(trajectory.params),
         )  # fmt: skip
-        sched = make_feasible(moved, shape, geometry, agility, budget_s=budget_s)
+        sched = schedule(moved)
         used = times[sched.kept]
         change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
         times = times.copy()
         times[sched.kept] = sched.times
-        if change <= tolerance_s:
+        if change <= tolerance_s or iterations >= max_iterations:
             break
     residual = float(
-        np.max(np.hypot(*prediction.pointing_shift(sched.times - used).T), initial=0.0)
+        np.max(
+            np.hypot(*prediction.pointing_shift(sched.times - used, base[sched.kept], attached).T),
+            initial=0.0,
+        )
     )
     sched.trajectory.params.update(
         prediction_iterations=iterations, prediction_residual_px=residual
     )
-    return sched
+    return moved, sched

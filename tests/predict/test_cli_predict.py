@@ -152,3 +152,13 @@ def test_bad_prediction_inputs_exit_2_with_one_line(tmp_path, capsys, looks, ext
     assert message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "t.geojson").exists()
+
+
+def test_utility_max_plans_on_the_prediction(tmp_path, capsys, looks):
+    code, _, err = run(
+        capsys, "plan", looks["cur"], "--mask", looks["cur_mask"], "--planner", "utility-max",
+        "--agility", "fast", "--start-s", 30, "--look-ahead-km", 700, "--wind-mps", 10,
+        "--wind-from-deg", 270, "--lead-s", 30, "--out", tmp_path / "u.csv",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "predict" in err and (tmp_path / "u.csv").read_text().count("\n") > 1

@@ -65,8 +65,17 @@ def test_attached_plume_vent_predicted_within_2_px():
     true_end = world.upwind_end()
     assert np.hypot(*(upwind_end(truth) - true_end)) <= 1.5  # the fixture's own check
     assert np.hypot(*(upwind_end(predicted) - true_end)) <= 2.0
-    # the far end moved downwind with the wind: the stretched envelope matches the truth
-    assert iou(predicted, truth) >= 0.8
+
+    # the far end moved downwind with the wind, as far as the truth's
+    def far_end(mask):
+        ys, xs = np.nonzero(mask)
+        return (xs * u[0] + ys * u[1]).max()
+
+    widening = world.k * math.hypot(2.0, 1.0) * lead  # the fixture's puffs grow; not modelled
+    assert abs(far_end(predicted) - far_end(truth)) <= widening + 2.0
+    # and the prediction lies inside the true plume (its widening by spread is not modelled)
+    assert (predicted & truth).sum() >= 0.95 * predicted.sum()
+    assert iou(predicted, truth) > iou(world.mask(INTERVAL), truth)
 
 
 def test_calm_air_predicts_no_motion():
@@ -105,18 +114,29 @@ def test_real_texture_38cloud_patch_shifted():
     ).copy()  # the patch turned 180 degrees: a fixed textured ground
     v = np.array([1.2, 0.6])  # px/s
 
+    crop = (slice(32, -32), slice(32, -32))  # a window of the moving field: no fill ever seen
+
     def look(t):
         moved = nd_shift(img, (0, v[1] * t, v[0] * t), order=1, mode="constant")
         m = nd_shift(cloud.astype(float), (v[1] * t, v[0] * t), order=1, mode="constant") >= 0.5
-        return np.where(m[None], moved, ground).astype(np.float32), m
+        frame = np.where(m[None], moved, ground).astype(np.float32)
+        return frame[(slice(None), *crop)], m[crop]
 
     (a, ma), (b, mb) = look(0.0), look(INTERVAL)
     if not ma.any() or ma.mean() > 0.8:
         pytest.skip("the sample patch has no usable cloud")
     m = estimate_motion(a, b, INTERVAL, previous_mask=ma, current_mask=mb)
     assert math.hypot(*(np.array(m.velocity) - v)) <= 0.1 * math.hypot(*v), m.summary()
-    _, truth = look(INTERVAL + 10 * INTERVAL)
-    assert iou(predict_mask(mb, m, 10 * INTERVAL), truth) >= 0.9
+    lead = 10 * INTERVAL
+    _, truth = look(INTERVAL + lead)
+    # cloud drifting in across the upwind border is unknowable from inside the frame: score
+    # the pixels whose position at the current look was inside it
+    h, w = truth.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    sx, sy = xx - v[0] * lead, yy - v[1] * lead
+    known = (sx >= 0) & (sx <= w - 1) & (sy >= 0) & (sy <= h - 1)
+    predicted = predict_mask(mb, m, lead)
+    assert iou(predicted & known, truth & known) >= 0.9
 
 
 def test_no_plume_gives_zero_confidence():
@@ -156,3 +176,13 @@ def test_bad_inputs_raise_named_errors(kwargs, err, text):
             previous_mask=args["previous_mask"], current_mask=args["current_mask"],
         )  # fmt: skip
     assert isinstance(info.value, DynTargetError)
+
+
+def test_same_inputs_same_motion_and_bytes():
+    world = RigidCloud(velocity=(1.5, -0.8))
+    args = (world.frame(0.0), world.frame(INTERVAL), INTERVAL)
+    kw = {"previous_mask": world.mask(0.0), "current_mask": world.mask(INTERVAL)}
+    a, b = estimate_motion(*args, **kw), estimate_motion(*args, **kw)
+    assert a == b
+    pa, pb = predict_mask(kw["current_mask"], a, 33.0), predict_mask(kw["current_mask"], b, 33.0)
+    assert pa.tobytes() == pb.tobytes()

@@ -80,10 +80,6 @@ def _check_args(args: argparse.Namespace) -> None:
                 "--previous-mask: missing; with --mask give the previous frame's mask too "
                 "(or use --model to classify both)"
             )
-    if args.planner == "utility-max":
-        raise InvalidParameterError(
-            "--planner utility-max does not plan on a prediction yet; use a look-ahead planner"
-        )
 
 
 def _read_previous(args: argparse.Namespace, wfov):

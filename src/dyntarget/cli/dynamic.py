@@ -95,7 +95,7 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
         write_text(out / "dynamic.json", json.dumps(result, indent=1) + "\n"),
         write_text(out / "dynamic.timing.json", json.dumps({"seconds": seconds}) + "\n"),
     ]
-    winds = [None, "8-12"] if "8-12" in bins else [None]
+    winds = [None, "8-12"] if "8-12" in bins and len(bins) > 1 else [None]
     for mode in config.modes:
         name = "dynamic.png" if mode == "static" else f"dynamic-{mode}.png"
         paths.append(latency_figure(records, out / name, winds=winds, mode=mode))

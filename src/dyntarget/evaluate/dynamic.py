@@ -41,7 +41,6 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError, UnknownNameError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
@@ -49,8 +48,8 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import observe_at
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.perceive.base import Classifier
-from dyntarget.pipeline import PipelineConfig
-from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory, plan
+from dyntarget.pipeline import PipelineConfig, classify, plan_segmentation, segment
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory
 from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule, make_feasible
 from dyntarget.sequence import FrameSequence
 
@@ -139,20 +138,15 @@ Mode = Callable[[ModeContext], Trajectory]
 
 def static_mode(ctx: ModeContext) -> Trajectory:
     """The paper's pipeline: denoise the decision frame's mask, plan where the plume was seen."""
-    valid = ctx.frames.frames[-1].valid
-    mask = ctx.mask & valid if valid is not None else ctx.mask
-    cfg = ctx.pipeline.denoise
-    cleaned = denoise(mask, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction)
-    traj = plan(ctx.planner, cleaned.mask, cleaned.polygons, ctx.pipeline.plan)
-    if valid is not None and len(traj):
-        rows = np.clip(np.floor(traj.points[:, 1] + 0.5).astype(int), 0, mask.shape[0] - 1)
-        cols = np.clip(np.floor(traj.points[:, 0] + 0.5).astype(int), 0, mask.shape[1] - 1)
-        traj = traj.without(~valid[rows, cols])
-    return traj
+    decision = ctx.frames.frames[-1]
+    seg = segment(decision.image, mask=ctx.mask, valid=decision.valid, config=ctx.pipeline)
+    return plan_segmentation(seg, ctx.planner, ctx.pipeline)
 
 
 MODES: dict[str, Mode | str] = {
     "static": static_mode,
+    "predictive": "dyntarget.evaluate.predictive:predictive_mode",
+    "wind-prior": "dyntarget.evaluate.predictive:wind_prior_mode",
 }
 """Mode name -> ``fn(ModeContext) -> Trajectory`` or a lazy ``"module:function"``."""
 
@@ -267,7 +261,7 @@ def _dynamic_task(
     masks: dict[str, tuple[np.ndarray, Classifier | None]] = {}
     for cname in config.classifiers:
         model = models[f"{k}/{cname}"]
-        proba = model.predict_proba(decision.image)
+        proba = classify(decision.image, model)
         masks[cname] = (proba >= config.pipeline.threshold, model)
     if config.true_mask:
         if decision.label is None:
@@ -292,7 +286,11 @@ def _dynamic_task(
                     traj = fn(ctx)
                     records.append(score(traj, latency, mode=mode, classifier=cname, planner=pname))
     for pname in [p for p in config.planners if p in BASELINES]:
-        traj = plan(pname, np.zeros(decision.shape, bool), [], config.pipeline.plan)
+        seg = segment(
+            decision.image, mask=np.zeros(decision.shape, bool), valid=decision.valid,
+            config=config.pipeline,
+        )  # fmt: skip
+        traj = plan_segmentation(seg, pname, config.pipeline)
         for latency in config.latencies:
             records.append(score(traj, latency, mode="static", classifier="N/A", planner=pname))
     return records

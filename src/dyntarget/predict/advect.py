@@ -4,11 +4,16 @@
   field at time ``t`` is the current field traced back along the flow,
   ``f_t(x) = f_0(x - v t)`` (semi-Lagrangian step, bilinear sampling; with one
   velocity per plume the back-trajectory is exact in one step).
-* **attached** plume: the vent keeps emitting and the puffs move at ``v``, so
-  the envelope at ``t`` is everything the current plume sweeps when carried by
-  ``v s`` for ``0 <= s <= t``: ``f_t(x) = max_s f_0(x - v s)``. The vent end
-  stays; the far end moves by ``v t`` (the envelope stretches). Evaluated as a
-  grey dilation with a line of length ``|v t|`` (OpenCV), no loop over ``s``.
+* **attached** plume: the puffs already emitted are carried like a detached
+  cloud, ``f_0(x - v t)``, and the vent keeps emitting: the plume's source end
+  (its upwind :data:`SOURCE_BAND_PX`) is swept downwind from the vent over
+  ``v t``, ``max_{0<=s<=t} f_src(x - v s)`` (a grey dilation with a line,
+  OpenCV). The vent end stays; the far end advances by ``v t``. Spreading and
+  fading of the puffs are not modelled. (``ATTACHED_MODEL = "sweep"``: the
+  whole envelope swept forward at the measured front speed ``Motion.attached``,
+  a first model that fills gaps the truth keeps; see ``docs/onboard.md``.)
+* **mixed**: plumes of the mask near a vent of ``Motion.attached`` are attached,
+  the others (detached clouds) are carried as a whole.
 * **calm**: unchanged.
 
 Pixels entering from beyond the border are background (0).
@@ -17,7 +22,7 @@ Pixels entering from beyond the border are background (0).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -99,9 +104,95 @@ def predict_field(field: np.ndarray, motion: Motion, lead_s: float) -> np.ndarra
     dx, dy = motion.displacement(lead)
     if motion.regime == "calm" or (dx == 0 and dy == 0):
         return arr.copy()
+    if motion.regime == "detached":
+        return _shift(arr, dx, dy)
+    attached = attached_region(arr >= 0.5, motion)
+    if not attached.all():  # a margin so the attached plume's soft edge goes with it
+        attached = cv2.dilate(attached.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    plume = np.where(attached, arr, 0.0).astype(np.float32)
+    moved = _shift(np.where(attached, 0.0, arr).astype(np.float32), dx, dy)
+    if ATTACHED_MODEL == "sweep":
+        front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
+        return np.maximum(_sweep(plume, dx * front, dy * front), moved)
+    # puffs: the attached plume's pattern is carried downwind like a detached cloud ...
+    carried = _shift(plume, dx, dy)
+    # ... while the vent keeps emitting: its source end, swept from the vent downwind
+    source = _source_end(plume, motion.velocity)
+    return np.maximum(np.maximum(carried, _sweep(source, dx, dy)), moved)
+
+
+ATTACHED_MODEL = "advect"
+"""How attached plumes are predicted: ``"advect"`` (puffs carried, source end swept) or
+``"sweep"`` (the envelope swept forward at the measured front speed)."""
+SOURCE_BAND_PX = 3.0
+"""Depth (px along the flow) of an attached plume's source end, the part the vent refills."""
+
+
+def _source_end(field: np.ndarray, velocity: tuple[float, float]) -> np.ndarray:
+    """The field on each plume's upwind ``SOURCE_BAND_PX`` (its source end), zero elsewhere."""
+    speed = math.hypot(*velocity)
+    n, labels = cv2.connectedComponents((field >= 0.5).astype(np.uint8), connectivity=8)
+    if n <= 1 or speed == 0:
+        return np.zeros_like(field)
+    ux, uy = velocity[0] / speed, velocity[1] / speed
+    h, w = field.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    s = xx * ux + yy * uy
+    keep = np.zeros(field.shape, bool)
+    for i in range(1, n):
+        comp = labels == i
+        keep |= comp & (s <= s[comp].min() + SOURCE_BAND_PX)
+    keep = cv2.dilate(keep.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    return np.where(keep, field, 0.0).astype(np.float32)
+
+
+VENT_RADIUS = 3.0
+"""A plume of the mask within this many pixels of a measured vent is that vent's plume."""
+
+
+def front_speed(motion: Motion) -> float:
+    """How fast attached plumes' far ends advance, px/s: the fastest measured front, or
+    the full speed when none was measured (wind prior).
+
+    Examples
+    --------
+    >>> front_speed(Motion((3.0, 4.0), regime="attached"))
+    5.0
+    """
+    if motion.attached:
+        return max(a[2] for a in motion.attached)
+    return motion.speed
+
+
+def attached_region(mask: np.ndarray, motion: Motion) -> np.ndarray:
+    """The pixels of ``mask`` that belong to attached plumes (bool (H, W)).
+
+    ``attached``: every plume; ``mixed``: the 8-connected plumes within
+    :data:`VENT_RADIUS` px of a vent of ``motion.attached``; otherwise none.
+
+    Examples
+    --------
+    >>> m = np.zeros((1, 9), bool); m[0, :2] = m[0, 6:] = True
+    >>> mo = Motion((1.0, 0.0), regime="mixed", attached=((0.0, 0.0, 0.0),))
+    >>> attached_region(m, mo).astype(int).tolist()
+    [[1, 1, 0, 0, 0, 0, 0, 0, 0]]
+    """
+    m = np.asarray(mask, bool)
     if motion.regime == "attached":
-        return _sweep(arr, dx, dy)
-    return _shift(arr, dx, dy)
+        return m.copy()
+    if motion.regime != "mixed" or not motion.attached:
+        return np.zeros_like(m)
+    _, labels = cv2.connectedComponents(m.astype(np.uint8), connectivity=8)
+    h, w = m.shape
+    ids: set[int] = set()
+    r = math.ceil(VENT_RADIUS)
+    for x, y, _ in motion.attached:
+        cx, cy = round(x), round(y)
+        win = labels[
+            max(cy - r, 0) : max(min(cy + r + 1, h), 0), max(cx - r, 0) : max(min(cx + r + 1, w), 0)
+        ]
+        ids.update(int(v) for v in np.unique(win) if v > 0)
+    return np.isin(labels, sorted(ids))
 
 
 def predict_mask(mask: np.ndarray, motion: Motion, lead_s: float) -> np.ndarray:
@@ -161,14 +252,40 @@ class Prediction:
         """A probability field at ``lead_s`` (:func:`predict_field`)."""
         return predict_field(field, self.motion, self.lead_s)
 
-    def pointing_shift(self, dt_s: np.ndarray) -> np.ndarray:
+    def attached_mask(self, mask: np.ndarray) -> np.ndarray:
+        """Where the attached plumes of the current ``mask`` will be at ``lead_s`` (bool).
+
+        For :meth:`pointing_shift`: pointings there are not moved.
+        """
+        m = np.asarray(mask, bool)
+        region = attached_region(m, self.motion)
+        if not region.any():
+            return region
+        return predict_mask(region, replace(self.motion, regime="attached"), self.lead_s)
+
+    def pointing_shift(
+        self,
+        dt_s: np.ndarray,
+        points: np.ndarray | None = None,
+        attached: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Pixels to move pointings observed ``dt_s`` seconds after ``lead_s``, shape (n, 2).
 
         A detached cloud carries the pointed-at plume with it (``v dt``). An
-        attached plume's envelope only grows downwind, so a point inside it at
-        ``lead_s`` stays inside later: no shift.
+        attached plume's near-vent part is steady and a point inside it at
+        ``lead_s`` stays inside a continuous plume seconds later: no shift. With ``mixed`` plumes, the
+        pointings at ``points`` inside ``attached`` (:meth:`attached_mask`) stay,
+        the others move; without them, none moves.
         """
         dt = np.asarray(dt_s, np.float64).reshape(-1)
-        if self.motion.regime != "detached":
+        shift = np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
+        regime = self.motion.regime
+        if regime == "detached":
+            return shift
+        if regime != "mixed" or points is None or attached is None:
             return np.zeros((len(dt), 2))
-        return np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        h, w = attached.shape
+        rows = np.clip(np.floor(pts[:, 1] + 0.5).astype(int), 0, h - 1)
+        cols = np.clip(np.floor(pts[:, 0] + 0.5).astype(int), 0, w - 1)
+        return np.where(attached[rows, cols][:, None], 0.0, shift)

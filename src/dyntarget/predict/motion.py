@@ -42,7 +42,7 @@ from affine import Affine
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 
-REGIMES = ("calm", "detached", "attached")
+REGIMES = ("calm", "detached", "attached", "mixed")
 STILL_PX = 0.5
 """A vote moving by less than this many pixels between the looks counts as still."""
 CALM_FRACTION = 0.25
@@ -55,8 +55,14 @@ tensor (``cv2.cornerMinEigenVal``, 3 x 3 Sobel) on the 8-bit brightness exceeds 
 flat plume interior with 0.4 % reflectance noise stays near 1, an edge alone near 10."""
 CROP_MARGIN = 24
 """Pixels around the plumes' bounding box over which the flow is computed."""
+MIN_CROP = 256
+"""Smallest side of that box (or the image): OpenCV builds fewer pyramid levels on small
+images, and Farneback then loses displacements of a few pixels (measured: a 6 px drift
+read as -1.4 px on a 119 x 141 px crop, right on 140 x 160 px)."""
 MIN_REGISTRATION_RESPONSE = 0.05
 """Weakest phase-correlation peak trusted for the ground's shift."""
+MIN_COMPONENT_PX = 10
+"""Plumes smaller than this (px) are not given a regime of their own (they move with the flow)."""
 ATTACHED_UPWIND = 0.5
 """Upwind edge moving less than this share of the flow displacement: attached plume."""
 
@@ -69,8 +75,9 @@ class Motion:
     ----------
     velocity : (vx, vy) in pixels per second, x = column (east in a north-up
         image), y = row (south in a north-up image); relative to the ground.
-    regime : ``"calm"``, ``"detached"`` (moves as a whole) or ``"attached"``
-        (vent end fixed, the plume stretches downwind).
+    regime : ``"calm"``, ``"detached"`` (moves as a whole), ``"attached"``
+        (vent end fixed, the plume stretches downwind) or ``"mixed"`` (both kinds
+        of plume in the scene: see ``attached``).
     confidence : 0 (no information) to 1; see :data:`LOW_CONFIDENCE`.
     source : ``"two-looks"`` or ``"wind-prior"``.
     method : how the velocity was obtained (e.g. ``"DIS flow"``).
@@ -80,6 +87,10 @@ class Motion:
         downwind edges along the flow direction between the looks (two looks only).
     interval_s : seconds between the looks (two looks only).
     notes : anything the estimate wants the user to know.
+    attached : ``(vent x, vent y, front speed px/s)`` per attached plume seen by two
+        looks; plumes of the mask near none of these vents move as a whole. Empty
+        for a wind prior (then ``regime`` applies to every plume and an attached
+        plume's front advances at the full speed).
     """
 
     velocity: tuple[float, float]
@@ -93,6 +104,7 @@ class Motion:
     downwind_shift: float | None = None
     interval_s: float | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    attached: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         vx, vy = (float(v) for v in self.velocity)
@@ -151,6 +163,7 @@ class Motion:
             "downwind_shift_px": self.downwind_shift,
             "interval_s": self.interval_s,
             "notes": list(self.notes),
+            "attached": [list(a) for a in self.attached],
         }
 
 
@@ -234,6 +247,19 @@ def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndar
             a, b, None, 0.5, 4, 9, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
         )
     raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
+
+
+def _span(lo: int, hi: int, n: int) -> tuple[int, int]:
+    """``[lo, hi)`` widened by :data:`CROP_MARGIN` and to at least :data:`MIN_CROP` px, within ``[0, n)``."""
+    lo, hi = lo - CROP_MARGIN, hi + CROP_MARGIN
+    if hi - lo < MIN_CROP:
+        grow = MIN_CROP - (hi - lo)
+        lo, hi = lo - grow // 2, hi + grow - grow // 2
+    if lo < 0:
+        lo, hi = 0, hi - lo
+    if hi > n:
+        lo, hi = max(lo - (hi - n), 0), n
+    return lo, hi
 
 
 def _ground_shift(bp: np.ndarray, bc: np.ndarray, plume: np.ndarray) -> tuple[float, float, bool]:
@@ -361,8 +387,8 @@ def estimate_motion(
     # dense flow on the plume's bounding box (plus a margin): cost follows the plume, not the image
     ys, xs = np.nonzero(pm | cm)
     h, w = shape
-    y0, y1 = max(int(ys.min()) - CROP_MARGIN, 0), min(int(ys.max()) + CROP_MARGIN + 1, h)
-    x0, x1 = max(int(xs.min()) - CROP_MARGIN, 0), min(int(xs.max()) + CROP_MARGIN + 1, w)
+    y0, y1 = _span(int(ys.min()), int(ys.max()) + 1, h)
+    x0, x1 = _span(int(xs.min()), int(xs.max()) + 1, w)
     p8 = _to_u8(bp[y0:y1, x0:x1], lo, hi)
     c8 = _to_u8(bc[y0:y1, x0:x1], lo, hi)
     fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
@@ -446,23 +472,89 @@ def estimate_motion(
     up1, down1 = _edges(cm, u)
     along = math.hypot(vx, vy) * dt
     up_shift, down_shift = up1 - up0, down1 - down0
-    regime = "attached" if up_shift < ATTACHED_UPWIND * along else "detached"
     if along < 1.0:
         notes.append(f"the plume moved only {along:.2f} px between the looks: regime uncertain")
-    vent = _vent(cm, u) if regime == "attached" else None
+    parts = _component_regimes(pm, cm, (vx * dt, vy * dt), u, along, dt)
+    attached = tuple(a for a in parts if a is not None)
+    n_detached = sum(a is None for a in parts)
+    if attached and n_detached:
+        regime = "mixed"
+    elif attached:
+        regime = "attached"
+    else:
+        regime = "detached"
     return Motion(
         (vx, vy),
         regime=regime,
         confidence=confidence,
         source="two-looks",
         method=method,
-        vent=vent,
+        vent=attached[0][:2] if attached else None,
         ground_shift=(gdx, gdy),
         upwind_shift=up_shift,
         downwind_shift=down_shift,
         interval_s=dt,
         notes=tuple(notes),
+        attached=attached,
     )
+
+
+def _component_regimes(pm, cm, d, u, along, dt) -> list[tuple[float, float, float] | None]:
+    """Per plume of the current mask (largest first): ``None`` if it moved as a whole,
+    else ``(vent x, vent y, front speed px/s)`` of an attached plume.
+
+    A current component is matched with the previous components it overlaps when
+    carried back by the displacement ``d``; its upwind edge moving less than
+    :data:`ATTACHED_UPWIND` of the displacement makes it attached, unless that end
+    touches the image border (a cloud drifting in: no vent seen). Its front speed
+    is how fast it grows along the flow: the area gained between the looks over its
+    mean width (area / length), per second; 0 for a mature plume whose far end fades
+    as fast as it is fed, or lies beyond the image border; at most the flow speed.
+    """
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(cm.astype(np.uint8), connectivity=8)
+    _, prev_labels = cv2.connectedComponents(pm.astype(np.uint8), connectivity=8)
+    h, w = cm.shape
+    back = np.float32([[1, 0, -d[0]], [0, 1, -d[1]]])
+    order = sorted(range(1, n), key=lambda i: -stats[i, cv2.CC_STAT_AREA])
+    out: list[tuple[float, float, float] | None] = []
+    for i in order:
+        if stats[i, cv2.CC_STAT_AREA] < MIN_COMPONENT_PX:
+            continue
+        comp = labels == i
+        carried = cv2.warpAffine(comp.astype(np.uint8), back, (w, h), flags=cv2.INTER_NEAREST) > 0
+        carried = cv2.dilate(carried.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        ids = np.unique(prev_labels[carried & pm])
+        prev = np.isin(prev_labels, ids[ids > 0])
+        if not prev.any():
+            out.append(None)  # new since the previous look: nothing to compare; moves with the flow
+            continue
+        up0, _ = _edges(prev, u)
+        up1, down1 = _edges(comp, u)
+        cys, cxs = np.nonzero(comp)
+        upwind = cxs * u[0] + cys * u[1] <= up1 + 1.5
+        if (
+            (cxs[upwind] == 0).any() or (cys[upwind] == 0).any()
+            or (cxs[upwind] == w - 1).any() or (cys[upwind] == h - 1).any()
+        ):  # fmt: skip
+            out.append(None)  # its upwind end is cut by the image border: no vent seen
+            continue
+        if up1 - up0 < ATTACHED_UPWIND * along:
+            downwind = cxs * u[0] + cys * u[1] >= down1 - 1.5
+            at_border = (
+                (cxs[downwind] == 0).any() or (cys[downwind] == 0).any()
+                or (cxs[downwind] == w - 1).any() or (cys[downwind] == h - 1).any()
+            )  # fmt: skip
+            # a far end beyond the image is not seen to advance: the part inside stays
+            # the front's advance from the plume's growth: area gained / mean width (the
+            # area over the length), steadier than the far end's flickering tip
+            length = max(down1 - up1, 1.0)
+            growth = (comp.sum() - prev.sum()) * length / comp.sum()
+            front = 0.0 if at_border else float(np.clip(growth / dt, 0.0, along / dt))
+            vx, vy = _vent(comp, u)
+            out.append((vx, vy, front))
+        else:
+            out.append(None)
+    return out
 
 
 def _snap(v: float) -> float:

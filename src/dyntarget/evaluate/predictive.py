@@ -1,0 +1,127 @@
+"""Modes of ``evaluate dynamic`` that plan for the plume as it will be (issue 16).
+
+* ``predictive``: motion from the last two look-ahead frames
+  (:func:`dyntarget.predict.estimate_motion`; the previous frame is segmented by
+  the same classifier, or its true mask with ``true-mask``), the denoised mask
+  advected to the start of pointing (the latency), planned on, and every pointing
+  moved on to the plume at its own scheduled time
+  (:func:`dyntarget.pipeline.iterate_on_prediction`).
+* ``wind-prior``: the same with one look and the sequence's recorded wind
+  (``meta["world"]["wind"]`` or ``meta["wind"]``: speed and direction it blows
+  from), converted with the decision frame's georeference; regime ``detached``
+  (see :func:`dyntarget.predict.wind_motion`). With synthetic sequences this is
+  the *true* wind: an upper bound for a forecast wind.
+
+Both return the moved trajectory; the evaluator schedules and scores it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+import numpy as np
+
+from dyntarget.denoise import denoise
+from dyntarget.errors import InvalidParameterError
+from dyntarget.evaluate.dynamic import ModeContext, static_mode
+from dyntarget.pipeline import (
+    iterate_on_prediction,
+    plan_segmentation,
+    predict_segmentation,
+    segment,
+)
+from dyntarget.predict import Motion, Prediction, estimate_motion, wind_motion
+from dyntarget.trajectory import Trajectory
+
+
+def _clean(mask: np.ndarray, valid: np.ndarray | None, ctx: ModeContext) -> np.ndarray:
+    m = mask & valid if valid is not None else mask
+    cfg = ctx.pipeline.denoise
+    return denoise(m, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction).mask
+
+
+def plan_on_motion(ctx: ModeContext, motion: Motion) -> Trajectory:
+    """Plan on the plume predicted for the start of pointing, each pointing at its own time.
+
+    The same stages as the ``static`` mode (segment, plan), with the predict stage
+    between them (:func:`dyntarget.pipeline.predict_segmentation`).
+    """
+    decision = ctx.frames.frames[-1]
+    prediction = Prediction(motion, ctx.latency_s)
+    seg = segment(decision.image, mask=ctx.mask, valid=decision.valid, config=ctx.pipeline)
+    trajectory = plan_segmentation(predict_segmentation(seg, prediction), ctx.planner, ctx.pipeline)
+    if len(trajectory) == 0:
+        return trajectory
+    attached = prediction.attached_mask(seg.mask)
+    moved, _ = iterate_on_prediction(trajectory, prediction, ctx.schedule, attached=attached)
+    return moved
+
+
+def two_look_motion(ctx: ModeContext) -> Motion:
+    """The motion between the last two frames of ``ctx`` (masks as the mode's classifier sees them)."""
+    frames = ctx.frames
+    if len(frames) < 2:
+        raise InvalidParameterError(
+            f"predictive mode: sequence {frames.id!r} has {len(frames)} frame(s); two looks needed"
+        )
+    prev, cur = frames.frames[-2], frames.frames[-1]
+    interval = float(frames.times[-1] - frames.times[-2])
+    if ctx.classifier is None:
+        if prev.label is None:
+            raise InvalidParameterError(
+                f"predictive mode: sequence {frames.id!r}: the previous frame has no label"
+            )
+        prev_raw = prev.label
+    else:
+        prev_raw = ctx.classifier.predict_proba(prev.image) >= ctx.pipeline.threshold
+    return estimate_motion(
+        prev.image, cur.image, interval,
+        previous_mask=_clean(prev_raw, prev.valid, ctx),
+        current_mask=_clean(ctx.mask, cur.valid, ctx),
+    )  # fmt: skip
+
+
+_MOTIONS: dict[tuple, Motion] = {}
+"""Motions already estimated (the same for every planner and latency of a scene)."""
+
+
+def predictive_mode(ctx: ModeContext) -> Trajectory:
+    """Two looks: estimate the motion, plan for the plume as it will be."""
+    key = (
+        ctx.frames.id,
+        tuple(np.asarray(ctx.frames.times).tolist()),
+        None if ctx.classifier is None else id(ctx.classifier),
+        hashlib.sha1(np.packbits(ctx.mask).tobytes()).hexdigest(),
+    )
+    motion = _MOTIONS.get(key)
+    if motion is None:
+        if len(_MOTIONS) > 256:
+            _MOTIONS.clear()
+        motion = _MOTIONS[key] = two_look_motion(ctx)
+    return plan_on_motion(ctx, motion)
+
+
+def recorded_wind(meta: dict[str, Any]) -> tuple[float, float] | None:
+    """``(speed_mps, from_deg)`` recorded with a sequence, or ``None``.
+
+    Examples
+    --------
+    >>> recorded_wind({"wind": {"speed_mps": 5.0, "from_deg": 90.0}})
+    (5.0, 90.0)
+    """
+    for source in (meta.get("world"), meta):
+        wind = source.get("wind") if isinstance(source, dict) else None
+        if isinstance(wind, dict) and "speed_mps" in wind and "from_deg" in wind:
+            return float(wind["speed_mps"]), float(wind["from_deg"])
+    return None
+
+
+def wind_prior_mode(ctx: ModeContext) -> Trajectory:
+    """One look and the recorded wind; the paper's static plan where no wind is recorded."""
+    wind = recorded_wind(ctx.meta)
+    if wind is None:
+        return static_mode(ctx)
+    decision = ctx.frames.frames[-1]
+    motion = wind_motion(*wind, transform=decision.transform, gsd_m=decision.gsd)
+    return plan_on_motion(ctx, motion)
