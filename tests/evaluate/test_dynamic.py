@@ -168,3 +168,15 @@ def test_a_new_mode_is_one_dict_entry(monkeypatch):
     assert seen and all(s[0] == "trace-outline" and s[1] == 30.0 for s in seen)
     corner = [r for r in result["records"] if r["mode"] == "corner"]
     assert all(r["pixels_observed"] == 1 for r in corner)
+
+
+def test_wind_bins_from_the_world_spec_or_a_user_prior():
+    seq = next(generate_sequences(1, size=32, frames=1, wind_mps=9.5))
+    assert dyn.sequence_wind(seq) == 9.5 and dyn.wind_bin(9.5) == "8-12"
+    user = FrameSequence(seq.frames, seq.times, id="u", meta={"wind": {"speed_mps": 1.0}})
+    assert dyn.wind_bin(dyn.sequence_wind(user)) == "0-2"
+    bare = FrameSequence(seq.frames, seq.times, id="b")
+    assert dyn.sequence_wind(bare) is None and dyn.wind_bin(None) == "unknown"
+    assert [dyn.wind_bin(v) for v in (1.99, 2.0, 15.99, 16.0, 40.0)] == [
+        "0-2", "2-5", "12-16", "16+", "16+",
+    ]  # fmt: skip
