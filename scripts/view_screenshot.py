@@ -23,7 +23,7 @@ import numpy as np
 from dyntarget.io.geojson import write_polygons, write_trajectory
 from dyntarget.perceive import make_classifier
 from dyntarget.pipeline import plan_scene
-from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible
+from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
 from dyntarget.synth import generate_scene
 from dyntarget.view import pointing_truth, write_scene_view
 from dyntarget.view.browser import render
@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     model = make_classifier("random-forest", seed=0).fit(train)
     wfov = scene.to_wfov(factor)
     result = plan_scene(wfov.image, model, "lawnmower-transect")
-    geometry = Geometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=wfov.gsd)
+    geometry = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=wfov.gsd)
     sched = make_feasible(result.trajectory, wfov.shape, geometry, get_agility("fast"))
     traj = sched.trajectory
     georef = {"transform": wfov.transform, "crs": wfov.crs, "acquired": ACQUIRED}

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import importlib.util
+
 import pytest
 import rasterio
 
@@ -34,6 +36,9 @@ def test_demo_writes_picture(tmp_path, capsys):
     assert code == 0, err
     assert (tmp_path / "scenes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "scenes.png" in out
+    if importlib.util.find_spec("plotly") is not None:  # the interactive view beside report.md
+        assert (tmp_path / "view.html").read_text().startswith("<!doctype html>")
+        assert "[view.html](view.html)" in (tmp_path / "report.md").read_text()
 
 
 def test_bad_argument_exit_2_no_traceback(tmp_path, capsys):
@@ -132,7 +137,7 @@ def test_planners_lists_the_paper_six_then_ours(capsys):
     assert [ln.split()[0] for ln in lines[6:]] == ["track-centerline", "utility-max"]
 
 
-def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):
+def test_plan_with_mask_writes_rfc7946_geojson_and_figure(tmp_path, capsys):
     import json
 
     d = _tiny_dir(tmp_path, capsys, n=1)
@@ -152,9 +157,9 @@ def test_plan_with_mask_writes_geojson_in_crs_and_figure(tmp_path, capsys):
     )
     assert code == 0, err
     doc = json.loads((tmp_path / "t.geojson").read_text())
-    assert doc["crs"]["properties"]["name"] == "EPSG:32605"
-    x, y = doc["features"][-1]["geometry"]["coordinates"]
-    assert 200_000 < x < 300_000 and 2_100_000 < y < 2_200_000  # UTM metres, not pixels
+    assert "crs" not in doc  # RFC 7946: WGS 84 lon/lat, no crs member
+    lon, lat = doc["features"][-1]["geometry"]["coordinates"]
+    assert -156 < lon < -155 and 19 < lat < 20  # the synthetic scenes lie near Kilauea
     assert (tmp_path / "t.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -178,7 +183,7 @@ def test_plan_with_model(tmp_path, capsys):
         tmp_path / "t.csv",
     )
     assert code == 0, err
-    assert (tmp_path / "t.csv").read_text().startswith("order,x,y,part,X,Y")
+    assert (tmp_path / "t.csv").read_text().startswith("order,x,y,part,lon,lat")
 
 
 @pytest.mark.parametrize(

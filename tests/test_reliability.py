@@ -206,7 +206,8 @@ def test_no_crs_writes_pixel_coordinates(tmp_path, capsys):
     )
     assert code == 0
     doc = json.loads((tmp_path / "t.geojson").read_text())
-    assert doc["coordinate_system"] == "WFOV pixels (column, row)" and "crs" not in doc
+    assert doc["properties"]["coordinates"].startswith("WFOV pixels (column, row)")
+    assert "crs" not in doc and "bbox" not in doc
 
 
 def test_one_pixel_image(tmp_path, capsys):

@@ -46,6 +46,7 @@ class MissingExtraError(DynTargetError, ImportError):
 
 EXTRAS = {
     "onnxruntime": "onboard",
+    "plotly": "view",
     **dict.fromkeys(
         (
             "torch", "sklearn", "skops", "safetensors", "matplotlib", "dask", "distributed",

@@ -1,8 +1,7 @@
-"""Trajectory: the ordered NFOV pointings, with export to CSV and GeoJSON."""
+"""Trajectory: the ordered NFOV pointings (written by :mod:`dyntarget.io.geojson`)."""
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,59 +87,47 @@ class Trajectory:
         x, y = self.points[:, 0] + 0.5, self.points[:, 1] + 0.5
         return np.column_stack([a * x + b * y + c, d * x + e * y + f])
 
-    def to_csv(self, *, transform: Affine | None = None) -> str:
-        lines = [
-            "order,x,y,part"
-            + (",X,Y" if transform is not None else "")
-            + (",time_s" if self.times is not None else "")
-        ]
-        world = self.world_points(transform)
-        for i, ((x, y), p) in enumerate(zip(self.points, self.part, strict=True)):
-            row = f"{i},{x:.3f},{y:.3f},{p}"
-            if transform is not None:
-                row += f",{world[i, 0]:.3f},{world[i, 1]:.3f}"
-            if self.times is not None:
-                row += f",{self.times[i]:.3f}"
-            lines.append(row)
-        return "\n".join(lines) + "\n"
+    def to_csv(
+        self,
+        *,
+        transform: Affine | None = None,
+        crs: str | None = None,
+        crs_mode: str = "rfc7946",
+        acquired: Any = None,
+    ) -> str:
+        """CSV, one row per pointing (see :func:`dyntarget.io.geojson.trajectory_csv`).
+
+        Columns ``order,x,y,part`` in pixels, then ``lon,lat`` (WGS 84, default)
+        or ``X,Y`` (``crs_mode="native"``) when ``transform`` and ``crs`` are
+        given, ``time_s`` when timed and ``time`` (ISO-8601 UTC) when ``acquired``
+        is known too.
+        """
+        from dyntarget.io.geojson import trajectory_csv
+
+        return trajectory_csv(
+            self, transform=transform, crs=crs, crs_mode=crs_mode, acquired=acquired
+        )
 
     def to_geojson(
-        self, *, transform: Affine | None = None, crs: str | None = None
+        self,
+        *,
+        transform: Affine | None = None,
+        crs: str | None = None,
+        crs_mode: str = "rfc7946",
+        acquired: Any = None,
     ) -> dict[str, Any]:
-        """A FeatureCollection: one LineString (the path) and one Point per pointing with its order.
+        """RFC 7946 GeoJSON: the path and one Point per pointing (see
+        :func:`dyntarget.io.geojson.trajectory_geojson`).
 
-        Coordinates are in ``crs`` when ``transform`` is given (georeferenced
-        scene), else in WFOV pixel coordinates ``(column, row)``.
+        WGS 84 lon/lat when ``transform`` and ``crs`` are given (the image's CRS
+        with the legacy ``crs`` member when ``crs_mode="native"``), else WFOV
+        pixel coordinates ``(column, row)``, said in ``properties.coordinates``.
         """
-        world = self.world_points(transform)
-        coords = [[round(float(x), 6), round(float(y), 6)] for x, y in world]
-        props = {"planner": self.planner, "params": self.params, "pointings": len(self)}
-        feats: list[dict[str, Any]] = []
-        if len(coords) >= 2:
-            feats.append(
-                {
-                    "type": "Feature",
-                    "geometry": {"type": "LineString", "coordinates": coords},
-                    "properties": props,
-                }
-            )
-        for i, (xy, p) in enumerate(zip(coords, self.part.tolist(), strict=True)):
-            feats.append(
-                {
-                    "type": "Feature",
-                    "geometry": {"type": "Point", "coordinates": xy},
-                    "properties": {"order": i, "part": p}
-                    | (
-                        {"time_s": round(float(self.times[i]), 3)} if self.times is not None else {}
-                    ),
-                }
-            )
-        doc: dict[str, Any] = {"type": "FeatureCollection", "features": feats, "properties": props}
-        if transform is not None and crs is not None:
-            doc["crs"] = {"type": "name", "properties": {"name": crs}}
-        else:
-            doc["coordinate_system"] = "WFOV pixels (column, row)"
-        return doc
+        from dyntarget.io.geojson import trajectory_geojson
+
+        return trajectory_geojson(
+            self, transform=transform, crs=crs, crs_mode=crs_mode, acquired=acquired
+        )
 
     def save(
         self,
@@ -148,16 +135,13 @@ class Trajectory:
         *,
         transform: Affine | None = None,
         crs: str | None = None,
+        crs_mode: str = "rfc7946",
+        acquired: Any = None,
     ) -> Path:
-        """Write ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically."""
-        from dyntarget.io.atomic import write_text  # io: the one place files are written
+        """Write ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically
+        (see :func:`dyntarget.io.geojson.write_trajectory`)."""
+        from dyntarget.io.geojson import write_trajectory
 
-        path = Path(path)
-        suffix = path.suffix.lower()
-        if suffix in (".geojson", ".json"):
-            return write_text(
-                path, json.dumps(self.to_geojson(transform=transform, crs=crs)) + "\n"
-            )
-        if suffix == ".csv":
-            return write_text(path, self.to_csv(transform=transform))
-        raise InvalidParameterError(f"{path}: trajectory files must end in .geojson, .json or .csv")
+        return write_trajectory(
+            path, self, transform=transform, crs=crs, crs_mode=crs_mode, acquired=acquired
+        )

@@ -18,7 +18,7 @@ from dyntarget.io.geojson import (
     write_polygons,
     write_trajectory,
 )
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.trajectory import Trajectory
 
 pyogrio = pytest.importorskip("pyogrio", reason="pyogrio (GDAL's OGR) is in the test extra")
 
@@ -269,3 +269,47 @@ def test_parse_acquired_refuses_what_is_not_iso_8601():
     with pytest.raises(InvalidParameterError, match="acquired: expected an ISO-8601"):
         parse_acquired("5 May 2024")
     assert parse_acquired("2024-05-05").isoformat() == "2024-05-05T00:00:00+00:00"
+
+
+def test_our_rfc7946_polygons_read_back_as_a_label_on_the_image_grid(tmp_path):
+    from dyntarget.io import read_label
+
+    crs, transform, _ = ETNA
+    # pixel-centre coordinates 10.3..29.7 x 12.3..39.7 = grid-corner coordinates
+    # 10.8..30.2 x 12.8..40.2: the pixels whose centre (i + 0.5) is inside are
+    # columns 11..29 and rows 13..39 (no centre near the boundary, so no ties)
+    square = box(10.3, 12.3, 29.7, 39.7)
+    expected = np.zeros((64, 64), bool)
+    expected[13:40, 11:30] = True
+    for mode in ("rfc7946", "native"):
+        path = write_polygons(
+            tmp_path / f"{mode}.geojson", [square], transform=transform, crs=crs, crs_mode=mode
+        )
+        label = read_label(path, shape=(64, 64), crs=crs, transform=transform)
+        np.testing.assert_array_equal(label, expected, err_msg=mode)
+
+
+def test_a_legacy_label_in_the_image_crs_without_crs_member_is_still_read_as_such(tmp_path):
+    from dyntarget.io import read_label
+
+    crs, transform, _ = ETNA
+    # metres in the image's CRS, no crs member: the old convention keeps working
+    x0, y0 = transform @ (5, 5)
+    x1, y1 = transform @ (20, 20)
+    doc = {
+        "type": "FeatureCollection",
+        "features": [
+            {
+                "type": "Feature",
+                "properties": {},
+                "geometry": {
+                    "type": "Polygon",
+                    "coordinates": [[[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]],
+                },
+            }
+        ],
+    }
+    path = tmp_path / "legacy.geojson"
+    path.write_text(json.dumps(doc))
+    label = read_label(path, shape=(32, 32), crs=crs, transform=transform)
+    assert label.sum() == 15 * 15 and label[5:20, 5:20].all()

@@ -229,13 +229,19 @@ def test_trajectory_export_pixel_and_crs(tmp_path):
     points = [f for f in doc["features"] if f["geometry"]["type"] == "Point"]
     assert [f["properties"]["order"] for f in points] == list(range(len(t)))
     assert points[0]["geometry"]["coordinates"] == [10.0, 49.5]
+    assert "pixel" in doc["properties"]["coordinates"]
     transform = Affine(8.0, 0, 240000.0, 0, -8.0, 2160000.0)
-    geo = t.to_geojson(transform=transform, crs="EPSG:32605")
-    assert geo["crs"]["properties"]["name"] == "EPSG:32605"
+    geo = t.to_geojson(transform=transform, crs="EPSG:32605", crs_mode="native")
+    assert geo["crs"]["properties"]["name"] == "urn:ogc:def:crs:EPSG::32605"
     x, y = geo["features"][1]["geometry"]["coordinates"]
     assert (x, y) == (240000.0 + 8 * 10.5, 2160000.0 - 8 * 50.0)
-    csv = t.save(tmp_path / "t.csv", transform=transform).read_text().splitlines()
-    assert csv[0] == "order,x,y,part,X,Y" and len(csv) == len(t) + 1
+    rfc = t.to_geojson(transform=transform, crs="EPSG:32605")  # the default: WGS 84 lon/lat
+    assert "crs" not in rfc
+    lon, lat = rfc["features"][1]["geometry"]["coordinates"]
+    assert -156.0 < lon < -155.0 and 19.0 < lat < 20.0  # UTM 5N, near Kilauea
+    csv = t.save(tmp_path / "t.csv", transform=transform, crs="EPSG:32605").read_text()
+    csv = csv.splitlines()
+    assert csv[0] == "order,x,y,part,lon,lat" and len(csv) == len(t) + 1
     with pytest.raises(InvalidParameterError, match="must end in"):
         t.save(tmp_path / "t.txt")
 

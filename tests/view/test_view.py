@@ -6,10 +6,10 @@ import re
 
 import numpy as np
 import pytest
-from dyntarget.plan.trajectory import Trajectory
 from shapely.geometry import box
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
+from dyntarget.trajectory import Trajectory
 
 pytest.importorskip("plotly", reason="the view needs plotly (extra 'view', in 'test')")
 
@@ -72,7 +72,7 @@ def test_hover_text_carries_order_time_utc_and_observed_values():
     page = _text(page)
     assert "<b>pointing 1</b> (part 0)<br>t = 62.000 s (2024-05-01T10:01:02.000Z)" in page
     assert "plume: 1.000" in page and "plume: –" in page
-    assert "time after acquisition (s)" in page
+    assert "time (s)<br>after acquisition" in page
 
 
 def test_untimed_pointings_are_coloured_by_order():
@@ -133,14 +133,13 @@ needs_chromium = pytest.mark.skipif(
 @pytest.fixture(scope="module")
 def planned(tmp_path_factory):
     """A synthetic georeferenced scene planned on its label, timed under the 'fast' agility."""
-    from dyntarget.plan.kinematics import Geometry, get_agility, make_feasible
-
     from dyntarget.pipeline import plan_scene
+    from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
     from dyntarget.synth import generate_scene
 
     scene = generate_scene(3, 0, size=96)[0]
     result = plan_scene(scene.image, None, "lawnmower-transect", mask=scene.label)
-    geometry = Geometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=scene.gsd)
+    geometry = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=scene.gsd)
     sched = make_feasible(result.trajectory, scene.shape, geometry, get_agility("fast"))
     assert len(sched.trajectory) >= 5
     return scene, result, sched.trajectory
@@ -189,3 +188,39 @@ def test_chromium_pass_slider_shows_each_frames_pointings(tmp_path, planned):
     assert second.errors == [], second.console
     np.testing.assert_allclose(second.pointings, traj.points, atol=1e-3)
     np.testing.assert_allclose(second.drawn, traj.points, atol=0.5 / second.px_per_unit + 1e-3)
+
+
+def test_importing_the_view_and_writers_loads_neither_plotly_nor_selenium():
+    import json
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, json, dyntarget.view, dyntarget.view.browser, dyntarget.io.geojson, "
+        "dyntarget.cli\n"
+        "print(json.dumps([m for m in ('plotly', 'selenium') if m in sys.modules]))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == []
+
+
+def test_pass_frames_with_their_own_transform_hover_their_own_lonlat():
+    from affine import Affine
+
+    t = Trajectory(np.array([[0.0, 0.0]]), np.zeros(1, np.int64), "t", times=np.array([1.0]))
+    # UTM 32N: pixel (0, 0)'s centre on the central meridian (9°E) at the equator, then
+    # the second frame's grid 30 m further north: 30 m / 0.9996 (UTM scale on the central
+    # meridian) / 110 574 m per degree of latitude at the equator (WGS 84) = 0.0002714°
+    first = Affine(30.0, 0.0, 499985.0, 0.0, -30.0, 15.0)
+    second = Affine(30.0, 0.0, 499985.0, 0.0, -30.0, 45.0)
+    page = _text(
+        pass_view_html(
+            [
+                PassFrame(0.0, _image(), trajectory=t, transform=first),
+                PassFrame(2.0, _image(), trajectory=t, transform=second),
+            ],
+            crs="EPSG:32632",
+        )
+    )
+    assert "lon 9.0000000, lat 0.0000000" in page
+    assert "lon 9.0000000, lat 0.0002714" in page

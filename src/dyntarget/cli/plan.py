@@ -15,6 +15,7 @@ from dyntarget.cli._common import (
     preset_names,
 )
 from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
+from dyntarget.cli._outputs import add_output_options, write_outputs
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
@@ -110,8 +111,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if result.schedule is not None:
         _log_schedule(result.planner, result.schedule)
         traj = result.schedule.trajectory
-    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
-    print(out)
+    write_outputs(
+        args, wfov, traj, polygons=result.polygons, probability=result.probability,
+        title=f"{wfov.id}: {result.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
+    )  # fmt: skip
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
 
@@ -198,7 +201,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="planner name (see 'dyntarget planners'), or utility-max (with --agility)",
     )
-    p.add_argument("--out", required=True, help="trajectory file: .geojson or .csv")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="trajectory file: .geojson (RFC 7946 unless --crs native) or .csv",
+    )
     p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
     p.add_argument(
         "--factor",
@@ -219,6 +226,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
     add_plan_options(p)
     add_predict_options(p)
+    add_output_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
     k.add_argument(

@@ -57,6 +57,8 @@ def make_figures(
         mask=results[0].mask,
         title=f"{scene.id}: planners on the {display(best)} mask (held-out scene)",
     )
+    if results and _has_plotly():  # the same plan, interactive: view.html beside report.md
+        figs["view"] = _scene_view(out / "view.html", scene, wfov, results[0], lookahead[0], factor)
     # Figure 4: three held-out scenes
     rows = []
     for s in held_out[:3]:
@@ -68,6 +70,29 @@ def make_figures(
     figs["fig4"] = classification_figure(rows, out / "fig4_classification.png")
     figs["utilities"] = utilities_figure(table2["rows"], out / "fig_utilities.png")
     return figs
+
+
+def _has_plotly() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("plotly") is not None
+
+
+def _scene_view(path: Path, scene: Scene, wfov: Scene, result, planner: str, factor: int) -> Path:
+    from dyntarget.view import pointing_truth, write_scene_view
+
+    traj = result.trajectory
+    return write_scene_view(
+        path,
+        wfov.image,
+        probability=result.probability,
+        polygons=result.polygons,
+        trajectory=traj,
+        point_values=pointing_truth(traj, scene.image, scene.label, factor=factor),
+        transform=wfov.transform,
+        crs=wfov.crs,
+        title=f"{scene.id}: {planner} (held-out scene, as Figure 3)",
+    )
 
 
 def _paper_table1_md(ours: list[dict]) -> str:
@@ -167,6 +192,12 @@ def write_report(
         f"![Utilities]({rel['utilities']})\n\n"
         "*Ratio plume, intensity and gradient per planner and classifier; dashed/dotted: baselines.*\n",
     ]
+    if "view" in rel:
+        parts.append(
+            f"Interactive: [{rel['view']}]({rel['view']}) — Figure 3's scene with one planner's "
+            "pointings, probability and polygons; hover a pointing for its order and what it "
+            "observed (opens offline in any browser).\n"
+        )
     if compare_with_paper:
         parts += [
             "## Beside the paper\n",

@@ -94,8 +94,12 @@ def iso_utc(acquired: datetime, seconds: float) -> str:
     --------
     >>> iso_utc(parse_acquired("2024-05-01T10:00:00Z"), 63.25)
     '2024-05-01T10:01:03.250Z'
+    >>> iso_utc(parse_acquired("2024-05-01T10:00:00Z"), 59.9996)
+    '2024-05-01T10:01:00.000Z'
     """
     when = parse_acquired(acquired) + timedelta(seconds=float(seconds))
+    # round (not truncate, as isoformat does) to the millisecond, like ``time_s``
+    when = when.replace(microsecond=0) + timedelta(milliseconds=round(when.microsecond / 1000))
     return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 

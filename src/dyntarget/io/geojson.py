@@ -157,6 +157,54 @@ def crs_to_lonlat(xy: np.ndarray, crs: object) -> np.ndarray:
     return out
 
 
+def rfc7946_source_crs(geometries: Sequence[Mapping[str, Any]], crs: object | None) -> str | None:
+    """``"EPSG:4326"`` when GeoJSON geometries without a ``crs`` member are RFC 7946 lon/lat.
+
+    A GeoJSON file without a ``crs`` member is, by RFC 7946, WGS 84; older label
+    files wrote the image's own CRS without saying so. The two are told apart for
+    a projected image CRS: projected coordinates (metres from a false origin) do
+    not all fall inside ``[-180, 180] x [-90, 90]``, degrees always do.
+
+    Parameters
+    ----------
+    geometries : sequence of GeoJSON geometry mappings
+    crs : the image's CRS, or None
+
+    Returns
+    -------
+    str or None
+        ``"EPSG:4326"`` to reproject from, or ``None`` (take the coordinates as they are).
+
+    Examples
+    --------
+    >>> poly = {"type": "Polygon", "coordinates": [[[9.0, 45.0], [9.1, 45.0], [9.0, 45.1]]]}
+    >>> rfc7946_source_crs([poly], "EPSG:32632")
+    'EPSG:4326'
+    >>> rfc7946_source_crs([poly], "EPSG:4326") is None  # already degrees: nothing to do
+    True
+    """
+    if crs is None or not geometries:
+        return None
+    from rasterio.crs import CRS
+
+    if not CRS.from_user_input(crs).is_projected:
+        return None
+    points: list[tuple[float, float]] = []
+    stack: list[Any] = [g.get("coordinates") for g in geometries]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, (list, tuple)):
+            if len(item) >= 2 and all(isinstance(v, (int, float)) for v in item[:2]):
+                points.append((float(item[0]), float(item[1])))
+            else:
+                stack.extend(item)
+    if not points:
+        return None
+    xy = np.asarray(points)
+    degrees = (np.abs(xy[:, 0]) <= 180.0) & (np.abs(xy[:, 1]) <= 90.0)
+    return WGS84 if bool(degrees.all()) else None
+
+
 def _project(points_px: np.ndarray, transform, crs, form: str) -> np.ndarray:
     pts = np.asarray(points_px, np.float64).reshape(-1, 2)
     if form == "pixels":
@@ -260,7 +308,7 @@ def trajectory_geojson(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0, 0]), "demo",
     ...                times=np.array([0.0, 1.5]))
     >>> doc = trajectory_geojson(t, transform=Affine(10, 0, 500000, 0, -10, 0),
@@ -333,7 +381,7 @@ def polygons_geojson(
     ----------
     polygons : sequence of shapely Polygon or MultiPolygon
         In pixel coordinates ``(column, row)``, pixel centres at integers (as
-        :func:`dyntarget.perceive.denoise.denoise` returns them).
+        :func:`dyntarget.denoise.denoise` returns them).
     transform, crs, crs_mode, acquired, properties
         As for :func:`trajectory_geojson`.
 
@@ -432,7 +480,7 @@ def trajectory_csv(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[1.0, 2.0]]), np.array([0]), "demo", times=np.array([2.0]))
     >>> print(trajectory_csv(t, acquired="2024-05-01T10:00:00Z"), end="")
     order,x,y,part,time_s,time
@@ -482,6 +530,14 @@ def write_geojson(path: str | os.PathLike[str], doc: Mapping[str, Any]) -> Path:
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = write_geojson(pathlib.Path(tempfile.mkdtemp()) / "e.geojson",
+    ...                     {"type": "FeatureCollection", "features": []})
+    >>> print(out.read_text(), end="")
+    {"type":"FeatureCollection","features":[]}
     """
     return write_text(path, json.dumps(doc, separators=(",", ":"), allow_nan=False) + "\n")
 
@@ -518,7 +574,7 @@ def write_trajectory(
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 4.0]]), np.array([0, 0]), "demo")
     >>> out = write_trajectory(pathlib.Path(tempfile.mkdtemp()) / "t.geojson", t)
     >>> json.loads(out.read_text())["properties"]["coordinates"][:11]

@@ -357,7 +357,9 @@ def read_geojson_label(
     """Rasterise GeoJSON polygons onto an image grid of ``shape``; ``True`` inside.
 
     Coordinates are in the image's CRS when it has one (a GeoJSON ``"crs"``
-    member naming another CRS is reprojected), else in pixels ``(column, row)``.
+    member naming another CRS is reprojected; without a member, RFC 7946 WGS 84
+    lon/lat is recognised for projected images and reprojected), else in pixels
+    ``(column, row)``.
     An empty FeatureCollection gives an all-``False`` label; polygons that fall
     entirely outside the image are an error, since that is almost always a CRS
     mix-up.
@@ -379,6 +381,12 @@ def read_geojson_label(
         name = doc["crs"].get("properties", {}).get("name")
         if name:
             src_crs = name
+    if (
+        src_crs is None
+    ):  # no crs member: RFC 7946 lon/lat (ours) or, in older files, the image's CRS
+        from dyntarget.io.geojson import rfc7946_source_crs
+
+        src_crs = rfc7946_source_crs(geoms, crs)
     if src_crs is not None and crs is not None:
         geoms = [
             transform_geom(CRS.from_user_input(src_crs), CRS.from_user_input(crs), g) for g in geoms

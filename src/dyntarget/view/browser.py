@@ -152,6 +152,18 @@ def render(
     ------
     DataFileError
         When Chromium/chromedriver/selenium are missing, or the page never draws the figure.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from dyntarget.trajectory import Trajectory
+    >>> from dyntarget.view import write_scene_view
+    >>> img = np.random.default_rng(0).uniform(0, 1, (4, 8, 8)).astype(np.float32)
+    >>> t = Trajectory(np.array([[1.0, 2.0], [5.0, 6.0]]), np.zeros(2, int), "demo")
+    >>> page = write_scene_view(pathlib.Path(tempfile.mkdtemp()) / "v.html", img, trajectory=t)
+    >>> shown = render(page) if find_chromium() else None  # needs Debian's chromium
+    >>> shown is None or (shown.errors == [] and shown.pointings.tolist() == t.points.tolist())
+    True
     """
     path = Path(path).resolve()
     if not path.is_file():

@@ -15,7 +15,7 @@ import itertools
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -58,6 +58,10 @@ class PassFrame:
         Per-pointing values for the hover (e.g. what each pointing observed).
     label : str
         Extra text for the slider step.
+    transform : affine.Affine or None
+        This frame's own pixel -> CRS transform (frames of a strip each cover
+        their own ground); ``None``: the pass's ``transform``. Used for the
+        hover's lon/lat.
     """
 
     time_s: float
@@ -67,17 +71,32 @@ class PassFrame:
     trajectory: Any = None
     point_values: Mapping[str, Sequence[float]] | None = None
     label: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
+    transform: Any = None
 
 
-def _plotly():
+def require_plotly():
+    """The ``plotly.graph_objects`` module, or :class:`~dyntarget.errors.MissingExtraError`
+    naming the ``view`` extra to install.
+
+    Returns
+    -------
+    module
+
+    Examples
+    --------
+    >>> require_plotly().__name__
+    'plotly.graph_objects'
+    """
     try:
         import plotly.graph_objects as go
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise InvalidParameterError(
-            "html: the interactive view needs plotly; pip install 'dyntarget[view]'"
-        ) from exc
+        from dyntarget.errors import missing_extra
+
+        raise (missing_extra(exc) or exc) from None
     return go
+
+
+_plotly = require_plotly  # the name callers used before it was public
 
 
 def _stretch(bands: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
@@ -251,7 +270,7 @@ def _traces(go, image, probability, polygons, traj, values, transform, crs, acqu
                 "line": {"color": "black", "width": 1},
                 "showscale": True,
                 "colorbar": {
-                    "title": {"text": "time after acquisition (s)" if timed else "order"},
+                    "title": {"text": "time (s)<br>after acquisition" if timed else "order"},
                     "x": 1.02,
                     "len": 0.5,
                     "y": 0.75,
@@ -298,7 +317,7 @@ def _layout(go, shape, title: str, note: str) -> Any:
         width=width,
         height=int(min(1000, max(420, 140 + (width - 260) * aspect))),
         legend={"orientation": "h", "y": -0.12},
-        margin={"l": 60, "r": 40, "t": 120, "b": 110},
+        margin={"l": 60, "r": 170, "t": 120, "b": 110},
         updatemenus=[
             {
                 "type": "buttons",
@@ -385,14 +404,14 @@ def scene_view_html(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> img = np.random.default_rng(0).uniform(0, 1, (4, 16, 16)).astype(np.float32)
     >>> t = Trajectory(np.array([[2.0, 3.0], [5.0, 3.0]]), np.array([0, 0]), "demo")
     >>> page = scene_view_html(img, trajectory=t)
     >>> page.startswith("<!doctype html>"), "<title>dyntarget plan</title>" in page
     (True, True)
     """
-    go = _plotly()
+    go = require_plotly()
     image = check_image(image)
     shape = image.shape[1:]
     probability = _check_probability(probability, shape)
@@ -427,6 +446,14 @@ def write_scene_view(path: str | os.PathLike[str], image: np.ndarray, **kwargs: 
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> img = np.random.default_rng(0).uniform(0, 1, (4, 8, 8)).astype(np.float32)
+    >>> out = write_scene_view(pathlib.Path(tempfile.mkdtemp()) / "v.html", img, title="demo")
+    >>> "<title>demo</title>" in out.read_text()
+    True
     """
     path = _check_html_path(path)
     return write_text(path, scene_view_html(image, **kwargs))
@@ -471,7 +498,7 @@ def pass_view_html(
     >>> page.count('"t = 5 s"') >= 1
     True
     """
-    go = _plotly()
+    go = require_plotly()
     frames = list(frames)
     if not frames:
         raise InvalidParameterError("frames: expected at least one PassFrame, got none")
@@ -517,7 +544,7 @@ def pass_view_html(
                 f.polygons,
                 f.trajectory,
                 f.point_values,
-                transform,
+                f.transform if f.transform is not None else transform,
                 crs,
                 when,
                 crange,
@@ -571,6 +598,13 @@ def pass_view_html(
         },
     ]
     layout.height = layout.height + 80
+    layout.legend = {
+        "orientation": "h",
+        "x": 1.0,
+        "xanchor": "right",
+        "y": 1.01,
+        "yanchor": "bottom",
+    }
     fig = go.Figure(data=per_frame[0], layout=layout, frames=plot_frames)
     return _to_html(fig, title, animated=True)
 
@@ -591,6 +625,15 @@ def write_pass_view(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> img = np.random.default_rng(0).uniform(0, 1, (4, 8, 8)).astype(np.float32)
+    >>> frames = [PassFrame(0.0, img), PassFrame(2.5, img, label="second look")]
+    >>> out = write_pass_view(pathlib.Path(tempfile.mkdtemp()) / "pass.html", frames)
+    >>> "t = 2.5 s · second look" in out.read_text()
+    True
     """
     path = _check_html_path(path)
     return write_text(path, pass_view_html(frames, **kwargs))
@@ -623,7 +666,7 @@ def pointing_truth(
 
     Examples
     --------
-    >>> from dyntarget.plan.trajectory import Trajectory
+    >>> from dyntarget.trajectory import Trajectory
     >>> img = np.full((4, 4, 4), 0.5, np.float32)
     >>> lab = np.zeros((4, 4), bool); lab[:, :2] = True
     >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 0.0], [9.0, 0.0]]), np.zeros(3, int), "d")

@@ -1,0 +1,212 @@
+"""``dyntarget plan`` outputs: RFC 7946 by default, --crs native, time, --polygons, --html."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from affine import Affine
+
+from dyntarget.cli import main
+from dyntarget.io import write_scene
+from dyntarget.scene import Scene
+
+pyogrio = pytest.importorskip("pyogrio", reason="pyogrio (GDAL's OGR) is in the test extra")
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _scene(tmp_path, crs, transform, *, size=48, name="s"):
+    """A square plume on dark ground, written as <name>.tif + <name>_mask.tif in ``crs``."""
+    image = np.full((4, size, size), 0.05, np.float32)
+    image += np.linspace(0, 0.02, size, dtype=np.float32)[None, None, :]
+    label = np.zeros((size, size), bool)
+    label[10:38, 8:40] = True
+    image[:, label] = 0.7
+    scene = Scene(image, label=label, gsd=30.0, crs=crs, transform=transform, id=name)
+    write_scene(scene, tmp_path)
+    return tmp_path / f"{name}.tif", tmp_path / f"{name}_mask.tif"
+
+
+def _plan(capsys, image, mask, out, *extra):
+    code, stdout, err = run(
+        capsys, "plan", image, "--mask", mask, "--planner", "lawnmower-transect", "--out", out,
+        *extra,
+    )  # fmt: skip
+    assert code == 0, err
+    return stdout
+
+
+def _points(path):
+    import shapely
+
+    meta, _, geoms, fields = pyogrio.raw.read(path, where="kind = 'pointing'")
+    order = fields[list(meta["fields"]).index("order")]
+    return shapely.get_coordinates(shapely.from_wkb(geoms))[np.argsort(order)], meta["crs"]
+
+
+GRIDS = {
+    "utm32n": ("EPSG:32632", Affine(30.0, 0.0, 653000.0, 0.0, -30.0, 5120000.0)),
+    "utm33s": ("EPSG:32733", Affine(30.0, 0.0, 418000.0, 0.0, -30.0, 8410000.0)),
+}
+
+
+@pytest.mark.parametrize("zone", list(GRIDS))
+def test_plan_geojson_round_trips_through_gdal_within_a_tenth_of_a_pixel(tmp_path, capsys, zone):
+    from rasterio.warp import transform as warp
+
+    crs, transform = GRIDS[zone]
+    image, mask = _scene(tmp_path, crs, transform)
+    _plan(capsys, image, mask, tmp_path / "rfc.geojson")
+    _plan(capsys, image, mask, tmp_path / "native.geojson", "--crs", "native")
+    lonlat, rfc_crs = _points(tmp_path / "rfc.geojson")
+    native, native_crs = _points(tmp_path / "native.geojson")
+    assert rfc_crs == "EPSG:4326" and native_crs == crs
+    assert "crs" not in json.loads((tmp_path / "rfc.geojson").read_text())
+    xs, ys = warp("EPSG:4326", crs, lonlat[:, 0], lonlat[:, 1])
+    # metres -> pixels: 30 m per pixel on both axes
+    err_px = np.hypot(np.asarray(xs) - native[:, 0], np.asarray(ys) - native[:, 1]) / 30.0
+    assert len(native) > 10 and err_px.max() < 0.1, err_px.max()
+    if zone == "utm33s":
+        assert (lonlat[:, 1] < 0).all()  # southern hemisphere: negative latitudes
+
+
+def test_agility_and_acquired_put_time_on_every_pointing_in_geojson_and_csv(tmp_path, capsys):
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    extra = ("--agility", "fast", "--acquired", "2024-05-01T12:00:00+02:00")
+    _plan(capsys, image, mask, tmp_path / "t.geojson", *extra)
+    _plan(capsys, image, mask, tmp_path / "t.csv", *extra)
+    doc = json.loads((tmp_path / "t.geojson").read_text())
+    assert doc["properties"]["acquired"] == "2024-05-01T10:00:00.000Z"
+    pts = [f["properties"] for f in doc["features"] if f["properties"]["kind"] == "pointing"]
+    rows = (tmp_path / "t.csv").read_text().splitlines()
+    assert rows[0] == "order,x,y,part,lon,lat,time_s,time"
+    assert len(rows) - 1 == len(pts) > 0
+    for p, row in zip(pts, rows[1:], strict=True):
+        cells = row.split(",")
+        assert float(cells[6]) == p["time_s"] and cells[7] == p["time"]
+        # the ISO time is the acquisition plus time_s (to the millisecond)
+        from datetime import datetime
+
+        t = datetime.fromisoformat(p["time"].replace("Z", "+00:00"))
+        start = datetime.fromisoformat("2024-05-01T10:00:00+00:00")
+        assert abs((t - start).total_seconds() - p["time_s"]) < 1e-3
+    # GDAL reads `time` as a DateTime field (what QGIS's temporal controller needs)
+    meta, _, _, fields = pyogrio.raw.read(tmp_path / "t.geojson", where="kind = 'pointing'")
+    k = list(meta["fields"]).index("time")
+    assert str(meta["dtypes"][k]).startswith("datetime64")
+    assert [str(v) for v in fields[k]] == [p["time"].rstrip("Z") for p in pts]
+
+
+def test_acquisition_time_is_read_from_the_tiff_tag(tmp_path, capsys):
+    import rasterio
+
+    crs, transform = GRIDS["utm33s"]
+    image, mask = _scene(tmp_path, crs, transform)
+    with rasterio.open(image, "r+") as dst:
+        dst.update_tags(TIFFTAG_DATETIME="2023:07:14 23:59:59")
+    _plan(capsys, image, mask, tmp_path / "t.csv", "--agility", "fast")
+    first = (tmp_path / "t.csv").read_text().splitlines()[1].split(",")
+    assert first[7].startswith("2023-07-1")  # 23:59:59 + time_s (tens of seconds): next day
+    assert first[7] > "2023-07-14T23:59:59"
+
+
+def test_polygons_are_written_in_the_same_form_and_read_by_gdal(tmp_path, capsys):
+    import shapely
+
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    _plan(capsys, image, mask, tmp_path / "t.geojson", "--polygons", tmp_path / "p.geojson")
+    meta, _, geoms, _ = pyogrio.raw.read(tmp_path / "p.geojson")
+    assert meta["crs"] == "EPSG:4326" and len(geoms) == 1
+    poly = shapely.from_wkb(geoms[0])
+    assert poly.exterior.is_ccw
+    # the plume is the 32 x 28 px rectangle: its polygon (through pixel centres) is 31 x 27 px
+    doc = json.loads((tmp_path / "p.geojson").read_text())
+    assert doc["features"][0]["properties"]["area_px"] == 31 * 27
+    assert doc["features"][0]["properties"]["area_m2"] == 31 * 27 * 900
+
+
+def test_image_without_crs_keeps_pixels_and_says_so(tmp_path, capsys):
+    image, mask = _scene(tmp_path, None, None)
+    _plan(capsys, image, mask, tmp_path / "t.geojson", "--crs", "native")
+    doc = json.loads((tmp_path / "t.geojson").read_text())
+    assert "no CRS" in doc["properties"]["coordinates"] and "crs" not in doc
+    pt = next(f for f in doc["features"] if f["properties"]["kind"] == "pointing")
+    assert pt["geometry"]["coordinates"] == [pt["properties"]["x_px"], pt["properties"]["y_px"]]
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--polygons", "p.csv"], "--polygons: expected a .geojson path"),
+        (["--html", "v.png"], "--html: expected a .html path"),
+        (["--acquired", "noon"], "--acquired: expected an ISO-8601"),
+        (["--crs", "utm"], "invalid choice: 'utm'"),
+        (["--polygons", "out/t.geojson"], "the same path as --out"),
+        (["--polygons", "out/d.geojson"], "is a directory"),
+    ],
+)
+def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, message):
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    extra = [str(tmp_path / e) if "." in e and not e.startswith("-") else e for e in extra]
+    out = tmp_path / "out"
+    if "d.geojson" in " ".join(extra):
+        (out / "d.geojson").mkdir(parents=True)
+    code, _, err = run(
+        capsys, "plan", image, "--mask", mask, "--planner", "track-center",
+        "--out", out / "t.geojson", *extra,
+    )  # fmt: skip
+    assert code == 2 and message in err and "Traceback" not in err
+    assert not out.exists() or [p.name for p in out.iterdir()] in ([], ["d.geojson"])
+
+
+@pytest.mark.slow
+def test_plan_html_view_holds_the_geojson_pointings_in_chromium(tmp_path, capsys):
+    pytest.importorskip("plotly")
+    from dyntarget.view.browser import find_chromium, render
+
+    if find_chromium() is None:
+        pytest.skip("headless Chromium not installed (apt-get install -y chromium chromium-driver)")
+    crs, transform = GRIDS["utm33s"]
+    image, mask = _scene(tmp_path, crs, transform)
+    stdout = _plan(
+        capsys, image, mask, tmp_path / "t.geojson", "--html", tmp_path / "v.html",
+        "--agility", "fast", "--acquired", "2024-05-01T10:00:00Z",
+    )  # fmt: skip
+    assert str(tmp_path / "v.html") in stdout
+    doc = json.loads((tmp_path / "t.geojson").read_text())
+    px = [
+        [f["properties"]["x_px"], f["properties"]["y_px"]]
+        for f in doc["features"]
+        if f["properties"]["kind"] == "pointing"
+    ]
+    shown = render(tmp_path / "v.html")
+    assert shown.errors == [], shown.console
+    np.testing.assert_allclose(shown.drawn, px, atol=0.5 / shown.px_per_unit + 1e-3)
+
+
+def test_html_without_plotly_names_the_extra_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    import sys
+
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    monkeypatch.setitem(sys.modules, "plotly", None)  # as if the 'view' extra were absent
+    monkeypatch.setitem(sys.modules, "plotly.graph_objects", None)
+    out = tmp_path / "out"
+    code, _, err = run(
+        capsys, "plan", image, "--mask", mask, "--planner", "track-center",
+        "--out", out / "t.geojson", "--html", out / "v.html",
+    )  # fmt: skip
+    assert code == 2
+    assert err.strip().splitlines()[-1] == (
+        'dyntarget: error: plotly is not installed: pip install "dyntarget[view]"'
+    )
+    assert not out.exists() or list(out.iterdir()) == []
