@@ -14,8 +14,8 @@ from dyntarget.cli._common import (
     positive_int,
     preset_names,
 )
-from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
 from dyntarget.cli._outputs import add_output_options, write_outputs
+from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
