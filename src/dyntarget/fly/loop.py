@@ -503,7 +503,9 @@ def _fly_frame(
         fallback=fallback,
     )
     stage = {s: float(result.timings.get(s, 0.0)) for s in ("classify", "denoise", "plan")}
-    stage["plan"] += float(result.timings.get("overhead", 0.0))
+    stage["plan"] += sum(  # the deadline's overhead, and any other step the pipeline times
+        float(v) for k, v in result.timings.items() if k not in ("classify", "denoise", "plan")
+    )
     stage["predict"] = 0.0
     prediction = None
     if predictive:
@@ -523,8 +525,9 @@ def _fly_frame(
             config=config.pipeline,
             prediction=prediction,
         )
+        # the second call's own mask check and polygons count as planning
         stage["predict"] += float(again.timings.get("predict", 0.0))
-        stage["plan"] += sum(float(again.timings.get(s, 0.0)) for s in ("classify", "plan"))
+        stage["plan"] += sum(float(v) for k, v in again.timings.items() if k != "predict")
         path = [*result.path[:-1], *again.path[1:]]
         if prediction is None:
             path.insert(-1, "predict: no motion known (planned on the look as it is)")
