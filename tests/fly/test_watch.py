@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import threading
 import time
 
 import pytest
@@ -45,31 +44,23 @@ def test_a_frame_written_slowly_is_read_only_when_complete(tmp_path, classifier,
     watched, out = tmp_path / "in", tmp_path / "out"
     watched.mkdir()
     name, data = next(iter(frame_bytes.items()))
-    written = threading.Event()
-
-    def slow_writer():
-        with open(watched / name, "wb") as f:  # written in place, in three pieces
-            for piece in (data[:200], data[200 : len(data) // 2]):
-                f.write(piece)
-                f.flush()
-                time.sleep(0.8)  # longer than settle_s: the partial file looks settled
-            written.set()  # set just before the last piece: a plan before it is too early
-            f.write(data[len(data) // 2 :])
-
+    plan_path = out / f"{name[:-4]}.geojson"
     w = Watcher(watched, out, classifier, _config())
-    thread = threading.Thread(target=slow_writer)
-    thread.start()
-    planned_before_complete = 0
-    deadline = time.monotonic() + 20
-    while not (out / f"{name[:-4]}.geojson").exists() and time.monotonic() < deadline:
-        complete = written.is_set()
-        n = w.step()
-        if not complete:
-            planned_before_complete += n
+    with open(watched / name, "wb") as f:  # written in place, in pieces, with pauses
+        for piece in (data[:200], data[200 : len(data) // 2]):
+            f.write(piece)
+            f.flush()
+            t_end = time.monotonic() + 0.8  # longer than settle_s: the partial file looks settled
+            while time.monotonic() < t_end:
+                assert w.step() == 0  # settled but incomplete: never planned
+                time.sleep(0.02)
+        assert not plan_path.exists()
+        f.write(data[len(data) // 2 :])
+    deadline = time.monotonic() + 60
+    while not plan_path.exists() and time.monotonic() < deadline:
+        w.step()
         time.sleep(0.02)
-    thread.join()
-    assert planned_before_complete == 0
-    assert (out / f"{name[:-4]}.geojson").exists()
+    assert plan_path.exists()
     # the plan is the one of the complete file
     (tmp_path / "ref").mkdir()
     (tmp_path / "ref" / name).write_bytes(data)
