@@ -180,3 +180,14 @@ def test_wind_bins_from_the_world_spec_or_a_user_prior():
     assert [dyn.wind_bin(v) for v in (1.99, 2.0, 15.99, 16.0, 40.0)] == [
         "0-2", "2-5", "12-16", "16+", "16+",
     ]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_on_a_dask_cluster_the_records_equal_the_serial_run(cluster):
+    seqs = list(generate_sequences(4, size=48, seed=2, frames=1))
+    config = DynamicConfig(
+        folds=2, classifiers=(), latencies=(0.0, 60.0), planners=("track-center", "naive-transect")
+    )
+    serial = evaluate_dynamic(seqs, config, progress=False)
+    remote = evaluate_dynamic(seqs, config, progress=False, scheduler=cluster)
+    assert remote["records"] == serial["records"]
