@@ -8,8 +8,9 @@
   cloud, ``f_0(x - v t)``, and the vent keeps emitting: the plume's source end
   (its upwind :data:`SOURCE_BAND_PX`) is swept downwind from the vent over
   ``v t``, ``max_{0<=s<=t} f_src(x - v s)`` (a grey dilation with a line,
-  OpenCV). The vent end stays; the far end advances by ``v t``. Spreading and
-  fading of the puffs are not modelled. (``ATTACHED_MODEL = "sweep"``: the
+  OpenCV). The vent end stays. Puffs fade, so the carried puffs stop at the
+  plume's far end plus the measured front speed times ``t`` (two looks only).
+  Spreading of the puffs is not modelled. (``ATTACHED_MODEL = "sweep"``: the
   whole envelope swept forward at the measured front speed ``Motion.attached``,
   a first model that fills gaps the truth keeps; see ``docs/onboard.md``.)
 * **mixed**: plumes of the mask near a vent of ``Motion.attached`` are attached,
@@ -115,10 +116,30 @@ def predict_field(field: np.ndarray, motion: Motion, lead_s: float) -> np.ndarra
         front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
         return np.maximum(_sweep(plume, dx * front, dy * front), moved)
     # puffs: the attached plume's pattern is carried downwind like a detached cloud ...
-    carried = _shift(plume, dx, dy)
+    carried = _front_limited(_shift(plume, dx, dy), plume, motion, lead)
     # ... while the vent keeps emitting: its source end, swept from the vent downwind
     source = _source_end(plume, motion.velocity)
     return np.maximum(np.maximum(carried, _sweep(source, dx, dy)), moved)
+
+
+def _front_limited(carried: np.ndarray, plume: np.ndarray, motion: Motion, lead: float):
+    """Puffs fade: the visible far end advances at the measured front speed, not the wind's.
+
+    ``carried`` is cut beyond the current attached plume's far end (along the flow)
+    plus ``front_speed * lead``; without a measured front (a wind prior) it is kept.
+    """
+    if not motion.attached:
+        return carried
+    speed = motion.speed
+    ux, uy = motion.velocity[0] / speed, motion.velocity[1] / speed
+    h, w = plume.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    s = xx * ux + yy * uy
+    inside = plume >= 0.5
+    if not inside.any():
+        return carried
+    limit = s[inside].max() + front_speed(motion) * lead
+    return np.where(s <= limit, carried, 0.0).astype(np.float32)
 
 
 ATTACHED_MODEL = "advect"
