@@ -10,6 +10,8 @@ from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
+    if getattr(args, "strip", False):  # demo calls this with the static options only
+        return _synth_strips(args)
     from tqdm import tqdm
 
     from dyntarget.io import write_scene
@@ -33,6 +35,27 @@ def cmd_synth(args: argparse.Namespace) -> int:
     log(
         f"wrote {args.scenes} scenes ({n_files} files) to {out} in {time.perf_counter() - t0:.1f} s"
     )
+    return EXIT_OK
+
+
+def _synth_strips(args: argparse.Namespace) -> int:
+    """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
+    from dyntarget.fly.strip import strip_spec, write_strip
+
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    for i in range(args.scenes):
+        spec, window = strip_spec(
+            args.seed + i,
+            width=args.size,
+            length=args.length or 4 * args.size + args.size // 2,
+            plumes=args.plumes,
+            gsd=args.gsd,
+            wind_mps=getattr(args, "wind_mps", None),
+            wind_from_deg=getattr(args, "wind_from_deg", None),
+        )
+        write_strip(spec, window, out)
+    log(f"wrote {args.scenes} strip(s) to {out} in {time.perf_counter() - t0:.1f} s")
     return EXIT_OK
 
 
@@ -117,5 +140,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--wind-from-deg",
         type=_degrees,
         help="direction the wind blows from, degrees clockwise from north (default: drawn)",
+    )
+    s = p.add_argument_group("strips to fly ('dyntarget fly'; --scenes strips, --size px wide)")
+    s.add_argument(
+        "--strip",
+        action="store_true",
+        help="write long moving strips (seed, seed+1, ...) with several plumes instead of scenes",
+    )
+    s.add_argument("--plumes", type=positive_int, default=4, help="vents per strip (default 4)")
+    s.add_argument(
+        "--length", type=positive_int, help="strip length in px (default 4.5 x --size: 8 frames)"
     )
     p.set_defaults(func=cmd_synth)

@@ -1,0 +1,288 @@
+"""``dyntarget fly``: fly a pass over a strip, watch a directory live, or run a campaign."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from dyntarget.cli._common import (
+    EXIT_OK,
+    SCHEDULER_HELP,
+    add_plan_options,
+    log,
+    plan_config,
+    positive_float,
+    positive_int,
+    scheduler_address,
+)
+from dyntarget.errors import InvalidParameterError
+from dyntarget.fly.signals import stop_on_signals
+
+
+def _classifier(args: argparse.Namespace):
+    if args.model is None:
+        return None
+    if args.onnx:
+        from dyntarget.perceive.onnx import load_onnx
+
+        return load_onnx(args.model)
+    from dyntarget.perceive import load_classifier
+
+    return load_classifier(args.model)
+
+
+def _pass_config(args: argparse.Namespace, planner: str, agility: str):
+    from dyntarget.fly import PassConfig
+    from dyntarget.pipeline import PipelineConfig
+
+    return PassConfig(
+        planner=planner,
+        agility=agility,
+        factor=args.factor,
+        frame_px=args.frame_px,
+        overlap=args.overlap,
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        compute_budget_s=args.compute_budget_s,
+        deadline_s=args.deadline_s,
+        footprint=args.footprint,
+        denoise=not args.no_denoise,
+        predict=args.predict,
+        wind_mps=args.wind_mps,
+        wind_from_deg=args.wind_from_deg,
+        pipeline=PipelineConfig(plan=plan_config(args)),
+    )
+
+
+def cmd_fly(args: argparse.Namespace) -> int:
+    modes = [m for m in ("scene", "watch", "campaign") if getattr(args, m)]
+    if len(modes) != 1:
+        raise InvalidParameterError("fly: give exactly one of --scene, --watch, --campaign")
+    if args.model is None and not args.truth:
+        raise InvalidParameterError(
+            "fly: give --model MODEL (a trained model directory) or --truth (plan on the true mask)"
+        )
+    if args.model is not None and args.truth:
+        raise InvalidParameterError("fly: --model and --truth exclude each other")
+    if args.watch:
+        return _watch(args)
+    if args.campaign:
+        return _campaign(args)
+    return _fly(args)
+
+
+def _fly(args: argparse.Namespace) -> int:
+    from dyntarget.fly import fly_pass
+    from dyntarget.fly.report import ViewCollector, write_pass, write_progress
+    from dyntarget.fly.strip import load_world
+
+    if "," in args.planner or "," in args.agility:
+        raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
+    world = load_world(args.scene, truth_step_s=args.truth_step_s)
+    config = _pass_config(args, args.planner, args.agility)
+    classifier = _classifier(args)
+    fallback = None
+    if args.fallback_model:
+        from dyntarget.perceive import load_classifier
+
+        fallback = load_classifier(args.fallback_model)
+    out = Path(args.out)
+    views = None if args.no_html else ViewCollector()
+    with stop_on_signals() as stop:
+        result = fly_pass(
+            world,
+            classifier,
+            config,
+            fallback=fallback,
+            on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
+            should_stop=stop.is_set,
+            progress=not args.quiet,
+            frame_sink=views,
+        )
+    written = write_pass(
+        result, world, out, picture=not args.no_picture, views=views, crs_mode=args.crs
+    )
+    t = result.totals()
+    log(
+        f"{t['frames']} frames, {t['pointings_flown']} pointings flown, "
+        f"{t['plumes_observed']} of {t['plumes_total']} plumes observed, utility {t['utility']:.2f}"
+        + (" (stopped)" if result.stopped else "")
+    )
+    log("wrote " + ", ".join(str(p) for p in written))
+    if result.stopped and stop.caught:
+        return 128 + stop.caught[0]
+    return EXIT_OK
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from dyntarget.fly.watch import WatchConfig, Watcher
+    from dyntarget.pipeline import PipelineConfig
+
+    if args.model is None:
+        raise InvalidParameterError("fly --watch plans from a model: give --model MODEL")
+    config = WatchConfig(
+        planner=args.planner,
+        factor=args.factor,
+        agility=None if args.agility == "none" else args.agility,
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        deadline_s=args.deadline_s,
+        poll_s=args.poll_s,
+        settle_s=args.settle_s,
+        idle_exit_s=args.idle_exit_s,
+        max_frames=args.max_frames,
+        pipeline=PipelineConfig(plan=plan_config(args)),
+    )
+    watcher = Watcher(args.watch, args.out, _classifier(args), config, log=log)
+    log(f"watching {args.watch} (stop with Ctrl-C or SIGTERM)")
+    with stop_on_signals() as stop:
+        n = watcher.run(stop.is_set)
+    log(f"planned {n} frame(s) into {args.out}")
+    return EXIT_OK
+
+
+def _campaign(args: argparse.Namespace) -> int:
+    from dyntarget.fly.campaign import COLUMNS, run_campaign, strips_in
+
+    config = _pass_config(args, "lawnmower-transect", "fast")
+    rows = run_campaign(
+        strips_in(args.campaign),
+        tuple(args.planner.split(",")),
+        tuple(args.agility.split(",")),
+        args.out,
+        config=config,
+        model=args.model,
+        onnx=args.onnx,
+        scheduler=args.scheduler,
+        truth_step_s=args.truth_step_s,
+        progress=not args.quiet,
+    )
+    print(",".join(COLUMNS))
+    for r in rows:
+        print(",".join("" if r[c] is None else str(r[c]) for c in COLUMNS))
+    log(f"wrote {Path(args.out) / 'campaign.csv'} ({len(rows)} passes)")
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser(
+        "fly",
+        help="fly a pass over a strip (the onboard loop), watch a directory live, or a campaign",
+        description="Fly a pass: look-ahead frames cut along a strip at the frame cadence, each "
+        "classified, denoised and planned, the pointings of one shared NFOV scheduled under the "
+        "agility limits and scored against the truth at their own time (docs/onboard.md). "
+        "Writes timeline.csv, pointings.geojson, summary.md and pass.png into --out.",
+    )
+    what = p.add_argument_group("what to fly (one of)")
+    what.add_argument(
+        "--scene", help="a strip: 'dyntarget synth --strip' output or a GeoTIFF with a label"
+    )
+    what.add_argument(
+        "--watch", help="live mode: plan each complete frame appearing in this directory"
+    )
+    what.add_argument("--campaign", help="a directory of strips: every strip x planner x preset")
+    src = p.add_argument_group("how frames are classified (one of)")
+    src.add_argument("--model", help="trained model directory ('dyntarget train')")
+    src.add_argument("--truth", action="store_true", help="plan on the true mask (an oracle)")
+    src.add_argument(
+        "--onnx", action="store_true", help="run the model's ONNX export (onnxruntime)"
+    )
+    src.add_argument("--fallback-model", help="a cheaper model to fall back on under --deadline-s")
+    p.add_argument(
+        "--planner",
+        default="lawnmower-transect",
+        help="planner (comma list with --campaign; default lawnmower-transect)",
+    )
+    p.add_argument(
+        "--agility",
+        default="fast",
+        help="agility preset: unlimited, fast, slow (comma list with --campaign; "
+        "'none' in --watch: no scheduling; default fast)",
+    )
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument(
+        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument(
+        "--frame-px", type=positive_int, help="frame height in WFOV px (default: the strip's width)"
+    )
+    p.add_argument(
+        "--overlap",
+        type=float,
+        default=0.5,
+        help="fraction of a frame the next one sees again (default 0.5); sets the cadence",
+    )
+    p.add_argument(
+        "--compute-budget-s",
+        type=positive_float,
+        help="fixed compute time per frame instead of the measured one (deterministic)",
+    )
+    p.add_argument(
+        "--deadline-s",
+        type=positive_float,
+        help="seconds from acquisition to plan per frame; fallbacks apply, late frames drop",
+    )
+    p.add_argument(
+        "--footprint",
+        type=positive_int,
+        default=1,
+        help="NFOV footprint in WFOV px (odd; default 1)",
+    )
+    p.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
+    p.add_argument("--look-ahead-km", type=positive_float, default=500.0, help="default 500")
+    p.add_argument(
+        "--truth-step-s",
+        type=float,
+        default=1.0,
+        help="time quantum of a moving strip's truth (default 1 s)",
+    )
+    p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
+    pr = p.add_argument_group(
+        "prediction (plan for the plume as it will be when the NFOV is there)"
+    )
+    pr.add_argument(
+        "--predict",
+        choices=["none", "wind", "two-looks"],
+        default="none",
+        help="none: plan on the look as it is (static, default); wind: carry the plume with a "
+        "wind prior; two-looks: motion from this frame's overlap with the previous one, "
+        "checked against the wind prior when there is one",
+    )
+    pr.add_argument(
+        "--wind-mps",
+        type=float,
+        help="wind prior speed, m/s (default: a synthetic strip's own wind, an ideal forecast)",
+    )
+    pr.add_argument(
+        "--wind-from-deg",
+        type=float,
+        help="direction the wind blows from, degrees clockwise from north",
+    )
+    p.add_argument("--no-picture", action="store_true", help="skip pass.png")
+    p.add_argument("--no-html", action="store_true", help="skip pass.html (interactive view)")
+    p.add_argument(
+        "--crs",
+        choices=["rfc7946", "native"],
+        default="rfc7946",
+        help="pointings.geojson in WGS 84 lon/lat (RFC 7946, default) or the strip's own CRS "
+        "(legacy 'crs' member, for GIS)",
+    )
+    p.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    live = p.add_argument_group("live mode (--watch)")
+    live.add_argument("--poll-s", type=positive_float, default=0.2, help="default 0.2")
+    live.add_argument(
+        "--settle-s",
+        type=float,
+        default=1.0,
+        help="a file unchanged this long may be read (default 1)",
+    )
+    live.add_argument(
+        "--idle-exit-s",
+        type=positive_float,
+        help="stop after this long without a new frame (default: run until stopped)",
+    )
+    live.add_argument("--max-frames", type=positive_int, help="stop after this many frames")
+    add_plan_options(p)
+    p.set_defaults(func=cmd_fly)  # fmt: skip

@@ -1,0 +1,16 @@
+"""Fly a pass: the onboard loop over a stream of look-ahead frames (see ``docs/onboard.md``)."""
+
+from dyntarget.fly.loop import FramePlan, PassConfig, PassResult, fly_pass, frame_plan
+from dyntarget.fly.world import StaticWorld, Truth, World, plume_ids
+
+__all__ = [
+    "FramePlan",
+    "PassConfig",
+    "PassResult",
+    "StaticWorld",
+    "Truth",
+    "World",
+    "fly_pass",
+    "frame_plan",
+    "plume_ids",
+]

@@ -1,0 +1,206 @@
+"""Many passes: every strip of a directory x planners x agility presets, as resumable tasks.
+
+Each pass is one task of :func:`dyntarget.evaluate.distributed.run_tasks`
+(here, on Dask with ``scheduler``; finished passes kept in ``OUT/parts`` and
+not flown again). Each pass writes its own outputs to
+``OUT/passes/<strip>-<planner>-<agility>/``; the campaign writes one tidy table,
+``OUT/campaign.csv`` (and ``.md``), one row per pass (:meth:`PassResult.totals`).
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import hashlib
+import io
+import os
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from dyntarget.errors import DataFileError, InvalidParameterError
+from dyntarget.fly.loop import PassConfig, fly_pass
+from dyntarget.io.atomic import write_text
+
+COLUMNS = (
+    "strip",
+    "planner",
+    "agility",
+    "frames",
+    "frames_dropped",
+    "deadlines_missed",
+    "pointings_flown",
+    "plume_px",
+    "utility",
+    "ratio_plume",
+    "plumes_observed",
+    "plumes_total",
+    "latency_median_s",
+    "latency_max_s",
+)
+
+
+def strips_in(directory: str | os.PathLike[str]) -> list[Path]:
+    """The strip GeoTIFFs of a directory (``<id>.tif``, not masks), sorted.
+
+    Parameters
+    ----------
+    directory : a folder of strips (``dyntarget synth --strip`` output or GeoTIFFs with labels).
+
+    Returns
+    -------
+    list of paths.
+    """
+    from dyntarget.io import scene_ids
+
+    directory = Path(directory)
+    ids = scene_ids(directory)
+    if not ids:
+        raise DataFileError(f"--campaign {directory}: no strips (<id>.tif files) found")
+    return [directory / f"{i}.tif" for i in ids]
+
+
+@functools.lru_cache(maxsize=4)
+def _classifier(model: str | None, onnx: bool):
+    if model is None:
+        return None
+    if onnx:
+        from dyntarget.perceive.onnx import load_onnx
+
+        return load_onnx(model)
+    from dyntarget.perceive import load_classifier
+
+    return load_classifier(model)
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha1(usedforsecurity=False)
+    for p in sorted(path.parent.glob(path.stem + "*")):  # the image, its mask, its sidecar
+        with open(p, "rb") as f:
+            h.update(p.name.encode())
+            h.update(hashlib.file_digest(f, "sha1").digest())
+    return h.hexdigest()[:16]
+
+
+def fly_one(
+    task: dict[str, str],
+    *,
+    config: PassConfig,
+    model: str | None,
+    onnx: bool,
+    out: str,
+    truth_step_s: float,
+) -> dict[str, Any]:
+    """Fly one pass of a campaign and write its outputs; return its row of totals."""
+    from dyntarget.fly.report import write_pass
+    from dyntarget.fly.strip import load_world
+
+    world = load_world(task["strip"], truth_step_s=truth_step_s)
+    cfg = replace(config, planner=task["planner"], agility=task["agility"])
+    result = fly_pass(world, _classifier(model, onnx), cfg)
+    name = f"{world.id}-{cfg.planner}-{cfg.agility}"
+    write_pass(result, world, Path(out) / "passes" / name, picture=False)
+    return result.totals()
+
+
+def run_campaign(
+    strips: list[Path],
+    planners: tuple[str, ...],
+    agilities: tuple[str, ...],
+    out: str | os.PathLike[str],
+    *,
+    config: PassConfig,
+    model: str | None = None,
+    onnx: bool = False,
+    scheduler: str | None = None,
+    truth_step_s: float = 1.0,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Fly every strip x planner x preset; write ``campaign.csv``/``.md``; return the rows.
+
+    Parameters
+    ----------
+    strips : strip files (see :func:`strips_in`).
+    planners, agilities : registered planner names and agility presets.
+    out : output folder.
+    config : settings shared by every pass (its planner and agility are replaced per task).
+    model, onnx : the classifier's model directory (``None``: plan on the truth) and
+        whether to run its ONNX export.
+    scheduler : ``None``, ``"local"``, ``"processes"`` or a Dask scheduler address.
+    truth_step_s : time quantum of moving strips' truth.
+    progress : show a progress bar.
+
+    Returns
+    -------
+    list of rows (dicts with :data:`COLUMNS`), in strip, planner, preset order.
+    """
+    from dyntarget.evaluate.distributed import run_tasks, task_key
+    from dyntarget.plan import PLANNERS
+    from dyntarget.schedule import get_agility
+
+    if not planners or not agilities:
+        raise InvalidParameterError("campaign: give at least one planner and one agility preset")
+    for p in planners:
+        PLANNERS.get(p)
+    for a in agilities:
+        get_agility(a)
+    out = Path(out)
+    tasks = [
+        {"strip": str(s), "planner": p, "agility": a}
+        for s in strips
+        for p in planners
+        for a in agilities
+    ]
+    digests = {str(s): _digest(s) for s in strips}
+    model_id = None if model is None else (model, onnx, _model_digest(Path(model)))
+    settings = {**config.as_dict(), "truth_step_s": truth_step_s}
+
+    def key(task: dict[str, str]) -> str:
+        return task_key(
+            "fly", digests[task["strip"]], task["planner"], task["agility"], model_id, settings
+        )
+
+    rows = run_tasks(
+        fly_one,
+        tasks,
+        key=key,
+        parts=out / "parts",
+        scheduler=scheduler,
+        shared={
+            "config": config,
+            "model": model,
+            "onnx": onnx,
+            "out": str(out),
+            "truth_step_s": truth_step_s,
+        },
+        progress=progress,
+        desc="passes",
+    )
+    write_text(out / "campaign.csv", _csv(rows))
+    write_text(out / "campaign.md", _markdown(rows))
+    return rows
+
+
+def _model_digest(model: Path) -> str:
+    h = hashlib.sha1(usedforsecurity=False)
+    for p in sorted(model.glob("*")) if model.is_dir() else []:
+        if p.is_file():
+            with open(p, "rb") as f:
+                h.update(p.name.encode())
+                h.update(hashlib.file_digest(f, "sha1").digest())
+    return h.hexdigest()[:16]
+
+
+def _csv(rows: list[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(COLUMNS), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _markdown(rows: list[dict[str, Any]]) -> str:
+    lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    for r in rows:
+        lines.append("| " + " | ".join("-" if r[c] is None else str(r[c]) for c in COLUMNS) + " |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,289 @@
+"""Live mode: plan every look-ahead frame that appears in a directory, until stopped.
+
+For hardware-in-the-loop tests and ground replays. The rules (also in
+``docs/onboard.md``, section "Live mode"):
+
+* **Which files.** ``*.tif``/``*.tiff`` in the watched directory; names that
+  start with ``.``, end in ``.part`` or ``_mask.tif`` are never read. A writer
+  may write ``NAME.tif.part`` and rename it to ``NAME.tif`` when complete (the
+  rename is atomic on one file system) — the safe convention.
+* **When.** A frame written in place is read only once its size and
+  modification time have not changed for ``settle_s`` seconds *and* it opens
+  and reads completely as a 4-band GeoTIFF. A file that stays unreadable for
+  ``corrupt_after_s`` is reported once (``rejected.csv``) and skipped.
+* **Order.** Ready frames are planned in order of acquisition time (the
+  ``DYNTARGET_ACQUIRED`` or ``TIFFTAG_DATETIME`` tag, else the file's
+  modification time; the name breaks ties).
+* **Output.** One plan per frame, ``OUT/<stem>.geojson``, and a line per
+  frame in ``OUT/frames.csv`` (rewritten whole), each written atomically.
+  Frames whose plan already exists are not planned again, so a restarted
+  watcher carries on where it stopped.
+* **Stopping.** ``should_stop`` (the CLI sets it on SIGINT/SIGTERM) is polled
+  between frames and while idle: the frame in hand is finished and written,
+  then the watcher returns.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from dyntarget.errors import DataFileError, DynTargetError, InvalidParameterError
+from dyntarget.fly.loop import feasible
+from dyntarget.io.atomic import write_text
+from dyntarget.perceive.base import Classifier
+from dyntarget.pipeline import PipelineConfig, plan_scene
+from dyntarget.schedule import OrbitGeometry, get_agility
+
+FRAMES = "frames.csv"
+REJECTED = "rejected.csv"
+ACQUIRED_TAG = "DYNTARGET_ACQUIRED"
+"""GeoTIFF tag holding a frame's acquisition time (ISO-8601 UTC)."""
+
+
+@dataclass
+class WatchConfig:
+    """Settings of the live mode (see the module docstring)."""
+
+    planner: str = "lawnmower-transect"
+    factor: int = 4
+    agility: str | None = None
+    altitude_m: float = 500e3
+    look_ahead_m: float = 500e3
+    deadline_s: float | None = None
+    poll_s: float = 0.2
+    settle_s: float = 1.0
+    corrupt_after_s: float = 10.0
+    idle_exit_s: float | None = None
+    max_frames: int | None = None
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+
+    def __post_init__(self) -> None:
+        if self.agility is not None:
+            get_agility(self.agility)
+        for name in ("poll_s", "settle_s", "corrupt_after_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and 0 <= v < 3600):
+                raise InvalidParameterError(f"{name}: expected seconds in [0, 3600), got {v!r}")
+
+
+@dataclass
+class _Seen:
+    size: int
+    mtime: float
+    since: float
+    first: float
+
+
+def candidates(directory: Path) -> list[Path]:
+    """Frame files in ``directory`` that may be read (see the module docstring).
+
+    Parameters
+    ----------
+    directory : the watched directory.
+
+    Returns
+    -------
+    list of paths, sorted by name.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> for n in ("b.tif", "a.tif.part", ".x.tif", "b_mask.tif", "c.tiff"): _ = (d / n).write_bytes(b"")
+    >>> [p.name for p in candidates(d)]
+    ['b.tif', 'c.tiff']
+    """
+    out = []
+    for p in directory.iterdir():
+        n = p.name
+        if n.startswith(".") or n.endswith(".part") or not p.is_file():
+            continue
+        low = n.lower()
+        if (low.endswith(".tif") or low.endswith(".tiff")) and not low.endswith("_mask.tif"):
+            out.append(p)
+    return sorted(out)
+
+
+def acquired_time(path: Path) -> float:
+    """A frame's acquisition time as POSIX seconds: its tag, else the file's mtime."""
+    import rasterio
+
+    try:
+        with rasterio.open(path) as src:
+            tags = src.tags()
+    except Exception:  # unreadable: the caller will not plan it anyway
+        tags = {}
+    for key in (ACQUIRED_TAG, "TIFFTAG_DATETIME"):
+        text = tags.get(key)
+        if not text:
+            continue
+        s = text.strip()
+        try:
+            if len(s) >= 19 and s[4] == ":" and s[7] == ":":
+                dt = datetime.strptime(s[:19], "%Y:%m:%d %H:%M:%S")
+            else:
+                dt = datetime.fromisoformat(s.replace("Z", "+00:00"))
+        except ValueError:
+            continue
+        return (dt if dt.tzinfo else dt.replace(tzinfo=UTC)).timestamp()
+    return path.stat().st_mtime
+
+
+class Watcher:
+    """Plan frames as they appear in ``directory``; write plans into ``out``.
+
+    Parameters
+    ----------
+    directory : the watched directory.
+    out : where plans go (created).
+    classifier : a fitted classifier (an ONNX one on the onboard install).
+    config : live-mode settings.
+    clock : monotonic clock (tests may pass a fake one).
+    log : called with one line per event.
+    """
+
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        out: str | os.PathLike[str],
+        classifier: Classifier,
+        config: WatchConfig,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        self.directory = Path(directory)
+        if not self.directory.is_dir():
+            raise DataFileError(f"--watch {directory}: not a directory")
+        self.out = Path(out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.classifier, self.config, self.clock = classifier, config, clock
+        self.log = log or (lambda line: None)
+        self._seen: dict[Path, _Seen] = {}
+        self._rejected: dict[str, str] = {}
+        self.rows: list[dict[str, str]] = []
+        self.done: set[str] = {p.stem for p in self.out.glob("*.geojson")}
+
+    def ready(self) -> list[Path]:
+        """Frames complete and not yet planned, in acquisition order."""
+        now = self.clock()
+        ready = []
+        for p in candidates(self.directory):
+            if p.stem in self.done or p.name in self._rejected:
+                continue
+            try:
+                st = p.stat()
+            except FileNotFoundError:
+                continue
+            seen = self._seen.get(p)
+            if seen is None or (seen.size, seen.mtime) != (st.st_size, st.st_mtime):
+                first = seen.first if seen else now
+                self._seen[p] = _Seen(st.st_size, st.st_mtime, now, first)
+                continue
+            if now - seen.since >= self.config.settle_s:
+                ready.append(p)
+        return sorted(ready, key=lambda p: (acquired_time(p), p.name))
+
+    def _read(self, path: Path):
+        from dyntarget.io import read_scene
+
+        return read_scene(path, factor=self.config.factor, auto_label=False)
+
+    def step(self) -> int:
+        """Plan every frame ready now; return how many were planned."""
+        n = 0
+        for path in self.ready():
+            try:
+                scene = self._read(path)
+            except (DynTargetError, OSError) as exc:
+                seen = self._seen[path]
+                if self.clock() - seen.first >= self.config.corrupt_after_s:
+                    self._reject(path, str(exc).splitlines()[0])
+                continue  # not complete yet (or corrupt): try again later
+            self.plan(path, scene)
+            n += 1
+            if self.config.max_frames is not None and len(self.rows) >= self.config.max_frames:
+                break
+        return n
+
+    def plan(self, path: Path, scene) -> Path:
+        """Plan one frame and write its plan and the frames table atomically."""
+        cfg = self.config
+        t0 = time.perf_counter()
+        result = plan_scene(
+            scene.image,
+            self.classifier,
+            cfg.planner,
+            valid=scene.valid,
+            config=cfg.pipeline,
+            deadline_s=cfg.deadline_s,
+        )
+        traj = result.trajectory
+        if cfg.agility is not None:
+            geometry = OrbitGeometry(
+                altitude_m=cfg.altitude_m,
+                look_ahead_m=cfg.look_ahead_m,
+                wfov_gsd_m=scene.gsd or OrbitGeometry().wfov_gsd_m,
+                start_s=result.runtime,
+            )
+            traj = feasible(traj, scene.shape, geometry, cfg.agility)
+        out = traj.save(self.out / f"{path.stem}.geojson", transform=scene.transform, crs=scene.crs)
+        latency = time.perf_counter() - t0
+        self.done.add(path.stem)
+        self.rows.append(
+            {
+                "frame": path.name,
+                "acquired": datetime.fromtimestamp(acquired_time(path), UTC).isoformat(),
+                "planned_s": f"{latency:.4f}",
+                "deadline_met": ""
+                if result.deadline_met is None
+                else str(result.deadline_met).lower(),
+                "pointings": str(len(traj)),
+                "path": "; ".join(result.path),
+            }
+        )
+        write_text(self.out / FRAMES, _csv(self.rows))
+        self.log(f"{path.name}: {len(traj)} pointings in {latency:.3f} s -> {out.name}")
+        return out
+
+    def _reject(self, path: Path, why: str) -> None:
+        self._rejected[path.name] = why
+        rows = [{"frame": k, "reason": v} for k, v in sorted(self._rejected.items())]
+        write_text(self.out / REJECTED, _csv(rows))
+        self.log(f"{path.name}: skipped, unreadable for {self.config.corrupt_after_s:g} s ({why})")
+
+    def run(self, should_stop: Callable[[], bool] = lambda: False) -> int:
+        """Poll until ``should_stop()`` (or the idle/max-frames limits); return frames planned."""
+        cfg = self.config
+        last = self.clock()
+        while not should_stop():
+            if self.step():
+                last = self.clock()
+            if cfg.max_frames is not None and len(self.rows) >= cfg.max_frames:
+                break
+            if cfg.idle_exit_s is not None and self.clock() - last >= cfg.idle_exit_s:
+                break
+            _sleep(cfg.poll_s, should_stop)
+        return len(self.rows)
+
+
+def _sleep(seconds: float, should_stop: Callable[[], bool]) -> None:
+    end = time.monotonic() + seconds
+    while not should_stop() and (left := end - time.monotonic()) > 0:
+        time.sleep(min(left, 0.05))
+
+
+def _csv(rows: list[dict[str, str]]) -> str:
+    buf = io.StringIO()
+    if rows:
+        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+    return buf.getvalue()

@@ -1,0 +1,198 @@
+"""What a pass flies over: a long strip whose look-ahead frames and truth may change with time.
+
+The pass loop talks to the world through one small interface, :class:`World`:
+
+* ``shape``, ``gsd``, ``crs``, ``transform``: the high-resolution strip grid;
+* ``image_at(t, top, bottom)``: the 4-band high-resolution rows ``top:bottom``
+  as the look-ahead sensor sees them at pass time ``t`` (seconds after the
+  first frame's acquisition);
+* ``truth_at(t)``: the plume truth over the whole strip at time ``t``
+  (:class:`Truth`: label, utility maps, plume identities).
+
+:class:`StaticWorld` wraps one labelled scene (a user's large GeoTIFF, or a
+static synthetic strip): the same image and truth at every time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import cv2
+import numpy as np
+from affine import Affine
+
+from dyntarget.errors import InvalidSceneError
+from dyntarget.observe.nfov import UtilityMaps
+from dyntarget.scene import Scene, block_mean
+
+MIN_PLUME_FRACTION = 0.01
+"""Connected components of a label smaller than this fraction of the largest are not
+counted as plumes of their own (ragged label edges), see :func:`plume_ids`."""
+
+
+@dataclass(frozen=True, eq=False)
+class Truth:
+    """The plume truth over the strip at one time, high resolution.
+
+    ``ids`` numbers the plumes (0: no plume), so a pass can count how many
+    distinct plumes it observed.
+    """
+
+    maps: UtilityMaps
+    ids: np.ndarray
+
+
+class World(Protocol):
+    """A strip the pass flies over (see the module docstring)."""
+
+    shape: tuple[int, int]
+    gsd: float
+    crs: str | None
+    transform: Affine | None
+    valid: np.ndarray | None
+    id: str
+
+    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray: ...
+
+    def truth_at(self, t: float) -> Truth: ...
+
+
+def plume_ids(label: np.ndarray, *, min_fraction: float = MIN_PLUME_FRACTION) -> np.ndarray:
+    """Number the plumes of a label: 8-connected components, small fragments merged away.
+
+    Components smaller than ``min_fraction`` of the largest get id 0 (they are
+    fringes of a plume cut off by the label threshold, not plumes of their own).
+
+    Parameters
+    ----------
+    label : bool (H, W) plume label.
+    min_fraction : smallest component kept, as a fraction of the largest.
+
+    Returns
+    -------
+    int32 (H, W): 0 outside plumes, 1..n inside (largest first).
+
+    Examples
+    --------
+    >>> m = np.zeros((6, 8), bool); m[1:3, 1:3] = True; m[3:6, 5:8] = True
+    >>> plume_ids(m)[[1, 4], [1, 6]].tolist()
+    [2, 1]
+    """
+    n, comp = cv2.connectedComponents(np.asarray(label, np.uint8), connectivity=8)
+    if n <= 1:
+        return np.zeros(label.shape, np.int32)
+    areas = np.bincount(comp.ravel(), minlength=n)[1:]
+    order = np.argsort(-areas, kind="stable")
+    new = np.zeros(n, np.int32)
+    keep = areas[order] >= min_fraction * areas.max()
+    new[order[keep] + 1] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
+    return new[comp]
+
+
+class StaticWorld:
+    """A labelled scene that does not change during the pass.
+
+    Parameters
+    ----------
+    scene : the high-resolution strip with its plume label and GSD.
+    ids : optional plume identities (int (H, W), 0 = none); by default
+        :func:`plume_ids` of the label.
+
+    Examples
+    --------
+    >>> img = np.full((4, 8, 4), 0.1, np.float32); lab = np.zeros((8, 4), bool); lab[2, 1] = True
+    >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
+    >>> w.image_at(30.0, 2, 4).shape, int(w.truth_at(99.0).ids.max())
+    ((4, 2, 4), 1)
+    """
+
+    def __init__(self, scene: Scene, ids: np.ndarray | None = None) -> None:
+        if scene.label is None:
+            raise InvalidSceneError(
+                f"scene {scene.id!r}: a pass is scored against the truth; the strip needs a label"
+            )
+        if scene.gsd is None:
+            raise InvalidSceneError(
+                f"scene {scene.id!r}: the strip's ground sampling distance is unknown; "
+                "give it (GeoTIFF in metres, the DYNTARGET_GSD tag, or --gsd)"
+            )
+        self.scene = scene
+        self.acquired: object | None = None  # the acquisition instant of t = 0, when known
+        self.shape = scene.shape
+        self.gsd = float(scene.gsd)
+        self.crs, self.transform, self.valid, self.id = (
+            scene.crs,
+            scene.transform,
+            scene.valid,
+            scene.id,
+        )
+        if ids is None:
+            ids = plume_ids(scene.label)
+        elif np.shape(ids) != scene.shape:
+            raise InvalidSceneError(
+                f"ids: shape {np.shape(ids)} does not match the strip's {scene.shape}"
+            )
+        self._truth = Truth(UtilityMaps.from_scene(scene), np.asarray(ids, np.int32))
+
+    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """The rows ``top:bottom`` of the strip (the same at every time)."""
+        return self.scene.image[:, top:bottom]
+
+    def truth_at(self, t: float) -> Truth:
+        """The truth (the same at every time)."""
+        return self._truth
+
+
+@dataclass(frozen=True, eq=False)
+class WfovTruth:
+    """The truth averaged onto NFOV footprints centred on every WFOV pixel of the strip.
+
+    ``plume``, ``intensity`` and ``gradient`` are the means over the footprint
+    (as :func:`dyntarget.observe.nfov.observe` scores a pointing); ``ids`` the
+    largest plume id under the WFOV pixel; ``valid`` false where any
+    high-resolution pixel under the WFOV pixel is nodata.
+    """
+
+    plume: np.ndarray
+    intensity: np.ndarray
+    gradient: np.ndarray
+    ids: np.ndarray
+    valid: np.ndarray
+
+
+def wfov_truth(truth: Truth, factor: int, footprint: int = 1) -> WfovTruth:
+    """Average a high-resolution truth onto the WFOV grid and the NFOV footprint.
+
+    Parameters
+    ----------
+    truth : high-resolution truth of the whole strip.
+    factor : high-res -> WFOV downsampling factor.
+    footprint : NFOV footprint in WFOV pixels (odd, >= 1).
+
+    Returns
+    -------
+    WfovTruth on the strip's WFOV grid.
+
+    Examples
+    --------
+    >>> lab = np.zeros((4, 4), bool); lab[:2, :2] = True
+    >>> img = np.ones((4, 4, 4), np.float32)
+    >>> t = StaticWorld(Scene(img, label=lab, gsd=1.0)).truth_at(0)
+    >>> wfov_truth(t, 2).plume.tolist()
+    [[1.0, 0.0], [0.0, 0.0]]
+    """
+    maps = truth.maps
+    stack = np.stack([maps.label.astype(np.float32), maps.intensity, maps.gradient])
+    per = block_mean(stack, factor)
+    if footprint > 1:
+        k = (footprint, footprint)
+        ones = cv2.blur(np.ones(per.shape[1:], np.float32), k, borderType=cv2.BORDER_CONSTANT)
+        per = np.stack([cv2.blur(c, k, borderType=cv2.BORDER_CONSTANT) / ones for c in per])
+    h, w = per.shape[1:]
+    ids = truth.ids[: h * factor, : w * factor].reshape(h, factor, w, factor).max(axis=(1, 3))
+    if maps.valid is None:
+        valid = np.ones((h, w), bool)
+    else:
+        valid = block_mean(maps.valid[None].astype(np.float32), factor)[0] == 1.0
+    return WfovTruth(per[0], per[1], per[2], ids.astype(np.int32), valid)
