@@ -71,3 +71,61 @@ def test_bad_inputs():
         observe(traj((0, 0)), s, factor=0)
     with pytest.raises(InvalidSceneError, match="no label"):
         observe(traj((0, 0)), Scene(s.image), factor=4)
+
+
+def _impulse_scene(size=17, at=(8, 8)):
+    """A one-pixel plume of blue reflectance 0.5 on a dark background (intensity: an impulse)."""
+    image = np.full((4, size, size), 0.1, np.float32)
+    image[2][at] = 0.5
+    label = np.zeros((size, size), bool)
+    label[at] = True
+    return Scene(image, label=label)
+
+
+# The paper's gradient: Sobel with a 5x5 kernel. OpenCV's 5x5 Sobel x-kernel is the outer
+# product of the smoothing row s = [1, 4, 6, 4, 1] (across) and the derivative row
+# d = [-1, -2, 0, 2, 1] (along x); the y-kernel is its transpose. On a unit impulse the
+# response at offset (dr, dc) is the (flipped) kernel entry, so by hand, with
+# s(0)=6, s(1)=4, s(2)=1 and |d|(0)=0, |d|(1)=2, |d|(2)=1:
+#   |G(dr, dc)| = hypot(s(dr) * d(dc), d(dr) * s(dc))
+#   (0,0)=0  (0,1)=12  (0,2)=6  (1,1)=8*sqrt(2)  (1,2)=(2,1)=sqrt(20)  (2,2)=sqrt(2)
+# normalised by the peak 12. (A 3x3 Sobel gives (0,2)=0 and (1,1)/(0,1)=sqrt(2)/2 instead.)
+_SOBEL5_BY_HAND = (
+    np.array(
+        [
+            [2**0.5, 20**0.5, 6.0, 20**0.5, 2**0.5],
+            [20**0.5, 8 * 2**0.5, 12.0, 8 * 2**0.5, 20**0.5],
+            [6.0, 12.0, 0.0, 12.0, 6.0],
+            [20**0.5, 8 * 2**0.5, 12.0, 8 * 2**0.5, 20**0.5],
+            [2**0.5, 20**0.5, 6.0, 20**0.5, 2**0.5],
+        ]
+    )
+    / 12.0
+)
+
+
+def test_gradient_is_the_5x5_sobel_by_hand():
+    maps = UtilityMaps.from_scene(_impulse_scene())
+    np.testing.assert_allclose(maps.gradient[6:11, 6:11], _SOBEL5_BY_HAND, atol=1e-6)
+    outside = np.ones((17, 17), bool)
+    outside[6:11, 6:11] = False
+    assert not maps.gradient[outside].any()  # a 5x5 kernel reaches exactly 2 pixels out
+
+
+def test_observed_gradient_and_intensity_of_impulse_by_hand():
+    s = _impulse_scene()
+    # pointings (x, y): the impulse itself, one and two columns right, one diagonal, far away
+    m = observe(traj((8, 8), (9, 8), (10, 8), (9, 9), (14, 14)), s, factor=1)
+    assert m.pixels_observed == 5
+    assert m.ratio_plume == pytest.approx(1 / 5)
+    assert m.intensity == pytest.approx(1 / 5)
+    assert m.gradient == pytest.approx((0.0 + 1.0 + 0.5 + 8 * 2**0.5 / 12 + 0.0) / 5)
+
+
+def test_gradient_averaged_over_the_wfov_footprint_by_hand():
+    # factor 2: WFOV pixel (row 4, col 4) covers high-res rows/cols 8..9, holding the impulse at
+    # (8, 8) and its neighbours (8, 9), (9, 8), (9, 9): gradients 0, 1, 1, 8*sqrt(2)/12
+    s = _impulse_scene(size=18)
+    m = observe(traj((4, 4)), s, factor=2)
+    assert m.ratio_plume == pytest.approx(1 / 4)
+    assert m.gradient == pytest.approx((0 + 1 + 1 + 8 * 2**0.5 / 12) / 4)

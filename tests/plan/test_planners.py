@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -127,12 +128,100 @@ def test_outline_points_spaced_by_step():
     assert all(ring.distance(Point(p)) < 1e-6 for p in t.points)
 
 
-def test_diagonal_is_a_zigzag_advancing_along_the_axis():
+def test_diagonal_is_a_zigzag_alternating_sides():
+    # rect_mask: the polygon through the pixel centres spans x 10..89 (axis) and y 40..59 (sides)
     m = rect_mask()
     t = plan("diagonal-transect", m, config=PlanConfig(step=1.0, width=4.0))
-    # x (the axis) advances monotonically; y alternates between the two long sides
-    assert np.all(np.diff(t.points[:, 0]) * np.sign(t.points[-1, 0] - t.points[0, 0]) >= -1e-9)
-    assert len(t) < len(plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0)))
+    x, y = t.points[:, 0], t.points[:, 1]
+    # x (the axis) advances monotonically
+    assert np.all(np.diff(x) * np.sign(x[-1] - x[0]) >= -1e-9)
+    # y runs from one long side to the other and back: its turning points alternate between
+    # y = 40 and y = 59 (within a step, as the path is sampled every step)
+    dy = np.diff(y)
+    turns = np.flatnonzero(np.sign(dy[1:]) != np.sign(dy[:-1])) + 1
+    corners = [0, *turns, len(y) - 1]
+    sides = [59 if y[i] > 49.5 else 40 for i in corners]
+    assert all(abs(y[i] - side) <= 1.0 for i, side in zip(corners, sides, strict=True))
+    assert all(a != b for a, b in itertools.pairwise(sides))  # never the same side twice
+    # by hand: the 79 px extent holds ceil(79 / 4) = 20 stations, so 19 diagonal legs
+    assert len(sides) == 20
+    # each leg advances one station spacing (79 / 20 px) along the axis
+    legs = np.diff(x[corners])
+    np.testing.assert_allclose(np.abs(legs), 79 / 20, atol=1.0)
+
+
+def test_transect_stations_centred_with_count_rounded_up():
+    # rect_mask's axis extent is x = 10..89 (79 px): with width 4, ceil(79 / 4) = 20 stations
+    # spaced 79 / 20 = 3.95 px, the first and the last 3.95 / 2 px in from the ends
+    m = rect_mask()
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    xs = np.unique(np.round(t.points[:, 0], 6))
+    counts = np.array([(np.abs(t.points[:, 0] - x) < 1e-6).sum() for x in xs])
+    positions = xs[counts >= 10]  # the transects run along y
+    np.testing.assert_allclose(positions, 10 + 3.95 * (np.arange(20) + 0.5), atol=1e-9)
+
+
+def test_trace_outline_skips_the_image_frame():
+    # a band along the top edge: rows 0..9, columns 20..79 of a 100 x 100 image; its polygon
+    # runs along the frame (y = 0) for 59 px, which is the image's edge, not the plume's
+    m = np.zeros((100, 100), bool)
+    m[0:10, 20:80] = True
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert (t.points[:, 1] > 0).all()  # nothing on the frame
+    # by hand: the ring is 2 * (59 + 9) = 136 px long; the 59 px on the frame are skipped
+    assert len(t) == 136 - 59
+    # the two sides and the bottom are all still traced (x = 20 and x = 79, y = 9)
+    assert np.isclose(t.points[:, 0], 20).sum() >= 8 and np.isclose(t.points[:, 0], 79).sum() >= 8
+    assert np.isclose(t.points[:, 1], 9).sum() >= 59
+    # a plume clear of the frame is traced whole, in one part
+    inner = plan("trace-outline", rect_mask(), config=PlanConfig(step=1.0))
+    assert len(inner) == 2 * (79 + 19) and set(inner.part.tolist()) == {0}
+    # a plume filling the image has no edge inside it: nothing to trace
+    assert len(plan("trace-outline", np.ones((20, 30), bool))) == 0
+
+
+def _nearest_next_by_brute_force(polygons, start, ends):
+    """The plain loop: every unvisited exterior's distance at each step (the reference)."""
+    remaining, position, order = list(range(len(polygons))), start, []
+    while remaining:
+        d = [polygons[i].exterior.distance(Point(*position)) for i in remaining]
+        j = remaining.pop(int(np.argmin(d)))
+        order.append(j)
+        position = ends[j]
+    return order
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_nearest_next_order_equals_brute_force(seed):
+    from dyntarget.plan.planners import _NearestNext, start_point
+
+    rng = np.random.default_rng(seed)
+    m = np.zeros((120, 120), bool)
+    for _ in range(60):  # specks, bars and blocks of several sizes, some overlapping
+        r, c = rng.integers(0, 118, 2)
+        h, w = rng.integers(1, 12, 2)
+        m[r : r + h, c : c + w] = True
+    polygons = mask_to_polygons(m)
+    assert len(polygons) > 20
+    ends = [np.array(p.exterior.coords[0]) for p in polygons]
+    order, position = [], start_point(m.shape)
+    walk = _NearestNext(polygons)
+    while walk.remaining:
+        j = walk.take(position)
+        order.append(j)
+        position = ends[j]
+    assert order == _nearest_next_by_brute_force(polygons, start_point(m.shape), ends)
+
+
+def test_nearest_next_ties_go_to_the_largest():
+    from dyntarget.plan.planners import _NearestNext
+
+    # two squares at the same distance (1 px) from (50, 50): the larger one (index 0) first
+    big = Polygon([(51, 40), (70, 40), (70, 60), (51, 60)])
+    small = Polygon([(45, 49), (49, 49), (49, 51), (45, 51)])
+    walk = _NearestNext([big, small])
+    assert walk.take(np.array([50.0, 50.0])) == 0 and walk.take(np.array([50.0, 50.0])) == 1
+    assert walk.remaining == 0
 
 
 def test_several_polygons_nearest_next_with_travel():
