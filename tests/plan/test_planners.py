@@ -102,7 +102,7 @@ def test_rotated_ellipse_lawnmower_perpendicular_within_1_degree(angle):
     d = np.diff(t.points, axis=0)
     d = d[np.hypot(*d.T) > 1.9]  # steps along transects (not the short joins)
     cosang = np.abs(d @ u) / np.hypot(*d.T)
-    # most steps run perpendicular to the axis (the joins along the boundary are the rest)
+    # most steps run perpendicular to the axis (the straight joins between transects are the rest)
     perpendicular = np.degrees(np.arccos(np.clip(cosang, 0, 1))) > 89.0
     assert perpendicular.mean() > 0.85
 

@@ -12,7 +12,7 @@ Conventions (documented in ``docs/planning.md``):
   pointings along a path; **width** = 2 x step between the starting points of
   consecutive cross-transects. Both can be overridden.
 * **Several polygons** are visited nearest-next from the current position
-  (largest first on ties); within a polygon a path starts at its end nearest
+  (largest first on ties; :class:`_NearestNext`); within a polygon a path starts at its end nearest
   the current position. The hop from one polygon to the next is travel: it is
   not sampled and observes nothing (``Trajectory.part`` changes).
 """
@@ -334,7 +334,9 @@ def _transects(
     and curved plumes are crossed whole).
 
     * lawnmower (boustrophedon): ``A_0 -> B_0 -> B_1 -> A_1 -> A_2 -> B_2 ...``:
-      perpendicular transects joined by short legs along the boundary;
+      perpendicular transects joined by straight chords between consecutive
+      transects' ends (not legs along the boundary: where the side is concave
+      between two transects, a join crosses background);
     * diagonal (zig-zag): ``A_0 -> B_1 -> A_2 -> B_3 ...``: each transect runs
       at an angle from one side at starting point ``k`` to the other side at
       ``k + 1``, opposite to the previous one.
