@@ -129,3 +129,49 @@ def test_gradient_averaged_over_the_wfov_footprint_by_hand():
     m = observe(traj((4, 4)), s, factor=2)
     assert m.ratio_plume == pytest.approx(1 / 4)
     assert m.gradient == pytest.approx((0 + 1 + 1 + 8 * 2**0.5 / 12) / 4)
+
+
+def test_unlabelled_plume_free_scene_scores_zero_not_nan():
+    s = Scene(np.full((4, 8, 8), 0.3, np.float32), label=np.zeros((8, 8), bool))
+    maps = UtilityMaps.from_scene(s)
+    assert not maps.intensity.any() and not maps.gradient.any()  # 0 / 0 would give NaN
+    m = observe(traj((0, 0), (1, 1)), s, factor=4)
+    assert m.as_dict() == {
+        "pixels_observed": 2,
+        "ratio_plume": 0.0,
+        "intensity": 0.0,
+        "gradient": 0.0,
+    }
+
+
+def test_nodata_is_never_observed():
+    s = scene_8x8()
+    valid = np.ones((8, 8), bool)
+    valid[0, 3] = False  # one nodata high-res pixel spoils WFOV pixel (0, 0) at factor 4
+    s = Scene(s.image, label=s.label, valid=valid)
+    m = observe(traj((0, 0), (1, 1), (0, 1)), s, factor=4)
+    # only (1, 1) and (0, 1) are observed: plume fractions 0.5 and 0
+    assert m.pixels_observed == 2 and m.ratio_plume == pytest.approx(0.25)
+    assert UtilityMaps.from_scene(s).valid is not None
+
+
+def test_footprint_three_in_the_interior_by_hand():
+    # 12 x 12 high-res, factor 4: a 3 x 3 WFOV grid; plume fractions per WFOV pixel by hand
+    label = np.zeros((12, 12), bool)
+    label[0:4, 0:4] = True  # WFOV (0, 0): 1
+    label[4:6, 4:8] = True  # WFOV (1, 1): 0.5
+    label[8:12, 8:9] = True  # WFOV (2, 2): 0.25
+    s = Scene(np.full((4, 12, 12), 0.2, np.float32), label=label)
+    m = observe(traj((1, 1)), s, factor=4, footprint=3)
+    assert m.ratio_plume == pytest.approx((1 + 0.5 + 0.25) / 9)  # all 9 WFOV pixels exist
+    edge = observe(traj((2, 1)), s, factor=4, footprint=3)  # right column: 6 pixels exist
+    assert edge.ratio_plume == pytest.approx((0.5 + 0.25) / 6)
+    with pytest.raises(InvalidParameterError, match="footprint"):
+        observe(traj((1, 1)), s, factor=4, footprint=True)
+
+
+def test_observed_pixels_round_half_up_and_drop_outside():
+    # -0.5 rounds to 0 (inside); -0.51 to -1 (outside); 2.49 to 2; 2.5 to 3 (outside a 3 x 3 grid)
+    pts = traj((-0.5, 0), (-0.51, 0), (2.49, 2.49), (2.5, 0), (0, 2.5), (1, 1))
+    assert observed_pixels(pts, (3, 3)).tolist() == [[0, 0], [2, 2], [1, 1]]
+    assert observed_pixels(Trajectory.empty("x"), (3, 3)).shape == (0, 2)
