@@ -175,3 +175,19 @@ def test_observed_pixels_round_half_up_and_drop_outside():
     pts = traj((-0.5, 0), (-0.51, 0), (2.49, 2.49), (2.5, 0), (0, 2.5), (1, 1))
     assert observed_pixels(pts, (3, 3)).tolist() == [[0, 0], [2, 2], [1, 1]]
     assert observed_pixels(Trajectory.empty("x"), (3, 3)).shape == (0, 2)
+
+
+def test_precomputed_maps_score_like_the_scene_and_footprint_validated():
+    s = scene_8x8()
+    t = traj((0, 0), (1, 1))
+    assert observe(t, UtilityMaps.from_scene(s), factor=4) == observe(t, s, factor=4)
+    for bad in (-1, 3.0, True):
+        with pytest.raises(InvalidParameterError, match="footprint"):
+            observe(t, s, factor=4, footprint=bad)
+
+
+def test_observed_pixels_distinct_on_a_tall_grid():
+    # on a 4 x 2 grid, pixel (row 0, col 1) and (row 2, col 0) are different pixels
+    rc = observed_pixels(traj((1, 0), (0, 2), (1, 0)), (4, 2))
+    assert rc.tolist() == [[0, 1], [2, 0]] and rc.dtype == np.int64
+    assert observed_pixels(Trajectory.empty("x"), (3, 3)).dtype == np.int64
