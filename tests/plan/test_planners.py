@@ -399,3 +399,48 @@ def test_centerline_follows_a_curved_plume(amplitude):
         inside[name] = mask[rows, cols].mean()
     assert inside["track-centerline"] == 1.0  # every pointing on the plume
     assert inside["track-center"] < 0.85  # the straight axis cuts across the bend
+
+
+def test_major_axis_orientation_and_degenerate_by_hand():
+    # a thin rectangle along the direction (-1, 2): its axis is +-(-1, 2) / sqrt(5); the sign is
+    # chosen so the larger component (y) is positive
+    d = np.array([-1.0, 2.0]) / np.sqrt(5.0)
+    n = np.array([d[1], -d[0]])
+    corners = [
+        c + s * 30 * d + t * 3 * n
+        for c in [np.zeros(2)]
+        for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    ]
+    centre, u = major_axis(Polygon(corners))
+    np.testing.assert_allclose(u, d, atol=1e-9)
+    np.testing.assert_allclose(centre, [0.0, 0.0], atol=1e-9)
+    # a square has no preferred axis: x by convention
+    _, u = major_axis(Polygon([(0, 0), (10, 0), (10, 10), (0, 10)]))
+    np.testing.assert_array_equal(u, [1.0, 0.0])
+
+
+def test_centerline_stations_of_a_rectangle_by_hand():
+    from dyntarget.plan.geometry import centerline
+
+    # rect_mask's polygon spans x 10..89 at y 40..59; spacing 4: floor(79 / 4) = 19 stations at
+    # 10 + (k + 0.5) * 79 / 19 on the axis y = 49.5, plus the two tips on the boundary
+    (poly,) = mask_to_polygons(rect_mask())
+    line = centerline(poly, spacing=4.0)
+    expected_x = [10.0, *(10 + (np.arange(19) + 0.5) * 79 / 19), 89.0]
+    np.testing.assert_allclose(line[:, 0], expected_x, atol=1e-9)
+    np.testing.assert_allclose(line[:, 1], 49.5, atol=1e-9)
+
+
+def test_centerline_keeps_a_parabolic_bend():
+    from dyntarget.plan.geometry import centerline
+
+    # a band 10 px wide whose centre is the parabola y = 50 + 0.01 (x - 50)^2 for x in 0..100;
+    # the chord midpoints lie on the parabola and a quadratic Savitzky-Golay fit keeps it
+    x = np.linspace(0, 100, 401)
+    c = 50 + 0.01 * (x - 50) ** 2
+    band = Polygon(
+        np.vstack([np.column_stack([x, c - 5]), np.column_stack([x[::-1], c[::-1] + 5])])
+    )
+    line = centerline(band, spacing=5.0)[1:-1]  # the stations (the tips are on the boundary)
+    np.testing.assert_allclose(line[:, 1], 50 + 0.01 * (line[:, 0] - 50) ** 2, atol=0.05)
+    assert len(line) == 20  # floor(100 / 5) stations
