@@ -444,3 +444,36 @@ def test_centerline_keeps_a_parabolic_bend():
     line = centerline(band, spacing=5.0)[1:-1]  # the stations (the tips are on the boundary)
     np.testing.assert_allclose(line[:, 1], 50 + 0.01 * (line[:, 0] - 50) ** 2, atol=0.05)
     assert len(line) == 20  # floor(100 / 5) stations
+
+
+def test_stations_by_hand():
+    from dyntarget.plan.planners import stations
+
+    np.testing.assert_allclose(stations(0.0, 8.0, 4.0), [2.0, 6.0])  # an exact multiple: 2 cells
+    np.testing.assert_allclose(stations(0.0, 10.0, 4.0), [10 / 6, 5.0, 50 / 6])  # ceil(2.5) = 3
+    np.testing.assert_allclose(stations(3.0, 3.5, 4.0), [3.25])  # shorter than a width: one
+
+
+@pytest.mark.parametrize(("cols", "frame_x"), [((0, 10), 0), ((90, 100), 99)])
+def test_trace_outline_skips_the_left_and_right_frame(cols, frame_x):
+    m = np.zeros((100, 100), bool)
+    m[20:80, cols[0] : cols[1]] = True  # a band 10 px wide along the left or right edge
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert not np.isclose(t.points[:, 0], frame_x).any()
+    # by hand: the walk starts at the band's corner nearest the sensor, (9, 79) or (90, 79), so
+    # the samples fall on pixel centres; the 136 px ring has 60 of them on the frame
+    # (y = 20..79 at the frame column), corners included
+    assert len(t) == 2 * (9 + 59) - 60
+
+
+@pytest.mark.parametrize("name", ["lawnmower-transect", "diagonal-transect"])
+def test_transects_start_at_the_end_nearest_the_sensor(name):
+    # plume x 50..95, y 40..59 in a 100 x 100 image; the sensor starts at (49.5, 99). By hand:
+    # ceil(45 / 4) = 12 stations 3.75 px apart, the first at x = 51.875; its end nearest the
+    # sensor is the bottom one (y = 59), so the walk starts there and goes up first
+    m = rect_mask(rows=(40, 60), cols=(50, 96))
+    t = plan(name, m, config=PlanConfig(step=1.0, width=4.0))
+    np.testing.assert_allclose(t.points[0], [51.875, 59.0], atol=1e-9)
+    assert t.points[1, 1] < 59.0 and t.points[-1, 0] > 90  # up first, ends at the far side
+    if name == "lawnmower-transect":
+        np.testing.assert_allclose(t.points[1], [51.875, 58.0], atol=1e-9)
