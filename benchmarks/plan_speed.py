@@ -23,9 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.perceive import make_classifier
-from dyntarget.perceive.denoise import denoise, mask_to_polygons
-from dyntarget.plan import PLANNERS, plan
+from dyntarget.masks import mask_to_polygons
+from dyntarget.plan import geometric_planners, plan
 from dyntarget.plan.planners import _NearestNext, start_point
 from dyntarget.synth import generate_scene
 
@@ -77,7 +78,7 @@ def speck_case(repeats: int = 3) -> dict:
         "ordering_cpu_ms": cpu_ms(lambda: order_only(polygons, mask.shape)),
         "planners_ms": {},
     }
-    for name in PLANNERS.available():
+    for name in geometric_planners():
         out["planners_ms"][name] = median_ms(lambda name=name: plan(name, mask, polygons), repeats)
     return out
 
@@ -101,7 +102,7 @@ def main() -> None:
             "polygons_max": int(max(polys)),
             "planners": {},
         }
-        for name in PLANNERS.available():
+        for name in geometric_planners():
             ms = [median_ms(lambda c=c, name=name: plan(name, c.mask, c.polygons)) for c in cleaned]
             results[kind]["planners"][name] = {
                 "median_ms": float(np.median(ms)),
@@ -124,7 +125,7 @@ def main() -> None:
         "| planner | true mask median (ms) | true mask max (ms) | DT mask median (ms) | DT mask max (ms) |"
     )
     print("|---|---|---|---|---|")
-    for name in PLANNERS.available():
+    for name in geometric_planners():
         t, d = results["true"]["planners"][name], results["decision-tree"]["planners"][name]
         print(
             f"| {name} | {t['median_ms']:.1f} | {t['max_ms']:.1f} | {d['median_ms']:.1f} | {d['max_ms']:.1f} |"

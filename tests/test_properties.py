@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from dyntarget.denoise import denoise
 from dyntarget.evaluate.metrics import Confusion
-from dyntarget.perceive.denoise import denoise
-from dyntarget.plan import BASELINES, PLANNERS, PlanConfig, plan
+from dyntarget.plan import BASELINES, PlanConfig, geometric_planners, plan
 
 masks = st.integers(4, 40).flatmap(
     lambda h: st.integers(4, 40).flatmap(lambda w: arrays(np.bool_, (h, w), elements=st.booleans()))
@@ -69,7 +69,7 @@ def test_kept_components_large_enough_and_polygons_valid(mask, it, area):
 
 
 @settings(max_examples=40)
-@given(blobby, st.sampled_from(PLANNERS.available()), st.floats(0.5, 5.0))
+@given(blobby, st.sampled_from(geometric_planners()), st.floats(0.5, 5.0))
 def test_planners_within_the_plume_hull_finite_deterministic(mask, name, step):
     cleaned = denoise(mask, iterations=1, min_area=1)
     config = PlanConfig(step=step)

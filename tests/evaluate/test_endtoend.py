@@ -112,6 +112,7 @@ def test_claim_rules_fail_and_hold_where_they_should():
     assert not claim_mlp_conservative(t1, t2)["holds"]
 
 
+@pytest.mark.slow
 def test_demo_and_reproduce_cli(tmp_path, capsys):
     from dyntarget.cli import main
 

@@ -11,11 +11,19 @@ from affine import Affine
 from shapely.geometry import Point, Polygon
 
 from dyntarget import InvalidParameterError, UnknownNameError
-from dyntarget.perceive.denoise import denoise, mask_to_polygons
-from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, Trajectory, plan
+from dyntarget.denoise import denoise
+from dyntarget.masks import mask_to_polygons
+from dyntarget.plan import (
+    BASELINES,
+    PAPER_PLANNERS,
+    PlanConfig,
+    Trajectory,
+    geometric_planners,
+    plan,
+)
 from dyntarget.plan.geometry import chord, major_axis, sample_polyline
 
-NAMES = PLANNERS.available()
+NAMES = geometric_planners()
 LOOKAHEAD = [n for n in NAMES if n not in BASELINES]
 
 
@@ -253,6 +261,7 @@ def test_baselines_ignore_the_plume():
     assert nadir.points[0, 1] == 99 and nadir.points[-1, 1] == 0 and len(nadir) == 100
 
 
+@pytest.mark.slow
 def test_curved_plume_behaviour_recorded():
     """A banana-shaped plume: the straight major axis cuts across the bend.
 
@@ -341,7 +350,7 @@ def _shapely_chord(poly, origin, direction):
 
 
 def test_vectorised_chords_equal_shapely_intersection():
-    from dyntarget.perceive.denoise import denoise
+    from dyntarget.denoise import denoise
     from dyntarget.plan.geometry import chords
     from dyntarget.synth import generate_scene
 
@@ -361,7 +370,7 @@ def test_vectorised_chords_equal_shapely_intersection():
 def test_ring_interpolation_equals_shapely():
     import shapely
 
-    from dyntarget.perceive.denoise import denoise
+    from dyntarget.denoise import denoise
     from dyntarget.plan.geometry import interpolate_ring
     from dyntarget.synth import generate_scene
 

@@ -12,7 +12,7 @@ computes them on the truth (:mod:`dyntarget.observe.nfov`):
 Candidates are the pixels of a grid with the planner step (1 % of the image
 width by default) whose expected utility is positive, at most
 :data:`MAX_CANDIDATES` of the best. Selection is a greedy orienteering
-heuristic on the kinematic model (:mod:`dyntarget.plan.kinematics`): from the
+heuristic on the kinematic model (:mod:`dyntarget.schedule`): from the
 sensor's current state it takes next the feasible candidate with the highest
 expected utility per second spent (slew, settle, waiting for the target to
 enter the field of regard, dwell), until no candidate can be reached inside its
@@ -28,11 +28,12 @@ import math
 import cv2
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
-from dyntarget.plan.kinematics import Agility, Geometry, Timer, get_agility, visibility_windows
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
+from dyntarget.trajectory import Trajectory
 
-OBJECTIVES = ("gradient", "intensity", "plume")
+OBJECTIVES = defaults.OBJECTIVES
 MAX_CANDIDATES = 1500
 """Candidates kept (highest expected utility first); bounds the planner's cost."""
 _MIN_COST_S = 1e-3
@@ -63,7 +64,7 @@ def predicted_utility(probability: np.ndarray, image: np.ndarray, objective: str
 def utility_max(
     probability: np.ndarray,
     image: np.ndarray,
-    geometry: Geometry,
+    geometry: OrbitGeometry,
     agility: Agility | str,
     *,
     step: float,
@@ -135,3 +136,50 @@ def utility_max(
         return Trajectory.empty("utility-max", params)
     sel = np.asarray(chosen)
     return Trajectory(pts[sel], np.zeros(len(sel), np.int64), "utility-max", params)
+
+
+def utility_max_planner(mask: np.ndarray, polygons, config, context) -> Trajectory:
+    """Pointings chosen for the highest expected utility per second under orbit kinematics; needs plan --agility PRESET.
+
+    The registered planner ``utility-max``: :func:`utility_max` on the context's
+    plume probability (or the mask, when planning on a given mask), every
+    ``step`` pixels of ``config``.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` plume mask (used when the context has no probability).
+    polygons : list
+        Unused (utility-max ranks pixels, not polygons).
+    config : dyntarget.plan.PlanConfig
+        Its step is the candidate spacing.
+    context : dyntarget.plan.PlanContext
+        The image, the kinematics and the budgets.
+
+    Returns
+    -------
+    Trajectory
+        Timed-feasible pointings in the order they are taken.
+    """
+    if context is None or context.geometry is None or context.agility is None:
+        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
+    if context.image is None:
+        raise InvalidParameterError("utility-max needs the WFOV image in its plan context")
+    probability = context.probability
+    if probability is None:
+        probability = np.asarray(mask, np.float32)
+    step, _ = config.resolved(mask.shape)
+    return utility_max(
+        probability,
+        context.image,
+        context.geometry,
+        context.agility,
+        step=max(step, 1.0),
+        objective=context.objective,
+        budget_s=context.budget_s,
+        max_pointings=context.max_pointings,
+    )
+
+
+utility_max_planner.needs_context = True  # type: ignore[attr-defined]
+utility_max_planner.timed = True  # type: ignore[attr-defined]

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from dyntarget import InvalidParameterError, InvalidSceneError
-from dyntarget.perceive.denoise import denoise, mask_to_polygons
+from dyntarget.denoise import denoise
+from dyntarget.masks import mask_to_polygons
 
 
 def _mask(rows: list[str]) -> np.ndarray:
@@ -120,6 +121,7 @@ def test_one_pixel_wide_ring_keeps_its_polygon():
     assert not poly.contains(poly.centroid)  # still hollow
 
 
+@pytest.mark.slow
 def test_one_pixel_ring_with_thick_corner_pieces():
     rng = np.random.default_rng(5)
     for _ in range(50):

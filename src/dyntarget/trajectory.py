@@ -12,7 +12,6 @@ import numpy as np
 from affine import Affine
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.io.atomic import write_text
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,7 +30,7 @@ class Trajectory:
     params: dict[str, Any] = field(default_factory=dict)
     times: np.ndarray | None = None
     """When each observation starts, seconds after the WFOV acquisition (set by
-    :func:`dyntarget.plan.kinematics.schedule`; ``None`` for an untimed plan)."""
+    :func:`dyntarget.schedule.schedule`; ``None`` for an untimed plan)."""
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)
@@ -151,6 +150,8 @@ class Trajectory:
         crs: str | None = None,
     ) -> Path:
         """Write ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically."""
+        from dyntarget.io.atomic import write_text  # io: the one place files are written
+
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix in (".geojson", ".json"):
