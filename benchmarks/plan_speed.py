@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget.denoise import denoise
-from dyntarget.perceive import make_classifier
 from dyntarget.masks import mask_to_polygons
+from dyntarget.perceive import make_classifier
 from dyntarget.plan import geometric_planners, plan
 from dyntarget.plan.planners import _NearestNext, start_point
 from dyntarget.synth import generate_scene
