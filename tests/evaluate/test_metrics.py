@@ -46,7 +46,7 @@ def test_shape_mismatch():
 def test_nodata_pixels_do_not_count_by_hand():
     # integer masks (any non-zero is True) and an integer validity mask, as files deliver them
     pred = np.array([[2, 1, 0], [0, 1, 1]])
-    true = np.array([[1, 0, 0], [1, 3, 1]])
+    true = np.array([[1, 0, 0], [1, 2, 1]])
     valid = np.array([[1, 1, 0], [1, 1, 0]])  # the right column is nodata
     # valid pixels: (0,0) TP, (0,1) FP, (1,0) FN, (1,1) TP -> tp 2, fp 1, fn 1, tn 0
     c = Confusion.from_masks(pred, true, valid)

@@ -191,3 +191,13 @@ def test_observed_pixels_distinct_on_a_tall_grid():
     rc = observed_pixels(traj((1, 0), (0, 2), (1, 0)), (4, 2))
     assert rc.tolist() == [[0, 1], [2, 0]] and rc.dtype == np.int64
     assert observed_pixels(Trajectory.empty("x"), (3, 3)).dtype == np.int64
+
+
+def test_gradient_normalised_even_when_faint_and_maps_float32():
+    # a plume filling the image with blue rising gently left to right: the raw 5x5 Sobel
+    # response is small (the ramp is 0.001 per pixel), yet the map is still scaled to peak 1
+    image = np.full((4, 16, 16), 0.1, np.float32)
+    image[2] = 0.5 + 0.001 * np.arange(16, dtype=np.float32)[None, :]
+    maps = UtilityMaps.from_scene(Scene(image, label=np.ones((16, 16), bool)))
+    assert maps.gradient.max() == pytest.approx(1.0)
+    assert maps.intensity.dtype == np.float32 and maps.gradient.dtype == np.float32
