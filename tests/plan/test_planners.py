@@ -486,3 +486,69 @@ def test_transects_start_at_the_end_nearest_the_sensor(name):
     assert t.points[1, 1] < 59.0 and t.points[-1, 0] > 90  # up first, ends at the far side
     if name == "lawnmower-transect":
         np.testing.assert_allclose(t.points[1], [51.875, 58.0], atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("cols", "first"),
+    [
+        # x 50..95: 12 stations 45 / 12 = 3.75 px apart; the sensor at (49.5, 99) is nearest
+        # the bottom end of the first, at x = 50 + 3.75 / 2
+        ((50, 96), [51.875, 59.0]),
+        # x 4..50: 12 stations 46 / 12 px apart; nearest is the bottom end of the last one,
+        # at x = 50 - 46 / 24 (the walk runs along the axis backwards)
+        ((4, 51), [50 - 46 / 24, 59.0]),
+    ],
+)
+def test_transect_walk_starts_from_either_end_of_the_axis(cols, first):
+    m = rect_mask(rows=(40, 60), cols=cols)
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    np.testing.assert_allclose(t.points[0], first, atol=1e-9)
+
+
+@pytest.mark.parametrize(("cols", "start_x"), [((50, 96), 50.0), ((4, 51), 50.0)])
+def test_track_center_starts_at_the_end_nearest_the_sensor(cols, start_x):
+    # the axis runs from x = cols[0] to cols[1] - 1 at y = 49.5; the sensor starts at (49.5, 99)
+    t = plan("track-center", rect_mask(rows=(40, 60), cols=cols), config=PlanConfig(step=1.0))
+    assert t.points[0, 0] == pytest.approx(start_x)
+    assert t.points[-1, 0] == pytest.approx(95.0 if cols[0] == 50 else 4.0)
+    assert len(t) == 46 if cols[0] == 50 else len(t) == 47
+
+
+@pytest.mark.parametrize("edge", ["top", "bottom", "left", "right"])
+def test_points_clipped_onto_the_pixel_grid_at_each_edge(edge):
+    # chords across a one-pixel line along an image edge reach half a pixel beyond the grid
+    # (its polygon is the union of pixel squares): the pointings are clipped onto the edge
+    m = np.zeros((60, 80), bool)
+    line = {"top": (0, slice(10, 70)), "bottom": (59, slice(10, 70))}
+    line |= {"left": (slice(10, 50), 0), "right": (slice(10, 50), 79)}
+    m[line[edge]] = True
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=0.5))
+    x, y = t.points[:, 0], t.points[:, 1]
+    assert x.min() >= 0 and x.max() <= 79 and y.min() >= 0 and y.max() <= 59
+    value = {"top": y.min(), "bottom": y.max(), "left": x.min(), "right": x.max()}[edge]
+    assert value == {"top": 0, "bottom": 59, "left": 0, "right": 79}[edge]
+
+
+def test_trace_outline_skips_the_bottom_frame_and_keeps_a_speck():
+    m = np.zeros((100, 100), bool)
+    m[90:100, 20:80] = True  # a band along the bottom edge
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert (t.points[:, 1] < 99).all() and np.isclose(t.points[:, 1], 98.5).sum() == 2
+    speck = np.zeros((50, 50), bool)
+    speck[20, 30] = True  # one pixel: its 4 px ring gives one pointing at the default step
+    assert len(plan("trace-outline", speck, config=PlanConfig(step=5.0))) == 1
+
+
+def test_parts_numbered_in_visiting_order_and_params_kept():
+    m = np.zeros((100, 100), bool)
+    m[80:90, 40:60] = True
+    m[5:15, 5:25] = True
+    m[5:15, 75:95] = True
+    t = plan("track-center", m)
+    assert sorted(set(t.part.tolist())) == [0, 1, 2] and (np.diff(t.part) >= 0).all()
+    assert t.planner == "track-center" and t.params["step"] == pytest.approx(1.0)
+    empty = plan("track-center", np.zeros((10, 10), bool))
+    assert empty.planner == "track-center" and empty.params["step"] == pytest.approx(1.0)
+    from dyntarget.plan import geometric_planners
+
+    assert geometric_planners() == [*PAPER_PLANNERS, "track-centerline"]
