@@ -552,3 +552,15 @@ def test_parts_numbered_in_visiting_order_and_params_kept():
     from dyntarget.plan import geometric_planners
 
     assert geometric_planners() == [*PAPER_PLANNERS, "track-centerline"]
+
+
+def test_transect_stations_cover_an_off_centre_plume():
+    # the rectangle x 10..89 with a thick left end (rows 30..69 at x 10..20): the contour's
+    # mean moves left of the extent's middle, the axis stays horizontal (symmetric in y);
+    # the stations still cover the extent: ceil(79 / 4) = 20 of them, 3.95 px apart from 11.975
+    m = rect_mask()
+    m[30:70, 10:21] = True
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    x = np.round(t.points[:, 0], 2)  # the fitted axis tilts by ~3e-5: x varies by < 0.005
+    xs, counts = np.unique(x, return_counts=True)
+    np.testing.assert_allclose(xs[counts >= 10], 10 + 3.95 * (np.arange(20) + 0.5), atol=0.01)
