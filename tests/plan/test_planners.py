@@ -564,3 +564,12 @@ def test_transect_stations_cover_an_off_centre_plume():
     x = np.round(t.points[:, 0], 2)  # the fitted axis tilts by ~3e-5: x varies by < 0.005
     xs, counts = np.unique(x, return_counts=True)
     np.testing.assert_allclose(xs[counts >= 10], 10 + 3.95 * (np.arange(20) + 0.5), atol=0.01)
+
+
+def test_start_point_and_config_bounds_by_hand():
+    from dyntarget.plan.planners import MIN_STEP, start_point
+
+    np.testing.assert_array_equal(start_point((100, 60)), [29.5, 99.0])  # bottom centre
+    # the documented bounds are inclusive: the smallest step and a naive square of full size
+    assert PlanConfig(step=MIN_STEP, width=MIN_STEP).resolved((10, 10)) == (MIN_STEP, MIN_STEP)
+    assert PlanConfig(naive_fraction=1.0).naive_fraction == 1.0
