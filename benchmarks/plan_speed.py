@@ -6,6 +6,10 @@ masks a decision tree predicts (messier: many fragments), both denoised as in
 the pipeline. Reports the median and the maximum over scenes of 5 repeats'
 median, after one warm-up run per scene.
 
+Also (c) a raw mask of 2000 isolated one-pixel specks at 512 px (what an undenoised,
+speckled prediction gives): the nearest-next polygon ordering alone (target <= 50 ms) and
+every planner on it.
+
     python benchmarks/plan_speed.py [--scenes 38] [--out docs/benchmarks/plan_speed.json]
 """
 
@@ -20,8 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget.denoise import denoise
+from dyntarget.masks import mask_to_polygons
 from dyntarget.perceive import make_classifier
 from dyntarget.plan import geometric_planners, plan
+from dyntarget.plan.planners import _NearestNext, start_point
 from dyntarget.synth import generate_scene
 
 
@@ -33,6 +39,48 @@ def median_ms(fn, repeats: int = 5) -> float:
         fn()
         times.append(time.perf_counter() - t0)
     return 1000 * float(np.median(times))
+
+
+def cpu_ms(fn) -> float:
+    """CPU time of one run in ms (less sensitive than wall time to other jobs on the machine)."""
+    t0 = time.process_time()
+    fn()
+    return 1000 * (time.process_time() - t0)
+
+
+def specks(n: int = 2000, size: int = 512, seed: int = 0) -> np.ndarray:
+    """``n`` isolated one-pixel specks on a ``size`` grid (3 px apart at least: never 8-connected)."""
+    rng = np.random.default_rng(seed)
+    cells = size // 3
+    sites = rng.choice(cells * cells, n, replace=False)
+    m = np.zeros((size, size), bool)
+    m[(sites // cells) * 3 + 1, (sites % cells) * 3 + 1] = True
+    return m
+
+
+def order_only(polygons, shape) -> list[int]:
+    """The nearest-next order alone, each polygon left at its first exterior vertex."""
+    ends = [np.asarray(p.exterior.coords[0]) for p in polygons]
+    walk, position, order = _NearestNext(polygons), start_point(shape), []
+    while walk.remaining:
+        j = walk.take(position)
+        order.append(j)
+        position = ends[j]
+    return order
+
+
+def speck_case(repeats: int = 3) -> dict:
+    mask = specks()
+    polygons = mask_to_polygons(mask)
+    out = {
+        "polygons": len(polygons),
+        "ordering_ms": median_ms(lambda: order_only(polygons, mask.shape), repeats),
+        "ordering_cpu_ms": cpu_ms(lambda: order_only(polygons, mask.shape)),
+        "planners_ms": {},
+    }
+    for name in geometric_planners():
+        out["planners_ms"][name] = median_ms(lambda name=name: plan(name, mask, polygons), repeats)
+    return out
 
 
 def main() -> None:
@@ -60,6 +108,7 @@ def main() -> None:
                 "median_ms": float(np.median(ms)),
                 "max_ms": float(max(ms)),
             }
+    results["specks-2000"] = speck_case()
     record = {
         "machine": {
             "platform": platform.platform(),
@@ -81,6 +130,13 @@ def main() -> None:
         print(
             f"| {name} | {t['median_ms']:.1f} | {t['max_ms']:.1f} | {d['median_ms']:.1f} | {d['max_ms']:.1f} |"
         )
+    sp = results["specks-2000"]
+    print(
+        f"\n2000 specks at 512 px: nearest-next ordering {sp['ordering_ms']:.1f} ms wall, "
+        f"{sp['ordering_cpu_ms']:.1f} ms CPU (target <= 50 ms)"
+    )
+    for name, ms in sp["planners_ms"].items():
+        print(f"| {name} on 2000 specks | {ms:.1f} ms |")
     for kind in masks:
         print(
             f"{kind} masks: polygons per scene median {results[kind]['polygons_median']}, max {results[kind]['polygons_max']}"

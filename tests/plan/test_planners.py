@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -109,7 +110,7 @@ def test_rotated_ellipse_lawnmower_perpendicular_within_1_degree(angle):
     d = np.diff(t.points, axis=0)
     d = d[np.hypot(*d.T) > 1.9]  # steps along transects (not the short joins)
     cosang = np.abs(d @ u) / np.hypot(*d.T)
-    # most steps run perpendicular to the axis (the joins along the boundary are the rest)
+    # most steps run perpendicular to the axis (the straight joins between transects are the rest)
     perpendicular = np.degrees(np.arccos(np.clip(cosang, 0, 1))) > 89.0
     assert perpendicular.mean() > 0.85
 
@@ -135,12 +136,100 @@ def test_outline_points_spaced_by_step():
     assert all(ring.distance(Point(p)) < 1e-6 for p in t.points)
 
 
-def test_diagonal_is_a_zigzag_advancing_along_the_axis():
+def test_diagonal_is_a_zigzag_alternating_sides():
+    # rect_mask: the polygon through the pixel centres spans x 10..89 (axis) and y 40..59 (sides)
     m = rect_mask()
     t = plan("diagonal-transect", m, config=PlanConfig(step=1.0, width=4.0))
-    # x (the axis) advances monotonically; y alternates between the two long sides
-    assert np.all(np.diff(t.points[:, 0]) * np.sign(t.points[-1, 0] - t.points[0, 0]) >= -1e-9)
-    assert len(t) < len(plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0)))
+    x, y = t.points[:, 0], t.points[:, 1]
+    # x (the axis) advances monotonically
+    assert np.all(np.diff(x) * np.sign(x[-1] - x[0]) >= -1e-9)
+    # y runs from one long side to the other and back: its turning points alternate between
+    # y = 40 and y = 59 (within a step, as the path is sampled every step)
+    dy = np.diff(y)
+    turns = np.flatnonzero(np.sign(dy[1:]) != np.sign(dy[:-1])) + 1
+    corners = [0, *turns, len(y) - 1]
+    sides = [59 if y[i] > 49.5 else 40 for i in corners]
+    assert all(abs(y[i] - side) <= 1.0 for i, side in zip(corners, sides, strict=True))
+    assert all(a != b for a, b in itertools.pairwise(sides))  # never the same side twice
+    # by hand: the 79 px extent holds ceil(79 / 4) = 20 stations, so 19 diagonal legs
+    assert len(sides) == 20
+    # each leg advances one station spacing (79 / 20 px) along the axis
+    legs = np.diff(x[corners])
+    np.testing.assert_allclose(np.abs(legs), 79 / 20, atol=1.0)
+
+
+def test_transect_stations_centred_with_count_rounded_up():
+    # rect_mask's axis extent is x = 10..89 (79 px): with width 4, ceil(79 / 4) = 20 stations
+    # spaced 79 / 20 = 3.95 px, the first and the last 3.95 / 2 px in from the ends
+    m = rect_mask()
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    xs = np.unique(np.round(t.points[:, 0], 6))
+    counts = np.array([(np.abs(t.points[:, 0] - x) < 1e-6).sum() for x in xs])
+    positions = xs[counts >= 10]  # the transects run along y
+    np.testing.assert_allclose(positions, 10 + 3.95 * (np.arange(20) + 0.5), atol=1e-9)
+
+
+def test_trace_outline_skips_the_image_frame():
+    # a band along the top edge: rows 0..9, columns 20..79 of a 100 x 100 image; its polygon
+    # runs along the frame (y = 0) for 59 px, which is the image's edge, not the plume's
+    m = np.zeros((100, 100), bool)
+    m[0:10, 20:80] = True
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert (t.points[:, 1] > 0).all()  # nothing on the frame
+    # by hand: the ring is 2 * (59 + 9) = 136 px long; the 59 px on the frame are skipped
+    assert len(t) == 136 - 59
+    # the two sides and the bottom are all still traced (x = 20 and x = 79, y = 9)
+    assert np.isclose(t.points[:, 0], 20).sum() >= 8 and np.isclose(t.points[:, 0], 79).sum() >= 8
+    assert np.isclose(t.points[:, 1], 9).sum() >= 59
+    # a plume clear of the frame is traced whole, in one part
+    inner = plan("trace-outline", rect_mask(), config=PlanConfig(step=1.0))
+    assert len(inner) == 2 * (79 + 19) and set(inner.part.tolist()) == {0}
+    # a plume filling the image has no edge inside it: nothing to trace
+    assert len(plan("trace-outline", np.ones((20, 30), bool))) == 0
+
+
+def _nearest_next_by_brute_force(polygons, start, ends):
+    """The plain loop: every unvisited exterior's distance at each step (the reference)."""
+    remaining, position, order = list(range(len(polygons))), start, []
+    while remaining:
+        d = [polygons[i].exterior.distance(Point(*position)) for i in remaining]
+        j = remaining.pop(int(np.argmin(d)))
+        order.append(j)
+        position = ends[j]
+    return order
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_nearest_next_order_equals_brute_force(seed):
+    from dyntarget.plan.planners import _NearestNext, start_point
+
+    rng = np.random.default_rng(seed)
+    m = np.zeros((120, 120), bool)
+    for _ in range(60):  # specks, bars and blocks of several sizes, some overlapping
+        r, c = rng.integers(0, 118, 2)
+        h, w = rng.integers(1, 12, 2)
+        m[r : r + h, c : c + w] = True
+    polygons = mask_to_polygons(m)
+    assert len(polygons) > 20
+    ends = [np.array(p.exterior.coords[0]) for p in polygons]
+    order, position = [], start_point(m.shape)
+    walk = _NearestNext(polygons)
+    while walk.remaining:
+        j = walk.take(position)
+        order.append(j)
+        position = ends[j]
+    assert order == _nearest_next_by_brute_force(polygons, start_point(m.shape), ends)
+
+
+def test_nearest_next_ties_go_to_the_largest():
+    from dyntarget.plan.planners import _NearestNext
+
+    # two squares at the same distance (1 px) from (50, 50): the larger one (index 0) first
+    big = Polygon([(51, 40), (70, 40), (70, 60), (51, 60)])
+    small = Polygon([(45, 49), (49, 49), (49, 51), (45, 51)])
+    walk = _NearestNext([big, small])
+    assert walk.take(np.array([50.0, 50.0])) == 0 and walk.take(np.array([50.0, 50.0])) == 1
+    assert walk.remaining == 0
 
 
 def test_several_polygons_nearest_next_with_travel():
@@ -325,3 +414,168 @@ def test_centerline_follows_a_curved_plume(amplitude):
         inside[name] = mask[rows, cols].mean()
     assert inside["track-centerline"] == 1.0  # every pointing on the plume
     assert inside["track-center"] < 0.85  # the straight axis cuts across the bend
+
+
+def test_major_axis_orientation_and_degenerate_by_hand():
+    # a thin rectangle along the direction (-1, 2): its axis is +-(-1, 2) / sqrt(5); the sign is
+    # chosen so the larger component (y) is positive
+    d = np.array([-1.0, 2.0]) / np.sqrt(5.0)
+    n = np.array([d[1], -d[0]])
+    corners = [
+        c + s * 30 * d + t * 3 * n
+        for c in [np.zeros(2)]
+        for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    ]
+    centre, u = major_axis(Polygon(corners))
+    np.testing.assert_allclose(u, d, atol=1e-9)
+    np.testing.assert_allclose(centre, [0.0, 0.0], atol=1e-9)
+    # a square has no preferred axis: x by convention
+    _, u = major_axis(Polygon([(0, 0), (10, 0), (10, 10), (0, 10)]))
+    np.testing.assert_array_equal(u, [1.0, 0.0])
+
+
+def test_centerline_stations_of_a_rectangle_by_hand():
+    from dyntarget.plan.geometry import centerline
+
+    # rect_mask's polygon spans x 10..89 at y 40..59; spacing 4: floor(79 / 4) = 19 stations at
+    # 10 + (k + 0.5) * 79 / 19 on the axis y = 49.5, plus the two tips on the boundary
+    (poly,) = mask_to_polygons(rect_mask())
+    line = centerline(poly, spacing=4.0)
+    expected_x = [10.0, *(10 + (np.arange(19) + 0.5) * 79 / 19), 89.0]
+    np.testing.assert_allclose(line[:, 0], expected_x, atol=1e-9)
+    np.testing.assert_allclose(line[:, 1], 49.5, atol=1e-9)
+
+
+def test_centerline_keeps_a_parabolic_bend():
+    from dyntarget.plan.geometry import centerline
+
+    # a band 10 px wide whose centre is the parabola y = 50 + 0.01 (x - 50)^2 for x in 0..100;
+    # the chord midpoints lie on the parabola and a quadratic Savitzky-Golay fit keeps it
+    x = np.linspace(0, 100, 401)
+    c = 50 + 0.01 * (x - 50) ** 2
+    band = Polygon(
+        np.vstack([np.column_stack([x, c - 5]), np.column_stack([x[::-1], c[::-1] + 5])])
+    )
+    line = centerline(band, spacing=5.0)[1:-1]  # the stations (the tips are on the boundary)
+    np.testing.assert_allclose(line[:, 1], 50 + 0.01 * (line[:, 0] - 50) ** 2, atol=0.05)
+    assert len(line) == 20  # floor(100 / 5) stations
+
+
+def test_stations_by_hand():
+    from dyntarget.plan.planners import stations
+
+    np.testing.assert_allclose(stations(0.0, 8.0, 4.0), [2.0, 6.0])  # an exact multiple: 2 cells
+    np.testing.assert_allclose(stations(0.0, 10.0, 4.0), [10 / 6, 5.0, 50 / 6])  # ceil(2.5) = 3
+    np.testing.assert_allclose(stations(3.0, 3.5, 4.0), [3.25])  # shorter than a width: one
+
+
+@pytest.mark.parametrize(("cols", "frame_x"), [((0, 10), 0), ((90, 100), 99)])
+def test_trace_outline_skips_the_left_and_right_frame(cols, frame_x):
+    m = np.zeros((100, 100), bool)
+    m[20:80, cols[0] : cols[1]] = True  # a band 10 px wide along the left or right edge
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert not np.isclose(t.points[:, 0], frame_x).any()
+    # by hand: the walk starts at the band's corner nearest the sensor, (9, 79) or (90, 79), so
+    # the samples fall on pixel centres; the 136 px ring has 60 of them on the frame
+    # (y = 20..79 at the frame column), corners included
+    assert len(t) == 2 * (9 + 59) - 60
+
+
+@pytest.mark.parametrize("name", ["lawnmower-transect", "diagonal-transect"])
+def test_transects_start_at_the_end_nearest_the_sensor(name):
+    # plume x 50..95, y 40..59 in a 100 x 100 image; the sensor starts at (49.5, 99). By hand:
+    # ceil(45 / 4) = 12 stations 3.75 px apart, the first at x = 51.875; its end nearest the
+    # sensor is the bottom one (y = 59), so the walk starts there and goes up first
+    m = rect_mask(rows=(40, 60), cols=(50, 96))
+    t = plan(name, m, config=PlanConfig(step=1.0, width=4.0))
+    np.testing.assert_allclose(t.points[0], [51.875, 59.0], atol=1e-9)
+    assert t.points[1, 1] < 59.0 and t.points[-1, 0] > 90  # up first, ends at the far side
+    if name == "lawnmower-transect":
+        np.testing.assert_allclose(t.points[1], [51.875, 58.0], atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("cols", "first"),
+    [
+        # x 50..95: 12 stations 45 / 12 = 3.75 px apart; the sensor at (49.5, 99) is nearest
+        # the bottom end of the first, at x = 50 + 3.75 / 2
+        ((50, 96), [51.875, 59.0]),
+        # x 4..50: 12 stations 46 / 12 px apart; nearest is the bottom end of the last one,
+        # at x = 50 - 46 / 24 (the walk runs along the axis backwards)
+        ((4, 51), [50 - 46 / 24, 59.0]),
+    ],
+)
+def test_transect_walk_starts_from_either_end_of_the_axis(cols, first):
+    m = rect_mask(rows=(40, 60), cols=cols)
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    np.testing.assert_allclose(t.points[0], first, atol=1e-9)
+
+
+@pytest.mark.parametrize(("cols", "start_x"), [((50, 96), 50.0), ((4, 51), 50.0)])
+def test_track_center_starts_at_the_end_nearest_the_sensor(cols, start_x):
+    # the axis runs from x = cols[0] to cols[1] - 1 at y = 49.5; the sensor starts at (49.5, 99)
+    t = plan("track-center", rect_mask(rows=(40, 60), cols=cols), config=PlanConfig(step=1.0))
+    assert t.points[0, 0] == pytest.approx(start_x)
+    assert t.points[-1, 0] == pytest.approx(95.0 if cols[0] == 50 else 4.0)
+    assert len(t) == 46 if cols[0] == 50 else len(t) == 47
+
+
+@pytest.mark.parametrize("edge", ["top", "bottom", "left", "right"])
+def test_points_clipped_onto_the_pixel_grid_at_each_edge(edge):
+    # chords across a one-pixel line along an image edge reach half a pixel beyond the grid
+    # (its polygon is the union of pixel squares): the pointings are clipped onto the edge
+    m = np.zeros((60, 80), bool)
+    line = {"top": (0, slice(10, 70)), "bottom": (59, slice(10, 70))}
+    line |= {"left": (slice(10, 50), 0), "right": (slice(10, 50), 79)}
+    m[line[edge]] = True
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=0.5))
+    x, y = t.points[:, 0], t.points[:, 1]
+    assert x.min() >= 0 and x.max() <= 79 and y.min() >= 0 and y.max() <= 59
+    value = {"top": y.min(), "bottom": y.max(), "left": x.min(), "right": x.max()}[edge]
+    assert value == {"top": 0, "bottom": 59, "left": 0, "right": 79}[edge]
+
+
+def test_trace_outline_skips_the_bottom_frame_and_keeps_a_speck():
+    m = np.zeros((100, 100), bool)
+    m[90:100, 20:80] = True  # a band along the bottom edge
+    t = plan("trace-outline", m, config=PlanConfig(step=1.0))
+    assert (t.points[:, 1] < 99).all() and np.isclose(t.points[:, 1], 98.5).sum() == 2
+    speck = np.zeros((50, 50), bool)
+    speck[20, 30] = True  # one pixel: its 4 px ring gives one pointing at the default step
+    assert len(plan("trace-outline", speck, config=PlanConfig(step=5.0))) == 1
+
+
+def test_parts_numbered_in_visiting_order_and_params_kept():
+    m = np.zeros((100, 100), bool)
+    m[80:90, 40:60] = True
+    m[5:15, 5:25] = True
+    m[5:15, 75:95] = True
+    t = plan("track-center", m)
+    assert sorted(set(t.part.tolist())) == [0, 1, 2] and (np.diff(t.part) >= 0).all()
+    assert t.planner == "track-center" and t.params["step"] == pytest.approx(1.0)
+    empty = plan("track-center", np.zeros((10, 10), bool))
+    assert empty.planner == "track-center" and empty.params["step"] == pytest.approx(1.0)
+    from dyntarget.plan import geometric_planners
+
+    assert geometric_planners() == [*PAPER_PLANNERS, "track-centerline"]
+
+
+def test_transect_stations_cover_an_off_centre_plume():
+    # the rectangle x 10..89 with a thick left end (rows 30..69 at x 10..20): the contour's
+    # mean moves left of the extent's middle, the axis stays horizontal (symmetric in y);
+    # the stations still cover the extent: ceil(79 / 4) = 20 of them, 3.95 px apart from 11.975
+    m = rect_mask()
+    m[30:70, 10:21] = True
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    x = np.round(t.points[:, 0], 2)  # the fitted axis tilts by ~3e-5: x varies by < 0.005
+    xs, counts = np.unique(x, return_counts=True)
+    np.testing.assert_allclose(xs[counts >= 10], 10 + 3.95 * (np.arange(20) + 0.5), atol=0.01)
+
+
+def test_start_point_and_config_bounds_by_hand():
+    from dyntarget.plan.planners import MIN_STEP, start_point
+
+    np.testing.assert_array_equal(start_point((100, 60)), [29.5, 99.0])  # bottom centre
+    # the documented bounds are inclusive: the smallest step and a naive square of full size
+    assert PlanConfig(step=MIN_STEP, width=MIN_STEP).resolved((10, 10)) == (MIN_STEP, MIN_STEP)
+    assert PlanConfig(naive_fraction=1.0).naive_fraction == 1.0
