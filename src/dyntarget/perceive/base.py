@@ -206,7 +206,7 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise ModelFileError(
             f"{meta_path}: band order {meta.get('bands')!r}, expected {list(BANDS)}"
         )
-    if meta.get("classifier") not in CLASSIFIERS:
+    if not isinstance(meta.get("classifier"), str) or meta["classifier"] not in CLASSIFIERS:
         raise ModelFileError(f"{meta_path}: unknown classifier {meta.get('classifier')!r}")
     if not isinstance(meta.get("config"), dict):
         raise ModelFileError(f"{meta_path}: config missing")

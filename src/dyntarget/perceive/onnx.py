@@ -29,6 +29,7 @@ import numpy as np
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import Classifier, pixels
+from dyntarget.perceive.validate import check_onnx_session
 from dyntarget.scene import check_image
 
 ONNX_FILE = "model.onnx"
@@ -120,6 +121,10 @@ def _export_sklearn(classifier) -> bytes:
     return model.SerializeToString()
 
 
+def _kind(native: Classifier) -> str:
+    return "unet" if native.name.startswith("unet-") else "pixel"
+
+
 class OnnxClassifier:
     """A native classifier's ONNX twin: the same ``predict_proba`` and ``predict``."""
 
@@ -133,6 +138,9 @@ class OnnxClassifier:
             )
         except Exception as exc:  # onnxruntime raises its own types on a corrupt file
             raise ModelFileError(f"{path}: not a readable ONNX model ({exc})") from None
+        check_onnx_session(
+            self.session, _kind(native), tile=getattr(native, "tile", None), where=path
+        )
         self.native, self.name, self.path = native, native.name, path
         self.input = self.session.get_inputs()[0].name
 

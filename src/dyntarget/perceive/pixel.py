@@ -48,6 +48,7 @@ from dyntarget.perceive.base import (
     pixels,
     sample_pixels,
 )
+from dyntarget.perceive.validate import check_estimator
 
 MODEL_FILE = "model.skops"
 PREDICT_CHUNK = 1 << 18
@@ -191,6 +192,7 @@ class PixelClassifier(Classifier):
             raise ModelFileError(
                 f"{path}: holds a {type(est).__name__}, expected {expected.__name__}"
             )
+        check_estimator(est, path)
         self.estimator = est
 
 

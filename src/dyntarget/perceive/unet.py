@@ -33,6 +33,7 @@ from torch import nn
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier
+from dyntarget.perceive.validate import check_state_dict
 
 WEIGHTS_FILE = "model.safetensors"
 IGNORE = -1
@@ -353,13 +354,7 @@ class _UNetClassifier(Classifier):
         except (SafetensorError, OSError, ValueError) as exc:
             raise ModelFileError(f"{path}: not a readable safetensors file ({exc})") from None
         model = self.network(width=self.width)
-        expected = {k: tuple(v.shape) for k, v in model.state_dict().items()}
-        got = {k: tuple(v.shape) for k, v in state.items()}
-        if expected != got:
-            missing = sorted(set(expected) - set(got))[:3]
-            raise ModelFileError(
-                f"{path}: weights do not match a {self.name} of width {self.width} (e.g. missing {missing})"
-            )
+        check_state_dict(state, model.state_dict(), path)
         model.load_state_dict(state, strict=True)
         model.eval()
         self.model = model
