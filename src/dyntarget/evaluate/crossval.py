@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
-from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import display
 from dyntarget.perceive import (
@@ -62,6 +62,7 @@ class CVConfig:
             raise InvalidParameterError(f"epochs: expected a positive integer, got {self.epochs!r}")
         if not self.classifiers:
             raise InvalidParameterError("classifiers: expected at least one classifier name")
+        check_unique("classifiers", self.classifiers)
         for name in self.classifiers:
             CLASSIFIERS.get(name)  # raises UnknownNameError listing the valid names
 

@@ -28,7 +28,9 @@ def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarra
 def save(fig: plt.Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
     """Save a figure atomically as PNG and close it."""
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
+        fig.savefig(  # the Software tag lets a rerun recognise (and replace) its own figure
+            tmp, dpi=dpi, bbox_inches="tight", format="png", metadata={"Software": "dyntarget"}
+        )
     plt.close(fig)
     return Path(path)
 

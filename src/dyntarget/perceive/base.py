@@ -33,6 +33,14 @@ MODEL_FORMAT = "dyntarget-model"
 MODEL_FORMAT_VERSION = 1
 METADATA = "metadata.json"
 
+TRAIN_THREADS = 1
+"""PyTorch intra-op threads while a U-Net trains, whatever the machine or scheduler.
+
+Float reductions in convolutions (and their gradients) are summed in an order
+that depends on the thread count, so a fixed count makes training give the same
+bytes in-process, on Dask threads (``local``) and in worker processes
+(``processes``). Recorded in every resume part (``evaluate.distributed``)."""
+
 DEFAULT_MAX_PIXELS_PER_CLASS = 50_000
 """Training pixels drawn per class (plume / not plume) over all training scenes."""
 
@@ -114,8 +122,9 @@ class Classifier(ABC):
                 f"{self.name}: nothing to save, the classifier is not fitted"
             )
         from dyntarget import __version__
+        from dyntarget.io.outputs import check_model_dir
 
-        path = Path(path)
+        path = check_model_dir(path)  # never replaces anything but a model directory of ours
         tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)

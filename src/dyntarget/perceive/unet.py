@@ -21,7 +21,9 @@ so there are no seams. Weights are saved with safetensors.
 
 from __future__ import annotations
 
+import contextlib
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,13 +34,24 @@ from safetensors.torch import load_file, save_file
 from torch import nn
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
-from dyntarget.perceive.base import CLASSIFIERS, Classifier
+from dyntarget.perceive.base import CLASSIFIERS, TRAIN_THREADS, Classifier
 from dyntarget.perceive.validate import check_state_dict
 
 WEIGHTS_FILE = "model.safetensors"
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
 _GLOBAL_RNG_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _fixed_threads(n: int) -> Iterator[None]:
+    """Run the block with ``n`` PyTorch intra-op threads (this thread's setting), then restore."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
@@ -280,6 +293,12 @@ class _UNetClassifier(Classifier):
         loss_fn = nn.CrossEntropyLoss(ignore_index=IGNORE)
         model.train()
         self.history = []
+        with _fixed_threads(TRAIN_THREADS):  # scheduler-independent float reductions
+            self._train_loop(model, opt, loss_fn, xt, yt, gen)
+        model.eval()
+        self.model = model
+
+    def _train_loop(self, model, opt, loss_fn, xt, yt, gen) -> None:
         for _ in range(self.epochs):
             order = torch.randperm(len(xt), generator=gen)
             total = 0.0
@@ -297,8 +316,6 @@ class _UNetClassifier(Classifier):
                 opt.step()
                 total += float(loss.detach()) * len(idx)
             self.history.append(total / len(xt))
-        model.eval()
-        self.model = model
 
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
         self.model.eval()
