@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import PLANNERS, plan
 from dyntarget.synth import generate_scene
 

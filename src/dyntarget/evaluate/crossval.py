@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
@@ -34,7 +35,6 @@ from dyntarget.perceive import (
     make_classifier,
     read_metadata,
 )
-from dyntarget.perceive.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.scene import Scene
 
 DEFAULT_FACTOR = 4

@@ -34,7 +34,7 @@ from dyntarget.evaluate.distributed import (
     task_key,
 )
 from dyntarget.io.atomic import write_text
-from dyntarget.plan.kinematics import AGILITY, get_agility
+from dyntarget.schedule import AGILITY, get_agility
 
 GRID_PARAMETERS: dict[str, type] = {
     "step_fraction": float,
@@ -169,7 +169,7 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import DenoiseConfig, PipelineConfig, plan_scene
     from dyntarget.plan import PlanConfig
-    from dyntarget.plan.kinematics import Geometry, make_feasible
+    from dyntarget.schedule import OrbitGeometry, make_feasible
 
     p = task.params
     scene = read_scene(task.scene_path)
@@ -191,12 +191,12 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
             raise InvalidSceneError(
                 f"{task.scene_path}: no ground sampling distance; the agility presets need one"
             )
-        geometry = Geometry(wfov_gsd_m=scene.gsd * p["factor"])
+        geometry = OrbitGeometry(wfov_gsd_m=scene.gsd * p["factor"])
     rows = []
     for planner in planners:
         res = plan_scene(wfov.image, None, planner, mask=mask, valid=wfov.valid, config=config)
         flown, feasible = res.trajectory, 1.0
-        if geometry is not None:  # fly what the kinematics allow (see dyntarget.plan.kinematics)
+        if geometry is not None:  # fly what the kinematics allow (see dyntarget.schedule)
             sched = make_feasible(res.trajectory, wfov.shape, geometry, p["agility"])
             flown, feasible = sched.trajectory, sched.fraction_feasible
         m = observe(flown, maps, factor=p["factor"])
