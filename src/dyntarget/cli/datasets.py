@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dyntarget.cli._common import EXIT_OK, Parser, log
+from dyntarget.cli._common import EXIT_OK, Parser, log, writes
 
 DATASETS = {
     "industrial-smoke": "Mommert et al. 2020, Sentinel-2 industrial smoke plumes (Zenodo 4250706)"
@@ -36,6 +36,7 @@ def cmd_datasets_fetch(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out",))
 def cmd_datasets_prepare(args: argparse.Namespace) -> int:
     from dyntarget.datasets import industrial_smoke
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from dyntarget.cli._common import EXIT_OK, positive_int
+from dyntarget.cli._common import EXIT_OK, positive_int, writes
 
 
+@writes(dirs=("out", "models"))
 def cmd_sweep(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.sweep import parse_grid, summary_figure, sweep
 

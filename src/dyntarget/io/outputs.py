@@ -21,8 +21,10 @@ there and what to do; nothing is touched.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 from dyntarget.errors import DataFileError
@@ -263,3 +265,45 @@ def check_model_dir(path: str | os.PathLike[str], *, what: str = "model director
     if state not in ("free", "ours"):
         raise _refuse(path, what, state)
     return path
+
+
+@contextlib.contextmanager
+def output_dir(path: str | os.PathLike[str], *, what: str = "output folder") -> Iterator[Path]:
+    """Claim an output folder for a command (:func:`claim_output_dir`); undo a fresh claim on failure.
+
+    When the command fails and the folder did not exist before, it is removed
+    again if it holds nothing but the marker and empty folders, so a refused
+    run (an unreachable scheduler, bad input found late) leaves nothing behind.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp()) / "out"
+    >>> try:
+    ...     with output_dir(d) as out:
+    ...         (out / "parts").mkdir()
+    ...         raise RuntimeError("scheduler unreachable")
+    ... except RuntimeError:
+    ...     pass
+    >>> d.exists()
+    False
+    """
+    path = Path(path)
+    fresh = not path.exists()
+    claim_output_dir(path, what=what)
+    try:
+        yield path
+    except BaseException:
+        if fresh:
+            _remove_if_only_marker(path)
+        raise
+
+
+def _remove_if_only_marker(path: Path) -> None:
+    files = [p for p in path.rglob("*") if not p.is_dir()]
+    if files and files != [path / MARKER]:
+        return
+    (path / MARKER).unlink(missing_ok=True)
+    for d in sorted((p for p in path.rglob("*") if p.is_dir()), key=lambda p: -len(p.parts)):
+        d.rmdir()
+    path.rmdir()

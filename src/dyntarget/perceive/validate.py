@@ -340,30 +340,36 @@ def check_state_dict(
     >>> check_state_dict({"weight": torch.zeros(2, 4)}, net.state_dict(), "w.st")
     Traceback (most recent call last):
     ...
-    dyntarget.errors.ModelFileError: w.st: tensors missing: ['bias']
+    dyntarget.errors.ModelFileError: w.st: weights do not match the architecture (tensors missing: ['bias'])
     """
     import torch
 
     if not isinstance(state, Mapping):
-        raise _fail(where, f"weights are a {type(state).__name__}, expected named tensors")
+        raise _weights(where, f"weights are a {type(state).__name__}, expected named tensors")
     missing = sorted(set(expected) - set(state))
     extra = sorted(set(state) - set(expected))
     if missing:
-        raise _fail(where, f"tensors missing: {missing[:3]}")
+        raise _weights(where, f"tensors missing: {missing[:3]}")
     if extra:
-        raise _fail(where, f"unexpected tensors: {extra[:3]}")
+        raise _weights(where, f"unexpected tensors: {extra[:3]}")
     for name, want in expected.items():
         got = state[name]
         if not isinstance(got, torch.Tensor):
-            raise _fail(where, f"{name} is a {type(got).__name__}, expected a tensor")
+            raise _weights(where, f"{name} is a {type(got).__name__}, expected a tensor")
         if tuple(got.shape) != tuple(want.shape):
-            raise _fail(where, f"{name} has shape {tuple(got.shape)}, expected {tuple(want.shape)}")
+            raise _weights(
+                where, f"{name} has shape {tuple(got.shape)}, expected {tuple(want.shape)}"
+            )
         if got.dtype != want.dtype:
-            raise _fail(where, f"{name} has dtype {got.dtype}, expected {want.dtype}")
+            raise _weights(where, f"{name} has dtype {got.dtype}, expected {want.dtype}")
         if got.is_floating_point() and not bool(torch.isfinite(got).all()):
-            raise _fail(where, f"{name} holds NaN or infinite values")
+            raise _weights(where, f"{name} holds NaN or infinite values")
         if name.endswith(("norm.std", "running_var")) and bool((got <= 0).any()):
-            raise _fail(where, f"{name} holds a value <= 0")
+            raise _weights(where, f"{name} holds a value <= 0")
+
+
+def _weights(where: Any, what: str) -> ModelFileError:
+    return _fail(where, f"weights do not match the architecture ({what})")
 
 
 # ONNX element types as onnxruntime names them
