@@ -466,7 +466,6 @@ def read_geojson_label(
     entirely outside the image are an error, since that is almost always a CRS
     mix-up.
     """
-    import shapely
     from rasterio.warp import transform_geom
     from shapely.geometry import box
     from shapely.geometry import shape as to_shape
@@ -494,14 +493,14 @@ def read_geojson_label(
     grid = transform if transform is not None else Affine.identity()
     shapes = []
     for g in geoms:
+        if not _finite_coordinates(g.get("coordinates")):
+            raise DataFileError(f"{path}: a polygon has a NaN or infinite vertex")
         try:
             geom = to_shape(g)
         except Exception as exc:  # shapely raises several types for bad geometry
             raise DataFileError(f"{path}: invalid geometry ({_first_line(exc)})") from None
         if geom.geom_type not in ("Polygon", "MultiPolygon"):
             raise DataFileError(f"{path}: expected Polygon or MultiPolygon, got {geom.geom_type}")
-        if not np.isfinite(shapely.get_coordinates(geom)).all():
-            raise DataFileError(f"{path}: a polygon has a NaN or infinite vertex")
         if not geom.is_empty:
             shapes.append(geom)
     h, w = shape
@@ -516,6 +515,18 @@ def read_geojson_label(
     return rasterio.features.rasterize(
         [(s, 1) for s in shapes], out_shape=(h, w), transform=grid, fill=0, dtype="uint8"
     ).astype(bool)
+
+
+def _finite_coordinates(coords: object) -> bool:
+    """Whether every number in a (nested) GeoJSON coordinate array is finite."""
+    stack = [coords]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, float) and not np.isfinite(item):
+            return False
+    return True
 
 
 def _geojson_crs(doc: object, path: Path) -> CRS | None:
