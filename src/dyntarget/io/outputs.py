@@ -34,6 +34,8 @@ MARKER = ".dyntarget-output"
 MARKER_FORMAT = "dyntarget-output"
 _SNIFF_BYTES = 1 << 16
 """How much of an existing file is read to recognise it."""
+_BENCH_MARKDOWN = b"Pipeline (classify + denoise + plan"
+"""First words of ``dyntarget bench --markdown`` (``evaluate.bench.summary_tables``)."""
 _PNG_SOFTWARE = b"dyntarget"
 """Start of the PNG ``Software`` text chunk of dyntarget's figures."""
 
@@ -55,8 +57,8 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
     Recognised: trajectories (GeoJSON FeatureCollections whose ``properties``
     name a ``planner``, CSV starting ``order,x,y,part``), figures (PNG with a
     ``Software: dyntarget`` text chunk), JSON documents with a top-level
-    ``"dyntarget"`` key or bench results (``records`` and ``machine``), and
-    files that start with the dyntarget Markdown marker ``<!-- dyntarget``.
+    ``"dyntarget"`` key or bench results (``records`` and ``machine``), bench
+    Markdown tables, and files that start with the marker ``<!-- dyntarget``.
 
     Examples
     --------
@@ -84,7 +86,7 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
         return b"Software\x00" + _PNG_SOFTWARE in head
     if head.startswith(b"order,x,y,part"):
         return True
-    if head.startswith(b"<!-- dyntarget"):
+    if head.startswith((b"<!-- dyntarget", _BENCH_MARKDOWN)):
         return True
     if head.lstrip()[:1] == b"{" and size <= 256 * _SNIFF_BYTES:
         try:
