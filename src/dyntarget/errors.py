@@ -34,3 +34,51 @@ class UnknownNameError(DynTargetError, LookupError):
 
 class ModelFileError(DataFileError):
     """A model file is foreign, tampered with, or does not match its metadata."""
+
+
+class ExportError(ModelFileError):
+    """An exported model (ONNX) does not reproduce the native model's output."""
+
+
+class MissingExtraError(DynTargetError, ImportError):
+    """An optional dependency is not installed; the message names the extra to install."""
+
+
+EXTRAS = {
+    "onnxruntime": "onboard",
+    **dict.fromkeys(
+        (
+            "torch", "sklearn", "skops", "safetensors", "matplotlib", "dask", "distributed",
+            "onnx", "onnxscript", "skl2onnx",
+        ),
+        "full",
+    ),
+}  # fmt: skip
+"""Top-level module -> the ``pip install "dyntarget[EXTRA]"`` extra that provides it."""
+
+
+def missing_extra(exc: ImportError) -> MissingExtraError | None:
+    """The :class:`MissingExtraError` for an import of an optional dependency that failed.
+
+    Parameters
+    ----------
+    exc : ImportError
+        The error an ``import`` raised.
+
+    Returns
+    -------
+    MissingExtraError or None
+        ``None`` when the missing module is not one of the optional dependencies.
+
+    Examples
+    --------
+    >>> print(missing_extra(ModuleNotFoundError("No module named 'torch'", name="torch")))
+    torch is not installed: pip install "dyntarget[full]"
+    >>> missing_extra(ModuleNotFoundError("No module named 'foo'", name="foo")) is None
+    True
+    """
+    top = (getattr(exc, "name", None) or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    if extra is None:
+        return None
+    return MissingExtraError(f'{top} is not installed: pip install "dyntarget[{extra}]"')

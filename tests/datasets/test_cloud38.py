@@ -9,7 +9,7 @@ import pytest
 
 from dyntarget.cli import main
 from dyntarget.denoise import denoise
-from dyntarget.plan import BASELINES, PLANNERS, plan
+from dyntarget.plan import BASELINES, geometric_planners, plan
 from helpers import shared_data
 
 DATA = shared_data()
@@ -73,7 +73,7 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
         if len(cleaned.polygons) > 1
         else cleaned.polygons[0]
     )
-    for name in PLANNERS.available():
+    for name in geometric_planners():
         t = plan(name, cleaned.mask, cleaned.polygons)
         assert len(t) > 0 and np.isfinite(t.points).all()
         assert (t.points[:, 0] >= 0).all() and (t.points[:, 0] <= w - 1).all()

@@ -73,3 +73,17 @@ def test_export_is_byte_identical(name, tiny_scenes, tmp_path):
     a = export_onnx(model, tmp_path / "a").read_bytes()
     b = export_onnx(model, tmp_path / "b").read_bytes()
     assert a == b
+
+
+def test_export_failing_the_parity_check_is_bad_input_and_removed(
+    tiny_scenes, tmp_path, capsys, monkeypatch
+):
+    from dyntarget.perceive import onnx
+
+    model = make_classifier("decision-tree").fit(tiny_scenes[:3])
+    model.save(tmp_path / "m")
+    monkeypatch.setattr(onnx, "TOLERANCE", -1.0)  # no difference can pass
+    assert main(["export-onnx", str(tmp_path / "m"), "--check-size", "64"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "export removed" in err[0] and "internal" not in err[0]
+    assert not (tmp_path / "m" / "model.onnx").exists()

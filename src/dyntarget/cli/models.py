@@ -6,6 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
+from dyntarget import defaults
 from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int, writes
 
 
@@ -35,28 +36,17 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_export_onnx(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from dyntarget.io.outputs import OutputPathError
     from dyntarget.perceive import load_classifier
-    from dyntarget.perceive.onnx import TOLERANCE, export_onnx, load_onnx
+    from dyntarget.perceive.onnx import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
     onnx_path = Path(args.model) / "model.onnx"
     if onnx_path.is_symlink() or (onnx_path.exists() and not onnx_path.is_file()):
         raise OutputPathError(f"{onnx_path}: not a regular file; it is left as it is")
-    path = export_onnx(native, args.model)
     check = generate_scene(args.seed, 0, size=args.check_size)[0].image
-    diff = float(
-        np.abs(load_onnx(args.model).predict_proba(check) - native.predict_proba(check)).max()
-    )
-    if diff > TOLERANCE:
-        path.unlink()
-        raise RuntimeError(
-            f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
-            f"(> {TOLERANCE:g}); export removed"
-        )
+    path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
     return EXIT_OK
@@ -77,7 +67,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--epochs", type=positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
     )
     p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+        "--factor",
+        type=positive_int,
+        default=defaults.FACTOR,
+        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.set_defaults(func=cmd_train)

@@ -306,20 +306,16 @@ def sweep(
 
 def summary_figure(table: Path, path: Path) -> Path | None:
     """Mean ratio plume per planner against each swept parameter (one panel per parameter)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
-    from dyntarget.evaluate.figures import PATH_COLOURS, save
+    from dyntarget.evaluate.figures import PATH_COLOURS, save, subplots
 
     with open(table, encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
     swept = [p for p in GRID_PARAMETERS if len({r[p] for r in rows}) > 1]
     if not swept:
         return None
-    fig, axes = plt.subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
+    fig, axes = subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
     for ax, param in zip(axes[0], swept, strict=True):
         if GRID_PARAMETERS[param] is str:  # categorical (agility presets), in preset order
             present = {r[param] for r in rows}

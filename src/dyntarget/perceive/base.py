@@ -50,6 +50,8 @@ class Classifier(ABC):
 
     name: ClassVar[str]
     summary: ClassVar[str]
+    kind: ClassVar[str]
+    """Family: ``"threshold"``, ``"pixel"`` (scikit-learn) or ``"unet"`` (PyTorch)."""
 
     def __init__(self, *, seed: int = 0) -> None:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
@@ -191,6 +193,17 @@ CLASSIFIERS: Registry[type[Classifier]] = Registry(
         "unet-uavsar",
     ),
 )
+for _name, _target in (  # lazy: the module is imported when the classifier is first used
+    ("band-threshold", "dyntarget.perceive.threshold:BandThreshold"),
+    ("naive-bayes", "dyntarget.perceive.pixel:NaiveBayes"),
+    ("logistic-regression", "dyntarget.perceive.pixel:LogisticRegressionClassifier"),
+    ("decision-tree", "dyntarget.perceive.pixel:DecisionTree"),
+    ("random-forest", "dyntarget.perceive.pixel:RandomForest"),
+    ("mlp", "dyntarget.perceive.pixel:MLP"),
+    ("unet-xception", "dyntarget.perceive.unet:XceptionUNetClassifier"),
+    ("unet-uavsar", "dyntarget.perceive.unet:UavsarUNetClassifier"),
+):
+    CLASSIFIERS.register_lazy(_name, _target)
 
 
 def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:

@@ -17,6 +17,10 @@ learning rate 1e-3, cross-entropy, ``epochs`` (paper: 50), batch 16, non-overlap
 training tiles with random flips; seeded, deterministic on CPU for a fixed thread count. Prediction runs
 overlapping tiles (stride ``tile/2``) and blends them with a smooth window,
 so there are no seams. Weights are saved with safetensors.
+
+This module imports no torch: the networks (:mod:`dyntarget.perceive.networks`)
+and torch are loaded when a U-Net is built, trained or loaded natively; the
+tiling (:func:`tiled`) is shared with the ONNX runtime.
 """
 
 from __future__ import annotations
@@ -25,13 +29,9 @@ import contextlib
 import threading
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-import torch
-from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
-from torch import nn
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, TRAIN_THREADS, Classifier
@@ -46,136 +46,14 @@ _GLOBAL_RNG_LOCK = threading.Lock()
 @contextlib.contextmanager
 def _fixed_threads(n: int) -> Iterator[None]:
     """Run the block with ``n`` PyTorch intra-op threads (this thread's setting), then restore."""
+    import torch
+
     before = torch.get_num_threads()
     torch.set_num_threads(n)
     try:
         yield
     finally:
         torch.set_num_threads(before)
-
-
-def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
-    return [
-        nn.Conv2d(cin, cout, 3, padding=1, bias=False),
-        nn.BatchNorm2d(cout),
-        nn.ReLU(inplace=True),
-    ]
-
-
-class _Normalise(nn.Module):
-    def __init__(self, channels: int = 4) -> None:
-        super().__init__()
-        self.register_buffer("mean", torch.zeros(1, channels, 1, 1))
-        self.register_buffer("std", torch.ones(1, channels, 1, 1))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return (x - self.mean) / self.std
-
-
-class UavsarUNet(nn.Module):
-    """Classic compact U-Net (conv-conv-pool encoder, transpose-conv decoder, skips)."""
-
-    levels = 3
-
-    def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
-        super().__init__()
-        self.norm = _Normalise(in_channels)
-        ch = [width, 2 * width, 4 * width]
-        self.enc = nn.ModuleList()
-        cin = in_channels
-        for c in ch:
-            self.enc.append(nn.Sequential(*_bn_relu_conv(cin, c), *_bn_relu_conv(c, c)))
-            cin = c
-        self.pool = nn.MaxPool2d(2)
-        self.bottleneck = nn.Sequential(
-            *_bn_relu_conv(ch[-1], 2 * ch[-1]), *_bn_relu_conv(2 * ch[-1], 2 * ch[-1])
-        )
-        self.up = nn.ModuleList()
-        self.dec = nn.ModuleList()
-        cin = 2 * ch[-1]
-        for c in reversed(ch):
-            self.up.append(nn.ConvTranspose2d(cin, c, 2, stride=2))
-            self.dec.append(nn.Sequential(*_bn_relu_conv(2 * c, c), *_bn_relu_conv(c, c)))
-            cin = c
-        self.head = nn.Conv2d(ch[0], classes, 1)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.norm(x)
-        skips = []
-        for enc in self.enc:
-            x = enc(x)
-            skips.append(x)
-            x = self.pool(x)
-        x = self.bottleneck(x)
-        for up, dec, skip in zip(self.up, self.dec, reversed(skips), strict=True):
-            x = dec(torch.cat([up(x), skip], dim=1))
-        return self.head(x)
-
-
-class _SeparableConv(nn.Sequential):
-    def __init__(self, cin: int, cout: int) -> None:
-        super().__init__(
-            nn.Conv2d(cin, cin, 3, padding=1, groups=cin, bias=False), nn.Conv2d(cin, cout, 1)
-        )
-
-
-class XceptionUNet(nn.Module):
-    """Xception-style U-Net of the Keras segmentation example (residual blocks, no long skips)."""
-
-    levels = 4
-
-    def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
-        super().__init__()
-        self.norm = _Normalise(in_channels)
-        self.entry = nn.Sequential(
-            nn.Conv2d(in_channels, 2 * width, 3, stride=2, padding=1),
-            nn.BatchNorm2d(2 * width),
-            nn.ReLU(),
-        )
-        self.down = nn.ModuleList()
-        self.down_res = nn.ModuleList()
-        prev = 2 * width
-        for c in (2 * width, 4 * width, 8 * width):
-            self.down.append(
-                nn.Sequential(
-                    nn.ReLU(),
-                    _SeparableConv(prev, c),
-                    nn.BatchNorm2d(c),
-                    nn.ReLU(),
-                    _SeparableConv(c, c),
-                    nn.BatchNorm2d(c),
-                    nn.MaxPool2d(3, stride=2, padding=1),
-                )
-            )
-            self.down_res.append(nn.Conv2d(prev, c, 1, stride=2))
-            prev = c
-        self.upb = nn.ModuleList()
-        self.up_res = nn.ModuleList()
-        for c in (8 * width, 4 * width, 2 * width, width):
-            self.upb.append(
-                nn.Sequential(
-                    nn.ReLU(),
-                    nn.ConvTranspose2d(prev, c, 3, padding=1),
-                    nn.BatchNorm2d(c),
-                    nn.ReLU(),
-                    nn.ConvTranspose2d(c, c, 3, padding=1),
-                    nn.BatchNorm2d(c),
-                    nn.Upsample(scale_factor=2, mode="nearest"),
-                )
-            )
-            self.up_res.append(
-                nn.Sequential(nn.Upsample(scale_factor=2, mode="nearest"), nn.Conv2d(prev, c, 1))
-            )
-            prev = c
-        self.head = nn.Conv2d(width, classes, 3, padding=1)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.entry(self.norm(x))
-        for block, res in zip(self.down, self.down_res, strict=True):
-            x = block(x) + res(x)
-        for block, res in zip(self.upb, self.up_res, strict=True):
-            x = block(x) + res(x)
-        return self.head(x)
 
 
 def tile_origins(length: int, tile: int, stride: int) -> list[int]:
@@ -203,8 +81,63 @@ def blend_window(tile: int) -> np.ndarray:
     return np.outer(w, w).astype(np.float32) + 1e-3
 
 
+def tiled(image: np.ndarray, forward, tile: int) -> np.ndarray:
+    """Stitch ``forward`` over overlapping tiles (stride ``tile/2``, blended).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` float32 image.
+    forward : callable
+        ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume probability;
+        shared by the PyTorch and ONNX runtimes.
+    tile : int
+        Tile size in pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32 plume probability.
+
+    Examples
+    --------
+    >>> img = np.zeros((4, 40, 50), np.float32)
+    >>> p = tiled(img, lambda b: np.full((len(b), 16, 16), 0.25, np.float32), 16)
+    >>> p.shape, float(p.min()), float(p.max())
+    ((40, 50), 0.25, 0.25)
+    """
+    h, w = image.shape[1:]
+    img = _pad_to(image, tile)
+    hp, wp = img.shape[1:]
+    stride = tile // 2
+    origins = [
+        (r, c) for r in tile_origins(hp, tile, stride) for c in tile_origins(wp, tile, stride)
+    ]
+    window = blend_window(tile)
+    acc = np.zeros((hp, wp), np.float32)
+    weight = np.zeros((hp, wp), np.float32)
+    for i in range(0, len(origins), 32):
+        batch = origins[i : i + 32]
+        xb = np.stack([img[:, r : r + tile, c : c + tile] for r, c in batch])
+        prob = forward(xb)
+        for (r, c), p in zip(batch, prob, strict=True):
+            acc[r : r + tile, c : c + tile] += p * window
+            weight[r : r + tile, c : c + tile] += window
+    return (acc / weight)[:h, :w]
+
+
 class _UNetClassifier(Classifier):
-    network: type[nn.Module]
+    kind = "unet"
+    architecture: ClassVar[str]
+    """Key of :data:`dyntarget.perceive.networks.NETWORKS`."""
+    levels: ClassVar[int]
+    """Down-sampling levels of the network: tiles are multiples of ``2**levels`` px."""
+
+    def network(self, width: int):
+        """A fresh, untrained network of this architecture (imports torch)."""
+        from dyntarget.perceive.networks import NETWORKS
+
+        return NETWORKS[self.architecture](width=width)
 
     def __init__(
         self,
@@ -226,7 +159,7 @@ class _UNetClassifier(Classifier):
                 raise InvalidParameterError(
                     f"{name}: expected an integer >= {minimum}, got {value!r}"
                 )
-        multiple = 2**self.network.levels
+        multiple = 2**self.levels
         if (
             isinstance(tile, bool)
             or not isinstance(tile, int)
@@ -273,6 +206,9 @@ class _UNetClassifier(Classifier):
         return np.stack(xs), np.stack(ys)
 
     def _fit(self, scenes) -> None:
+        import torch
+        from torch import nn
+
         x, y = self._tiles(scenes)
         stack = np.concatenate([s.image[:, s.valid_mask] for s in scenes], axis=1)
         # float64: per-band statistics independent of summation order (float32 sums are not)
@@ -294,30 +230,29 @@ class _UNetClassifier(Classifier):
         model.train()
         self.history = []
         with _fixed_threads(TRAIN_THREADS):  # scheduler-independent float reductions
-            self._train_loop(model, opt, loss_fn, xt, yt, gen)
+            for _ in range(self.epochs):
+                order = torch.randperm(len(xt), generator=gen)
+                total = 0.0
+                for i in range(0, len(order), self.batch_size):
+                    idx = order[i : i + self.batch_size]
+                    xb, yb = xt[idx], yt[idx]
+                    flips = torch.randint(0, 2, (2,), generator=gen)
+                    if flips[0]:
+                        xb, yb = xb.flip(-1), yb.flip(-1)
+                    if flips[1]:
+                        xb, yb = xb.flip(-2), yb.flip(-2)
+                    opt.zero_grad(set_to_none=True)
+                    loss = loss_fn(model(xb), yb)
+                    loss.backward()
+                    opt.step()
+                    total += float(loss.detach()) * len(idx)
+                self.history.append(total / len(xt))
         model.eval()
         self.model = model
 
-    def _train_loop(self, model, opt, loss_fn, xt, yt, gen) -> None:
-        for _ in range(self.epochs):
-            order = torch.randperm(len(xt), generator=gen)
-            total = 0.0
-            for i in range(0, len(order), self.batch_size):
-                idx = order[i : i + self.batch_size]
-                xb, yb = xt[idx], yt[idx]
-                flips = torch.randint(0, 2, (2,), generator=gen)
-                if flips[0]:
-                    xb, yb = xb.flip(-1), yb.flip(-1)
-                if flips[1]:
-                    xb, yb = xb.flip(-2), yb.flip(-2)
-                opt.zero_grad(set_to_none=True)
-                loss = loss_fn(model(xb), yb)
-                loss.backward()
-                opt.step()
-                total += float(loss.detach()) * len(idx)
-            self.history.append(total / len(xt))
-
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
+        import torch
+
         self.model.eval()
 
         def forward(batch: np.ndarray) -> np.ndarray:
@@ -335,34 +270,19 @@ class _UNetClassifier(Classifier):
         )
 
     def tiled(self, image: np.ndarray, forward) -> np.ndarray:
-        """Stitch ``forward`` (a ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume
-        probability) over overlapping tiles; shared by the PyTorch and ONNX runtimes."""
-        h, w = image.shape[1:]
-        img = _pad_to(image, self.tile)
-        hp, wp = img.shape[1:]
-        stride = self.tile // 2
-        origins = [
-            (r, c)
-            for r in tile_origins(hp, self.tile, stride)
-            for c in tile_origins(wp, self.tile, stride)
-        ]
-        window = blend_window(self.tile)
-        acc = np.zeros((hp, wp), np.float32)
-        weight = np.zeros((hp, wp), np.float32)
-        for i in range(0, len(origins), 32):
-            batch = origins[i : i + 32]
-            xb = np.stack([img[:, r : r + self.tile, c : c + self.tile] for r, c in batch])
-            prob = forward(xb)
-            for (r, c), p in zip(batch, prob, strict=True):
-                acc[r : r + self.tile, c : c + self.tile] += p * window
-                weight[r : r + self.tile, c : c + self.tile] += window
-        return (acc / weight)[:h, :w]
+        """:func:`tiled` with this model's tile size."""
+        return tiled(image, forward, self.tile)
 
     def _save_weights(self, directory: Path) -> None:
+        from safetensors.torch import save_file
+
         state = {k: v.detach().contiguous() for k, v in self.model.state_dict().items()}
         save_file(state, str(directory / WEIGHTS_FILE), metadata={"classifier": self.name})
 
     def _load_weights(self, directory: Path) -> None:
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
         path = directory / WEIGHTS_FILE
         if not path.is_file():
             raise ModelFileError(f"{directory}: no {WEIGHTS_FILE}")
@@ -378,18 +298,20 @@ class _UNetClassifier(Classifier):
 
 
 @CLASSIFIERS.register("unet-uavsar")
-class UnetUavsar(_UNetClassifier):
+class UavsarUNetClassifier(_UNetClassifier):
     name = "unet-uavsar"
     summary = (
         "compact classic U-Net (conv-conv-pool encoder, transpose-conv decoder, skip connections)"
     )
-    network = UavsarUNet
+    architecture = "uavsar"
+    levels = 3
 
 
 @CLASSIFIERS.register("unet-xception")
-class UnetXception(_UNetClassifier):
+class XceptionUNetClassifier(_UNetClassifier):
     name = "unet-xception"
     summary = (
         "Xception-style U-Net (separable convs, residual down/up blocks) as in the Keras example"
     )
-    network = XceptionUNet
+    architecture = "xception"
+    levels = 4
