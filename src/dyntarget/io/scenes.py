@@ -361,7 +361,15 @@ def read_label(
     crs: str | None = None,
     transform: Affine | None = None,
 ) -> np.ndarray:
-    """Read a label (single-band raster or GeoJSON polygons) onto an image grid."""
+    """Read a label (single-band raster or GeoJSON polygons) onto an image grid.
+
+    A raster mask georeferenced on another grid than a georeferenced image
+    (another CRS, or the same CRS elsewhere or at another resolution) is
+    reprojected onto the image grid (nearest neighbour; image pixels the mask
+    does not cover are "not plume"); a mask that does not overlap the image is
+    refused. When either has no georeference the mask is used pixel for pixel
+    and must have the image's shape.
+    """
     path = Path(path)
     if path.suffix.lower() in (".geojson", ".json"):
         return read_geojson_label(path, shape=shape, crs=crs, transform=transform)
