@@ -54,8 +54,8 @@ def _refuse(path: Path, what: str, found: str) -> OutputPathError:
 def is_ours(path: str | os.PathLike[str]) -> bool:
     """Whether the existing file ``path`` was written by dyntarget (recognised by content).
 
-    Recognised: trajectories (GeoJSON FeatureCollections whose ``properties``
-    name a ``planner``, CSV starting ``order,x,y,part``), figures (PNG with a
+    Recognised: trajectories and plume polygons (GeoJSON FeatureCollections
+    whose ``properties`` hold ``planner`` or ``polygons``), CSV starting ``order,x,y,part``), figures (PNG with a
     ``Software: dyntarget`` text chunk), JSON documents with a top-level
     ``"dyntarget"`` key or bench results (``records`` and ``machine``), bench
     Markdown tables, and files that start with the marker ``<!-- dyntarget``.
@@ -97,7 +97,7 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
             return False
         props = doc.get("properties")
         if doc.get("type") == "FeatureCollection" and isinstance(props, dict):
-            return "planner" in props
+            return "planner" in props or "polygons" in props  # trajectories, plume polygons
         return "dyntarget" in doc or ("records" in doc and "machine" in doc)
     return False
 
