@@ -275,3 +275,17 @@ def test_committed_bench_outputs_are_recognised_as_ours():
     for name in ("bench.json", "bench.md"):  # the lead reruns bench over these
         if (root / name).exists():
             assert is_ours(root / name), name
+
+
+def test_folder_inside_an_output_folder_of_ours_is_ours(tmp_path):
+    from dyntarget.io.outputs import check_output_dir, claim_output_dir
+
+    out = claim_output_dir(tmp_path / "demo")
+    (out / "models" / "fold-0").mkdir(parents=True)
+    (out / "models" / "fold-0" / "x.txt").write_text("written by an earlier run")
+    assert check_output_dir(out / "models") == out / "models"
+    foreign = tmp_path / "elsewhere"
+    foreign.mkdir()
+    (foreign / "x.txt").write_text("not ours")
+    with pytest.raises(OutputPathError):
+        check_output_dir(foreign)

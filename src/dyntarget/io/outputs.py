@@ -164,15 +164,21 @@ def _dir_state(path: Path) -> str:
         return f"an unreadable directory ({exc.strerror})"
     if not entries:
         return "free"
-    marker = path / MARKER
-    if marker.is_file():
-        try:
-            doc = json.loads(marker.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, ValueError):
-            doc = None
-        if isinstance(doc, dict) and doc.get("format") == MARKER_FORMAT:
-            return "ours"
+    # ours: marked, or inside a marked folder (e.g. the models of a demo's output folder)
+    if any(_marked(d) for d in (path, *path.absolute().parents)):
+        return "ours"
     return "a directory holding other files"
+
+
+def _marked(directory: Path) -> bool:
+    marker = directory / MARKER
+    if not marker.is_file():
+        return False
+    try:
+        doc = json.loads(marker.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("format") == MARKER_FORMAT
 
 
 def check_output_dir(path: str | os.PathLike[str], *, what: str = "output folder") -> Path:
