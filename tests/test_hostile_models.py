@@ -211,7 +211,6 @@ def test_check_tree_accepts_a_hand_built_stump():
     [
         ({"classifier": ["naive-bayes"]}, "unknown classifier"),
         ({"classifier": {"a": 1}}, "unknown classifier"),
-        ({"config": {"seed": [1]}}, "config does not fit"),
     ],
 )
 def test_metadata_with_a_list_where_a_name_belongs_exits_2(tmp_path, capsys, meta_edit, fragment):
