@@ -34,8 +34,13 @@ PLANNER = "lawnmower-transect"
 
 
 def dyntarget_command() -> list[str]:
-    """The console script when it is on PATH (what a user runs), else ``python -m dyntarget``."""
-    script = shutil.which("dyntarget")
+    """The console script (what a user runs), else ``python -m dyntarget``.
+
+    The script beside this interpreter comes first: a version manager's shim on PATH (pyenv)
+    would add its own start-up to every measurement.
+    """
+    beside = Path(sys.executable).with_name("dyntarget")
+    script = str(beside) if beside.is_file() else shutil.which("dyntarget")
     return [script] if script else [sys.executable, "-m", "dyntarget"]
 
 

@@ -82,3 +82,25 @@ def missing_extra(exc: ImportError) -> MissingExtraError | None:
     if extra is None:
         return None
     return MissingExtraError(f'{top} is not installed: pip install "dyntarget[{extra}]"')
+
+
+def require(module: str) -> None:
+    """Raise :class:`MissingExtraError` now if the optional ``module`` is not installed.
+
+    For commands that would otherwise find out after writing part of their output.
+
+    Parameters
+    ----------
+    module : str
+        A key of :data:`EXTRAS`.
+
+    Examples
+    --------
+    >>> require("numpy") is None  # not optional: nothing to check
+    True
+    """
+    import importlib.util
+
+    extra = EXTRAS.get(module)
+    if extra is not None and importlib.util.find_spec(module) is None:
+        raise MissingExtraError(f'{module} is not installed: pip install "dyntarget[{extra}]"')

@@ -56,6 +56,7 @@ def test_plan_cli_on_band_files_with_preset(tmp_path, capsys):
     assert (tmp_path / "t.geojson").stat().st_size > 100
 
 
+@pytest.mark.slow
 def test_messy_real_mask_denoise_and_every_planner(patch):
     """The human cloud mask is fragmented (many blobs, holes, border cuts): everything stays correct."""
     import cv2
@@ -91,6 +92,7 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
     assert union.area > 0
 
 
+@pytest.mark.slow
 def test_real_pixel_check_small(patch):
     from dyntarget.evaluate.realpixels import real_pixel_check, split_columns
 

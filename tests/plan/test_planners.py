@@ -172,6 +172,7 @@ def test_baselines_ignore_the_plume():
     assert nadir.points[0, 1] == 99 and nadir.points[-1, 1] == 0 and len(nadir) == 100
 
 
+@pytest.mark.slow
 def test_curved_plume_behaviour_recorded():
     """A banana-shaped plume: the straight major axis cuts across the bend.
 

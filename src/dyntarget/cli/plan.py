@@ -36,6 +36,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
+    if args.figure:  # before anything is written
+        from dyntarget.errors import require
+
+        require("matplotlib")
     if args.mask is None and args.model is None:
         if args.classifier:
             raise InvalidParameterError(
