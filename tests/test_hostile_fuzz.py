@@ -114,13 +114,16 @@ def test_geojson_any_nesting_depth_is_refused_cleanly(tmp_path, depth, opener):
 
 band_tokens = st.one_of(
     st.integers(-3, 20).map(str),
-    st.sampled_from(["", " ", "B4", "b8", "B99", "²", "٣", "1.5", "0x1", "NIR"]),
+    st.sampled_from(["", "", " ", "B4", "b8", "B99", "²", "٣", "1.5", "0x1", "NIR"]),
     st.text(max_size=4),
 )
 
 
 @FUZZ
-@given(tokens=st.lists(band_tokens, max_size=6), named=st.booleans())
+@given(
+    tokens=st.lists(band_tokens, min_size=4, max_size=4) | st.lists(band_tokens, max_size=6),
+    named=st.booleans(),
+)
 def test_bands_parse_to_four_distinct_positive_indices_or_refuse(tokens, named):
     names = [f"B{i}" for i in range(1, 13)] if named else [""] * 12
     text = ",".join(tokens)
