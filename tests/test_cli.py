@@ -22,7 +22,7 @@ def test_synth_writes_76_files_byte_identical(tmp_path, capsys):
             capsys, "synth", "--scenes", 38, "--size", 32, "--seed", 0, "--out", d, "--quiet"
         )
         assert code == 0, err
-    files = sorted(p.name for p in a.iterdir())
+    files = sorted(p.name for p in a.iterdir() if p.name != ".dyntarget-output")  # the marker
     assert len(files) == 76
     for name in files:
         assert (a / name).read_bytes() == (b / name).read_bytes()
@@ -120,6 +120,7 @@ def test_evaluate_classification_writes_table1(tmp_path, capsys):
     assert code == 0, err
     assert "| Band Threshold |" in out and "| + Denoising |" in out
     assert sorted(p.name for p in out_dir.iterdir()) == [
+        ".dyntarget-output",  # marks the folder as dyntarget's (docs/reliability.md)
         "parts",  # finished tasks, for resuming
         "table1_classification.csv",
         "table1_classification.json",

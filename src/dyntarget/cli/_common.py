@@ -126,3 +126,60 @@ def add_plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--width", type=positive_float, help="pixels between transects (default 2 x step)"
     )
+
+
+def writes(
+    *, dirs: tuple[str, ...] = (), files: tuple[str, ...] = (), model_dirs: tuple[str, ...] = ()
+):
+    """Decorate a command: check every output path it names *before any work*.
+
+    ``dirs``/``files``/``model_dirs`` are argument names (``"out"`` -> ``args.out``;
+    ``None`` values are skipped). Files and model directories are only checked
+    (:func:`~dyntarget.io.outputs.check_output_file`,
+    :func:`~dyntarget.io.outputs.check_model_dir`); folders are claimed for the
+    command's run and released again if it fails having written nothing
+    (:func:`~dyntarget.io.outputs.output_dir`). Two outputs on one path are refused.
+    """
+    import contextlib
+    import functools
+    from pathlib import Path
+
+    def decorate(fn):
+        @functools.wraps(fn)
+        def run(args: argparse.Namespace) -> int:
+            from dyntarget.errors import InvalidParameterError
+            from dyntarget.io.outputs import (
+                check_model_dir,
+                check_output_dir,
+                check_output_file,
+                output_dir,
+            )
+
+            given = [
+                (kind, name, getattr(args, name, None))
+                for kind, names in (("dir", dirs), ("file", files), ("model", model_dirs))
+                for name in names
+            ]
+            given = [(kind, name, value) for kind, name, value in given if value is not None]
+            seen: dict[Path, str] = {}
+            for kind, name, value in given:
+                flag = "--" + name.replace("_", "-")
+                where = Path(value).absolute()
+                if where in seen:
+                    raise InvalidParameterError(
+                        f"{flag} {value}: the same path as {seen[where]}; expected different outputs"
+                    )
+                seen[where] = flag
+                check = {"dir": check_output_dir, "file": check_output_file}.get(
+                    kind, check_model_dir
+                )
+                check(value, what=flag)
+            with contextlib.ExitStack() as stack:
+                for kind, name, value in given:
+                    if kind == "dir":
+                        stack.enter_context(output_dir(value, what="--" + name.replace("_", "-")))
+                return fn(args)
+
+        return run
+
+    return decorate

@@ -4,20 +4,17 @@ from __future__ import annotations
 
 import argparse
 
-from dyntarget.cli._common import EXIT_OK, log, positive_int
+from dyntarget.cli._common import EXIT_OK, log, positive_int, writes
 
 
+@writes(files=("out", "markdown"))
 def cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from dyntarget.errors import InvalidParameterError
-    from dyntarget.evaluate.bench import run_bench, summary_tables
+    from dyntarget.evaluate.bench import parse_sizes, run_bench, summary_tables
     from dyntarget.io.atomic import write_text
 
-    sizes = [int(x) for x in args.sizes.split(",")] if args.sizes else None
-    for size in sizes or []:
-        if size < 32:
-            raise InvalidParameterError(f"sizes: each WFOV size must be at least 32 px, got {size}")
+    sizes = parse_sizes(args.sizes) if args.sizes is not None else None
     result = run_bench(
         **({"sizes": sizes} if sizes else {}),
         classifiers=args.classifiers.split(",") if args.classifiers else None,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dyntarget.cli._common import EXIT_OK, Parser, log
+from dyntarget.cli._common import EXIT_OK, Parser, log, writes
 
 
 def cmd_datasets_list(args: argparse.Namespace) -> int:
@@ -25,6 +25,7 @@ def cmd_datasets_fetch(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out",))
 def cmd_datasets_prepare(args: argparse.Namespace) -> int:
     from dyntarget.datasets import get_dataset
 

@@ -14,10 +14,12 @@ from dyntarget.cli._common import (
     load_labelled,
     positive_int,
     scheduler_address,
+    writes,
 )
 from dyntarget.cli.synth import cmd_synth
 
 
+@writes(dirs=("out",))
 def cmd_demo(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.figures import scenes_figure
     from dyntarget.evaluate.report import evaluate_all, write_report
@@ -76,6 +78,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out", "models"))
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.report import evaluate_all, write_report
     from dyntarget.perceive import CLASSIFIERS

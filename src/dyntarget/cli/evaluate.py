@@ -19,6 +19,7 @@ from dyntarget.cli._common import (
     plan_config,
     positive_float,
     show_result,
+    writes,
 )
 
 EVALUATIONS: tuple = (dynamic,)
@@ -26,6 +27,7 @@ EVALUATIONS: tuple = (dynamic,)
 (``ev`` the ``evaluate`` sub-commands); import the module here and list it."""
 
 
+@writes(dirs=("out", "models"))
 def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
     from dyntarget.evaluate.tables import markdown_table, write_result
@@ -58,6 +60,7 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out",))
 def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
 
@@ -74,6 +77,7 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out", "models"))
 def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
 
@@ -102,6 +106,7 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(dirs=("out", "models"))
 def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
     from dyntarget.pipeline import PipelineConfig

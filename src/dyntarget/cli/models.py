@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 from dyntarget import defaults
-from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int
+from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int, writes
 
 
 def cmd_classifiers(args: argparse.Namespace) -> int:
@@ -17,6 +18,7 @@ def cmd_classifiers(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(model_dirs=("out",))
 def cmd_train(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import classifier_kwargs
     from dyntarget.perceive import make_classifier
@@ -34,11 +36,15 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_export_onnx(args: argparse.Namespace) -> int:
+    from dyntarget.io.outputs import OutputPathError
     from dyntarget.perceive import load_classifier
     from dyntarget.perceive.onnx import export_checked
     from dyntarget.synth import generate_scene
 
-    native = load_classifier(args.model)
+    native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
+    onnx_path = Path(args.model) / "model.onnx"
+    if onnx_path.is_symlink() or (onnx_path.exists() and not onnx_path.is_file()):
+        raise OutputPathError(f"{onnx_path}: not a regular file; it is left as it is")
     check = generate_scene(args.seed, 0, size=args.check_size)[0].image
     path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")

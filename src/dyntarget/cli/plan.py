@@ -13,6 +13,7 @@ from dyntarget.cli._common import (
     positive_float,
     positive_int,
     preset_names,
+    writes,
 )
 from dyntarget.cli._outputs import add_output_options, write_outputs
 from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
@@ -29,6 +30,7 @@ def cmd_planners(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+@writes(files=("out", "figure"))
 def cmd_plan(args: argparse.Namespace) -> int:
 
     from dyntarget.errors import InvalidParameterError
@@ -46,6 +48,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
             )
         raise InvalidParameterError("give --mask MASK or --model PATH")
+    if args.budget_s is not None and not args.agility:
+        raise InvalidParameterError(
+            f"--budget-s {args.budget_s:g} limits the time under an agility preset: "
+            "give --agility PRESET as well (without it the budget would be ignored)"
+        )
     wfov = read_any(
         args.image,
         label=args.mask,

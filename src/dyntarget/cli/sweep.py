@@ -6,9 +6,10 @@ import argparse
 from pathlib import Path
 
 from dyntarget import defaults
-from dyntarget.cli._common import EXIT_OK, positive_int
+from dyntarget.cli._common import EXIT_OK, positive_int, writes
 
 
+@writes(dirs=("out", "models"))
 def cmd_sweep(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.sweep import parse_grid, summary_figure, sweep
 

@@ -6,9 +6,10 @@ import argparse
 import time
 from pathlib import Path
 
-from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int
+from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int, writes
 
 
+@writes(dirs=("out",))
 def cmd_synth(args: argparse.Namespace) -> int:
     if getattr(args, "strip", False):  # demo calls this with the static options only
         return _synth_strips(args)

@@ -46,7 +46,7 @@ from affine import Affine
 from tqdm import tqdm
 
 from dyntarget.errors import DataFileError
-from dyntarget.io import write_scene
+from dyntarget.io import scene_ids, write_scene
 from dyntarget.scene import Scene
 
 RECORD_ID = 4250706
@@ -187,7 +187,14 @@ def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
         ]
     except (KeyError, TypeError, ValueError) as exc:
         raise DataFileError(f"{source}: not a Label Studio annotation ({exc!r})") from None
-    return name, [p for p in polygons if p.ndim == 2 and p.shape[0] >= 3 and p.shape[1] == 2]
+    polygons = [p for p in polygons if p.ndim == 2 and p.shape[0] >= 3 and p.shape[1] == 2]
+    for p in polygons:
+        if not np.isfinite(p).all():
+            raise DataFileError(
+                f"{source}: a label polygon of {name} has a NaN or infinite vertex; "
+                "expected finite percentages (nothing was written)"
+            )
+    return name, polygons
 
 
 def _members(source: Path, suffixes: tuple[str, ...]) -> Iterator[tuple[str, bytes]]:
@@ -234,8 +241,29 @@ def _read_tif(name: str, data: bytes) -> tuple[np.ndarray, str | None, Affine | 
     return planes.astype(np.float32) * np.float32(DN_SCALE), crs, transform
 
 
-def _scene_id(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]", "-", PurePosixPath(name).stem)
+def _scene_id(name: str, taken: set[str] | None = None) -> str:
+    """A file-safe, visible, unique scene id for the image ``name``.
+
+    Characters other than letters, digits, ``_ . -`` become ``-``; leading dots
+    (hidden files, which scene directories skip) become ``_``; an id that would
+    read as a mask (``*_mask``) or that is already in ``taken`` gets a suffix
+    ``-2``, ``-3``, ... (images are visited in sorted order, so ids are stable).
+
+    Examples
+    --------
+    >>> taken = set()
+    >>> [_scene_id(n, taken) for n in ["a:1.tif", "a-1.tif", ".hidden.tif", "....tif", "x_mask.tif"]]
+    ['a-1', 'a-1-2', '_hidden', '___', 'x_mask-2']
+    """
+    base = re.sub(r"[^A-Za-z0-9_.-]", "-", PurePosixPath(name).stem)
+    base = re.sub(r"^\.+", lambda m: "_" * len(m.group(0)), base) or "scene"
+    taken = set() if taken is None else taken
+    sid, n = base, 1
+    while sid in taken or sid.endswith("_mask"):
+        n += 1
+        sid = f"{base}-{n}"
+    taken.add(sid)
+    return sid
 
 
 def prepare(
@@ -264,6 +292,7 @@ def prepare(
     if not labels:
         raise DataFileError(f"{src}: no segmentation labels with polygons found")
     written: list[str] = []
+    taken: set[str] = set()
     n_neg = 0
     images = _members(_find(src, IMAGES), (".tif", ".tiff"))
     for path, data in tqdm(images, desc="prepare", unit="image", disable=not progress):
@@ -290,12 +319,16 @@ def prepare(
         else:
             n_neg += 1
         scene = Scene(
-            image, label=mask, gsd=GSD_M, crs=crs, transform=transform, id=_scene_id(name)
+            image, label=mask, gsd=GSD_M, crs=crs, transform=transform, id=_scene_id(name, taken)
         )
         write_scene(scene, out)
         written.append(scene.id)
     if not written:
         raise DataFileError(f"{src}: no annotated image in a 'positive' folder matched a label")
+    readable = set(scene_ids(out))
+    lost = [sid for sid in written if sid not in readable]
+    if lost:  # cannot happen with the ids above; never report scenes that are not there
+        raise DataFileError(f"{out}: scenes written but not found again: {', '.join(lost[:5])}")
     return written
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, data_signature, kfold_indices, train_or_load
-from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
@@ -72,8 +72,10 @@ class AgilityConfig:
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
         CLASSIFIERS.get(self.classifier)
+        check_unique("planners", self.planners)
         for name in self.planners:
             PLANNERS.get(name)
+        check_unique("presets", self.presets)
         for name in self.presets:
             if name not in AGILITY:
                 raise InvalidParameterError(

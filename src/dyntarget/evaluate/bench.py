@@ -135,6 +135,63 @@ def machine() -> dict[str, Any]:
     }
 
 
+BENCH_BYTES_PER_PIXEL = 640
+"""Estimated peak memory of one bench size per WFOV pixel: the synthetic scene
+(:data:`~dyntarget.synth.volcano.SYNTH_BYTES_PER_PIXEL`) plus its utility maps,
+probabilities and masks (a rough upper estimate, not a measurement)."""
+
+
+def check_sizes(sizes: Sequence[int]) -> None:
+    """Refuse bench sizes that are not integers >= 32, repeated, or too large for memory.
+
+    Examples
+    --------
+    >>> check_sizes([64, 128])
+    >>> check_sizes([64, 64])
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.InvalidParameterError: sizes: 64 is listed twice; expected each size once
+    """
+    from dyntarget.synth.volcano import check_memory
+
+    if not sizes:
+        raise InvalidParameterError("sizes: expected at least one WFOV size")
+    seen = set()
+    for size in sizes:
+        if isinstance(size, bool) or not isinstance(size, int) or size < 32:
+            raise InvalidParameterError(
+                f"sizes: each WFOV size must be an integer of at least 32 px, got {size!r}"
+            )
+        if size in seen:
+            raise InvalidParameterError(f"sizes: {size} is listed twice; expected each size once")
+        seen.add(size)
+        check_memory("sizes", size, bytes_per_pixel=BENCH_BYTES_PER_PIXEL)
+
+
+def parse_sizes(text: str) -> list[int]:
+    """``"64,128"`` -> ``[64, 128]``, checked by :func:`check_sizes`.
+
+    Examples
+    --------
+    >>> parse_sizes("64, 128")
+    [64, 128]
+    >>> parse_sizes("a,b")
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.InvalidParameterError: sizes: 'a' is not an integer; expected WFOV sizes like 128,256
+    """
+    sizes = []
+    for token in text.split(","):
+        token = token.strip()
+        if not (token.isascii() and token.isdigit()):
+            raise InvalidParameterError(
+                f"sizes: {token!r} is not an integer; expected WFOV sizes like 128,256"
+            )
+        sizes.append(int(token))
+    check_sizes(sizes)
+    return sizes
+
+
 def run_bench(
     *,
     sizes: Sequence[int] = DEFAULT_SIZES,
@@ -149,6 +206,7 @@ def run_bench(
 
     if repeats < 1:
         raise InvalidParameterError(f"repeats: expected a positive integer, got {repeats}")
+    check_sizes(sizes)
     classifiers = list(classifiers or CLASSIFIERS.available())
     planners = list(planners or geometric_planners())
     train = [generate_scene(1, i, size=256)[0] for i in range(4)]

@@ -26,7 +26,7 @@ import numpy as np
 from dyntarget import defaults
 from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.errors import InvalidParameterError, ModelFileError
-from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import display
 from dyntarget.perceive import (
@@ -63,6 +63,7 @@ class CVConfig:
             raise InvalidParameterError(f"epochs: expected a positive integer, got {self.epochs!r}")
         if not self.classifiers:
             raise InvalidParameterError("classifiers: expected at least one classifier name")
+        check_unique("classifiers", self.classifiers)
         for name in self.classifiers:
             CLASSIFIERS.get(name)  # raises UnknownNameError listing the valid names
 

@@ -32,8 +32,9 @@ from typing import Any, TypeVar
 import numpy as np
 from tqdm import tqdm
 
-from dyntarget.errors import InvalidParameterError
+from dyntarget.errors import DataFileError, InvalidParameterError
 from dyntarget.io.atomic import write_text
+from dyntarget.perceive.base import TRAIN_THREADS
 
 T = TypeVar("T")
 
@@ -95,6 +96,26 @@ def dask_client(scheduler: str) -> Iterator[Any]:
             cluster.close()
 
 
+def check_unique(argument: str, names: Sequence[str]) -> None:
+    """Refuse a list that names something twice (each would be one task: two tasks, one key).
+
+    Examples
+    --------
+    >>> check_unique("classifiers", ["mlp", "naive-bayes"])
+    >>> check_unique("classifiers", ["mlp", "mlp"])
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.InvalidParameterError: classifiers: 'mlp' is listed twice; expected each name once
+    """
+    seen: set = set()
+    for name in names:
+        if name in seen:
+            raise InvalidParameterError(
+                f"{argument}: {name!r} is listed twice; expected each name once"
+            )
+        seen.add(name)
+
+
 def check_scheduler(scheduler: str | None) -> None:
     """Refuse a malformed scheduler before any work starts."""
     if scheduler is not None and scheduler not in ("local", "processes") and "://" not in scheduler:
@@ -103,11 +124,60 @@ def check_scheduler(scheduler: str | None) -> None:
         )
 
 
-def _load_part(path: Path) -> Any:
+PART_FORMAT = "dyntarget-part"
+SETTINGS = {"torch_train_threads": TRAIN_THREADS}
+"""Process settings a task's result depends on; recorded in every part, a part made
+under other settings is run again."""
+
+
+def _digest(result_text: str) -> str:
+    return hashlib.sha256(result_text.encode("utf-8")).hexdigest()
+
+
+def _part_text(key: str, result: Any) -> str:
+    """A part file: the result with its key, the settings and a checksum of the result."""
+    text = json.dumps(result, sort_keys=True)
+    doc = {
+        "format": PART_FORMAT,
+        "key": key,
+        "settings": SETTINGS,
+        "sha256": _digest(text),
+        "result": result,
+    }
+    return json.dumps(doc, sort_keys=True) + "\n"
+
+
+def _load_part(path: Path, key: str) -> Any:
+    """The result kept in ``path``, or ``None`` (run the task again) when the file is
+    unreadable, not a part, another task's, made under other settings, or does not
+    match its checksum (edited, truncated, hand-made)."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None  # unreadable: run the task again
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    if (
+        not isinstance(doc, dict)
+        or doc.get("format") != PART_FORMAT
+        or doc.get("key") != key
+        or doc.get("settings") != SETTINGS
+        or "result" not in doc
+    ):
+        return None
+    if doc.get("sha256") != _digest(json.dumps(doc["result"], sort_keys=True)):
+        return None
+    return doc["result"]
+
+
+def _free_part_slot(path: Path) -> None:
+    """Make room for a part: an empty directory in its place goes; anything else is refused."""
+    if path.is_dir() and not path.is_symlink():
+        try:
+            path.rmdir()
+        except OSError:
+            raise DataFileError(
+                f"{path}: a directory holding files where a resume part belongs; "
+                "remove it or choose another output folder"
+            ) from None
 
 
 def run_tasks(
@@ -131,13 +201,17 @@ def run_tasks(
     shared = shared or {}
     keys = [key(t) for t in tasks]
     if len(set(keys)) != len(keys):
-        raise ValueError("run_tasks: two tasks share a key")
+        raise InvalidParameterError(
+            "tasks: two tasks share a key (the same task listed twice?); expected each task once"
+        )
     results: dict[str, Any] = {}
-    if parts is not None:
-        parts.mkdir(parents=True, exist_ok=True)
+    if parts is not None:  # created only when the first part is written
+        if parts.exists() and not parts.is_dir():
+            raise DataFileError(f"{parts}: a file where the folder of resume parts belongs")
         for k in keys:
             f = parts / f"{k}.json"
-            if f.exists() and (loaded := _load_part(f)) is not None:
+            _free_part_slot(f)
+            if f.is_file() and (loaded := _load_part(f, k)) is not None:
                 results[k] = loaded
     todo = [(k, t) for k, t in zip(keys, tasks, strict=True) if k not in results]
     bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, disable=not progress)
@@ -147,7 +221,7 @@ def run_tasks(
         nonlocal done
         text = json.dumps(result)
         if parts is not None:
-            write_text(parts / f"{k}.json", text + "\n")
+            write_text(parts / f"{k}.json", _part_text(k, result))
         results[k] = json.loads(text)  # the same types as a resumed result
         bar.update()
         done += 1

@@ -30,7 +30,7 @@ from dyntarget.evaluate.crossval import (
     kfold_indices,
     train_or_load,
 )
-from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
@@ -64,8 +64,10 @@ class E2EConfig:
     def __post_init__(self) -> None:
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
+        check_unique("classifiers", self.classifiers)
         for name in self.classifiers:
             CLASSIFIERS.get(name)
+        check_unique("planners", self.planners)
         for name in self.planners:
             PLANNERS.get(name)
 

@@ -56,7 +56,9 @@ def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarra
 def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
     """Save a figure atomically as PNG."""
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
+        fig.savefig(  # the Software tag lets a rerun recognise (and replace) its own figure
+            tmp, dpi=dpi, bbox_inches="tight", format="png", metadata={"Software": "dyntarget"}
+        )
     return Path(path)
 
 

@@ -26,7 +26,13 @@ from pathlib import Path
 from typing import Any
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.evaluate.distributed import Interrupted, check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.distributed import (
+    Interrupted,
+    check_scheduler,
+    check_unique,
+    run_tasks,
+    task_key,
+)
 from dyntarget.io.atomic import write_text
 from dyntarget.schedule import AGILITY, get_agility
 
@@ -53,7 +59,11 @@ COLUMNS = (
 
 
 def parse_grid(items: Sequence[str]) -> dict[str, list]:
-    """``["step_fraction=0.005,0.01", "factor=2,4"]`` -> ``{"step_fraction": [0.005, 0.01], ...}``."""
+    """``["step_fraction=0.005,0.01", "factor=2,4"]`` -> ``{"step_fraction": [0.005, 0.01], ...}``.
+
+    The whole grid is validated (:func:`check_grid`) before it is returned; a
+    parameter given twice is an error.
+    """
     grid: dict[str, list] = {}
     for item in items:
         name, _, values = item.partition("=")
@@ -62,16 +72,70 @@ def parse_grid(items: Sequence[str]) -> dict[str, list]:
             raise InvalidParameterError(
                 f"grid: {item!r} is not NAME=V1,V2,...; NAME one of: {', '.join(GRID_PARAMETERS)}"
             )
+        if name in grid:
+            raise InvalidParameterError(
+                f"grid: {name} is given twice; give all its values at once, e.g. {name}=V1,V2"
+            )
         try:
             grid[name] = [GRID_PARAMETERS[name](v.strip()) for v in values.split(",")]
         except ValueError:
             raise InvalidParameterError(
                 f"grid: {item!r} holds a value that is not a {GRID_PARAMETERS[name].__name__}"
             ) from None
-        if name == "agility":
-            for preset in grid[name]:
-                get_agility(preset)  # unknown presets are refused with the valid names
+    check_grid(grid)
     return grid
+
+
+def check_grid(grid: dict[str, list]) -> None:
+    """Refuse a grid with an unknown parameter, a repeated or out-of-range value, before any work.
+
+    Ranges: ``step_fraction`` in (0, 1], ``denoise_iterations`` an integer >= 0,
+    ``min_area_fraction`` in [0, 1), ``factor`` an integer >= 1, ``agility`` a preset.
+
+    Examples
+    --------
+    >>> check_grid({"factor": [2, 4]})
+    >>> check_grid({"step_fraction": [-1.0]})
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.InvalidParameterError: grid: step_fraction=-1.0 is out of range; expected a number in (0, 1]
+    """
+    import math
+
+    ranges = {
+        "step_fraction": (lambda v: 0 < v <= 1, "a number in (0, 1]"),
+        "denoise_iterations": (lambda v: v >= 0, "an integer >= 0"),
+        "min_area_fraction": (lambda v: 0 <= v < 1, "a number in [0, 1)"),
+        "factor": (lambda v: v >= 1, "an integer >= 1"),
+    }
+    if not isinstance(grid, dict):
+        raise InvalidParameterError(f"grid: expected a mapping NAME -> values, got {grid!r}")
+    for name, values in grid.items():
+        if name not in GRID_PARAMETERS:
+            raise InvalidParameterError(
+                f"grid: unknown parameter {name!r}; expected one of: {', '.join(GRID_PARAMETERS)}"
+            )
+        kind = GRID_PARAMETERS[name]
+        if not isinstance(values, list | tuple) or not values:
+            raise InvalidParameterError(f"grid: {name} needs a non-empty list of values")
+        if len(set(values)) != len(values):
+            raise InvalidParameterError(f"grid: {name} lists a value twice: {list(values)}")
+        for v in values:
+            if kind is str:
+                get_agility(v)  # unknown presets are refused with the valid names
+                continue
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, int | float)
+                or (kind is int and not isinstance(v, int))
+                or not math.isfinite(v)
+            ):
+                raise InvalidParameterError(f"grid: {name}={v!r} is not a finite {kind.__name__}")
+            ok, expected = ranges[name]
+            if not ok(v):
+                raise InvalidParameterError(
+                    f"grid: {name}={v!r} is out of range; expected {expected}"
+                )
 
 
 def expand(grid: dict[str, list]) -> list[dict[str, Any]]:
@@ -187,9 +251,12 @@ def sweep(
     from dyntarget.plan import PAPER_PLANNERS, PLANNERS
 
     check_scheduler(scheduler)
+    check_grid(grid or {})  # all of it, before any training
+    check_unique("classifiers", classifiers)
     for name in classifiers:
         CLASSIFIERS.get(name)
     planners = list(planners or PAPER_PLANNERS)
+    check_unique("planners", planners)
     for name in planners:
         PLANNERS.get(name)
     out, data = Path(out), Path(data)

@@ -39,6 +39,13 @@ GSD_TAG = "DYNTARGET_GSD"
 
 MAX_PIXELS = 16384 * 16384
 """Largest image read whole (4 bands x float32 = 4 GiB); larger ones are refused with a message."""
+MAX_STRIP_PIXELS = 65536 * 65536
+"""Largest image read at all, even in strips onto a WFOV grid (``factor > 1``): the read
+takes time in proportion to the pixels the header claims, so larger ones are refused
+before reading, with this limit stated (a header claiming 200000 x 200000 px in a small,
+sparse file would otherwise run for many minutes)."""
+UINT8_SCALE = 1 / 255
+"""Reflectance per digital number for 8-bit images (0..255 -> 0..1)."""
 REFLECTANCE_RANGE = (-0.5, 2.0)
 """Values outside this range cannot be reflectance (e.g. digital numbers stored as float)."""
 MASK_SUFFIX = "_mask"
@@ -103,13 +110,23 @@ def _georef(src) -> tuple[str | None, Affine | None]:
 def scale_to_reflectance(data: np.ndarray, *, scale: float | None, path: Path | str) -> np.ndarray:
     """Convert raw raster values to float32 reflectance.
 
-    Integer data are multiplied by ``scale`` (default :data:`DEFAULT_SCALE`);
-    floating data are taken as reflectance unless a ``scale`` is given.
+    Integer data are multiplied by ``scale``; by default :data:`UINT8_SCALE`
+    (1/255) for 8-bit data and :data:`DEFAULT_SCALE` (1/10000) for wider
+    integers. Floating data are taken as reflectance unless a ``scale`` is given.
+
+    Examples
+    --------
+    >>> scale_to_reflectance(np.array([[[255]]], np.uint8), scale=None, path="x").item()
+    1.0
+    >>> round(scale_to_reflectance(np.array([[[2500]]], np.uint16), scale=None, path="x").item(), 6)
+    0.25
     """
     if scale is not None and (not np.isfinite(scale) or scale <= 0):
         raise InvalidParameterError(f"scale: expected a positive number, got {scale!r}")
     if np.issubdtype(data.dtype, np.integer):
-        return data.astype(np.float32) * np.float32(DEFAULT_SCALE if scale is None else scale)
+        if scale is None:
+            scale = UINT8_SCALE if data.dtype == np.uint8 else DEFAULT_SCALE
+        return data.astype(np.float32) * np.float32(scale)
     if np.issubdtype(data.dtype, np.floating):
         out = data.astype(np.float32)
         return out * np.float32(scale) if scale is not None else out
@@ -205,6 +222,12 @@ def read_scene(
             )
         factor = check_factor(factor, (src.height, src.width))
         out_h, out_w = src.height // factor, src.width // factor
+        if src.height * src.width > MAX_STRIP_PIXELS:
+            raise InvalidSceneError(
+                f"{path}: image is {src.width} x {src.height} px, more than the "
+                f"{MAX_STRIP_PIXELS:,} px dyntarget reads at any WFOV factor (65536 x 65536); "
+                "crop or tile it"
+            )
         if out_h * out_w > MAX_PIXELS:
             hint = (
                 "pass a WFOV factor (--factor) to read it in strips"
@@ -304,6 +327,13 @@ def _label_window(label_path: Path, window, grid: Affine, crs: str | None) -> np
     with _open(label_path) as lsrc:
         if lsrc.count != 1:
             raise InvalidSceneError(f"{label_path}: a label must have 1 band, got {lsrc.count}")
+        lcrs, ltransform = _georef(lsrc)
+        if _georef_differs(lcrs, ltransform, lsrc.shape, crs, grid, None):
+            data = _read_all(lsrc, label_path)[0]
+            return _reproject_label(
+                data, lcrs, ltransform, label_path, shape, crs,
+                grid @ Affine.translation(window.col_off, window.row_off),
+            )  # fmt: skip
         data = lsrc.read(1, window=window, boundless=False)
     if data.shape != shape:
         raise InvalidSceneError(
@@ -331,19 +361,101 @@ def read_label(
     crs: str | None = None,
     transform: Affine | None = None,
 ) -> np.ndarray:
-    """Read a label (single-band raster or GeoJSON polygons) onto an image grid."""
+    """Read a label (single-band raster or GeoJSON polygons) onto an image grid.
+
+    A raster mask georeferenced on another grid than a georeferenced image
+    (another CRS, or the same CRS elsewhere or at another resolution) is
+    reprojected onto the image grid (nearest neighbour; image pixels the mask
+    does not cover are "not plume"); a mask that does not overlap the image is
+    refused. When either has no georeference the mask is used pixel for pixel
+    and must have the image's shape.
+    """
     path = Path(path)
     if path.suffix.lower() in (".geojson", ".json"):
         return read_geojson_label(path, shape=shape, crs=crs, transform=transform)
     with _open(path) as src:
         if src.count != 1:
             raise InvalidSceneError(f"{path}: a label must have 1 band, got {src.count}")
+        lcrs, ltransform = _georef(src)
         data = _read_all(src, path)[0]
     if np.issubdtype(data.dtype, np.floating):
         if not np.isfinite(data).all():
             raise InvalidSceneError(f"{path}: label holds NaN or infinite values")
         data = data != 0
+    if _georef_differs(lcrs, ltransform, data.shape, crs, transform, shape):
+        return _reproject_label(data, lcrs, ltransform, path, shape, crs, transform)
     return check_label(data, shape, name=str(path))
+
+
+def _georef_differs(
+    lcrs: str | None,
+    ltransform: Affine | None,
+    lshape: tuple[int, int],
+    crs: str | None,
+    transform: Affine | None,
+    shape: tuple[int, int] | None,
+) -> bool:
+    """Whether a georeferenced mask sits on another grid than a georeferenced image.
+
+    When either has no CRS or no transform, the mask is taken pixel for pixel
+    (its shape must then match the image's)."""
+    if None in (lcrs, ltransform, crs, transform):
+        return False
+    try:
+        same_crs = CRS.from_user_input(lcrs) == CRS.from_user_input(crs)
+    except rasterio.errors.CRSError:
+        return True
+    same_grid = ltransform.almost_equals(transform) and (shape is None or tuple(lshape) == shape)
+    return not (same_crs and same_grid)
+
+
+def _reproject_label(
+    data: np.ndarray,
+    lcrs: str,
+    ltransform: Affine,
+    path: Path,
+    shape: tuple[int, int],
+    crs: str,
+    transform: Affine,
+) -> np.ndarray:
+    """A mask georeferenced on another grid, reprojected (nearest) onto the image grid.
+
+    Image pixels the mask does not cover are "not plume". A mask that does not
+    overlap the image at all is an error (a wrong file or CRS, almost always).
+    """
+    from rasterio.warp import Resampling, reproject, transform_bounds
+
+    h, w = shape
+    iw, is_, ie, in_ = rasterio.transform.array_bounds(h, w, transform)
+    try:
+        mw, ms, me, mn = transform_bounds(
+            CRS.from_user_input(lcrs),
+            CRS.from_user_input(crs),
+            *rasterio.transform.array_bounds(*data.shape, ltransform),
+        )
+    except (rasterio.errors.CRSError, rasterio.errors.RasterioError) as exc:
+        raise InvalidSceneError(
+            f"{path}: mask CRS {lcrs} cannot be mapped onto the image CRS {crs} ({_first_line(exc)})"
+        ) from None
+    xlo, xhi, ylo, yhi = min(iw, ie), max(iw, ie), min(is_, in_), max(is_, in_)
+    if not (mw < xhi and me > xlo and ms < yhi and mn > ylo):
+        raise InvalidSceneError(
+            f"{path}: the mask does not overlap the image (mask bounds "
+            f"{mw:.6g}, {ms:.6g}, {me:.6g}, {mn:.6g}; image bounds {xlo:.6g}, {ylo:.6g}, "
+            f"{xhi:.6g}, {yhi:.6g}, in {crs}); expected a mask of this scene"
+        )
+    out = np.zeros(shape, np.uint8)
+    reproject(
+        (np.asarray(data) != 0).astype(np.uint8),
+        out,
+        src_transform=ltransform,
+        src_crs=CRS.from_user_input(lcrs),
+        dst_transform=transform,
+        dst_crs=CRS.from_user_input(crs),
+        resampling=Resampling.nearest,
+        dst_nodata=0,
+    )
+    return out.astype(bool)
 
 
 def read_geojson_label(
@@ -375,25 +487,31 @@ def read_geojson_label(
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataFileError(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise DataFileError(
+            f"{path}: JSON nested too deeply to be a GeoJSON label (expected a few levels)"
+        ) from None
     geoms = _geojson_geometries(doc, path)
-    src_crs = None
-    if isinstance(doc, dict) and isinstance(doc.get("crs"), dict):
-        name = doc["crs"].get("properties", {}).get("name")
-        if name:
-            src_crs = name
+    src_crs = _geojson_crs(doc, path)
     if (
         src_crs is None
     ):  # no crs member: RFC 7946 lon/lat (ours) or, in older files, the image's CRS
         from dyntarget.io.geojson import rfc7946_source_crs
 
-        src_crs = rfc7946_source_crs(geoms, crs)
+        rfc = rfc7946_source_crs(geoms, crs)
+        src_crs = CRS.from_user_input(rfc) if rfc is not None else None
     if src_crs is not None and crs is not None:
-        geoms = [
-            transform_geom(CRS.from_user_input(src_crs), CRS.from_user_input(crs), g) for g in geoms
-        ]
+        try:
+            geoms = [transform_geom(src_crs, CRS.from_user_input(crs), g) for g in geoms]
+        except (rasterio.errors.RasterioError, ValueError, TypeError, KeyError) as exc:
+            raise DataFileError(
+                f"{path}: geometry cannot be reprojected from {src_crs} ({_first_line(exc)})"
+            ) from None
     grid = transform if transform is not None else Affine.identity()
     shapes = []
     for g in geoms:
+        if not _finite_coordinates(g.get("coordinates")):
+            raise DataFileError(f"{path}: a polygon has a NaN or infinite vertex")
         try:
             geom = to_shape(g)
         except Exception as exc:  # shapely raises several types for bad geometry
@@ -414,6 +532,37 @@ def read_geojson_label(
     return rasterio.features.rasterize(
         [(s, 1) for s in shapes], out_shape=(h, w), transform=grid, fill=0, dtype="uint8"
     ).astype(bool)
+
+
+def _finite_coordinates(coords: object) -> bool:
+    """Whether every number in a (nested) GeoJSON coordinate array is finite."""
+    stack = [coords]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, float) and not np.isfinite(item):
+            return False
+    return True
+
+
+def _geojson_crs(doc: object, path: Path) -> CRS | None:
+    """The CRS a legacy GeoJSON ``"crs"`` member names (``None`` without one); refuses a
+    malformed member or an unknown CRS."""
+    if not isinstance(doc, dict) or "crs" not in doc or doc["crs"] is None:
+        return None
+    member = doc["crs"]
+    props = member.get("properties") if isinstance(member, dict) else None
+    name = props.get("name") if isinstance(props, dict) else None
+    if not isinstance(name, str) or not name:
+        raise DataFileError(
+            f"{path}: malformed 'crs' member {str(member)[:80]!r}; expected "
+            '{"type": "name", "properties": {"name": "EPSG:..."}} or none (RFC 7946: WGS 84)'
+        )
+    try:
+        return CRS.from_user_input(name)
+    except rasterio.errors.CRSError:
+        raise DataFileError(f"{path}: unknown CRS {name[:80]!r} in the 'crs' member") from None
 
 
 def _geojson_geometries(doc: object, path: Path) -> list[dict]:

@@ -59,8 +59,13 @@ def parse_bands(
         )
     lookup = {n.upper(): i + 1 for i, n in enumerate(names)}
     out = []
-    for t in tokens:
-        if t.isdigit():
+    for position, t in enumerate(tokens):
+        if not t:
+            raise InvalidParameterError(
+                f"bands: selector {position + 1} of {text!r} is empty; expected a band number "
+                "or name for each of R, G, B, NIR"
+            )
+        if t.isascii() and t.isdigit():
             idx = int(t)
         elif t.upper() in lookup:
             idx = lookup[t.upper()]
@@ -71,6 +76,10 @@ def parse_bands(
             )
         if idx < 1:
             raise InvalidParameterError(f"bands: band numbers are 1-based, got {idx}")
+        if idx in out:
+            raise InvalidParameterError(
+                f"bands: band {idx} is selected twice in {text!r}; expected four different bands"
+            )
         out.append(idx)
     return tuple(out)  # type: ignore[return-value]
 

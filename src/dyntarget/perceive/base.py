@@ -33,6 +33,14 @@ MODEL_FORMAT = "dyntarget-model"
 MODEL_FORMAT_VERSION = 1
 METADATA = "metadata.json"
 
+TRAIN_THREADS = 1
+"""PyTorch intra-op threads while a U-Net trains, whatever the machine or scheduler.
+
+Float reductions in convolutions (and their gradients) are summed in an order
+that depends on the thread count, so a fixed count makes training give the same
+bytes in-process, on Dask threads (``local``) and in worker processes
+(``processes``). Recorded in every resume part (``evaluate.distributed``)."""
+
 DEFAULT_MAX_PIXELS_PER_CLASS = 50_000
 """Training pixels drawn per class (plume / not plume) over all training scenes."""
 
@@ -116,8 +124,9 @@ class Classifier(ABC):
                 f"{self.name}: nothing to save, the classifier is not fitted"
             )
         from dyntarget import __version__
+        from dyntarget.io.outputs import check_model_dir
 
-        path = Path(path)
+        path = check_model_dir(path)  # never replaces anything but a model directory of ours
         tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
@@ -219,7 +228,7 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise ModelFileError(
             f"{meta_path}: band order {meta.get('bands')!r}, expected {list(BANDS)}"
         )
-    if meta.get("classifier") not in CLASSIFIERS:
+    if not isinstance(meta.get("classifier"), str) or meta["classifier"] not in CLASSIFIERS:
         raise ModelFileError(f"{meta_path}: unknown classifier {meta.get('classifier')!r}")
     if not isinstance(meta.get("config"), dict):
         raise ModelFileError(f"{meta_path}: config missing")

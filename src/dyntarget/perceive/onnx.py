@@ -32,6 +32,7 @@ import numpy as np
 
 from dyntarget.errors import InvalidParameterError, MissingExtraError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier, pixels, read_metadata
+from dyntarget.perceive.validate import check_onnx_session
 from dyntarget.scene import check_image
 
 ONNX_FILE = "model.onnx"
@@ -174,6 +175,7 @@ class OnnxClassifier:
             )
         except Exception as exc:  # onnxruntime raises its own types on a corrupt file
             raise ModelFileError(f"{path}: not a readable ONNX model ({exc})") from None
+        check_onnx_session(self.session, kind, tile=int(tile), where=path)
         self.name, self.kind, self.tile, self.path = name, kind, int(tile), path
         self.input = self.session.get_inputs()[0].name
 

@@ -39,6 +39,7 @@ from dyntarget.perceive.base import (
     pixels,
     sample_pixels,
 )
+from dyntarget.perceive.validate import check_estimator
 
 if TYPE_CHECKING:
     from sklearn.base import BaseEstimator
@@ -195,6 +196,7 @@ class PixelClassifier(Classifier):
             raise ModelFileError(
                 f"{path}: holds a {type(est).__name__}, expected {expected.__name__}"
             )
+        check_estimator(est, path)
         self.estimator = est
 
 

@@ -25,19 +25,35 @@ tiling (:func:`tiled`) is shared with the ONNX runtime.
 
 from __future__ import annotations
 
+import contextlib
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
-from dyntarget.perceive.base import CLASSIFIERS, Classifier
+from dyntarget.perceive.base import CLASSIFIERS, TRAIN_THREADS, Classifier
+from dyntarget.perceive.validate import check_state_dict
 
 WEIGHTS_FILE = "model.safetensors"
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
 _GLOBAL_RNG_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _fixed_threads(n: int) -> Iterator[None]:
+    """Run the block with ``n`` PyTorch intra-op threads (this thread's setting), then restore."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def tile_origins(length: int, tile: int, stride: int) -> list[int]:
@@ -213,23 +229,24 @@ class _UNetClassifier(Classifier):
         loss_fn = nn.CrossEntropyLoss(ignore_index=IGNORE)
         model.train()
         self.history = []
-        for _ in range(self.epochs):
-            order = torch.randperm(len(xt), generator=gen)
-            total = 0.0
-            for i in range(0, len(order), self.batch_size):
-                idx = order[i : i + self.batch_size]
-                xb, yb = xt[idx], yt[idx]
-                flips = torch.randint(0, 2, (2,), generator=gen)
-                if flips[0]:
-                    xb, yb = xb.flip(-1), yb.flip(-1)
-                if flips[1]:
-                    xb, yb = xb.flip(-2), yb.flip(-2)
-                opt.zero_grad(set_to_none=True)
-                loss = loss_fn(model(xb), yb)
-                loss.backward()
-                opt.step()
-                total += float(loss.detach()) * len(idx)
-            self.history.append(total / len(xt))
+        with _fixed_threads(TRAIN_THREADS):  # scheduler-independent float reductions
+            for _ in range(self.epochs):
+                order = torch.randperm(len(xt), generator=gen)
+                total = 0.0
+                for i in range(0, len(order), self.batch_size):
+                    idx = order[i : i + self.batch_size]
+                    xb, yb = xt[idx], yt[idx]
+                    flips = torch.randint(0, 2, (2,), generator=gen)
+                    if flips[0]:
+                        xb, yb = xb.flip(-1), yb.flip(-1)
+                    if flips[1]:
+                        xb, yb = xb.flip(-2), yb.flip(-2)
+                    opt.zero_grad(set_to_none=True)
+                    loss = loss_fn(model(xb), yb)
+                    loss.backward()
+                    opt.step()
+                    total += float(loss.detach()) * len(idx)
+                self.history.append(total / len(xt))
         model.eval()
         self.model = model
 
@@ -274,13 +291,7 @@ class _UNetClassifier(Classifier):
         except (SafetensorError, OSError, ValueError) as exc:
             raise ModelFileError(f"{path}: not a readable safetensors file ({exc})") from None
         model = self.network(width=self.width)
-        expected = {k: tuple(v.shape) for k, v in model.state_dict().items()}
-        got = {k: tuple(v.shape) for k, v in state.items()}
-        if expected != got:
-            missing = sorted(set(expected) - set(got))[:3]
-            raise ModelFileError(
-                f"{path}: weights do not match a {self.name} of width {self.width} (e.g. missing {missing})"
-            )
+        check_state_dict(state, model.state_dict(), path)
         model.load_state_dict(state, strict=True)
         model.eval()
         self.model = model

@@ -1,0 +1,468 @@
+"""Model files are data: check every loaded model's structure before it runs.
+
+A model file that holds only allow-listed types can still be hostile: a
+decision tree whose child indices point outside its node array makes
+scikit-learn's compiled code read memory it does not own (a segfault), an
+estimator with five features or three classes gives wrong answers or odd
+errors deep inside a prediction. Each loader calls one function of this module
+right after deserialising and before the model is used:
+
+* :func:`check_estimator` — scikit-learn models (``pixel.py``): trees (node
+  count, children in range and acyclic, feature indices < 4, finite thresholds,
+  values shaped for two classes), forests (every tree), naive Bayes, logistic
+  regression, MLP and the standard scaler (coefficient shapes, finite values),
+  ``classes_`` equal to ``[0, 1]`` or ``[False, True]``, ``n_features_in_ == 4``;
+* :func:`check_state_dict` — U-Net weights (``unet.py``): every tensor's name,
+  shape and dtype as the architecture expects, and finite values;
+* :func:`check_onnx_session` — ONNX graphs (``onnx.py``): input/output names,
+  shapes and element types as :mod:`dyntarget.perceive.onnx` documents them.
+
+Anything else raises :class:`~dyntarget.errors.ModelFileError` naming the
+file and the first thing that is wrong (the CLI exits 2).
+
+Heavy libraries are imported inside the functions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from dyntarget.errors import ModelFileError
+
+N_FEATURES = 4
+"""Band values per pixel (R, G, B, NIR)."""
+
+TREE_LEAF = -1
+"""scikit-learn's child index of a leaf."""
+
+
+def _fail(where: Any, what: str) -> ModelFileError:
+    return ModelFileError(f"{where}: {what}")
+
+
+def _array(where: Any, name: str, value: Any, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (``None`` matches any length)."""
+    try:
+        arr = np.asarray(value)
+    except Exception:
+        raise _fail(where, f"{name} is not an array") from None
+    if arr.dtype.kind not in "fiub":
+        raise _fail(where, f"{name} has dtype {arr.dtype}, expected numbers")
+    if arr.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(arr.shape, shape, strict=True)
+    ):
+        want_text = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        raise _fail(where, f"{name} has shape {arr.shape}, expected {want_text}")
+    if not np.isfinite(arr.astype(np.float64, copy=False)).all():
+        raise _fail(where, f"{name} holds NaN or infinite values")
+    return arr
+
+
+def _check_classes(where: Any, est: Any) -> None:
+    classes = getattr(est, "classes_", None)
+    try:
+        ok = classes is not None and np.asarray(classes).tolist() in ([0, 1], [False, True])
+    except Exception:
+        ok = False
+    if not ok:
+        raise _fail(
+            where,
+            f"classes_ is {_short(classes)}, expected [0, 1] or [False, True] "
+            "(a two-class plume / background model)",
+        )
+
+
+def _check_n_features(where: Any, est: Any) -> None:
+    n = getattr(est, "n_features_in_", None)
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or int(n) != N_FEATURES:
+        raise _fail(where, f"n_features_in_ is {_short(n)}, expected {N_FEATURES} (R, G, B, NIR)")
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_tree(tree: Any, where: Any = "tree") -> None:
+    """Refuse a fitted ``sklearn.tree._tree.Tree`` that is not a sound two-class tree.
+
+    Checks: one output, two classes, four features; node count equal to the
+    length of every node array; every internal node's children are later nodes
+    (so they are in range and the tree is acyclic) and every node but the root
+    has exactly one parent; leaves have no children; feature indices in 0..3 and
+    finite thresholds on internal nodes; ``value`` shaped ``(nodes, 1, 2)``,
+    finite and non-negative.
+
+    Parameters
+    ----------
+    tree : sklearn.tree._tree.Tree
+        The ``tree_`` attribute of a fitted decision tree.
+    where : str or path
+        Named in the error (the model file).
+
+    Raises
+    ------
+    ModelFileError
+        On the first defect found.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.tree import DecisionTreeClassifier
+    >>> x = np.array([[0, 0, 0, 0], [1, 1, 1, 1]] * 5, float)
+    >>> est = DecisionTreeClassifier().fit(x, [0, 1] * 5)
+    >>> check_tree(est.tree_)  # a sound tree passes silently
+    """
+    try:
+        n = int(tree.node_count)
+        n_outputs = int(tree.n_outputs)
+        n_features = int(tree.n_features)
+        n_classes = np.asarray(tree.n_classes).tolist()
+        left = np.asarray(tree.children_left)
+        right = np.asarray(tree.children_right)
+        feature = np.asarray(tree.feature)
+        threshold = np.asarray(tree.threshold)
+        value = np.asarray(tree.value)
+    except Exception as exc:
+        raise _fail(where, f"not a readable decision tree ({type(exc).__name__})") from None
+    if n_outputs != 1 or n_classes != [2]:
+        raise _fail(
+            where, f"tree has {n_outputs} output(s) of {n_classes} classes, expected 1 of [2]"
+        )
+    if n_features != N_FEATURES:
+        raise _fail(where, f"tree uses {n_features} features, expected {N_FEATURES}")
+    if n < 1:
+        raise _fail(where, f"tree has {n} nodes, expected at least 1")
+    for name, arr in (
+        ("children_left", left),
+        ("children_right", right),
+        ("feature", feature),
+        ("threshold", threshold),
+    ):
+        if arr.shape != (n,):
+            raise _fail(where, f"tree {name} has shape {arr.shape}, expected ({n},)")
+    if value.shape != (n, 1, 2):
+        raise _fail(where, f"tree value has shape {value.shape}, expected ({n}, 1, 2)")
+    if not np.isfinite(value).all() or (value < 0).any():
+        raise _fail(where, "tree value holds negative, NaN or infinite entries")
+    leaf = left == TREE_LEAF
+    if not np.array_equal(leaf, right == TREE_LEAF):
+        raise _fail(where, "tree has a node with exactly one child")
+    idx = np.arange(n)
+    inner = ~leaf
+    for name, child in (("children_left", left), ("children_right", right)):
+        bad = inner & ((child <= idx) | (child >= n))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise _fail(
+                where,
+                f"tree node {i} has {name} {int(child[i])}, expected a later node in "
+                f"{i + 1}..{n - 1}",
+            )
+    parents = np.bincount(np.concatenate([left[inner], right[inner]]), minlength=n)
+    if parents[0] != 0 or (parents[1:] != 1).any():
+        raise _fail(where, "tree nodes do not form a tree (a node with no or several parents)")
+    if ((feature[inner] < 0) | (feature[inner] >= N_FEATURES)).any():
+        raise _fail(where, f"tree splits on a feature outside 0..{N_FEATURES - 1}")
+    if not np.isfinite(threshold[inner]).all():
+        raise _fail(where, "tree holds a NaN or infinite threshold")
+
+
+def _check_tree_estimator(est: Any, where: Any) -> None:
+    _check_classes(where, est)
+    _check_n_features(where, est)
+    if getattr(est, "n_outputs_", None) != 1:
+        raise _fail(where, f"n_outputs_ is {_short(getattr(est, 'n_outputs_', None))}, expected 1")
+    check_tree(getattr(est, "tree_", None), where)
+
+
+def check_estimator(est: Any, where: Any = "model") -> None:
+    """Refuse a scikit-learn estimator that is not a sound 4-feature, two-class model.
+
+    Handles the estimators of :mod:`dyntarget.perceive.pixel` (also inside a
+    ``Pipeline`` after a ``StandardScaler``): decision trees and random forests
+    (:func:`check_tree` on every tree), Gaussian naive Bayes (``theta_``,
+    ``var_`` > 0, ``class_prior_``), logistic regression (``coef_ (1, 4)``,
+    ``intercept_ (1,)``), MLP (layer shapes chained from 4 inputs to 1 logistic
+    output); every classifier must have ``classes_`` ``[0, 1]`` or
+    ``[False, True]`` and ``n_features_in_ == 4``; all numbers finite.
+
+    Parameters
+    ----------
+    est : sklearn estimator
+        What a model file deserialised to.
+    where : str or path
+        Named in the error (the model file).
+
+    Raises
+    ------
+    ModelFileError
+        On the first defect found, or for an estimator type not listed above.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.naive_bayes import GaussianNB
+    >>> rng = np.random.default_rng(0)
+    >>> est = GaussianNB().fit(rng.uniform(size=(20, 4)), [0, 1] * 10)
+    >>> check_estimator(est)
+    >>> est.fit(rng.uniform(size=(20, 5)), [0, 1] * 10)  # five features
+    GaussianNB()
+    >>> check_estimator(est, "m.skops")
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: m.skops: n_features_in_ is 5, expected 4 (R, G, B, NIR)
+    """
+    from sklearn.ensemble import RandomForestClassifier
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.naive_bayes import GaussianNB
+    from sklearn.neural_network import MLPClassifier
+    from sklearn.neural_network._base import ACTIVATIONS
+    from sklearn.pipeline import Pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.tree import DecisionTreeClassifier
+
+    kind = type(est)
+    if kind is Pipeline:
+        steps = getattr(est, "steps", None)
+        if (
+            not isinstance(steps, list)
+            or len(steps) != 2
+            or not all(isinstance(s, tuple) and len(s) == 2 for s in steps)
+        ):
+            raise _fail(where, "pipeline is not (StandardScaler, classifier)")
+        scaler, final = steps[0][1], steps[1][1]
+        if type(scaler) is not StandardScaler:
+            raise _fail(where, f"pipeline starts with {type(scaler).__name__}, not StandardScaler")
+        _check_n_features(where, scaler)
+        _array(where, "StandardScaler.mean_", getattr(scaler, "mean_", None), (N_FEATURES,))
+        scale = _array(
+            where, "StandardScaler.scale_", getattr(scaler, "scale_", None), (N_FEATURES,)
+        )
+        if (scale <= 0).any():
+            raise _fail(where, "StandardScaler.scale_ holds a value <= 0")
+        if type(final) not in (LogisticRegression, MLPClassifier):
+            raise _fail(where, f"pipeline ends with {type(final).__name__}, not a classifier")
+        check_estimator(final, where)
+        return
+    if kind is DecisionTreeClassifier:
+        _check_tree_estimator(est, where)
+        return
+    if kind is RandomForestClassifier:
+        _check_classes(where, est)
+        _check_n_features(where, est)
+        trees = getattr(est, "estimators_", None)
+        if not isinstance(trees, list) or not trees:
+            raise _fail(where, "random forest holds no trees")
+        for i, tree in enumerate(trees):
+            if type(tree) is not DecisionTreeClassifier:
+                raise _fail(where, f"random forest member {i} is a {type(tree).__name__}")
+            _check_tree_estimator(tree, f"{where} (tree {i})")
+        return
+    _check_classes(where, est)
+    _check_n_features(where, est)
+    if kind is GaussianNB:
+        _array(where, "theta_", getattr(est, "theta_", None), (2, N_FEATURES))
+        var = _array(where, "var_", getattr(est, "var_", None), (2, N_FEATURES))
+        if (var <= 0).any():
+            raise _fail(where, "var_ holds a variance <= 0")
+        prior = _array(where, "class_prior_", getattr(est, "class_prior_", None), (2,))
+        if (prior < 0).any() or not np.isclose(prior.sum(), 1.0):
+            raise _fail(where, f"class_prior_ {prior.tolist()} is not a probability vector")
+        return
+    if kind is LogisticRegression:
+        _array(where, "coef_", getattr(est, "coef_", None), (1, N_FEATURES))
+        _array(where, "intercept_", getattr(est, "intercept_", None), (1,))
+        return
+    if kind is MLPClassifier:
+        coefs, intercepts = getattr(est, "coefs_", None), getattr(est, "intercepts_", None)
+        if not isinstance(coefs, list) or not isinstance(intercepts, list) or not coefs:
+            raise _fail(where, "MLP coefs_/intercepts_ are not lists of arrays")
+        if len(coefs) != len(intercepts) or getattr(est, "n_layers_", None) != len(coefs) + 1:
+            raise _fail(where, "MLP layer counts disagree (coefs_, intercepts_, n_layers_)")
+        width = N_FEATURES
+        for i, (w, b) in enumerate(zip(coefs, intercepts, strict=True)):
+            w = _array(where, f"MLP coefs_[{i}]", w, (width, None))
+            width = w.shape[1]
+            if width < 1:
+                raise _fail(where, f"MLP layer {i} has no units")
+            _array(where, f"MLP intercepts_[{i}]", b, (width,))
+        if width != 1 or getattr(est, "n_outputs_", None) != 1:
+            raise _fail(where, f"MLP ends in {width} output unit(s), expected 1 (two classes)")
+        if getattr(est, "out_activation_", None) != "logistic":
+            raise _fail(
+                where,
+                f"MLP out_activation_ is {_short(getattr(est, 'out_activation_', None))}, "
+                "expected 'logistic'",
+            )
+        if getattr(est, "activation", None) not in ACTIVATIONS:
+            raise _fail(
+                where,
+                f"MLP activation is {_short(getattr(est, 'activation', None))}, "
+                f"expected one of {sorted(ACTIVATIONS)}",
+            )
+        return
+    raise _fail(where, f"holds a {kind.__name__}, which dyntarget does not load")
+
+
+def check_state_dict(
+    state: Mapping[str, Any], expected: Mapping[str, Any], where: Any = "weights"
+) -> None:
+    """Refuse U-Net weights whose tensors differ from the architecture's.
+
+    Every tensor of ``expected`` (a freshly built network's ``state_dict()``)
+    must be present in ``state`` with the same shape and dtype, no other
+    tensor may be present, and floating-point tensors must be finite (a
+    normalisation ``std`` must be positive).
+
+    Parameters
+    ----------
+    state : mapping of str to torch.Tensor
+        The loaded weights.
+    expected : mapping of str to torch.Tensor
+        ``network(width=...).state_dict()`` of the architecture the metadata names.
+    where : str or path
+        Named in the error (the weights file).
+
+    Raises
+    ------
+    ModelFileError
+        On the first missing, extra or mismatched tensor.
+
+    Examples
+    --------
+    >>> import torch
+    >>> net = torch.nn.Linear(4, 2)
+    >>> check_state_dict(net.state_dict(), net.state_dict())
+    >>> check_state_dict({"weight": torch.zeros(2, 4)}, net.state_dict(), "w.st")
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: w.st: weights do not match the architecture (tensors missing: ['bias'])
+    """
+    import torch
+
+    if not isinstance(state, Mapping):
+        raise _weights(where, f"weights are a {type(state).__name__}, expected named tensors")
+    missing = sorted(set(expected) - set(state))
+    extra = sorted(set(state) - set(expected))
+    if missing:
+        raise _weights(where, f"tensors missing: {missing[:3]}")
+    if extra:
+        raise _weights(where, f"unexpected tensors: {extra[:3]}")
+    for name, want in expected.items():
+        got = state[name]
+        if not isinstance(got, torch.Tensor):
+            raise _weights(where, f"{name} is a {type(got).__name__}, expected a tensor")
+        if tuple(got.shape) != tuple(want.shape):
+            raise _weights(
+                where, f"{name} has shape {tuple(got.shape)}, expected {tuple(want.shape)}"
+            )
+        if got.dtype != want.dtype:
+            raise _weights(where, f"{name} has dtype {got.dtype}, expected {want.dtype}")
+        if got.is_floating_point() and not bool(torch.isfinite(got).all()):
+            raise _weights(where, f"{name} holds NaN or infinite values")
+        if name.endswith(("norm.std", "running_var")) and bool((got <= 0).any()):
+            raise _weights(where, f"{name} holds a value <= 0")
+
+
+def _weights(where: Any, what: str) -> ModelFileError:
+    return _fail(where, f"weights do not match the architecture ({what})")
+
+
+# ONNX element types as onnxruntime names them
+_FLOAT, _INT64 = "tensor(float)", "tensor(int64)"
+
+
+def _dims_match(got: Any, want: tuple[int | None, ...]) -> bool:
+    got = list(got or [])
+    if len(got) != len(want):
+        return False
+    for g, w in zip(got, want, strict=True):
+        if w is None:  # dynamic: a symbolic name (or a positive size) is acceptable
+            if isinstance(g, int) and g < 1:
+                return False
+        elif g != w:
+            return False
+    return True
+
+
+def onnx_signature(kind: str, tile: int | None = None) -> dict[str, list]:
+    """The documented inputs and outputs ``{"inputs": [...], "outputs": [...]}``.
+
+    Each entry is ``(name, element type, shape)`` with ``None`` for a dynamic
+    dimension. ``kind`` is ``"unet"`` (needs ``tile``) or ``"pixel"``.
+
+    Examples
+    --------
+    >>> onnx_signature("unet", 32)["inputs"]
+    [('image', 'tensor(float)', (None, 4, 32, 32))]
+    """
+    if kind == "unet":
+        return {
+            "inputs": [("image", _FLOAT, (None, 4, tile, tile))],
+            "outputs": [("logits", _FLOAT, (None, 2, tile, tile))],
+        }
+    return {
+        "inputs": [("pixels", _FLOAT, (None, N_FEATURES))],
+        "outputs": [("label", _INT64, (None,)), ("probabilities", _FLOAT, (None, 2))],
+    }
+
+
+def check_onnx_session(
+    session: Any, kind: str, *, tile: int | None = None, where: Any = "model.onnx"
+) -> None:
+    """Refuse an ONNX graph whose inputs or outputs differ from the documented ones.
+
+    Parameters
+    ----------
+    session : onnxruntime.InferenceSession
+        The loaded graph.
+    kind : {"unet", "pixel"}
+        Which signature applies (:func:`onnx_signature`).
+    tile : int, optional
+        The U-Net's tile size (from the model's metadata).
+    where : str or path
+        Named in the error.
+
+    Raises
+    ------
+    ModelFileError
+        When names, element types or shapes differ.
+
+    Examples
+    --------
+    >>> class _Arg:
+    ...     def __init__(self, name, type, shape):
+    ...         self.name, self.type, self.shape = name, type, shape
+    >>> class _Session:
+    ...     def get_inputs(self):
+    ...         return [_Arg("pixels", "tensor(float)", [None, 4])]
+    ...     def get_outputs(self):
+    ...         return [_Arg("label", "tensor(int64)", [None])]
+    >>> check_onnx_session(_Session(), "pixel", where="m.onnx")
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: m.onnx: ONNX outputs are [('label', 'tensor(int64)', [None])], expected [('label', 'tensor(int64)', (n,)), ('probabilities', 'tensor(float)', (n, 2))]
+    """
+    sig = onnx_signature(kind, tile)
+    for side, args in (("inputs", session.get_inputs()), ("outputs", session.get_outputs())):
+        got = [(a.name, a.type, list(a.shape or [])) for a in args]
+        want = sig[side]
+        ok = len(got) == len(want) and all(
+            g[0] == w[0] and g[1] == w[1] and _dims_match(g[2], w[2])
+            for g, w in zip(got, want, strict=True)
+        )
+        if not ok:
+            shown = [(n, t, tuple("n" if d is None else d for d in s)) for n, t, s in want]
+            raise _fail(
+                where,
+                f"ONNX {side} are {_short_list(got)}, expected {shown}".replace("'n'", "n"),
+            )
+
+
+def _short_list(items: list) -> str:
+    text = repr(items)
+    return text if len(text) <= 200 else text[:197] + "..."

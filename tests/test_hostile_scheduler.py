@@ -1,0 +1,75 @@
+"""Issue 20, item 3: the table does not depend on the scheduler or the thread count.
+
+U-Net training sums float gradients in an order that depends on PyTorch's
+intra-op thread count; ``evaluate --scheduler processes`` runs single-threaded
+workers while the default runs in-process with every core. Training now runs
+with a fixed thread count (``TRAIN_THREADS``), recorded in every resume part.
+The in-process run below is made with 4 PyTorch threads (as on a 4-core
+machine): before the fix its trained weights differed from the workers' in the
+sixth decimal.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from dyntarget import Scene
+from dyntarget.cli import main
+from dyntarget.evaluate.distributed import SETTINGS
+from dyntarget.io import write_scene
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sched-data")
+    rng = np.random.default_rng(3)
+    for i in range(4):
+        image = rng.uniform(0.05, 0.3, (4, 48, 48)).astype(np.float32)
+        label = np.zeros((48, 48), bool)
+        label[6 + 2 * i : 30, 10 : 34 - i] = True
+        image[:, label] += rng.uniform(0.1, 0.4, (4, 1)).astype(np.float32)
+        write_scene(Scene(image, label=label, id=f"s{i}"), d)
+    return d
+
+
+def _evaluate(tmp_path, data, scheduler, capsys):
+    out, models = tmp_path / f"out-{scheduler}", tmp_path / f"models-{scheduler}"
+    args = [
+        "evaluate", "classification", "--data", str(data), "--folds", "2", "--factor", "1",
+        "--epochs", "2", "--classifiers", "unet-uavsar", "--quiet",
+        "--out", str(out), "--models", str(models),
+    ]  # fmt: skip
+    if scheduler != "none":
+        args += ["--scheduler", scheduler]
+    before = torch.get_num_threads()
+    torch.set_num_threads(4)  # in-process: as many threads as a 4-core machine would use
+    try:
+        code = main(args)
+    finally:
+        torch.set_num_threads(before)
+    assert code == 0, capsys.readouterr().err
+    weights = {
+        p.relative_to(models).as_posix(): p.read_bytes()
+        for p in sorted(models.rglob("model.safetensors"))
+    }
+    return (out / "table1_classification.json").read_bytes(), weights, out
+
+
+@pytest.mark.slow
+def test_in_process_local_and_processes_give_byte_identical_tables_and_weights(
+    tmp_path, data, capsys
+):
+    runs = {s: _evaluate(tmp_path, data, s, capsys) for s in ("none", "local", "processes")}
+    tables = {s: r[0] for s, r in runs.items()}
+    weights = {s: r[1] for s, r in runs.items()}
+    assert len(weights["none"]) == 2  # one U-Net per fold
+    assert weights["local"] == weights["none"]
+    assert weights["processes"] == weights["none"]
+    assert tables["local"] == tables["none"]
+    assert tables["processes"] == tables["none"]
+    part = next((runs["processes"][2] / "parts" / "classification").glob("*.json"))
+    assert json.loads(part.read_text())["settings"] == SETTINGS == {"torch_train_threads": 1}
