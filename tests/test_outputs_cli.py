@@ -150,7 +150,7 @@ def test_image_without_crs_keeps_pixels_and_says_so(tmp_path, capsys):
         (["--acquired", "noon"], "--acquired: expected an ISO-8601"),
         (["--crs", "utm"], "invalid choice: 'utm'"),
         (["--polygons", "out/t.geojson"], "the same path as --out"),
-        (["--polygons", "out/d.geojson"], "is a directory"),
+        (["--polygons", "out/d.geojson"], "a directory, not written by dyntarget"),
     ],
 )
 def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, message):
@@ -210,3 +210,22 @@ def test_html_without_plotly_names_the_extra_and_writes_nothing(tmp_path, capsys
         'dyntarget: error: plotly is not installed: pip install "dyntarget[view]"'
     )
     assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_html_view_is_replaced_on_rerun_but_a_foreign_page_is_left_alone(tmp_path, capsys):
+    pytest.importorskip("plotly")
+    crs, transform = GRIDS["utm32n"]
+    image, mask = _scene(tmp_path, crs, transform)
+    view = tmp_path / "view.html"
+    argv = ["plan", image, "--mask", mask, "--planner", "track-center", "--html", view]
+    code, _, err = run(capsys, *argv, "--out", tmp_path / "a.geojson")
+    assert code == 0, err
+    code, _, err = run(capsys, *argv, "--out", tmp_path / "b.geojson")  # ours: replaced
+    assert code == 0, err
+    foreign = tmp_path / "notes.html"
+    foreign.write_text("<!doctype html><html><body>my notes</body></html>")
+    argv[-1] = foreign
+    code, _, err = run(capsys, *argv, "--out", tmp_path / "c.geojson")
+    assert code == 2 and "--html" in err and "not written by dyntarget" in err
+    assert foreign.read_text() == "<!doctype html><html><body>my notes</body></html>"
+    assert not (tmp_path / "c.geojson").exists()

@@ -63,6 +63,7 @@ def test_synth_without_frames_keeps_the_flat_layout(tmp_path, capsys):
     code, _, _ = run(capsys, "synth", "--scenes", 2, "--size", 32, "--out", tmp_path, "--quiet")
     assert code == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".dyntarget-output",  # marks the folder as dyntarget's (docs/reliability.md)
         "synth-0000-0000.tif", "synth-0000-0000_mask.tif",
         "synth-0000-0001.tif", "synth-0000-0001_mask.tif",
     ]  # fmt: skip

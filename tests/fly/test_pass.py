@@ -77,7 +77,11 @@ def test_a_plume_seen_by_two_frames_is_covered_once():
     assert r0.flown == r0.planned
     assert r1.flown == 0 and r1.skipped_covered == r1.planned
     # every flown pointing on a distinct strip pixel, all from frame 0
-    px = {(round(x), round(y)) for x, y in zip(result.flown.x, result.flown.y, strict=True)}
+    # the pixel holding a point (centres on integers; x.5 goes up, not to the even side)
+    px = {
+        (math.floor(x + 0.5), math.floor(y + 0.5))
+        for x, y in zip(result.flown.x, result.flown.y, strict=True)
+    }
     assert len(px) == len(result.flown.x) == r0.flown
     assert set(result.flown.frame) == {0}
     # a lone pass over the same plume (one frame holding it) flies the same number

@@ -17,6 +17,7 @@ from dyntarget.cli._common import (
     positive_float,
     positive_int,
     scheduler_address,
+    writes,
 )
 
 
@@ -32,6 +33,7 @@ def _latencies(text: str) -> tuple[float, ...]:
     return values
 
 
+@writes(dirs=("out", "models"))
 def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.dynamic import (
         DYNAMIC_COLUMNS,

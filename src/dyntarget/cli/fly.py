@@ -14,6 +14,7 @@ from dyntarget.cli._common import (
     positive_float,
     positive_int,
     scheduler_address,
+    writes,
 )
 from dyntarget.errors import InvalidParameterError
 from dyntarget.fly.signals import stop_on_signals
@@ -54,6 +55,7 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
     )
 
 
+@writes(dirs=("out",))
 def cmd_fly(args: argparse.Namespace) -> int:
     modes = [m for m in ("scene", "watch", "campaign") if getattr(args, m)]
     if len(modes) != 1:

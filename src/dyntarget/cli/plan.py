@@ -30,7 +30,7 @@ def cmd_planners(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-@writes(files=("out", "figure"))
+@writes(files=("out", "figure", "polygons", "html"))
 def cmd_plan(args: argparse.Namespace) -> int:
 
     from dyntarget.errors import InvalidParameterError

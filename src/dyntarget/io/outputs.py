@@ -58,7 +58,8 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
     whose ``properties`` hold ``planner`` or ``polygons``), CSV starting ``order,x,y,part``), figures (PNG with a
     ``Software: dyntarget`` text chunk), JSON documents with a top-level
     ``"dyntarget"`` key or bench results (``records`` and ``machine``), bench
-    Markdown tables, and files that start with the marker ``<!-- dyntarget``.
+    Markdown tables, HTML views (``<meta name="generator" content="dyntarget">``) and files
+    that start with the marker ``<!-- dyntarget``.
 
     Examples
     --------
@@ -88,6 +89,8 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
         return True
     if head.startswith((b"<!-- dyntarget", _BENCH_MARKDOWN)):
         return True
+    if head.lstrip()[:15].lower() == b"<!doctype html>":  # HTML views carry a generator tag
+        return b'<meta name="generator" content="dyntarget">' in head
     if head.lstrip()[:1] == b"{" and size <= 256 * _SNIFF_BYTES:
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))

@@ -357,7 +357,9 @@ def _to_html(fig, title: str, *, animated: bool = False) -> str:
         config={"displaylogo": False, "scrollZoom": True, "responsive": False},
         animation_opts={"frame": {"duration": 0, "redraw": True}} if animated else None,
     )
-    return text.replace("<head>", f"<head>\n    <title>{html.escape(title)}</title>", 1)
+    # The generator tag lets a rerun recognise its own file (dyntarget.io.outputs.is_ours).
+    head = f'<head>\n    <title>{html.escape(title)}</title>\n    <meta name="generator" content="dyntarget">'
+    return text.replace("<head>", head, 1)
 
 
 def _check_common(transform, crs, acquired):
