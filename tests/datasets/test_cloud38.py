@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
+import shapely
 
 from dyntarget.cli import main
 from dyntarget.denoise import denoise
@@ -63,9 +62,9 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
 
     n_raw = cv2.connectedComponents(patch.label.astype(np.uint8), connectivity=8)[0] - 1
     assert n_raw > 20  # a realistically messy mask
-    t0 = time.perf_counter()
-    cleaned = denoise(patch.label)
-    assert time.perf_counter() - t0 < 5.0  # generous: guards against pathological slow-downs only
+    cleaned = denoise(
+        patch.label
+    )  # its speed is benchmarked (benchmarks/plan_speed.py), not asserted
     assert 0 < len(cleaned.polygons) < n_raw
     assert all(p.is_valid for p in cleaned.polygons)
     h, w = patch.shape
@@ -87,7 +86,13 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
                 )
                 for xy in t.points[:50]
             )
-        if name not in BASELINES:
+        if name == "trace-outline":  # frame segments are skipped: a cut outline is several runs,
+            for k in np.unique(t.part):  # and every run lies wholly on one polygon's boundary
+                pts = shapely.points(t.points[t.part == k])
+                assert any(
+                    (shapely.distance(p.exterior, pts) < 1e-6).all() for p in cleaned.polygons
+                )
+        elif name not in BASELINES:
             assert t.part.max() + 1 <= len(cleaned.polygons)
     assert union.area > 0
 
