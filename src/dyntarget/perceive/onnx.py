@@ -79,7 +79,8 @@ def _export_unet(classifier) -> bytes:
     _require("onnx")
     _require("onnxscript")
     net = classifier.model.eval()
-    example = torch.zeros(2, 4, classifier.tile, classifier.tile)
+    f = classifier.factor  # height and width: any multiple of the downsampling factor
+    example = torch.zeros(2, 4, 2 * f, 3 * f)
     exporter_log = logging.getLogger("torch.onnx")
     level = exporter_log.level
     exporter_log.setLevel(logging.ERROR)  # e.g. "torchvision is not installed", irrelevant here
@@ -94,7 +95,13 @@ def _export_unet(classifier) -> bytes:
                 dynamo=True,
                 input_names=["image"],
                 output_names=["logits"],
-                dynamic_shapes={"x": {0: torch.export.Dim("batch", min=1, max=4096)}},
+                dynamic_shapes={
+                    "x": {
+                        0: torch.export.Dim("batch", min=1, max=4096),
+                        2: f * torch.export.Dim("rows", min=1, max=4096),
+                        3: f * torch.export.Dim("cols", min=1, max=4096),
+                    }
+                },
                 opset_version=OPSET,
                 verbose=False,
             )

@@ -14,9 +14,23 @@ Both take the raw 4-band reflectance (standardised per band with statistics
 of the training scenes, stored in the model) tiled into square patches
 (``tile`` px, default 64), and output two-class logits. Training: Adam,
 learning rate 1e-3, cross-entropy, ``epochs`` (paper: 50), batch 16, non-overlapping
-training tiles with random flips; seeded, deterministic on CPU for a fixed thread count. Prediction runs
-overlapping tiles (stride ``tile/2``) and blends them with a smooth window,
-so there are no seams. Weights are saved with safetensors.
+training tiles with random flips; seeded, deterministic on CPU for a fixed thread count.
+Weights are saved with safetensors.
+
+Prediction (:meth:`_UNetClassifier.tiled`, shared by PyTorch and ONNX Runtime) has two
+stitchings:
+
+* ``"halo"`` (default): the networks are fully convolutional, so the image (padded at
+  the bottom/right to a multiple of the total downsampling factor ``2**levels``) is
+  predicted in one pass when it fits :data:`DEFAULT_MEMORY_MIB`, else in large windows
+  whose origins sit on multiples of that factor, each with a halo of at least the
+  network's receptive-field radius (``receptive_radius()`` of each network), keeping only the centre.
+  Normalisation uses the per-band statistics stored in the model (never per-tile
+  statistics), and the windows stop at the image's edge, so each pixel sees exactly
+  the context and the zero padding of a whole-image pass: the result equals one
+  whole-image pass to float32 rounding (tested).
+* ``"blend"``: the former stitching, ``tile`` px tiles at stride ``tile/2`` blended with
+  a smooth window (each pixel computed about four times).
 """
 
 from __future__ import annotations
@@ -35,6 +49,10 @@ from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier
 
 WEIGHTS_FILE = "model.safetensors"
+STITCHINGS = ("halo", "blend")
+DEFAULT_STITCH = "halo"
+DEFAULT_MEMORY_MIB = 1024.0
+"""Budget for one network pass's activations in ``"halo"`` stitching (estimated, MiB)."""
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
 _GLOBAL_RNG_LOCK = threading.Lock()
@@ -62,6 +80,16 @@ class UavsarUNet(nn.Module):
     """Classic compact U-Net (conv-conv-pool encoder, transpose-conv decoder, skips)."""
 
     levels = 3
+
+    @classmethod
+    def receptive_radius(cls) -> int:
+        """Input pixels on each side an output pixel can depend on (an upper bound).
+
+        At a level of stride ``j`` a 3x3 conv adds ``j``, a 2x2 stride-2 pool adds ``j``
+        and a 2x2 stride-2 transpose conv ``j/2`` (counted as ``j`` here): encoder and
+        decoder ``3 j`` per level, bottleneck ``2 * 2**levels``.
+        """
+        return 2 * (3 * (2**cls.levels - 1)) + 2 * 2**cls.levels
 
     def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
         super().__init__()
@@ -109,6 +137,19 @@ class XceptionUNet(nn.Module):
     """Xception-style U-Net of the Keras segmentation example (residual blocks, no long skips)."""
 
     levels = 4
+
+    @classmethod
+    def receptive_radius(cls) -> int:
+        """Input pixels on each side an output pixel can depend on (an upper bound).
+
+        Entry 3x3 stride-2 conv: 1. Each down block at stride ``j`` (2, 4, 8): two
+        depthwise 3x3 and a 3x3 max pool, ``3 j``. Each up block at stride ``j``
+        (16, 8, 4, 2): two 3x3 transpose convs ``2 j``, then nearest 2x upsampling
+        (``j/2``). Head 3x3 conv: 1. The 1x1 residual paths reach less far.
+        """
+        down = 3 * (2 + 4 + 8)
+        up = 2 * (16 + 8 + 4 + 2) + (8 + 4 + 2 + 1)
+        return 1 + down + up + 1
 
     def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
         super().__init__()
@@ -177,6 +218,17 @@ def tile_origins(length: int, tile: int, stride: int) -> list[int]:
 def _pad_to(image: np.ndarray, tile: int) -> np.ndarray:
     h, w = image.shape[1:]
     ph, pw = max(0, tile - h), max(0, tile - w)
+    if ph or pw:
+        mode = "reflect" if (h > ph and w > pw) else "edge"
+        image = np.pad(image, ((0, 0), (0, ph), (0, pw)), mode=mode)
+    return image
+
+
+def _pad_multiple(image: np.ndarray, multiple: int) -> np.ndarray:
+    """Pad ``(C, H, W)`` at the bottom/right to multiples of ``multiple`` (reflect, or
+    edge where the image is too small to reflect)."""
+    h, w = image.shape[1:]
+    ph, pw = -h % multiple, -w % multiple
     if ph or pw:
         mode = "reflect" if (h > ph and w > pw) else "edge"
         image = np.pad(image, ((0, 0), (0, ph), (0, pw)), mode=mode)
@@ -308,17 +360,136 @@ class _UNetClassifier(Classifier):
 
         return self.tiled(image, forward)
 
+    # -- stitching (shared by the PyTorch and ONNX runtimes) -------------------------
+    stitch: str = DEFAULT_STITCH
+    """``"halo"`` or ``"blend"``; an inference setting, not stored in the model file."""
+    memory_mib: float = DEFAULT_MEMORY_MIB
+    """Activation budget of one pass in ``"halo"`` stitching (MiB)."""
+
+    def set_stitching(
+        self, stitch: str = DEFAULT_STITCH, *, memory_mib: float = DEFAULT_MEMORY_MIB
+    ) -> _UNetClassifier:
+        """Choose how prediction covers the image (see the module docstring); returns self.
+
+        Parameters
+        ----------
+        stitch : {"halo", "blend"}
+            Large windows with a receptive-field halo (default), or the former
+            overlapping 64 px tiles blended with a smooth window.
+        memory_mib : float
+            Estimated activation memory allowed for one network pass (``"halo"``).
+
+        Returns
+        -------
+        _UNetClassifier
+            This classifier.
+
+        Examples
+        --------
+        >>> from dyntarget.perceive import make_classifier
+        >>> make_classifier("unet-uavsar").set_stitching("blend").stitch
+        'blend'
+        """
+        if stitch not in STITCHINGS:
+            raise InvalidParameterError(
+                f"stitch: expected one of {', '.join(STITCHINGS)}, got {stitch!r}"
+            )
+        if isinstance(memory_mib, bool) or not float(memory_mib) > 0 or not np.isfinite(memory_mib):
+            raise InvalidParameterError(
+                f"memory_mib: expected a positive number of MiB, got {memory_mib!r}"
+            )
+        self.stitch, self.memory_mib = stitch, float(memory_mib)
+        return self
+
+    @property
+    def factor(self) -> int:
+        """Total downsampling factor ``2**levels``: window origins sit on its multiples."""
+        return 2**self.network.levels
+
+    @property
+    def halo(self) -> int:
+        """Halo width (px): the receptive-field radius rounded up to a multiple of :attr:`factor`."""
+        f = self.factor
+        return -(-self.network.receptive_radius() // f) * f
+
+    def bytes_per_pixel(self) -> float:
+        """Activation bytes per input pixel of one pass (sum over all layer outputs: an
+        upper bound on the peak, since a pass frees most of them as it goes)."""
+        cached = getattr(self, "_bytes_per_pixel", None)
+        if cached is None:
+            total = 0
+            hooks = []
+
+            def count(_module, _inputs, output) -> None:
+                nonlocal total
+                total += output.numel() * output.element_size()
+
+            for mod in self.model.modules():
+                if not list(mod.children()):
+                    hooks.append(mod.register_forward_hook(count))
+            try:
+                with torch.inference_mode():
+                    self.model.eval()(torch.zeros(1, 4, self.tile, self.tile))
+            finally:
+                for hk in hooks:
+                    hk.remove()
+            cached = self._bytes_per_pixel = total / self.tile**2
+        return cached
+
+    def windows(self, shape: tuple[int, int]) -> list[tuple[slice, slice, slice, slice]]:
+        """``"halo"`` windows over a padded image of ``shape`` (multiples of :attr:`factor`).
+
+        Each entry is ``(rows_in, cols_in, rows_keep, cols_keep)``: the input window and,
+        relative to it, the centre whose prediction is kept. The kept centres partition
+        the image; a window extends ``halo`` px beyond its centre except at the edge.
+        """
+        hp, wp = shape
+        f, halo = self.factor, self.halo
+        side = int(np.sqrt(self.memory_mib * 2**20 / self.bytes_per_pixel()))
+        if hp * wp * self.bytes_per_pixel() <= self.memory_mib * 2**20:
+            return [(slice(0, hp), slice(0, wp), slice(0, hp), slice(0, wp))]
+        core = max((side - 2 * halo) // f * f, 2 * f)
+
+        def cuts(length: int) -> list[tuple[int, int]]:
+            n = -(-length // core)
+            step = -(-length // (n * f)) * f  # equal parts, on multiples of f
+            return [(a, min(a + step, length)) for a in range(0, length, step)]
+
+        out = []
+        for r0, r1 in cuts(hp):
+            for c0, c1 in cuts(wp):
+                a, b = max(r0 - halo, 0), min(r1 + halo, hp)
+                c, d = max(c0 - halo, 0), min(c1 + halo, wp)
+                out.append((slice(a, b), slice(c, d), slice(r0 - a, r1 - a), slice(c0 - c, c1 - c)))
+        return out
+
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Tiles the stitching runs (overlapping, stride ``tile/2``)."""
-        hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
-        stride = self.tile // 2
-        return float(
-            len(tile_origins(hp, self.tile, stride)) * len(tile_origins(wp, self.tile, stride))
-        )
+        """Input pixels the network runs over, in units of ``tile``² tiles."""
+        if self.stitch == "blend":
+            hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
+            stride = self.tile // 2
+            return float(
+                len(tile_origins(hp, self.tile, stride)) * len(tile_origins(wp, self.tile, stride))
+            )
+        padded = _pad_multiple(np.empty((1, *shape), np.uint8), self.factor).shape[1:]
+        px = sum((r.stop - r.start) * (c.stop - c.start) for r, c, _, _ in self.windows(padded))
+        return px / self.tile**2
 
     def tiled(self, image: np.ndarray, forward) -> np.ndarray:
-        """Stitch ``forward`` (a ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume
-        probability) over overlapping tiles; shared by the PyTorch and ONNX runtimes."""
+        """Plume probability of ``image`` from ``forward`` (a ``(n, 4, h, w)`` batch ->
+        ``(n, h, w)`` plume probability), stitched as :attr:`stitch` says."""
+        if self.stitch == "blend":
+            return self._blend(image, forward)
+        h, w = image.shape[1:]
+        img = _pad_multiple(image, self.factor)
+        out = np.empty(img.shape[1:], np.float32)
+        for rows, cols, keep_r, keep_c in self.windows(img.shape[1:]):
+            prob = forward(np.ascontiguousarray(img[None, :, rows, cols]))[0]
+            out[rows, cols][keep_r, keep_c] = prob[keep_r, keep_c]
+        return out[:h, :w]
+
+    def _blend(self, image: np.ndarray, forward) -> np.ndarray:
+        """Overlapping ``tile`` px tiles at stride ``tile/2``, blended with a smooth window."""
         h, w = image.shape[1:]
         img = _pad_to(image, self.tile)
         hp, wp = img.shape[1:]
