@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.evaluate.crossval import kfold_indices
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene_dir
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import load_classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import plan
 from dyntarget.synth import generate_scene
 

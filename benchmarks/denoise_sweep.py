@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.evaluate.crossval import (
     DEFAULT_FACTOR,
     kfold_indices,
@@ -24,7 +25,6 @@ from dyntarget.evaluate.crossval import (
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.io import read_scene_dir
 from dyntarget.perceive import CLASSIFIERS
-from dyntarget.perceive.denoise import denoise
 
 ITERATIONS = (0, 1, 2, 3)
 FRACTIONS = (0.0, 0.002, 0.01, 0.03)

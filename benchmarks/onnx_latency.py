@@ -42,7 +42,7 @@ def main() -> None:
         for name in CLASSIFIERS.available():
             if name == "band-threshold":
                 continue
-            kw = {"epochs": 2} if name.startswith("unet-") else {}
+            kw = {"epochs": 2} if CLASSIFIERS.get(name).kind == "unet" else {}
             native = make_classifier(name, **kw).fit(train)
             native.save(Path(tmp) / name)
             export_onnx(native, Path(tmp) / name)

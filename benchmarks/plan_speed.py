@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.perceive import make_classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import PLANNERS, plan
 from dyntarget.synth import generate_scene
 

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from dyntarget.denoise import close, denoise
 from dyntarget.evaluate.metrics import Confusion
-from dyntarget.perceive.denoise import close, denoise
 from dyntarget.plan import PLANNERS, PlanConfig, plan
 
 masks = st.integers(4, 40).flatmap(

@@ -34,3 +34,11 @@ class UnknownNameError(DynTargetError, LookupError):
 
 class ModelFileError(DataFileError):
     """A model file is foreign, tampered with, or does not match its metadata."""
+
+
+class ExportError(ModelFileError):
+    """An exported model (ONNX) does not reproduce the native model's output."""
+
+
+class MissingExtraError(DynTargetError, ImportError):
+    """An optional dependency is not installed; the message names the extra to install."""

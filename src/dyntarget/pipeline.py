@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from shapely.geometry import Polygon
 
+from dyntarget import denoise as denoising
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.perceive import denoise as denoising
+from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
 from dyntarget.plan import PlanConfig, Trajectory, plan
 from dyntarget.scene import check_image
@@ -18,7 +19,7 @@ from dyntarget.scene import check_image
 
 @dataclass(frozen=True)
 class DenoiseConfig:
-    """Settings of Algorithm 2 (see :func:`dyntarget.perceive.denoise.denoise`)."""
+    """Settings of Algorithm 2 (see :func:`dyntarget.denoise.denoise`)."""
 
     iterations: int = denoising.DEFAULT_ITERATIONS
     min_area_fraction: float = denoising.DEFAULT_MIN_AREA_FRACTION
@@ -99,7 +100,7 @@ def plan_scene(
         probability = classifier.predict_proba(image)
         raw = probability >= config.threshold
     else:
-        raw = denoising.check_mask(mask)
+        raw = check_mask(mask)
         if raw.shape != image.shape[1:]:
             raise InvalidSceneError(
                 f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
@@ -119,7 +120,7 @@ def plan_scene(
         )
         clean, polygons = result.mask, result.polygons
     else:
-        clean, polygons = raw, denoising.mask_to_polygons(raw)
+        clean, polygons = raw, mask_to_polygons(raw)
     timings["denoise"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     trajectory = plan(planner, clean, polygons, config.plan)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dyntarget.cli import main
-from dyntarget.perceive.denoise import denoise
+from dyntarget.denoise import denoise
 from dyntarget.plan import BASELINES, PLANNERS, plan
 from helpers import shared_data
 

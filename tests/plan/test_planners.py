@@ -10,7 +10,8 @@ from affine import Affine
 from shapely.geometry import Point, Polygon
 
 from dyntarget import InvalidParameterError, UnknownNameError
-from dyntarget.perceive.denoise import denoise, mask_to_polygons
+from dyntarget.denoise import denoise
+from dyntarget.masks import mask_to_polygons
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, Trajectory, plan
 from dyntarget.plan.geometry import chord, major_axis, sample_polyline
 
@@ -252,7 +253,7 @@ def _shapely_chord(poly, origin, direction):
 
 
 def test_vectorised_chords_equal_shapely_intersection():
-    from dyntarget.perceive.denoise import denoise
+    from dyntarget.denoise import denoise
     from dyntarget.plan.geometry import chords
     from dyntarget.synth import generate_scene
 
@@ -272,7 +273,7 @@ def test_vectorised_chords_equal_shapely_intersection():
 def test_ring_interpolation_equals_shapely():
     import shapely
 
-    from dyntarget.perceive.denoise import denoise
+    from dyntarget.denoise import denoise
     from dyntarget.plan.geometry import interpolate_ring
     from dyntarget.synth import generate_scene
 

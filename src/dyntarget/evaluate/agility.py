@@ -4,10 +4,10 @@ For each fold a classifier is trained (or loaded from ``models_dir``, so the
 models of ``dyntarget reproduce`` are reused); for every held-out scene its
 plume probability is computed once, denoised, and every geometric planner
 plans on it. Each plan is then timed under each agility preset
-(:func:`dyntarget.plan.kinematics.schedule`): first in the planner's own order
+(:func:`dyntarget.schedule.schedule`): first in the planner's own order
 (the fraction of the paper's points that would really be observed), then the
 better of that and an earliest-deadline-first reordering
-(:func:`~dyntarget.plan.kinematics.make_feasible`), which is what is flown and
+(:func:`~dyntarget.schedule.make_feasible`), which is what is flown and
 scored on the high-resolution truth. ``utility-max`` plans directly under each
 preset with the same visibility windows; with unlimited agility, where time
 costs nothing, its pointing budget is the largest number of pointings any
@@ -26,17 +26,17 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, data_signature, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, plan
-from dyntarget.plan.kinematics import AGILITY, Geometry, make_feasible, schedule
 from dyntarget.plan.utility import OBJECTIVES, utility_max
 from dyntarget.scene import Scene
+from dyntarget.schedule import AGILITY, OrbitGeometry, make_feasible, schedule
 
 AGILITY_COLUMNS = [
     "Agility",
@@ -83,7 +83,7 @@ class AgilityConfig:
             raise InvalidParameterError(
                 f"objective: expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}"
             )
-        Geometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
+        OrbitGeometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
 
 
 def _agility_task(
@@ -101,7 +101,7 @@ def _agility_task(
     valid = w.valid_mask
     proba = np.where(valid, proba, 0.0).astype(np.float32)
     cleaned = denoise(proba >= 0.5)
-    geometry = Geometry(
+    geometry = OrbitGeometry(
         altitude_m=config.altitude_m,
         look_ahead_m=config.look_ahead_m,
         wfov_gsd_m=scene.gsd * config.factor,
@@ -191,7 +191,7 @@ def evaluate_agility(
         "rows": agility_rows(records, list(config.presets), [*config.planners, "utility-max"]),
         "records": records,
         "config": asdict(config),
-        "ground_speed_m_s": Geometry(altitude_m=config.altitude_m).ground_speed,
+        "ground_speed_m_s": OrbitGeometry(altitude_m=config.altitude_m).ground_speed,
     }
 
 

@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import PLANNERS, plan
 from dyntarget.synth import generate_scene
 
@@ -140,7 +140,7 @@ def run_bench(
     train = [generate_scene(1, i, size=256)[0] for i in range(4)]
     models = {}
     for name in classifiers:
-        kw = {"epochs": epochs} if name.startswith("unet-") else {}
+        kw = {"epochs": epochs} if CLASSIFIERS.get(name).kind == "unet" else {}
         models[name] = make_classifier(name, **kw).fit(train)
     records: list[dict[str, Any]] = []
     bar = tqdm(total=len(sizes) * len(classifiers), desc="bench", disable=not progress)
@@ -182,7 +182,7 @@ def run_bench(
         "repeats": repeats,
         "sizes": list(sizes),
         "records": records,
-        "bounds": lower_bounds(sizes, {n: m for n, m in models.items() if n.startswith("unet-")}),
+        "bounds": lower_bounds(sizes, {n: m for n, m in models.items() if m.kind == "unet"}),
     }
 
 

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
@@ -34,7 +35,6 @@ from dyntarget.perceive import (
     make_classifier,
     read_metadata,
 )
-from dyntarget.perceive.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.scene import Scene
 
 DEFAULT_FACTOR = 4
@@ -82,7 +82,7 @@ def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
 
 def classifier_kwargs(name: str, *, seed: int, epochs: int) -> dict[str, Any]:
     kwargs: dict[str, Any] = {"seed": seed}
-    if name.startswith("unet-"):
+    if CLASSIFIERS.get(name).kind == "unet":
         kwargs["epochs"] = epochs
     return kwargs
 

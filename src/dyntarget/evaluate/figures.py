@@ -1,19 +1,47 @@
-"""Figures (matplotlib, Agg backend, PNG)."""
+"""Figures (matplotlib, PNG).
+
+matplotlib is imported when a figure is drawn, never at import; figures are
+:class:`matplotlib.figure.Figure` objects rendered straight to PNG, so no
+pyplot backend is selected or switched.
+"""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from dyntarget.io.atomic import atomic_path
 from dyntarget.scene import Scene
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def subplots(nrows: int, ncols: int, *, figsize: tuple[float, float], **kwargs: Any):
+    """A new figure and its axes (:meth:`matplotlib.figure.Figure.subplots`), without pyplot.
+
+    Parameters
+    ----------
+    nrows, ncols : int
+        Grid of axes.
+    figsize : tuple of float
+        Inches.
+    **kwargs
+        Passed to :meth:`~matplotlib.figure.Figure.subplots` (e.g. ``squeeze=False``).
+
+    Returns
+    -------
+    tuple
+        ``(figure, axes)``.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarray:
@@ -25,11 +53,10 @@ def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarra
     return np.clip((stack - lo) / (hi - lo), 0.0, 1.0)
 
 
-def save(fig: plt.Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
-    """Save a figure atomically as PNG and close it."""
+def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
+    """Save a figure atomically as PNG."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
-    plt.close(fig)
     return Path(path)
 
 
@@ -38,7 +65,7 @@ def scenes_figure(
 ) -> Path:
     """Rows of scenes: true colour, false colour (NIR, R, G), label."""
     scenes = list(scenes)[:max_scenes]
-    fig, axes = plt.subplots(len(scenes), 3, figsize=(9, 3 * len(scenes)), squeeze=False)
+    fig, axes = subplots(len(scenes), 3, figsize=(9, 3 * len(scenes)), squeeze=False)
     for row, scene in zip(axes, scenes, strict=True):
         row[0].imshow(rgb(scene.image))
         row[0].set_title(f"{scene.id}: RGB", fontsize=9)
@@ -98,7 +125,7 @@ def trajectories_figure(
     """The paper's Figure 3: one panel per trajectory, drawn over the RGB image (and mask outline)."""
     trajectories = list(trajectories)
     n = max(len(trajectories), 1)
-    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
+    fig, axes = subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
     for ax, traj in zip(axes[0], trajectories, strict=False):
         ax.imshow(rgb(image))
         if mask is not None and mask.any():
@@ -120,7 +147,7 @@ def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110)
     ``rows`` is a sequence of ``(title, image, probability, denoised_mask, truth)``.
     """
     rows = list(rows)
-    fig, axes = plt.subplots(len(rows), 3, figsize=(9, 3 * len(rows)), squeeze=False)
+    fig, axes = subplots(len(rows), 3, figsize=(9, 3 * len(rows)), squeeze=False)
     for ax_row, (title, image, proba, clean, truth) in zip(axes, rows, strict=True):
         ax_row[0].imshow(rgb(image))
         ax_row[0].set_title(title, fontsize=9)
@@ -145,9 +172,11 @@ def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 11
     base = [r for r in table2_rows if r["planner"] in BASELINES]
     planners = list(dict.fromkeys(r["planner"] for r in look))
     classifiers = list(dict.fromkeys(r["classifier"] for r in look))
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    fig, axes = subplots(1, 3, figsize=(15, 4.2))
     width = 0.8 / max(len(classifiers), 1)
-    cmap = plt.get_cmap("tab10")
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
     for ax, metric in zip(axes, metrics, strict=True):
         for j, cname in enumerate(classifiers):
             vals = [

@@ -16,11 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.evaluate.crossval import data_signature
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
-from dyntarget.perceive.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.plan import PAPER_PLANNERS, PlanConfig, plan
 from dyntarget.scene import Scene
 

@@ -14,13 +14,13 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
+from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import classifier_kwargs
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.perceive.denoise import denoise
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, plan
 from dyntarget.scene import Scene
 

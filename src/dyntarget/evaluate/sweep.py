@@ -28,7 +28,7 @@ from typing import Any
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.evaluate.distributed import Interrupted, check_scheduler, run_tasks, task_key
 from dyntarget.io.atomic import write_text
-from dyntarget.plan.kinematics import AGILITY, get_agility
+from dyntarget.schedule import AGILITY, get_agility
 
 GRID_PARAMETERS: dict[str, type] = {
     "step_fraction": float,
@@ -105,7 +105,7 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import DenoiseConfig, PipelineConfig, plan_scene
     from dyntarget.plan import PlanConfig
-    from dyntarget.plan.kinematics import Geometry, make_feasible
+    from dyntarget.schedule import OrbitGeometry, make_feasible
 
     p = task.params
     scene = read_scene(task.scene_path)
@@ -127,12 +127,12 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
             raise InvalidSceneError(
                 f"{task.scene_path}: no ground sampling distance; the agility presets need one"
             )
-        geometry = Geometry(wfov_gsd_m=scene.gsd * p["factor"])
+        geometry = OrbitGeometry(wfov_gsd_m=scene.gsd * p["factor"])
     rows = []
     for planner in planners:
         res = plan_scene(wfov.image, None, planner, mask=mask, valid=wfov.valid, config=config)
         flown, feasible = res.trajectory, 1.0
-        if geometry is not None:  # fly what the kinematics allow (see dyntarget.plan.kinematics)
+        if geometry is not None:  # fly what the kinematics allow (see dyntarget.schedule)
             sched = make_feasible(res.trajectory, wfov.shape, geometry, p["agility"])
             flown, feasible = sched.trajectory, sched.fraction_feasible
         m = observe(flown, maps, factor=p["factor"])
@@ -239,20 +239,16 @@ def sweep(
 
 def summary_figure(table: Path, path: Path) -> Path | None:
     """Mean ratio plume per planner against each swept parameter (one panel per parameter)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import numpy as np
 
-    from dyntarget.evaluate.figures import PATH_COLOURS, save
+    from dyntarget.evaluate.figures import PATH_COLOURS, save, subplots
 
     with open(table, encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
     swept = [p for p in GRID_PARAMETERS if len({r[p] for r in rows}) > 1]
     if not swept:
         return None
-    fig, axes = plt.subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
+    fig, axes = subplots(1, len(swept), figsize=(4.5 * len(swept), 3.6), squeeze=False)
     for ax, param in zip(axes[0], swept, strict=True):
         if GRID_PARAMETERS[param] is str:  # categorical (agility presets), in preset order
             present = {r[param] for r in rows}

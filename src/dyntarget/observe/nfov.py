@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.plan.trajectory import Trajectory
 from dyntarget.scene import Scene, block_mean, check_factor
+from dyntarget.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
-"""Perception: plume classifiers (registry ``CLASSIFIERS``) and denoising."""
+"""Perception: plume classifiers (registry ``CLASSIFIERS``, lazy: a classifier's module,
+and torch or scikit-learn with it, is imported when it is first used)."""
 
-from dyntarget.perceive import pixel, threshold, unet  # noqa: F401  (register the classifiers)
 from dyntarget.perceive.base import (
     CLASSIFIERS,
     Classifier,

@@ -42,6 +42,8 @@ class Classifier(ABC):
 
     name: ClassVar[str]
     summary: ClassVar[str]
+    kind: ClassVar[str]
+    """Family: ``"threshold"``, ``"pixel"`` (scikit-learn) or ``"unet"`` (PyTorch)."""
 
     def __init__(self, *, seed: int = 0) -> None:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
@@ -182,6 +184,17 @@ CLASSIFIERS: Registry[type[Classifier]] = Registry(
         "unet-uavsar",
     ),
 )
+for _name, _target in (  # lazy: the module is imported when the classifier is first used
+    ("band-threshold", "dyntarget.perceive.threshold:BandThreshold"),
+    ("naive-bayes", "dyntarget.perceive.pixel:NaiveBayes"),
+    ("logistic-regression", "dyntarget.perceive.pixel:LogisticRegressionClassifier"),
+    ("decision-tree", "dyntarget.perceive.pixel:DecisionTree"),
+    ("random-forest", "dyntarget.perceive.pixel:RandomForest"),
+    ("mlp", "dyntarget.perceive.pixel:MLP"),
+    ("unet-xception", "dyntarget.perceive.unet:XceptionUNetClassifier"),
+    ("unet-uavsar", "dyntarget.perceive.unet:UavsarUNetClassifier"),
+):
+    CLASSIFIERS.register_lazy(_name, _target)
 
 
 def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -247,3 +260,26 @@ def sample_pixels(
     idx = np.concatenate([rng.choice(pos, n, replace=False), rng.choice(neg, n, replace=False)])
     idx.sort()
     return feats[idx].astype(np.float32), labels[idx].astype(np.int64)
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity on Linux, else ``os.cpu_count()``).
+
+    Every inference path sizes its one thread pool with this: PyTorch's intra-op
+    threads, onnxruntime's intra-op threads and the pixel classifiers' chunk pool (whose
+    chunks then run single-threaded inside), so no two pools multiply.
+
+    Returns
+    -------
+    int
+        At least 1.
+
+    Examples
+    --------
+    >>> available_cores() >= 1
+    True
+    """
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1

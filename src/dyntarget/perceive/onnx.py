@@ -2,18 +2,21 @@
 
 * The two U-Nets are exported with PyTorch's ONNX exporter (``torch.onnx.export``,
   opset 18, batch dimension dynamic); prediction stitches the same overlapping
-  tiles as the PyTorch path (:meth:`~dyntarget.perceive.unet._UNetClassifier.tiled`).
+  tiles as the PyTorch path (:func:`dyntarget.perceive.unet.tiled`).
 * The five scikit-learn pixel classifiers are converted with skl2onnx
   (probabilities as a plain ``(n, 2)`` tensor, no ZipMap).
 * ``band-threshold`` is not exported: it is three comparisons per pixel in numpy.
 
 :func:`export_onnx` writes ``model.onnx`` into the model directory beside the
 native weights; :func:`load_onnx` returns an :class:`OnnxClassifier` with the
-same ``predict_proba`` / ``predict`` as the native classifier. Outputs agree
-with the native ones to :data:`TOLERANCE` (tested): onnxruntime computes in
-float32 where scikit-learn uses float64, and fuses convolutions differently.
+same ``predict_proba`` / ``predict`` as the native classifier, built from the
+model directory alone (``metadata.json`` beside ``model.onnx``): neither torch
+nor scikit-learn nor skops is imported. Outputs agree with the native ones to
+:data:`TOLERANCE` (tested): onnxruntime computes in float32 where scikit-learn
+uses float64, and fuses convolutions differently.
 
-Needs the optional dependencies: ``pip install "dyntarget[onnx]"``.
+Inference needs ``pip install "dyntarget[onboard]"`` (onnxruntime); export
+needs ``dyntarget[full]``.
 """
 
 from __future__ import annotations
@@ -27,8 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from dyntarget.errors import InvalidParameterError, ModelFileError
-from dyntarget.perceive.base import Classifier, pixels
+from dyntarget.errors import InvalidParameterError, MissingExtraError, ModelFileError
+from dyntarget.perceive.base import (
+    CLASSIFIERS,
+    Classifier,
+    available_cores,
+    pixels,
+    read_metadata,
+)
 from dyntarget.scene import check_image
 
 ONNX_FILE = "model.onnx"
@@ -37,23 +46,49 @@ TOLERANCE = 1e-4
 OPSET = 18
 
 
-def _require(module: str):
+def _require(module: str, extra: str = "full"):
     import importlib
 
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise InvalidParameterError(
-            f"ONNX export and inference need {module}: pip install 'dyntarget[onnx]'"
+        raise MissingExtraError(
+            f"{module} is not installed; ONNX {'inference' if extra == 'onboard' else 'export'} "
+            f"needs it: pip install 'dyntarget[{extra}]'"
         ) from None
 
 
 def supports_onnx(classifier: Classifier) -> bool:
-    return classifier.name != "band-threshold"
+    """Whether :func:`export_onnx` exports this classifier (all but the band threshold).
+
+    Parameters
+    ----------
+    classifier : Classifier
+        Any classifier.
+
+    Returns
+    -------
+    bool
+        ``True`` for the scikit-learn and U-Net classifiers.
+    """
+    return classifier.kind != "threshold"
 
 
 def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Path:
-    """Write ``model_dir/model.onnx`` for a fitted classifier; returns its path."""
+    """Write ``model_dir/model.onnx`` for a fitted classifier.
+
+    Parameters
+    ----------
+    classifier : Classifier
+        A fitted scikit-learn or U-Net classifier.
+    model_dir : path
+        Its model directory (``model.onnx`` goes beside ``metadata.json``).
+
+    Returns
+    -------
+    pathlib.Path
+        The written ``model.onnx``.
+    """
     if not classifier.fitted:
         raise InvalidParameterError(f"{classifier.name}: fit or load the classifier before export")
     if not supports_onnx(classifier):
@@ -64,7 +99,7 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
     from dyntarget.io.atomic import atomic_path
 
     path = Path(model_dir) / ONNX_FILE
-    if classifier.name.startswith("unet-"):
+    if classifier.kind == "unet":
         data = _export_unet(classifier)
     else:
         data = _export_sklearn(classifier)
@@ -128,24 +163,80 @@ def _export_sklearn(classifier) -> bytes:
 
 
 class OnnxClassifier:
-    """A native classifier's ONNX twin: the same ``predict_proba`` and ``predict``."""
+    """A native classifier's ONNX twin: the same ``predict_proba`` and ``predict``.
 
-    def __init__(self, native: Classifier, path: Path) -> None:
-        ort = _require("onnxruntime")
+    Parameters
+    ----------
+    path : pathlib.Path
+        The ``model.onnx`` file.
+    name : str
+        The classifier's registered name.
+    kind : str
+        ``"pixel"`` (one row of four band values per pixel) or ``"unet"`` (tiles).
+    tile : int
+        U-Net tile size in pixels (ignored for pixel classifiers).
+    width : int
+        U-Net width (sizes the ``"halo"`` windows' memory estimate).
+    stitch : {"halo", "blend"}
+        U-Net stitching (see :mod:`dyntarget.perceive.unet`). A model exported before
+        height and width were dynamic takes only ``tile`` px tiles: ``"blend"`` is used.
+    threads : int or None
+        onnxruntime intra-op threads (default: the cores this process may use).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        name: str,
+        kind: str,
+        tile: int = 64,
+        width: int = 16,
+        stitch: str = "halo",
+        threads: int | None = None,
+    ) -> None:
+        ort = _require("onnxruntime", "onboard")
         options = ort.SessionOptions()
         options.log_severity_level = 3
+        # one pool of intra-op threads, one per core; no inter-op pool on top of it
+        options.intra_op_num_threads = threads or available_cores()
+        options.inter_op_num_threads = 1
+        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
         try:
             self.session = ort.InferenceSession(
                 str(path), sess_options=options, providers=["CPUExecutionProvider"]
             )
         except Exception as exc:  # onnxruntime raises its own types on a corrupt file
             raise ModelFileError(f"{path}: not a readable ONNX model ({exc})") from None
-        self.native, self.name, self.path = native, native.name, path
+        self.name, self.kind, self.tile, self.path = name, kind, int(tile), path
         self.input = self.session.get_inputs()[0].name
+        self.stitching = None
+        if kind == "unet":
+            from dyntarget.perceive.unet import Stitching
+
+            cls = CLASSIFIERS.get(name)
+            dims = self.session.get_inputs()[0].shape[2:]
+            if all(isinstance(d, int) for d in dims):
+                stitch = "blend"
+            self.stitching = Stitching.for_architecture(
+                cls.architecture, levels=cls.levels, width=width, tile=tile, stitch=stitch
+            )
 
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
+        """Plume probability ``float32 (H, W)`` in 0..1 for a ``(4, H, W)`` image.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance (R, G, B, NIR).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(H, W)`` float32 probability.
+        """
         image = check_image(image)
-        if self.name.startswith("unet-"):
+        if self.kind == "unet":
 
             def forward(batch: np.ndarray) -> np.ndarray:
                 logits = self.session.run(None, {self.input: batch})[0]
@@ -153,7 +244,7 @@ class OnnxClassifier:
                 e = np.exp(z)
                 return (e[:, 1] / e.sum(axis=1)).astype(np.float32)
 
-            proba = self.native.tiled(image, forward)
+            proba = self.stitching.run(image, forward)
         else:
             h, w = image.shape[1:]
             x = np.ascontiguousarray(pixels(image), dtype=np.float32)
@@ -164,6 +255,20 @@ class OnnxClassifier:
         return np.clip(proba, 0.0, 1.0, out=proba)
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+        """Plume mask ``predict_proba(image) >= threshold``.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance.
+        threshold : float
+            Probability threshold in 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(H, W)`` bool mask.
+        """
         if not 0.0 <= float(threshold) <= 1.0:
             raise InvalidParameterError(
                 f"threshold: expected a probability in 0..1, got {threshold!r}"
@@ -172,11 +277,68 @@ class OnnxClassifier:
 
 
 def load_onnx(model_dir: str | os.PathLike[str]) -> OnnxClassifier:
-    """The ONNX twin of the model in ``model_dir`` (exported with :func:`export_onnx`)."""
-    from dyntarget.perceive import load_classifier
+    """The ONNX twin of the model in ``model_dir`` (exported with :func:`export_onnx`).
 
-    native = load_classifier(model_dir)
+    Only ``metadata.json`` and ``model.onnx`` are read; the native weights, torch,
+    scikit-learn and skops are not touched.
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory with ``model.onnx``.
+
+    Returns
+    -------
+    OnnxClassifier
+        Ready to predict.
+    """
+    meta = read_metadata(model_dir)
+    name = meta["classifier"]
+    kind = CLASSIFIERS.get(name).kind
+    if kind not in ("pixel", "unet"):
+        raise ModelFileError(f"{model_dir}: {name} models have no ONNX export")
     path = Path(model_dir) / ONNX_FILE
     if not path.is_file():
         raise ModelFileError(f"{model_dir}: no {ONNX_FILE}; run 'dyntarget export-onnx' first")
-    return OnnxClassifier(native, path)
+    tile = meta["config"].get("tile", 64)
+    if kind == "unet" and (isinstance(tile, bool) or not isinstance(tile, int) or tile < 1):
+        raise ModelFileError(f"{model_dir}: metadata config tile {tile!r} is not a tile size")
+    width = meta["config"].get("width", 16)
+    if kind == "unet" and (isinstance(width, bool) or not isinstance(width, int) or width < 1):
+        raise ModelFileError(f"{model_dir}: metadata config width {width!r} is not a width")
+    return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width)
+
+
+def export_checked(
+    native: Classifier, model_dir: str | os.PathLike[str], check_image: np.ndarray
+) -> tuple[Path, float]:
+    """Export ``native`` to ONNX and check the export on ``check_image``.
+
+    Parameters
+    ----------
+    native : Classifier
+        The fitted classifier loaded from ``model_dir``.
+    model_dir : path
+        Its model directory.
+    check_image : numpy.ndarray
+        ``(4, H, W)`` image both runtimes classify.
+
+    Returns
+    -------
+    tuple of (pathlib.Path, float)
+        ``model.onnx`` and the largest absolute difference in plume probability.
+        A difference above :data:`TOLERANCE` removes the export and raises
+        :class:`~dyntarget.errors.ExportError`.
+    """
+    from dyntarget.errors import ExportError
+
+    path = export_onnx(native, model_dir)
+    twin = load_onnx(model_dir)
+    diff = float(np.abs(twin.predict_proba(check_image) - native.predict_proba(check_image)).max())
+    if not diff <= TOLERANCE:
+        path.unlink()
+        raise ExportError(
+            f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
+            f"(> {TOLERANCE:g}); export removed"
+        )
+    return path, diff

@@ -22,45 +22,32 @@ mlp                    StandardScaler -> MLPClassifier((32, 32), early_stopping,
 from __future__ import annotations
 
 import io
-import os
 import re
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import skops.io as sio
-from sklearn.base import BaseEstimator
-from sklearn.ensemble import RandomForestClassifier
-from sklearn.linear_model import LogisticRegression
-from sklearn.naive_bayes import GaussianNB
-from sklearn.neural_network import MLPClassifier
-from sklearn.pipeline import make_pipeline
-from sklearn.preprocessing import StandardScaler
-from sklearn.tree import DecisionTreeClassifier
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import (
     CLASSIFIERS,
     DEFAULT_MAX_PIXELS_PER_CLASS,
     Classifier,
+    available_cores,
     pixels,
     sample_pixels,
 )
+
+if TYPE_CHECKING:
+    from sklearn.base import BaseEstimator
 
 MODEL_FILE = "model.skops"
 PREDICT_CHUNK = 1 << 18
 """Pixels per ``predict_proba`` call. Chunks are fixed, so the result does not depend
 on the number of threads; scikit-learn's tree and numpy code release the GIL, so
 chunks run in parallel on a thread pool (one thread per available core)."""
-
-
-def _threads() -> int:
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
 
 
 TRUSTED_TYPES = [
@@ -121,7 +108,13 @@ def _canonical_skops(archive: bytes) -> bytes:
 
 
 class PixelClassifier(Classifier):
-    """A scikit-learn estimator over the four band values of each pixel."""
+    """A scikit-learn estimator over the four band values of each pixel.
+
+    scikit-learn and skops are imported only when an estimator is built, trained,
+    saved or loaded natively.
+    """
+
+    kind = "pixel"
 
     def __init__(
         self, *, seed: int = 0, max_pixels_per_class: int = DEFAULT_MAX_PIXELS_PER_CLASS
@@ -164,14 +157,18 @@ class PixelClassifier(Classifier):
         if len(starts) == 1:
             chunk(0)
         else:
-            with ThreadPoolExecutor(max_workers=_threads()) as pool:
+            with ThreadPoolExecutor(max_workers=available_cores()) as pool:
                 list(pool.map(chunk, starts))
         return out.reshape(h, w)
 
     def _save_weights(self, directory: Path) -> None:
+        import skops.io as sio
+
         (directory / MODEL_FILE).write_bytes(_canonical_skops(sio.dumps(self.estimator)))
 
     def _load_weights(self, directory: Path) -> None:
+        import skops.io as sio
+
         path = directory / MODEL_FILE
         if not path.is_file():
             raise ModelFileError(f"{directory}: no {MODEL_FILE}")
@@ -200,6 +197,8 @@ class NaiveBayes(PixelClassifier):
     summary = "Gaussian naive Bayes on the 4 band values (bands assumed independent)"
 
     def make_estimator(self) -> BaseEstimator:
+        from sklearn.naive_bayes import GaussianNB
+
         return GaussianNB()
 
 
@@ -209,6 +208,10 @@ class LogisticRegressionClassifier(PixelClassifier):
     summary = "standardised logistic regression on the 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        from sklearn.linear_model import LogisticRegression
+        from sklearn.pipeline import make_pipeline
+        from sklearn.preprocessing import StandardScaler
+
         return make_pipeline(StandardScaler(), LogisticRegression(C=1.0, max_iter=1000))
 
 
@@ -218,6 +221,8 @@ class DecisionTree(PixelClassifier):
     summary = "decision tree (depth <= 12) on the 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        from sklearn.tree import DecisionTreeClassifier
+
         return DecisionTreeClassifier(max_depth=12, min_samples_leaf=20, random_state=self.seed)
 
 
@@ -227,6 +232,8 @@ class RandomForest(PixelClassifier):
     summary = "random forest (50 trees, depth <= 14) on the 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        from sklearn.ensemble import RandomForestClassifier
+
         return RandomForestClassifier(
             n_estimators=50, max_depth=14, min_samples_leaf=5, random_state=self.seed, n_jobs=1
         )
@@ -238,6 +245,10 @@ class MLP(PixelClassifier):
     summary = "multilayer perceptron (32, 32) on the standardised 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        from sklearn.neural_network import MLPClassifier
+        from sklearn.pipeline import make_pipeline
+        from sklearn.preprocessing import StandardScaler
+
         return make_pipeline(
             StandardScaler(),
             MLPClassifier(

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.special import expit
 
 from dyntarget.errors import ModelFileError
 from dyntarget.perceive.base import (
@@ -47,6 +46,7 @@ def hot_features(image_or_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @CLASSIFIERS.register("band-threshold")
 class BandThreshold(Classifier):
     name = "band-threshold"
+    kind = "threshold"
     summary = "HOT haze test (Zhang et al. 2002) + NIR/visible ratio test; thresholds fitted on training scenes"
 
     def __init__(self, *, seed: int = 0, softness: float = 0.01) -> None:
@@ -79,6 +79,8 @@ class BandThreshold(Classifier):
         _, self.hot_threshold, self.ratio_threshold = best
 
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
+        from scipy.special import expit
+
         hot, ratio = hot_features(image)
         k = 1.0 / self.softness
         p_hot = expit(k * (hot - self.hot_threshold))

@@ -22,28 +22,28 @@ stitchings:
 
 * ``"halo"`` (default): the networks are fully convolutional, so the image (padded at
   the bottom/right to a multiple of the total downsampling factor ``2**levels``) is
-  predicted in one pass when it fits :data:`DEFAULT_MEMORY_MIB`, else in large windows
-  whose origins sit on multiples of that factor, each with a halo of at least the
-  network's receptive-field radius (``receptive_radius()`` of each network), keeping only the centre.
-  Normalisation uses the per-band statistics stored in the model (never per-tile
-  statistics), and the windows stop at the image's edge, so each pixel sees exactly
+  predicted in one pass when its activations fit :data:`DEFAULT_MEMORY_MIB`, else in
+  large windows whose origins sit on multiples of that factor, each with a halo of at
+  least the network's receptive-field radius (:func:`receptive_radius`), keeping only
+  the centre. Normalisation uses the per-band statistics stored in the model (never
+  per-tile statistics), and the windows stop at the image's edge, so every pixel sees
   the context and the zero padding of a whole-image pass: the result equals one
   whole-image pass to float32 rounding (tested).
-* ``"blend"``: the former stitching, ``tile`` px tiles at stride ``tile/2`` blended with
-  a smooth window (each pixel computed about four times).
+* ``"blend"``: the former stitching (:func:`tiled`), ``tile`` px tiles at stride
+  ``tile/2`` blended with a smooth window, each pixel computed about four times.
+
+This module imports no torch: the networks (:mod:`dyntarget.perceive.networks`)
+and torch are loaded when a U-Net is built, trained or loaded natively; the
+tiling (:func:`tiled`) is shared with the ONNX runtime.
 """
 
 from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-import torch
-from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
-from torch import nn
 
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier
@@ -56,153 +56,6 @@ DEFAULT_MEMORY_MIB = 1024.0
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
 _GLOBAL_RNG_LOCK = threading.Lock()
-
-
-def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
-    return [
-        nn.Conv2d(cin, cout, 3, padding=1, bias=False),
-        nn.BatchNorm2d(cout),
-        nn.ReLU(inplace=True),
-    ]
-
-
-class _Normalise(nn.Module):
-    def __init__(self, channels: int = 4) -> None:
-        super().__init__()
-        self.register_buffer("mean", torch.zeros(1, channels, 1, 1))
-        self.register_buffer("std", torch.ones(1, channels, 1, 1))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return (x - self.mean) / self.std
-
-
-class UavsarUNet(nn.Module):
-    """Classic compact U-Net (conv-conv-pool encoder, transpose-conv decoder, skips)."""
-
-    levels = 3
-
-    @classmethod
-    def receptive_radius(cls) -> int:
-        """Input pixels on each side an output pixel can depend on (an upper bound).
-
-        At a level of stride ``j`` a 3x3 conv adds ``j``, a 2x2 stride-2 pool adds ``j``
-        and a 2x2 stride-2 transpose conv ``j/2`` (counted as ``j`` here): encoder and
-        decoder ``3 j`` per level, bottleneck ``2 * 2**levels``.
-        """
-        return 2 * (3 * (2**cls.levels - 1)) + 2 * 2**cls.levels
-
-    def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
-        super().__init__()
-        self.norm = _Normalise(in_channels)
-        ch = [width, 2 * width, 4 * width]
-        self.enc = nn.ModuleList()
-        cin = in_channels
-        for c in ch:
-            self.enc.append(nn.Sequential(*_bn_relu_conv(cin, c), *_bn_relu_conv(c, c)))
-            cin = c
-        self.pool = nn.MaxPool2d(2)
-        self.bottleneck = nn.Sequential(
-            *_bn_relu_conv(ch[-1], 2 * ch[-1]), *_bn_relu_conv(2 * ch[-1], 2 * ch[-1])
-        )
-        self.up = nn.ModuleList()
-        self.dec = nn.ModuleList()
-        cin = 2 * ch[-1]
-        for c in reversed(ch):
-            self.up.append(nn.ConvTranspose2d(cin, c, 2, stride=2))
-            self.dec.append(nn.Sequential(*_bn_relu_conv(2 * c, c), *_bn_relu_conv(c, c)))
-            cin = c
-        self.head = nn.Conv2d(ch[0], classes, 1)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.norm(x)
-        skips = []
-        for enc in self.enc:
-            x = enc(x)
-            skips.append(x)
-            x = self.pool(x)
-        x = self.bottleneck(x)
-        for up, dec, skip in zip(self.up, self.dec, reversed(skips), strict=True):
-            x = dec(torch.cat([up(x), skip], dim=1))
-        return self.head(x)
-
-
-class _SeparableConv(nn.Sequential):
-    def __init__(self, cin: int, cout: int) -> None:
-        super().__init__(
-            nn.Conv2d(cin, cin, 3, padding=1, groups=cin, bias=False), nn.Conv2d(cin, cout, 1)
-        )
-
-
-class XceptionUNet(nn.Module):
-    """Xception-style U-Net of the Keras segmentation example (residual blocks, no long skips)."""
-
-    levels = 4
-
-    @classmethod
-    def receptive_radius(cls) -> int:
-        """Input pixels on each side an output pixel can depend on (an upper bound).
-
-        Entry 3x3 stride-2 conv: 1. Each down block at stride ``j`` (2, 4, 8): two
-        depthwise 3x3 and a 3x3 max pool, ``3 j``. Each up block at stride ``j``
-        (16, 8, 4, 2): two 3x3 transpose convs ``2 j``, then nearest 2x upsampling
-        (``j/2``). Head 3x3 conv: 1. The 1x1 residual paths reach less far.
-        """
-        down = 3 * (2 + 4 + 8)
-        up = 2 * (16 + 8 + 4 + 2) + (8 + 4 + 2 + 1)
-        return 1 + down + up + 1
-
-    def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
-        super().__init__()
-        self.norm = _Normalise(in_channels)
-        self.entry = nn.Sequential(
-            nn.Conv2d(in_channels, 2 * width, 3, stride=2, padding=1),
-            nn.BatchNorm2d(2 * width),
-            nn.ReLU(),
-        )
-        self.down = nn.ModuleList()
-        self.down_res = nn.ModuleList()
-        prev = 2 * width
-        for c in (2 * width, 4 * width, 8 * width):
-            self.down.append(
-                nn.Sequential(
-                    nn.ReLU(),
-                    _SeparableConv(prev, c),
-                    nn.BatchNorm2d(c),
-                    nn.ReLU(),
-                    _SeparableConv(c, c),
-                    nn.BatchNorm2d(c),
-                    nn.MaxPool2d(3, stride=2, padding=1),
-                )
-            )
-            self.down_res.append(nn.Conv2d(prev, c, 1, stride=2))
-            prev = c
-        self.upb = nn.ModuleList()
-        self.up_res = nn.ModuleList()
-        for c in (8 * width, 4 * width, 2 * width, width):
-            self.upb.append(
-                nn.Sequential(
-                    nn.ReLU(),
-                    nn.ConvTranspose2d(prev, c, 3, padding=1),
-                    nn.BatchNorm2d(c),
-                    nn.ReLU(),
-                    nn.ConvTranspose2d(c, c, 3, padding=1),
-                    nn.BatchNorm2d(c),
-                    nn.Upsample(scale_factor=2, mode="nearest"),
-                )
-            )
-            self.up_res.append(
-                nn.Sequential(nn.Upsample(scale_factor=2, mode="nearest"), nn.Conv2d(prev, c, 1))
-            )
-            prev = c
-        self.head = nn.Conv2d(width, classes, 3, padding=1)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = self.entry(self.norm(x))
-        for block, res in zip(self.down, self.down_res, strict=True):
-            x = block(x) + res(x)
-        for block, res in zip(self.upb, self.up_res, strict=True):
-            x = block(x) + res(x)
-        return self.head(x)
 
 
 def tile_origins(length: int, tile: int, stride: int) -> list[int]:
@@ -235,14 +88,265 @@ def _pad_multiple(image: np.ndarray, multiple: int) -> np.ndarray:
     return image
 
 
+def receptive_radius(architecture: str) -> int:
+    """Input pixels on each side that one output pixel of a network can depend on.
+
+    An upper bound, summed layer by layer along the deepest path; a layer at
+    stride ``j`` (``j`` input pixels per feature pixel) reaches ``j`` further per
+    unit of kernel half-width.
+
+    * ``uavsar`` (3 levels): per encoder level at stride ``j`` two 3x3 convs and a
+      2x2 stride-2 max pool, ``3 j``; bottleneck two 3x3 convs at ``j = 8``; per
+      decoder level a 2x2 stride-2 transpose conv (``j``, generously) and two 3x3
+      convs: ``3 * (1+2+4) + 16 + 3 * (1+2+4) = 58``.
+    * ``xception`` (4 levels): entry 3x3 stride-2 conv 1; per down block at stride
+      ``j`` = 2, 4, 8 two depthwise 3x3 convs and a 3x3 max pool, ``3 j``; per up block
+      at ``j`` = 16, 8, 4, 2 two 3x3 transpose convs ``2 j`` and a nearest 2x upsampling
+      (``j/2``); head 3x3 conv 1; the 1x1 residual paths reach less far:
+      ``1 + 42 + 60 + 15 + 1 = 119``.
+
+    Checked against the gradient of a randomly initialised network in the tests.
+
+    Parameters
+    ----------
+    architecture : str
+        ``"uavsar"`` or ``"xception"``.
+
+    Returns
+    -------
+    int
+        The radius in input pixels.
+
+    Examples
+    --------
+    >>> receptive_radius("uavsar"), receptive_radius("xception")
+    (58, 119)
+    """
+    if architecture == "uavsar":
+        levels = (1, 2, 4)
+        return 3 * sum(levels) + 2 * 8 + 3 * sum(levels)
+    if architecture == "xception":
+        return 1 + 3 * (2 + 4 + 8) + 2 * (16 + 8 + 4 + 2) + (8 + 4 + 2 + 1) + 1
+    raise InvalidParameterError(
+        f"architecture: expected 'uavsar' or 'xception', got {architecture!r}"
+    )
+
+
 def blend_window(tile: int) -> np.ndarray:
     """Smooth, strictly positive 2-D weight for blending overlapping tiles."""
     w = np.hanning(tile + 2)[1:-1]
     return np.outer(w, w).astype(np.float32) + 1e-3
 
 
+def tiled(image: np.ndarray, forward, tile: int) -> np.ndarray:
+    """Stitch ``forward`` over overlapping tiles (stride ``tile/2``, blended).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` float32 image.
+    forward : callable
+        ``(n, 4, tile, tile)`` batch -> ``(n, tile, tile)`` plume probability;
+        shared by the PyTorch and ONNX runtimes.
+    tile : int
+        Tile size in pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32 plume probability.
+
+    Examples
+    --------
+    >>> img = np.zeros((4, 40, 50), np.float32)
+    >>> p = tiled(img, lambda b: np.full((len(b), 16, 16), 0.25, np.float32), 16)
+    >>> p.shape, float(p.min()), float(p.max())
+    ((40, 50), 0.25, 0.25)
+    """
+    h, w = image.shape[1:]
+    img = _pad_to(image, tile)
+    hp, wp = img.shape[1:]
+    stride = tile // 2
+    origins = [
+        (r, c) for r in tile_origins(hp, tile, stride) for c in tile_origins(wp, tile, stride)
+    ]
+    window = blend_window(tile)
+    acc = np.zeros((hp, wp), np.float32)
+    weight = np.zeros((hp, wp), np.float32)
+    for i in range(0, len(origins), 32):
+        batch = origins[i : i + 32]
+        xb = np.stack([img[:, r : r + tile, c : c + tile] for r, c in batch])
+        prob = forward(xb)
+        for (r, c), p in zip(batch, prob, strict=True):
+            acc[r : r + tile, c : c + tile] += p * window
+            weight[r : r + tile, c : c + tile] += window
+    return (acc / weight)[:h, :w]
+
+
+def check_stitching(stitch: str, memory_mib: float) -> tuple[str, float]:
+    """Validate a stitching name and memory budget; returns them (budget as float)."""
+    if stitch not in STITCHINGS:
+        raise InvalidParameterError(
+            f"stitch: expected one of {', '.join(STITCHINGS)}, got {stitch!r}"
+        )
+    try:
+        budget = float(memory_mib)
+    except (TypeError, ValueError):
+        budget = float("nan")
+    if isinstance(memory_mib, bool) or not (np.isfinite(budget) and budget > 0):
+        raise InvalidParameterError(
+            f"memory_mib: expected a positive number of MiB, got {memory_mib!r}"
+        )
+    return stitch, budget
+
+
+ACTIVATION_FLOATS_PER_WIDTH = {"uavsar": 24.5, "xception": 20.0}
+"""float32 activations per input pixel per unit of network width, summed over every
+layer's output of one pass (an upper bound on the peak: a pass frees most of them as it
+goes). Counted with forward hooks in the tests."""
+
+
+class Stitching:
+    """How a U-Net's prediction covers an image; needs no torch (ONNX Runtime uses it too).
+
+    Parameters
+    ----------
+    tile : int
+        Training tile size (px): the tile of ``"blend"`` stitching.
+    factor : int
+        Total downsampling factor ``2**levels``: window origins sit on its multiples.
+    halo : int
+        Halo width (px), at least the receptive-field radius, a multiple of ``factor``.
+    bytes_per_pixel : float
+        Estimated activation bytes per input pixel of one pass.
+    stitch : {"halo", "blend"}
+        The stitching.
+    memory_mib : float
+        Activation budget of one pass (MiB) for ``"halo"``.
+
+    Examples
+    --------
+    >>> st = Stitching(tile=64, factor=8, halo=64, bytes_per_pixel=1000.0, memory_mib=1.0)
+    >>> [(w[0].start, w[0].stop) for w in st.windows((200, 72))][:3]
+    [(0, 136), (0, 136), (8, 200)]
+    >>> st.run(np.ones((4, 200, 70), np.float32), lambda b: b[:, 0] * 0.5).max()
+    np.float32(0.5)
+    """
+
+    def __init__(
+        self,
+        *,
+        tile: int,
+        factor: int,
+        halo: int,
+        bytes_per_pixel: float,
+        stitch: str = DEFAULT_STITCH,
+        memory_mib: float = DEFAULT_MEMORY_MIB,
+    ) -> None:
+        self.stitch, self.memory_mib = check_stitching(stitch, memory_mib)
+        self.tile, self.factor, self.halo = int(tile), int(factor), int(halo)
+        self.bytes_per_pixel = float(bytes_per_pixel)
+
+    @classmethod
+    def for_architecture(
+        cls,
+        architecture: str,
+        *,
+        levels: int,
+        width: int,
+        tile: int,
+        stitch: str = DEFAULT_STITCH,
+        memory_mib: float = DEFAULT_MEMORY_MIB,
+    ) -> Stitching:
+        """The stitching of a ``uavsar`` / ``xception`` U-Net of ``width`` and ``levels``."""
+        factor = 2**levels
+        return cls(
+            tile=tile,
+            factor=factor,
+            halo=-(-receptive_radius(architecture) // factor) * factor,
+            bytes_per_pixel=4 * (ACTIVATION_FLOATS_PER_WIDTH[architecture] * width + 8),
+            stitch=stitch,
+            memory_mib=memory_mib,
+        )
+
+    def windows(self, shape: tuple[int, int]) -> list[tuple[slice, slice, slice, slice]]:
+        """``"halo"`` windows over a padded image of ``shape`` (multiples of ``factor``).
+
+        Each entry is ``(rows_in, cols_in, rows_keep, cols_keep)``: the input window
+        and, relative to it, the centre whose prediction is kept. The kept centres
+        partition the image; a window reaches ``halo`` px beyond its centre except at
+        the image's edge. One window covers the whole image when it fits the budget.
+        """
+        hp, wp = shape
+        f, halo = self.factor, self.halo
+        budget = self.memory_mib * 2**20 / self.bytes_per_pixel  # input pixels per pass
+        if hp * wp <= budget:
+            return [(slice(0, hp), slice(0, wp), slice(0, hp), slice(0, wp))]
+        core = max((int(np.sqrt(budget)) - 2 * halo) // f * f, 2 * f)
+
+        def cuts(length: int) -> list[tuple[int, int]]:
+            n = -(-length // core)
+            step = -(-length // (n * f)) * f  # n equal parts, on multiples of f
+            return [(a, min(a + step, length)) for a in range(0, length, step)]
+
+        out = []
+        for r0, r1 in cuts(hp):
+            for c0, c1 in cuts(wp):
+                a, b = max(r0 - halo, 0), min(r1 + halo, hp)
+                c, d = max(c0 - halo, 0), min(c1 + halo, wp)
+                out.append((slice(a, b), slice(c, d), slice(r0 - a, r1 - a), slice(c0 - c, c1 - c)))
+        return out
+
+    def padded_shape(self, shape: tuple[int, int]) -> tuple[int, int]:
+        """``shape`` rounded up to multiples of ``factor`` (what ``"halo"`` runs on)."""
+        return (
+            -(-shape[0] // self.factor) * self.factor,
+            -(-shape[1] // self.factor) * self.factor,
+        )
+
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles."""
+        if self.stitch == "blend":
+            hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
+            stride = self.tile // 2
+            return float(
+                len(tile_origins(hp, self.tile, stride)) * len(tile_origins(wp, self.tile, stride))
+            )
+        px = sum(
+            (r.stop - r.start) * (c.stop - c.start)
+            for r, c, _, _ in self.windows(self.padded_shape(shape))
+        )
+        return px / self.tile**2
+
+    def run(self, image: np.ndarray, forward) -> np.ndarray:
+        """Plume probability ``(H, W)`` of a ``(4, H, W)`` image.
+
+        ``forward`` maps a ``(n, 4, h, w)`` float32 batch to ``(n, h, w)`` plume
+        probability (``h, w`` multiples of ``factor`` for ``"halo"``, ``tile`` for ``"blend"``).
+        """
+        if self.stitch == "blend":
+            return tiled(image, forward, self.tile)
+        h, w = image.shape[1:]
+        img = _pad_multiple(image, self.factor)
+        out = np.empty(img.shape[1:], np.float32)
+        for rows, cols, keep_r, keep_c in self.windows(img.shape[1:]):
+            prob = forward(np.ascontiguousarray(img[None, :, rows, cols]))[0]
+            out[rows, cols][keep_r, keep_c] = prob[keep_r, keep_c]
+        return out[:h, :w]
+
+
 class _UNetClassifier(Classifier):
-    network: type[nn.Module]
+    kind = "unet"
+    architecture: ClassVar[str]
+    """Key of :data:`dyntarget.perceive.networks.NETWORKS`."""
+    levels: ClassVar[int]
+    """Down-sampling levels of the network: tiles are multiples of ``2**levels`` px."""
+
+    def network(self, width: int):
+        """A fresh, untrained network of this architecture (imports torch)."""
+        from dyntarget.perceive.networks import NETWORKS
+
+        return NETWORKS[self.architecture](width=width)
 
     def __init__(
         self,
@@ -264,7 +368,7 @@ class _UNetClassifier(Classifier):
                 raise InvalidParameterError(
                     f"{name}: expected an integer >= {minimum}, got {value!r}"
                 )
-        multiple = 2**self.network.levels
+        multiple = 2**self.levels
         if (
             isinstance(tile, bool)
             or not isinstance(tile, int)
@@ -311,6 +415,9 @@ class _UNetClassifier(Classifier):
         return np.stack(xs), np.stack(ys)
 
     def _fit(self, scenes) -> None:
+        import torch
+        from torch import nn
+
         x, y = self._tiles(scenes)
         stack = np.concatenate([s.image[:, s.valid_mask] for s in scenes], axis=1)
         # float64: per-band statistics independent of summation order (float32 sums are not)
@@ -352,6 +459,8 @@ class _UNetClassifier(Classifier):
         self.model = model
 
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
+        import torch
+
         self.model.eval()
 
         def forward(batch: np.ndarray) -> np.ndarray:
@@ -369,13 +478,13 @@ class _UNetClassifier(Classifier):
     def set_stitching(
         self, stitch: str = DEFAULT_STITCH, *, memory_mib: float = DEFAULT_MEMORY_MIB
     ) -> _UNetClassifier:
-        """Choose how prediction covers the image (see the module docstring); returns self.
+        """Choose how prediction covers the image (see the module docstring).
 
         Parameters
         ----------
         stitch : {"halo", "blend"}
             Large windows with a receptive-field halo (default), or the former
-            overlapping 64 px tiles blended with a smooth window.
+            overlapping ``tile`` px tiles blended with a smooth window.
         memory_mib : float
             Estimated activation memory allowed for one network pass (``"halo"``).
 
@@ -390,132 +499,38 @@ class _UNetClassifier(Classifier):
         >>> make_classifier("unet-uavsar").set_stitching("blend").stitch
         'blend'
         """
-        if stitch not in STITCHINGS:
-            raise InvalidParameterError(
-                f"stitch: expected one of {', '.join(STITCHINGS)}, got {stitch!r}"
-            )
-        if isinstance(memory_mib, bool) or not float(memory_mib) > 0 or not np.isfinite(memory_mib):
-            raise InvalidParameterError(
-                f"memory_mib: expected a positive number of MiB, got {memory_mib!r}"
-            )
-        self.stitch, self.memory_mib = stitch, float(memory_mib)
+        self.stitch, self.memory_mib = check_stitching(stitch, memory_mib)
         return self
 
-    @property
-    def factor(self) -> int:
-        """Total downsampling factor ``2**levels``: window origins sit on its multiples."""
-        return 2**self.network.levels
-
-    @property
-    def halo(self) -> int:
-        """Halo width (px): the receptive-field radius rounded up to a multiple of :attr:`factor`."""
-        f = self.factor
-        return -(-self.network.receptive_radius() // f) * f
-
-    def bytes_per_pixel(self) -> float:
-        """Activation bytes per input pixel of one pass (sum over all layer outputs: an
-        upper bound on the peak, since a pass frees most of them as it goes)."""
-        cached = getattr(self, "_bytes_per_pixel", None)
-        if cached is None:
-            total = 0
-            hooks = []
-
-            def count(_module, _inputs, output) -> None:
-                nonlocal total
-                total += output.numel() * output.element_size()
-
-            for mod in self.model.modules():
-                if not list(mod.children()):
-                    hooks.append(mod.register_forward_hook(count))
-            try:
-                with torch.inference_mode():
-                    self.model.eval()(torch.zeros(1, 4, self.tile, self.tile))
-            finally:
-                for hk in hooks:
-                    hk.remove()
-            cached = self._bytes_per_pixel = total / self.tile**2
-        return cached
-
-    def windows(self, shape: tuple[int, int]) -> list[tuple[slice, slice, slice, slice]]:
-        """``"halo"`` windows over a padded image of ``shape`` (multiples of :attr:`factor`).
-
-        Each entry is ``(rows_in, cols_in, rows_keep, cols_keep)``: the input window and,
-        relative to it, the centre whose prediction is kept. The kept centres partition
-        the image; a window extends ``halo`` px beyond its centre except at the edge.
-        """
-        hp, wp = shape
-        f, halo = self.factor, self.halo
-        side = int(np.sqrt(self.memory_mib * 2**20 / self.bytes_per_pixel()))
-        if hp * wp * self.bytes_per_pixel() <= self.memory_mib * 2**20:
-            return [(slice(0, hp), slice(0, wp), slice(0, hp), slice(0, wp))]
-        core = max((side - 2 * halo) // f * f, 2 * f)
-
-        def cuts(length: int) -> list[tuple[int, int]]:
-            n = -(-length // core)
-            step = -(-length // (n * f)) * f  # equal parts, on multiples of f
-            return [(a, min(a + step, length)) for a in range(0, length, step)]
-
-        out = []
-        for r0, r1 in cuts(hp):
-            for c0, c1 in cuts(wp):
-                a, b = max(r0 - halo, 0), min(r1 + halo, hp)
-                c, d = max(c0 - halo, 0), min(c1 + halo, wp)
-                out.append((slice(a, b), slice(c, d), slice(r0 - a, r1 - a), slice(c0 - c, c1 - c)))
-        return out
+    def stitching(self) -> Stitching:
+        """This model's :class:`Stitching` (tile, factor, halo, memory per pixel)."""
+        return Stitching.for_architecture(
+            self.architecture,
+            levels=self.levels,
+            width=self.width,
+            tile=self.tile,
+            stitch=self.stitch,
+            memory_mib=self.memory_mib,
+        )
 
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Input pixels the network runs over, in units of ``tile``² tiles."""
-        if self.stitch == "blend":
-            hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
-            stride = self.tile // 2
-            return float(
-                len(tile_origins(hp, self.tile, stride)) * len(tile_origins(wp, self.tile, stride))
-            )
-        padded = _pad_multiple(np.empty((1, *shape), np.uint8), self.factor).shape[1:]
-        px = sum((r.stop - r.start) * (c.stop - c.start) for r, c, _, _ in self.windows(padded))
-        return px / self.tile**2
+        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles."""
+        return self.stitching().work_units(shape)
 
     def tiled(self, image: np.ndarray, forward) -> np.ndarray:
-        """Plume probability of ``image`` from ``forward`` (a ``(n, 4, h, w)`` batch ->
-        ``(n, h, w)`` plume probability), stitched as :attr:`stitch` says."""
-        if self.stitch == "blend":
-            return self._blend(image, forward)
-        h, w = image.shape[1:]
-        img = _pad_multiple(image, self.factor)
-        out = np.empty(img.shape[1:], np.float32)
-        for rows, cols, keep_r, keep_c in self.windows(img.shape[1:]):
-            prob = forward(np.ascontiguousarray(img[None, :, rows, cols]))[0]
-            out[rows, cols][keep_r, keep_c] = prob[keep_r, keep_c]
-        return out[:h, :w]
-
-    def _blend(self, image: np.ndarray, forward) -> np.ndarray:
-        """Overlapping ``tile`` px tiles at stride ``tile/2``, blended with a smooth window."""
-        h, w = image.shape[1:]
-        img = _pad_to(image, self.tile)
-        hp, wp = img.shape[1:]
-        stride = self.tile // 2
-        origins = [
-            (r, c)
-            for r in tile_origins(hp, self.tile, stride)
-            for c in tile_origins(wp, self.tile, stride)
-        ]
-        window = blend_window(self.tile)
-        acc = np.zeros((hp, wp), np.float32)
-        weight = np.zeros((hp, wp), np.float32)
-        for i in range(0, len(origins), 32):
-            batch = origins[i : i + 32]
-            xb = np.stack([img[:, r : r + self.tile, c : c + self.tile] for r, c in batch])
-            prob = forward(xb)
-            for (r, c), p in zip(batch, prob, strict=True):
-                acc[r : r + self.tile, c : c + self.tile] += p * window
-                weight[r : r + self.tile, c : c + self.tile] += window
-        return (acc / weight)[:h, :w]
+        """:meth:`Stitching.run` with this model's settings."""
+        return self.stitching().run(image, forward)
 
     def _save_weights(self, directory: Path) -> None:
+        from safetensors.torch import save_file
+
         state = {k: v.detach().contiguous() for k, v in self.model.state_dict().items()}
         save_file(state, str(directory / WEIGHTS_FILE), metadata={"classifier": self.name})
 
     def _load_weights(self, directory: Path) -> None:
+        from safetensors import SafetensorError
+        from safetensors.torch import load_file
+
         path = directory / WEIGHTS_FILE
         if not path.is_file():
             raise ModelFileError(f"{directory}: no {WEIGHTS_FILE}")
@@ -537,18 +552,20 @@ class _UNetClassifier(Classifier):
 
 
 @CLASSIFIERS.register("unet-uavsar")
-class UnetUavsar(_UNetClassifier):
+class UavsarUNetClassifier(_UNetClassifier):
     name = "unet-uavsar"
     summary = (
         "compact classic U-Net (conv-conv-pool encoder, transpose-conv decoder, skip connections)"
     )
-    network = UavsarUNet
+    architecture = "uavsar"
+    levels = 3
 
 
 @CLASSIFIERS.register("unet-xception")
-class UnetXception(_UNetClassifier):
+class XceptionUNetClassifier(_UNetClassifier):
     name = "unet-xception"
     summary = (
         "Xception-style U-Net (separable convs, residual down/up blocks) as in the Keras example"
     )
-    network = XceptionUNet
+    architecture = "xception"
+    levels = 4

@@ -26,7 +26,7 @@ import numpy as np
 from shapely.geometry import Polygon
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.perceive.denoise import check_mask, mask_to_polygons
+from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.plan.geometry import (
     centerline,
     chord,
@@ -35,8 +35,8 @@ from dyntarget.plan.geometry import (
     sample_polyline,
     sample_ring,
 )
-from dyntarget.plan.trajectory import Trajectory
 from dyntarget.registry import Registry
+from dyntarget.trajectory import Trajectory
 
 PlannerFn = Callable[[np.ndarray, Sequence[Polygon], "PlanConfig"], Trajectory]
 
@@ -323,7 +323,7 @@ def plan(
     """Plan with the registered planner ``name``.
 
     ``polygons`` default to the mask's polygons (:func:`mask_to_polygons`);
-    pass the denoised polygons from :func:`dyntarget.perceive.denoise.denoise`
+    pass the denoised polygons from :func:`dyntarget.denoise.denoise`
     to plan as the paper does.
 
     Examples

@@ -12,7 +12,7 @@ computes them on the truth (:mod:`dyntarget.observe.nfov`):
 Candidates are the pixels of a grid with the planner step (1 % of the image
 width by default) whose expected utility is positive, at most
 :data:`MAX_CANDIDATES` of the best. Selection is a greedy orienteering
-heuristic on the kinematic model (:mod:`dyntarget.plan.kinematics`): from the
+heuristic on the kinematic model (:mod:`dyntarget.schedule`): from the
 sensor's current state it takes next the feasible candidate with the highest
 expected utility per second spent (slew, settle, waiting for the target to
 enter the field of regard, dwell), until no candidate can be reached inside its
@@ -29,8 +29,8 @@ import cv2
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.plan.kinematics import Agility, Geometry, Timer, get_agility, visibility_windows
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
+from dyntarget.trajectory import Trajectory
 
 OBJECTIVES = ("gradient", "intensity", "plume")
 MAX_CANDIDATES = 1500
@@ -63,7 +63,7 @@ def predicted_utility(probability: np.ndarray, image: np.ndarray, objective: str
 def utility_max(
     probability: np.ndarray,
     image: np.ndarray,
-    geometry: Geometry,
+    geometry: OrbitGeometry,
     agility: Agility | str,
     *,
     step: float,

@@ -8,18 +8,18 @@ import numpy as np
 import pytest
 
 from dyntarget import InvalidParameterError
-from dyntarget.plan.kinematics import (
+from dyntarget.plan.utility import predicted_utility, utility_max
+from dyntarget.schedule import (
     AGILITY,
     EARTH_RADIUS_M,
     Agility,
-    Geometry,
+    OrbitGeometry,
     look_vectors,
     off_nadir_deg,
     schedule,
     visibility_windows,
 )
-from dyntarget.plan.trajectory import Trajectory
-from dyntarget.plan.utility import predicted_utility, utility_max
+from dyntarget.trajectory import Trajectory
 
 FAST = AGILITY["fast"]
 SLOW = AGILITY["slow"]
@@ -28,7 +28,7 @@ SLOW = AGILITY["slow"]
 def test_ground_speed_at_500_km_by_hand():
     # v = sqrt(GM / (R + h)) = sqrt(3.986004418e14 / 6.871e6) = 7616.5 m/s in orbit;
     # the nadir point moves R / (R + h) as fast: 7616.5 * 6371 / 6871 = 7062.3 m/s
-    assert Geometry(altitude_m=500e3).ground_speed == pytest.approx(7062.3, abs=0.1)
+    assert OrbitGeometry(altitude_m=500e3).ground_speed == pytest.approx(7062.3, abs=0.1)
 
 
 def test_slew_time_for_known_angles():
@@ -44,7 +44,7 @@ def test_slew_time_for_known_angles():
 
 
 def test_off_nadir_angle_on_a_sphere_by_hand():
-    g = Geometry(altitude_m=500e3)
+    g = OrbitGeometry(altitude_m=500e3)
     # straight below: 0 deg
     assert off_nadir_deg(look_vectors(g, 1000.0, 0.0, 1000.0 / g.ground_speed)) == pytest.approx(
         0.0, abs=1e-6
@@ -62,7 +62,7 @@ def test_off_nadir_angle_on_a_sphere_by_hand():
 
 
 def test_visibility_window_of_a_point_on_the_ground_track():
-    g = Geometry()
+    g = OrbitGeometry()
     t_in, t_out = visibility_windows(g, FAST, np.array([500e3]), np.array([0.0]))
     # enters the 30 deg field of regard when the off-nadir angle is 30 deg, leaves at overhead
     at_entry = off_nadir_deg(look_vectors(g, 500e3, 0.0, t_in[0]))
@@ -84,7 +84,7 @@ def _line(ys, x=63.5):
 
 
 def test_straight_along_track_line_is_feasible():
-    g = Geometry()
+    g = OrbitGeometry()
     line = _line(np.arange(127, -1, -4.0))  # bottom (reached first) to top, along track
     s = schedule(line, (128, 128), g, FAST)
     assert s.fraction_feasible == 1.0 and len(s.kept) == 32
@@ -99,7 +99,7 @@ def test_straight_along_track_line_is_feasible():
 
 def test_pointing_behind_the_spacecraft_is_not_feasible():
     # the plan starts 80 s after acquisition: nadir is then 565 km down-track, past the scene
-    g = Geometry(start_s=80.0)
+    g = OrbitGeometry(start_s=80.0)
     s = schedule(_line([64.0]), (128, 128), g, FAST)
     assert s.fraction_feasible == 0.0 and len(s.trajectory) == 0
     # with unlimited agility (the paper's assumption) it would still be taken
@@ -108,7 +108,7 @@ def test_pointing_behind_the_spacecraft_is_not_feasible():
 
 def test_order_matters_and_reordering_recovers_points():
     # a 384 km long WFOV scene: its far edge enters the field of regard after the near edge left it
-    g = Geometry(wfov_gsd_m=3000.0)
+    g = OrbitGeometry(wfov_gsd_m=3000.0)
     near = [[64.0, y] for y in (127.0, 125.0, 123.0)]
     far_first = Trajectory(np.array([[64.0, 0.0], *near]), np.zeros(4, int), "far-first")
     as_planned = schedule(far_first, (128, 128), g, FAST)
@@ -119,7 +119,7 @@ def test_order_matters_and_reordering_recovers_points():
 
 
 def test_budget_trims_and_times_are_exported(tmp_path):
-    g = Geometry()
+    g = OrbitGeometry()
     line = _line(np.arange(127, -1, -4.0))
     full = schedule(line, (128, 128), g, FAST)
     budget = full.times[10] - g.start_s  # room for 10 observations and part of the 11th
@@ -134,13 +134,13 @@ def test_budget_trims_and_times_are_exported(tmp_path):
 
 def test_bad_kinematic_parameters_are_refused():
     with pytest.raises(InvalidParameterError, match="altitude_m"):
-        Geometry(altitude_m=50.0)
+        OrbitGeometry(altitude_m=50.0)
     with pytest.raises(InvalidParameterError, match="field_of_regard_deg"):
         Agility("x", field_of_regard_deg=95.0)
     with pytest.raises(InvalidParameterError, match="max_rate_deg_s"):
         Agility("x", max_rate_deg_s=-1.0)
     with pytest.raises(InvalidParameterError, match="unknown preset"):
-        schedule(_line([1.0]), (128, 128), Geometry(), "nimble")
+        schedule(_line([1.0]), (128, 128), OrbitGeometry(), "nimble")
 
 
 def _blob(h=64, w=64):
@@ -153,7 +153,7 @@ def _blob(h=64, w=64):
 
 def test_utility_max_picks_high_utility_and_respects_budgets():
     p, image = _blob()
-    g = Geometry(wfov_gsd_m=32.0)
+    g = OrbitGeometry(wfov_gsd_m=32.0)
     traj = utility_max(p, image, g, "unlimited", step=1.0, objective="plume", max_pointings=5)
     assert len(traj) == 5
     # with unlimited agility the first pick is the most probable pixel
@@ -174,14 +174,14 @@ def test_utility_max_picks_high_utility_and_respects_budgets():
 
 def test_utility_max_empty_probability_gives_empty_plan():
     p = np.zeros((32, 32), np.float32)
-    traj = utility_max(p, np.ones((4, 32, 32), np.float32), Geometry(), FAST, step=1.0)
+    traj = utility_max(p, np.ones((4, 32, 32), np.float32), OrbitGeometry(), FAST, step=1.0)
     assert len(traj) == 0
 
 
 def test_make_feasible_flies_the_better_order():
-    from dyntarget.plan.kinematics import make_feasible
+    from dyntarget.schedule import make_feasible
 
-    g = Geometry(wfov_gsd_m=3000.0)
+    g = OrbitGeometry(wfov_gsd_m=3000.0)
     near = [[64.0, y] for y in (127.0, 125.0, 123.0)]
     far_first = Trajectory(np.array([[64.0, 0.0], *near]), np.zeros(4, int), "far-first")
     assert list(make_feasible(far_first, (128, 128), g, FAST).kept) == [1, 2, 3, 0]
@@ -189,5 +189,7 @@ def test_make_feasible_flies_the_better_order():
     row = Trajectory(
         np.array([[x, 64.0] for x in range(0, 128, 4)], float), np.zeros(32, int), "row"
     )
-    flown = make_feasible(row, (128, 128), Geometry(), SLOW)
-    assert len(flown.kept) >= len(schedule(row, (128, 128), Geometry(), SLOW, reorder=True).kept)
+    flown = make_feasible(row, (128, 128), OrbitGeometry(), SLOW)
+    assert len(flown.kept) >= len(
+        schedule(row, (128, 128), OrbitGeometry(), SLOW, reorder=True).kept
+    )

@@ -31,7 +31,7 @@ class Trajectory:
     params: dict[str, Any] = field(default_factory=dict)
     times: np.ndarray | None = None
     """When each observation starts, seconds after the WFOV acquisition (set by
-    :func:`dyntarget.plan.kinematics.schedule`; ``None`` for an untimed plan)."""
+    :func:`dyntarget.schedule.schedule`; ``None`` for an untimed plan)."""
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)

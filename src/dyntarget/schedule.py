@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.plan.trajectory import Trajectory
+from dyntarget.trajectory import Trajectory
 
 EARTH_RADIUS_M = 6_371_000.0
 """Mean Earth radius (IUGG)."""
@@ -51,7 +51,7 @@ GM_EARTH = 3.986004418e14
 
 
 @dataclass(frozen=True)
-class Geometry:
+class OrbitGeometry:
     """Where the scene lies relative to the spacecraft, and when the plan starts."""
 
     altitude_m: float = 500e3
@@ -168,7 +168,7 @@ def get_agility(name: str) -> Agility:
         ) from None
 
 
-def look_vectors(geometry: Geometry, along: np.ndarray, cross: np.ndarray, t) -> np.ndarray:
+def look_vectors(geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, t) -> np.ndarray:
     """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``.
 
     Frame: x along the velocity, y across track, z up (away from Earth's centre).
@@ -201,7 +201,7 @@ def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def visibility_windows(
-    geometry: Geometry, agility: Agility, along: np.ndarray, cross: np.ndarray
+    geometry: OrbitGeometry, agility: Agility, along: np.ndarray, cross: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(t_in, t_out)`` per ground point: when it is inside the field of regard.
 
@@ -285,7 +285,7 @@ class Timer:
     arrival time (from nadir for the first pointing).
     """
 
-    def __init__(self, geometry: Geometry, agility: Agility) -> None:
+    def __init__(self, geometry: OrbitGeometry, agility: Agility) -> None:
         self.geometry, self.agility = geometry, agility
         self.t = geometry.start_s
         self.target: tuple[float, float] | None = None  # None: looking at nadir
@@ -316,7 +316,7 @@ class Timer:
 def schedule(
     trajectory: Trajectory,
     shape: tuple[int, int],
-    geometry: Geometry,
+    geometry: OrbitGeometry,
     agility: Agility | str,
     *,
     reorder: bool = False,
@@ -372,7 +372,7 @@ def schedule(
 def make_feasible(
     trajectory: Trajectory,
     shape: tuple[int, int],
-    geometry: Geometry,
+    geometry: OrbitGeometry,
     agility: Agility | str,
     *,
     budget_s: float | None = None,

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from dyntarget import InvalidParameterError, InvalidSceneError
-from dyntarget.perceive.denoise import denoise, mask_to_polygons
+from dyntarget.denoise import denoise
+from dyntarget.masks import mask_to_polygons
 
 
 def _mask(rows: list[str]) -> np.ndarray:

@@ -1,0 +1,68 @@
+"""The ``dyntarget`` command line: a thin layer over the library.
+
+Exit codes: 0 success, 2 bad usage or bad input (any :class:`DynTargetError`),
+1 internal error. No traceback is printed unless ``--debug`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from dyntarget import __version__
+from dyntarget.cli import bench, datasets, demo, evaluate, models, plan, sweep, synth
+from dyntarget.cli._common import EXIT_INTERNAL, EXIT_USAGE, Parser
+from dyntarget.errors import DynTargetError
+
+COMMANDS = (synth, models, evaluate, plan, sweep, bench, datasets, demo)
+"""The command modules, in the order ``dyntarget --help`` lists them. Each has
+``register(sub)``; to add a command, add a module with one and list it here."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(
+        prog="dyntarget",
+        description="Dynamic targeting of plumes: classify look-ahead imagery, denoise, plan NFOV trajectories.",
+    )
+    parser.add_argument("--version", action="version", version=f"dyntarget {__version__}")
+    parser.add_argument("--debug", action="store_true", help="print full tracebacks on errors")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=Parser
+    )
+    for command in COMMANDS:
+        command.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``dyntarget`` console script; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and usage errors
+        return int(exc.code or 0)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except DynTargetError as exc:
+        if args.debug:
+            raise
+        print(f"dyntarget: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("dyntarget: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal error: one line unless --debug
+        if args.debug:
+            raise
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        print(
+            f"dyntarget: internal error: {type(exc).__name__}: {first} (rerun with --debug for a traceback)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

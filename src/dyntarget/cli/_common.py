@@ -1,0 +1,113 @@
+"""Shared pieces of the command modules: exit codes, the parser class, option helpers.
+
+Exit codes: 0 success, 2 bad usage or bad input (any :class:`DynTargetError`),
+1 internal error. No traceback is printed unless ``--debug`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse exits 2 as well; keep its one line
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"dyntarget: error: {message}\n")
+
+
+SCHEDULER_HELP = (
+    "run the tasks on dask.distributed: local (threads), processes (one worker process per "
+    "core) or a scheduler address tcp://HOST:PORT (default: one by one in this process)"
+)
+
+
+def scheduler_address(text: str) -> str:
+    if text in ("local", "processes") or "://" in text:
+        return text
+    raise argparse.ArgumentTypeError(
+        f"expected local, processes or a scheduler address like tcp://HOST:PORT, got {text!r}"
+    )
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def preset_names() -> list[str]:
+    from dyntarget.io.sensors import PRESETS
+
+    return list(PRESETS)
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def load_labelled(data: str) -> list:
+    from dyntarget.io import read_scene_dir
+
+    return read_scene_dir(data, require_labels=True)
+
+
+def show_result(out: str, name: str, result: dict, columns: list[str]) -> None:
+    """Write an evaluation's table (md, csv, json), print it, say where it went."""
+    from dyntarget.evaluate.tables import markdown_table, write_result
+
+    paths = write_result(out, name, result, columns)
+    print(markdown_table(result["rows"], columns))
+    log("wrote " + ", ".join(str(p) for p in paths.values()))
+
+
+def plan_config(args: argparse.Namespace):
+    from dyntarget.plan import PlanConfig
+
+    return PlanConfig(step=args.step, width=args.width)
+
+
+def add_evaluation_options(q: argparse.ArgumentParser, *, trains: bool = True) -> None:
+    """Options the evaluations share; with ``trains``, those of training classifiers too."""
+    q.add_argument("--data", required=True, help="scene directory with labels")
+    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
+    q.add_argument(
+        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
+    if trains:
+        q.add_argument("--models", help="folder to keep trained models in and reuse them from")
+        q.add_argument("--folds", type=positive_int, default=5, help="number of folds (default 5)")
+        q.add_argument("--epochs", type=positive_int, default=50, help="U-Net epochs (default 50)")
+        q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def name_lists(**lists: str | None) -> dict[str, tuple[str, ...]]:
+    """Comma-separated CLI lists that were given, as keyword arguments of a config."""
+    return {key: tuple(text.split(",")) for key, text in lists.items() if text}
+
+
+def add_plan_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--step", type=positive_float, help="pixels between pointings (default 1%% of the width)"
+    )
+    p.add_argument(
+        "--width", type=positive_float, help="pixels between transects (default 2 x step)"
+    )

@@ -1,0 +1,51 @@
+"""``dyntarget bench``: latency and peak memory of every stage."""
+
+from __future__ import annotations
+
+import argparse
+
+from dyntarget.cli._common import EXIT_OK, log, positive_int
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    import json
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.evaluate.bench import run_bench, summary_tables
+    from dyntarget.io.atomic import write_text
+
+    sizes = [int(x) for x in args.sizes.split(",")] if args.sizes else None
+    for size in sizes or []:
+        if size < 32:
+            raise InvalidParameterError(f"sizes: each WFOV size must be at least 32 px, got {size}")
+    result = run_bench(
+        **({"sizes": sizes} if sizes else {}),
+        classifiers=args.classifiers.split(",") if args.classifiers else None,
+        planners=args.planners.split(",") if args.planners else None,
+        repeats=args.repeats,
+        progress=not args.quiet,
+    )
+    tables = summary_tables(result)
+    write_text(args.out, json.dumps(result, indent=1) + "\n")
+    if args.markdown:
+        write_text(args.markdown, tables)
+    print(tables)
+    log(f"wrote {args.out}")
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser(
+        "bench", help="latency and peak memory of every stage, classifier and planner"
+    )
+    p.add_argument("--sizes", help="comma-separated WFOV sizes in px (default 256,512,1024,2048)")
+    p.add_argument("--classifiers", help="comma-separated subset (default: all)")
+    p.add_argument("--planners", help="comma-separated subset (default: all)")
+    p.add_argument(
+        "--repeats", type=positive_int, default=5, help="timed runs after a warm-up (default 5)"
+    )
+    p.add_argument("--out", default="bench.json", help="JSON results (default bench.json)")
+    p.add_argument("--markdown", help="also write the Markdown tables here")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_bench)

@@ -1,0 +1,75 @@
+"""``dyntarget datasets list|fetch|prepare``: public datasets."""
+
+from __future__ import annotations
+
+import argparse
+
+from dyntarget.cli._common import EXIT_OK, Parser, log
+
+DATASETS = {
+    "industrial-smoke": "Mommert et al. 2020, Sentinel-2 industrial smoke plumes (Zenodo 4250706)"
+}
+
+
+def _check_dataset(name: str) -> None:
+    from dyntarget.errors import UnknownNameError
+
+    if name not in DATASETS:
+        raise UnknownNameError(f"unknown dataset {name!r}; expected one of: {', '.join(DATASETS)}")
+
+
+def cmd_datasets_list(args: argparse.Namespace) -> int:
+    for name, text in DATASETS.items():
+        print(f"{name:20s} {text}")
+    return EXIT_OK
+
+
+def cmd_datasets_fetch(args: argparse.Namespace) -> int:
+    from dyntarget.datasets import industrial_smoke
+
+    _check_dataset(args.name)
+    paths = industrial_smoke.fetch(
+        args.to, api_url=args.url or industrial_smoke.RECORD_API, progress=not args.quiet
+    )
+    for p in paths:
+        print(p)
+    return EXIT_OK
+
+
+def cmd_datasets_prepare(args: argparse.Namespace) -> int:
+    from dyntarget.datasets import industrial_smoke
+
+    _check_dataset(args.name)
+    ids = industrial_smoke.prepare(
+        args.source, args.out, negatives=args.negatives, progress=not args.quiet
+    )
+    log(f"wrote {len(ids)} scenes to {args.out}")
+    print(args.out)
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser(
+        "datasets", help="public datasets: list, fetch, prepare as a scene directory"
+    )
+    ds = p.add_subparsers(dest="action", required=True, metavar="ACTION", parser_class=Parser)
+    q = ds.add_parser("list", help="the datasets dyntarget can fetch and convert")
+    q.set_defaults(func=cmd_datasets_list)
+    q = ds.add_parser("fetch", help="download a dataset (checksummed, resumable)")
+    q.add_argument("name", help="dataset name (see 'dyntarget datasets list')")
+    q.add_argument("--to", required=True, help="download folder")
+    q.add_argument("--url", help="record API address (default: the Zenodo record)")
+    q.add_argument("--quiet", action="store_true", help="no progress bars")
+    q.set_defaults(func=cmd_datasets_fetch)
+    q = ds.add_parser("prepare", help="convert a downloaded dataset into a scene directory")
+    q.add_argument("name", help="dataset name")
+    q.add_argument(
+        "--from", dest="source", required=True, help="folder with the downloaded archives"
+    )
+    q.add_argument("--out", required=True, help="scene directory to write")
+    q.add_argument(
+        "--negatives", action="store_true", help="add as many plume-free images as labelled ones"
+    )
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_datasets_prepare)

@@ -1,0 +1,178 @@
+"""``dyntarget evaluate ...``: the evaluations behind the paper's tables."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from dyntarget.cli._common import (
+    EXIT_OK,
+    Parser,
+    add_evaluation_options,
+    add_plan_options,
+    load_labelled,
+    log,
+    name_lists,
+    plan_config,
+    positive_float,
+    show_result,
+)
+
+EVALUATIONS: tuple = ()
+"""Further command modules adding an evaluation: each has ``register_evaluation(ev)``
+(``ev`` the ``evaluate`` sub-commands); import the module here and list it."""
+
+
+def cmd_evaluate_classification(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
+    from dyntarget.evaluate.tables import markdown_table, write_result
+
+    config = CVConfig(
+        folds=args.folds,
+        seed=args.seed,
+        factor=args.factor,
+        epochs=args.epochs,
+        **name_lists(classifiers=args.classifiers),
+    )
+    scenes = load_labelled(args.data)
+    t0 = time.perf_counter()
+    result = cross_validate(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "classification",
+    )
+    seconds = time.perf_counter() - t0
+    result["timing"]["seconds"] = seconds
+    paths = write_result(args.out, "table1_classification", result, TABLE1_COLUMNS)
+    print(markdown_table(result["rows"], TABLE1_COLUMNS))
+    log(
+        f"cross-validation of {len(config.classifiers)} classifiers on {len(scenes)} scenes took {seconds:.0f} s"
+    )
+    log("wrote " + ", ".join(str(p) for p in paths.values()))
+    return EXIT_OK
+
+
+def cmd_evaluate_planning(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
+
+    scenes = load_labelled(args.data)
+    result = evaluate_planners_on_truth(
+        scenes,
+        factor=args.factor,
+        config=plan_config(args),
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "planning",
+    )
+    show_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
+    return EXIT_OK
+
+
+def cmd_evaluate_agility(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
+
+    config = AgilityConfig(
+        folds=args.folds,
+        seed=args.seed,
+        factor=args.factor,
+        epochs=args.epochs,
+        classifier=args.classifier,
+        objective=args.objective,
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        plan=plan_config(args),
+        **name_lists(planners=args.planners, presets=args.agility),
+    )
+    scenes = load_labelled(args.data)
+    result = evaluate_agility(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "agility",
+    )
+    show_result(args.out, "agility", result, AGILITY_COLUMNS)
+    return EXIT_OK
+
+
+def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
+    from dyntarget.pipeline import PipelineConfig
+
+    config = E2EConfig(
+        folds=args.folds,
+        seed=args.seed,
+        factor=args.factor,
+        epochs=args.epochs,
+        pipeline=PipelineConfig(plan=plan_config(args)),
+        **name_lists(classifiers=args.classifiers, planners=args.planners),
+    )
+    scenes = load_labelled(args.data)
+    t0 = time.perf_counter()
+    result = evaluate_end_to_end(
+        scenes,
+        config,
+        models_dir=args.models,
+        progress=not args.quiet,
+        scheduler=args.scheduler,
+        parts=Path(args.out) / "parts" / "end-to-end",
+    )
+    result["timing"] = {"seconds": time.perf_counter() - t0}
+    show_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser("evaluate", help="evaluations that reproduce the paper's tables")
+    ev = p.add_subparsers(
+        dest="evaluation", required=True, metavar="EVALUATION", parser_class=Parser
+    )
+    q = ev.add_parser("classification", help="k-fold cross-validation of the classifiers (Table 1)")
+    add_evaluation_options(q)
+    q.add_argument("--classifiers", help="comma-separated subset (default: all)")
+    q.set_defaults(func=cmd_evaluate_classification)
+    q = ev.add_parser("planning", help="the six planners on the true masks")
+    add_evaluation_options(q, trains=False)
+    add_plan_options(q)
+    q.set_defaults(func=cmd_evaluate_planning)
+    q = ev.add_parser(
+        "agility", help="planners and utility-max under orbit kinematics and agility presets"
+    )
+    add_evaluation_options(q)
+    q.add_argument(
+        "--classifier", default="unet-uavsar", help="classifier to plan on (default unet-uavsar)"
+    )
+    q.add_argument("--planners", help="comma-separated geometric planners (default: the four)")
+    q.add_argument("--agility", help="comma-separated presets (default: all; 'dyntarget agility')")
+    q.add_argument(
+        "--objective",
+        default="gradient",
+        choices=["gradient", "intensity", "plume"],
+        help="what utility-max maximises (default gradient)",
+    )
+    q.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
+    q.add_argument(
+        "--look-ahead-km",
+        type=float,
+        default=500.0,
+        help="ground distance from nadir to the WFOV scene centre at acquisition (default 500)",
+    )
+    add_plan_options(q)
+    q.set_defaults(func=cmd_evaluate_agility)
+
+    q = ev.add_parser(
+        "end-to-end", help="classify, denoise, plan and observe on held-out scenes (Table 2)"
+    )
+    add_evaluation_options(q)
+    q.add_argument("--classifiers", help="comma-separated subset (default: all)")
+    q.add_argument("--planners", help="comma-separated subset (default: all)")
+    add_plan_options(q)
+    q.set_defaults(func=cmd_evaluate_end_to_end)
+    for module in EVALUATIONS:
+        module.register_evaluation(ev)

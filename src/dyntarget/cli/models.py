@@ -1,0 +1,76 @@
+"""Classifier models: ``classifiers`` (list), ``train``, ``export-onnx``."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int
+
+
+def cmd_classifiers(args: argparse.Namespace) -> int:
+    from dyntarget.perceive import CLASSIFIERS
+
+    for name in CLASSIFIERS.available():
+        print(f"{name:20s} {CLASSIFIERS.get(name).summary}")
+    return EXIT_OK
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.crossval import classifier_kwargs
+    from dyntarget.perceive import make_classifier
+
+    scenes = [s.to_wfov(args.factor) for s in load_labelled(args.data)]
+    model = make_classifier(
+        args.classifier, **classifier_kwargs(args.classifier, seed=args.seed, epochs=args.epochs)
+    )
+    t0 = time.perf_counter()
+    model.fit(scenes)
+    path = model.save(args.out)
+    log(f"trained {args.classifier} on {len(scenes)} scenes in {time.perf_counter() - t0:.1f} s")
+    print(path)
+    return EXIT_OK
+
+
+def cmd_export_onnx(args: argparse.Namespace) -> int:
+    from dyntarget.perceive import load_classifier
+    from dyntarget.perceive.onnx import export_checked
+    from dyntarget.synth import generate_scene
+
+    native = load_classifier(args.model)
+    check = generate_scene(args.seed, 0, size=args.check_size)[0].image
+    path, diff = export_checked(native, args.model, check)
+    log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
+    print(path)
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser("classifiers", help="list the plume classifiers")
+    p.set_defaults(func=cmd_classifiers)
+
+    p = sub.add_parser("train", help="train a classifier on a scene directory and save the model")
+    p.add_argument("--data", required=True, help="scene directory with labels")
+    p.add_argument(
+        "--classifier", required=True, help="classifier name (see 'dyntarget classifiers')"
+    )
+    p.add_argument("--out", required=True, help="model directory to write")
+    p.add_argument(
+        "--epochs", type=positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
+    )
+    p.add_argument(
+        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser(
+        "export-onnx", help="export a trained model to ONNX (model.onnx beside it), checked"
+    )
+    p.add_argument("model", help="trained model directory (from 'dyntarget train')")
+    p.add_argument(
+        "--check-size", type=positive_int, default=128, help="check scene size (default 128)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the check scene (default 0)")
+    p.set_defaults(func=cmd_export_onnx)

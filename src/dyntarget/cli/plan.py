@@ -1,0 +1,277 @@
+"""``dyntarget plan``: one image -> an NFOV trajectory; ``planners`` and ``agility`` list the choices."""
+
+from __future__ import annotations
+
+import argparse
+
+from dyntarget.cli._common import (
+    EXIT_OK,
+    add_plan_options,
+    log,
+    plan_config,
+    positive_float,
+    positive_int,
+    preset_names,
+)
+
+
+def cmd_planners(args: argparse.Namespace) -> int:
+    from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
+
+    for name in PLANNERS.available():
+        doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
+        tag = " (baseline)" if name in BASELINES else ""
+        tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
+        print(f"{name:20s} {doc}{tag}")
+    print(
+        f"{'utility-max':20s} Pointings chosen for the highest expected utility per second "
+        "under orbit kinematics; needs plan --agility PRESET (beyond the paper)"
+    )
+    return EXIT_OK
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.io.sensors import read_any
+    from dyntarget.perceive import load_classifier
+    from dyntarget.pipeline import PipelineConfig, plan_scene
+
+    if args.mask is None and args.model is None:
+        if args.classifier:
+            raise InvalidParameterError(
+                f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
+            )
+        raise InvalidParameterError("give --mask MASK or --model PATH")
+    wfov = read_any(
+        args.image,
+        label=args.mask,
+        bands=args.bands,
+        preset=args.preset,
+        scale=args.scale,
+        offset=args.offset,
+        factor=args.factor,
+    )
+    classifier = None
+    if args.onnx and args.model is None:
+        raise InvalidParameterError("--onnx runs a model's ONNX export: give --model PATH")
+    if args.model is not None:
+        if args.onnx:
+            from dyntarget.perceive.onnx import load_onnx
+
+            classifier = load_onnx(args.model)
+        else:
+            classifier = load_classifier(args.model)
+        if args.classifier and args.classifier != classifier.name:
+            raise InvalidParameterError(
+                f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
+            )
+    config = PipelineConfig(plan=plan_config(args))
+    if args.planner == "utility-max":
+        return _plan_utility_max(args, wfov, classifier, config)
+    fallback = load_classifier(args.fallback_model) if args.fallback_model else None
+    result = plan_scene(
+        wfov.image,
+        classifier,
+        args.planner,
+        mask=wfov.label,
+        valid=wfov.valid,
+        denoise=not args.no_denoise,
+        config=config,
+        deadline_s=args.deadline_s,
+        fallback=fallback,
+    )
+    if args.deadline_s is not None:
+        met = "met" if result.deadline_met else "MISSED"
+        log(
+            f"deadline {args.deadline_s:g} s {met} ({result.runtime:.3f} s): "
+            + "; ".join(result.path)
+        )
+    traj = result.trajectory
+    if len(traj) == 0:
+        log(f"{args.planner}: no plume found in {args.image[0]}; the trajectory is empty")
+    times = ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
+    log(
+        f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
+    )
+    if args.agility:  # fly what the kinematics allow: re-timed, trimmed, maybe reordered
+        from dyntarget.schedule import get_agility, make_feasible
+
+        sched = make_feasible(
+            traj, wfov.shape, _geometry(args, wfov), get_agility(args.agility),
+            budget_s=args.budget_s,
+        )  # fmt: skip
+        _log_schedule(args.planner, sched)
+        traj = sched.trajectory
+    out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
+    print(out)
+    if args.figure:
+        from dyntarget.evaluate.figures import trajectories_figure
+
+        print(trajectories_figure(wfov.image, [traj], args.figure, mask=result.mask, title=wfov.id))
+    return EXIT_OK
+
+
+def _geometry(args: argparse.Namespace, wfov):
+    """The observation geometry of ``plan``'s kinematics options for this WFOV image."""
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.schedule import OrbitGeometry
+
+    gsd = args.wfov_gsd or wfov.gsd
+    if gsd is None:
+        raise InvalidParameterError(
+            f"{args.image[0]}: no ground sampling distance known; give --wfov-gsd METRES"
+        )
+    return OrbitGeometry(
+        altitude_m=args.altitude_km * 1e3,
+        look_ahead_m=args.look_ahead_km * 1e3,
+        wfov_gsd_m=gsd,
+        start_s=args.start_s,
+    )
+
+
+def _log_schedule(planner: str, sched) -> None:
+    log(
+        f"{planner} under '{sched.agility}' agility: {len(sched.kept)} of {sched.planned} "
+        f"planned pointings feasible ({100 * sched.fraction_feasible:.0f} %), "
+        f"done {sched.total_s:.1f} s after the start, {sched.time_left_s:.1f} s left in the window"
+    )
+
+
+def _plan_utility_max(args, wfov, classifier, config) -> int:
+    """``plan --planner utility-max``: plan under an agility preset, write the timed pointings."""
+    import numpy as np
+
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.plan.utility import utility_max
+    from dyntarget.schedule import get_agility, schedule
+
+    if not args.agility:
+        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
+    agility = get_agility(args.agility)
+    geometry = _geometry(args, wfov)
+    if classifier is not None:
+        proba = classifier.predict_proba(wfov.image)
+    else:
+        proba = wfov.label.astype(np.float32)
+    proba = np.where(wfov.valid_mask, proba, 0.0).astype(np.float32)
+    step, _ = config.plan.resolved(wfov.shape)
+    traj = utility_max(
+        proba,
+        wfov.image,
+        geometry,
+        agility,
+        step=max(step, 1.0),
+        objective=args.objective,
+        budget_s=args.budget_s,
+        max_pointings=args.max_pointings,
+    )
+    sched = schedule(traj, wfov.shape, geometry, agility)
+    _log_schedule("utility-max", sched)
+    print(sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs))
+    return EXIT_OK
+
+
+def cmd_agility(args: argparse.Namespace) -> int:
+    from dyntarget.schedule import AGILITY
+
+    print(
+        f"{'preset':10s} {'rate °/s':>9s} {'accel °/s²':>10s} {'settle s':>9s} {'dwell s':>8s} {'FOR °':>6s}"
+    )
+    for a in AGILITY.values():
+        fov = "-" if a.field_of_regard_deg is None else f"{a.field_of_regard_deg:g}"
+        print(
+            f"{a.name:10s} {a.max_rate_deg_s:9g} {a.max_accel_deg_s2:10g} {a.settle_s:9g} "
+            f"{a.dwell_s:8g} {fov:>6s}"
+        )
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this module's command(s) to the ``dyntarget`` sub-commands."""
+    p = sub.add_parser("planners", help="list the trajectory planners")
+    p.set_defaults(func=cmd_planners)
+
+    p = sub.add_parser("agility", help="list the NFOV agility presets")
+    p.set_defaults(func=cmd_agility)
+
+    p = sub.add_parser(
+        "plan", help="plan an NFOV trajectory for one image (classify, denoise, plan)"
+    )
+    p.add_argument(
+        "image",
+        nargs="+",
+        help="a 4-band GeoTIFF (R, G, B, NIR), a multi-band product with --preset/--bands, a .npz, "
+        "or four single-band files in the order R G B NIR",
+    )
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
+    src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
+    p.add_argument("--classifier", help="classifier name; must match --model")
+    p.add_argument(
+        "--onnx", action="store_true", help="run the model's ONNX export with onnxruntime"
+    )
+    p.add_argument(
+        "--deadline-s",
+        type=positive_float,
+        help="seconds allowed for classify + denoise + plan; cheaper paths are taken to meet it",
+    )
+    p.add_argument(
+        "--fallback-model", help="a cheaper trained model to fall back on under --deadline-s"
+    )
+    p.add_argument(
+        "--planner",
+        required=True,
+        help="planner name (see 'dyntarget planners'), or utility-max (with --agility)",
+    )
+    p.add_argument("--out", required=True, help="trajectory file: .geojson or .csv")
+    p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
+    p.add_argument(
+        "--factor",
+        type=positive_int,
+        default=1,
+        help="downsample the image to WFOV first (default 1)",
+    )
+    p.add_argument(
+        "--scale", type=positive_float, help="reflectance per digital number for integer images"
+    )
+    p.add_argument("--preset", help="sensor preset: " + ", ".join(preset_names()))
+    p.add_argument(
+        "--bands", help="R,G,B,NIR band numbers (1-based) or names, e.g. 3,2,1,7 or B4,B3,B2,B8"
+    )
+    p.add_argument(
+        "--offset", type=float, help="reflectance offset added after scaling (e.g. -0.1)"
+    )
+    p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
+    add_plan_options(p)
+    k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
+    k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
+    k.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
+    k.add_argument(
+        "--look-ahead-km",
+        type=float,
+        default=500.0,
+        help="ground distance from nadir to the scene centre at acquisition (default 500)",
+    )
+    k.add_argument(
+        "--start-s",
+        type=float,
+        default=0.0,
+        help="seconds after acquisition when the plan starts (onboard latency; default 0)",
+    )
+    k.add_argument(
+        "--wfov-gsd", type=positive_float, help="metres per WFOV pixel (default: the image's)"
+    )
+    k.add_argument("--budget-s", type=float, help="time budget in seconds from the start")
+    k.add_argument(
+        "--max-pointings",
+        type=positive_int,
+        help="pointing budget (utility-max; needed when unlimited)",
+    )
+    k.add_argument(
+        "--objective",
+        default="gradient",
+        choices=["gradient", "intensity", "plume"],
+        help="what utility-max maximises (default gradient)",
+    )
+    p.set_defaults(func=cmd_plan)

@@ -1,0 +1,79 @@
+"""The lean core: heavy libraries are imported only by the code paths that use them.
+
+Each check runs in a fresh interpreter (this test process has imported everything
+already) and reads ``sys.modules`` at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("torch", "sklearn", "skops", "dask", "distributed", "matplotlib", "onnxruntime", "pytest")
+NATIVE_ML = ("torch", "sklearn", "skops")
+
+
+def _loaded_after(code: str) -> tuple[list[str], str]:
+    """Run ``code`` in a fresh interpreter; the heavy modules it left loaded, and its stdout."""
+    probe = (
+        f"{code}\nimport json, sys\n"
+        f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    *out, last = done.stdout.strip().splitlines()
+    return json.loads(last), "\n".join(out)
+
+
+def test_importing_the_core_and_stages_loads_nothing_heavy():
+    loaded, _ = _loaded_after(
+        "import dyntarget, dyntarget.pipeline, dyntarget.plan, dyntarget.observe, dyntarget.io\n"
+        "import dyntarget.denoise, dyntarget.schedule, dyntarget.masks, dyntarget.trajectory\n"
+        "import dyntarget.perceive, dyntarget.synth, dyntarget.cli"
+    )
+    assert loaded == []
+
+
+def test_listing_classifiers_and_planners_loads_nothing_heavy():
+    loaded, out = _loaded_after(
+        "from dyntarget.cli import main\n"
+        "assert main(['classifiers']) == 0\n"
+        "assert main(['planners']) == 0\n"
+        "assert main(['agility']) == 0"
+    )
+    assert loaded == []
+    assert "random-forest" in out and "unet-uavsar" in out and "lawnmower-transect" in out
+
+
+def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
+    tiny_scenes, tmp_path
+):
+    pytest.importorskip("onnxruntime")
+    pytest.importorskip("skl2onnx")
+    from dyntarget.cli import main
+    from dyntarget.io import write_scene
+    from dyntarget.perceive import make_classifier
+    from dyntarget.perceive.onnx import export_onnx
+
+    model_dir = tmp_path / "rf"
+    model = make_classifier("decision-tree").fit(tiny_scenes[:3])
+    model.save(model_dir)
+    export_onnx(model, model_dir)
+    image = write_scene(tiny_scenes[3], tmp_path / "scene")[0]
+    native_out = tmp_path / "native.csv"
+    args = ["plan", str(image), "--model", str(model_dir), "--planner", "track-center"]
+    assert main([*args, "--out", str(native_out)]) == 0
+
+    onnx_out = tmp_path / "onnx.csv"
+    loaded, _ = _loaded_after(
+        "from dyntarget.cli import main\n"
+        f"assert main({[*args, '--onnx', '--out', str(onnx_out)]!r}) == 0"
+    )
+    assert not set(loaded) & set(NATIVE_ML), loaded
+    assert "onnxruntime" in loaded  # the ONNX path really ran
+    assert onnx_out.read_text() == native_out.read_text()  # the same mask, the same plan
