@@ -226,9 +226,12 @@ class Stitching:
 
     Examples
     --------
-    >>> st = Stitching(tile=64, factor=8, halo=64, bytes_per_pixel=1000.0, memory_mib=1.0)
-    >>> [(w[0].start, w[0].stop) for w in st.windows((200, 72))][:3]
-    [(0, 136), (0, 136), (8, 200)]
+    Rows of the windows over a 200 x 72 px image (input rows, kept rows within them):
+
+    >>> st = Stitching(tile=64, factor=8, halo=16, bytes_per_pixel=1000.0, memory_mib=10.0)
+    >>> w = st.windows((200, 72))
+    >>> len(w), [(r.start, r.stop, k.start, k.stop) for r, c, k, _ in w][::2]
+    (8, [(0, 72, 0, 56), (40, 128, 16, 72), (96, 184, 16, 72), (152, 200, 16, 48)])
     >>> st.run(np.ones((4, 200, 70), np.float32), lambda b: b[:, 0] * 0.5).max()
     np.float32(0.5)
     """
