@@ -244,6 +244,48 @@ class RandomForest(PixelClassifier):
     name = "random-forest"
     summary = "random forest (50 trees, depth <= 14) on the 4 band values"
 
+    backend: str = "sklearn"
+    """``"sklearn"`` (default) or ``"compiled"`` (:mod:`dyntarget.perceive.compiled`)."""
+
+    def set_backend(self, backend: str) -> RandomForest:
+        """Run prediction with scikit-learn (default) or the compiled forest.
+
+        Parameters
+        ----------
+        backend : {"sklearn", "compiled"}
+            ``"compiled"`` builds (or reuses from the cache) a shared library of the
+            forest; it needs treelite, tl2cgen and a C compiler.
+
+        Returns
+        -------
+        RandomForest
+            This classifier.
+
+        Examples
+        --------
+        >>> from dyntarget.perceive import make_classifier
+        >>> make_classifier("random-forest").set_backend("sklearn").backend
+        'sklearn'
+        """
+        if backend not in ("sklearn", "compiled"):
+            raise InvalidParameterError(
+                f"backend: expected 'sklearn' or 'compiled', got {backend!r}"
+            )
+        self.backend = backend
+        self._compiled = None
+        return self
+
+    def chunk_predictor(self):
+        """scikit-learn's ``predict_proba``, or the compiled forest (see :meth:`set_backend`)."""
+        if self.backend != "compiled":
+            return super().chunk_predictor()
+        cached = getattr(self, "_compiled", None)
+        if cached is None or cached[0] is not self.estimator:  # refitted: compile anew
+            from dyntarget.perceive.compiled import compile_forest
+
+            self._compiled = cached = (self.estimator, compile_forest(self.estimator))
+        return cached[1]
+
     def make_estimator(self) -> BaseEstimator:
         from sklearn.ensemble import RandomForestClassifier
 
