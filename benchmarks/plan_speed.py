@@ -21,7 +21,7 @@ import numpy as np
 
 from dyntarget.denoise import denoise
 from dyntarget.perceive import make_classifier
-from dyntarget.plan import PLANNERS, plan
+from dyntarget.plan import geometric_planners, plan
 from dyntarget.synth import generate_scene
 
 
@@ -54,7 +54,7 @@ def main() -> None:
             "polygons_max": int(max(polys)),
             "planners": {},
         }
-        for name in PLANNERS.available():
+        for name in geometric_planners():
             ms = [median_ms(lambda c=c, name=name: plan(name, c.mask, c.polygons)) for c in cleaned]
             results[kind]["planners"][name] = {
                 "median_ms": float(np.median(ms)),
@@ -76,7 +76,7 @@ def main() -> None:
         "| planner | true mask median (ms) | true mask max (ms) | DT mask median (ms) | DT mask max (ms) |"
     )
     print("|---|---|---|---|---|")
-    for name in PLANNERS.available():
+    for name in geometric_planners():
         t, d = results["true"]["planners"][name], results["decision-tree"]["planners"][name]
         print(
             f"| {name} | {t['median_ms']:.1f} | {t['max_ms']:.1f} | {d['median_ms']:.1f} | {d['max_ms']:.1f} |"

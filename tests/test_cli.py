@@ -12,6 +12,7 @@ def run(capsys, *argv):
     return code, out, err
 
 
+@pytest.mark.slow
 def test_synth_writes_76_files_byte_identical(tmp_path, capsys):
     a, b = tmp_path / "a", tmp_path / "b"
     for d in (a, b):
@@ -27,6 +28,7 @@ def test_synth_writes_76_files_byte_identical(tmp_path, capsys):
             assert src.count in (1, 4)
 
 
+@pytest.mark.slow
 def test_demo_writes_picture(tmp_path, capsys):
     code, out, err = run(capsys, "demo", "--out", tmp_path, "--scenes", 3, "--size", 48, "--quiet")
     assert code == 0, err

@@ -121,6 +121,7 @@ def test_one_pixel_wide_ring_keeps_its_polygon():
     assert not poly.contains(poly.centroid)  # still hollow
 
 
+@pytest.mark.slow
 def test_one_pixel_ring_with_thick_corner_pieces():
     rng = np.random.default_rng(5)
     for _ in range(50):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from dyntarget.cli import main
 
 
@@ -17,6 +19,7 @@ def _files(d):
     }
 
 
+@pytest.mark.slow
 def test_plan_and_evaluate_byte_identical(tmp_path, capsys):
     data = tmp_path / "data"
     _run("synth", "--scenes", 4, "--size", 48, "--seed", 3, "--out", data, "--quiet")

@@ -62,6 +62,7 @@ edits = st.lists(st.tuples(st.integers(0, 10**6), st.integers(0, 255)), max_size
 cuts = st.one_of(st.none(), st.integers(0, 4000))
 
 
+@pytest.mark.slow
 @settings(max_examples=FUZZ_EXAMPLES)
 @given(edits, cuts, st.sampled_from(["image", "mask"]))
 def test_corrupted_geotiff(tmp_path_factory, valid_files, edit, cut, which):
@@ -77,6 +78,7 @@ def test_corrupted_geotiff(tmp_path_factory, valid_files, edit, cut, which):
         assert scene.image.shape[0] == 4 and np.isfinite(scene.image).all()
 
 
+@pytest.mark.slow
 @settings(max_examples=FUZZ_EXAMPLES)
 @given(edits, cuts)
 def test_corrupted_geojson(tmp_path_factory, valid_files, edit, cut):
@@ -113,6 +115,7 @@ def test_corrupted_geojson(tmp_path_factory, valid_files, edit, cut):
         max_leaves=20,
     )
 )
+@pytest.mark.slow
 def test_structurally_wrong_geojson(tmp_path_factory, valid_files, doc):
     d = tmp_path_factory.mktemp("fuzzs")
     (d / "s.tif").write_bytes(valid_files[0])
@@ -126,6 +129,7 @@ def test_structurally_wrong_geojson(tmp_path_factory, valid_files, doc):
 SEEDED_CORRUPTIONS = 400
 
 
+@pytest.mark.slow
 def test_seeded_byte_corruption_sweep(tmp_path, valid_files, capfd):
     """400 seeded corruptions (byte flips, truncations): only DynTargetError, and nothing on stderr.
 

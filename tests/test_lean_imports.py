@@ -77,3 +77,28 @@ def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
     assert not set(loaded) & set(NATIVE_ML), loaded
     assert "onnxruntime" in loaded  # the ONNX path really ran
     assert onnx_out.read_text() == native_out.read_text()  # the same mask, the same plan
+
+
+def test_a_missing_optional_dependency_names_its_extra(tiny_scenes, tmp_path, monkeypatch, capsys):
+    from dyntarget.cli import main
+    from dyntarget.io import write_scene
+
+    data = tmp_path / "data"
+    for scene in tiny_scenes[:2]:
+        write_scene(scene, data)
+    # as if scikit-learn were not installed (the lean install without the "full" extra)
+    monkeypatch.setitem(sys.modules, "sklearn", None)
+    monkeypatch.setitem(sys.modules, "sklearn.naive_bayes", None)
+    args = [
+        "train",
+        "--data",
+        str(data),
+        "--classifier",
+        "naive-bayes",
+        "--out",
+        str(tmp_path / "m"),
+    ]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ['dyntarget: error: sklearn is not installed: pip install "dyntarget[full]"']
+    assert not (tmp_path / "m").exists()

@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 
 from dyntarget.denoise import close, denoise
 from dyntarget.evaluate.metrics import Confusion
-from dyntarget.plan import PLANNERS, PlanConfig, plan
+from dyntarget.plan import PlanConfig, geometric_planners, plan
 
 masks = st.integers(4, 40).flatmap(
     lambda h: st.integers(4, 40).flatmap(lambda w: arrays(np.bool_, (h, w), elements=st.booleans()))
@@ -53,7 +53,7 @@ def test_kept_components_large_enough_and_polygons_valid(mask, it, area):
 
 
 @settings(max_examples=40)
-@given(blobby, st.sampled_from(PLANNERS.available()), st.floats(0.5, 5.0))
+@given(blobby, st.sampled_from(geometric_planners()), st.floats(0.5, 5.0))
 def test_planners_inside_finite_deterministic(mask, name, step):
     cleaned = denoise(mask, iterations=1, min_area=1)
     config = PlanConfig(step=step)

@@ -15,7 +15,15 @@ from dyntarget.errors import (
     ModelFileError,
     UnknownNameError,
 )
-from dyntarget.scene import BANDS, Scene
+
+
+def __getattr__(name: str):  # Scene and BANDS on first use: `dyntarget --help` needs no numpy
+    if name in ("BANDS", "Scene"):
+        from dyntarget import scene
+
+        return getattr(scene, name)
+    raise AttributeError(f"module 'dyntarget' has no attribute {name!r}")
+
 
 __all__ = [
     "BANDS",

@@ -25,11 +25,12 @@ import cv2
 import numpy as np
 from shapely.geometry import Polygon
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.masks import check_mask, mask_to_polygons
 
-DEFAULT_ITERATIONS = 1
-DEFAULT_MIN_AREA_FRACTION = 0.01
+DEFAULT_ITERATIONS = defaults.DENOISE_ITERATIONS
+DEFAULT_MIN_AREA_FRACTION = defaults.MIN_AREA_FRACTION
 _KERNEL = np.ones((3, 3), np.uint8)
 
 

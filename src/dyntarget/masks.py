@@ -14,7 +14,26 @@ from dyntarget.errors import InvalidSceneError
 
 
 def check_mask(mask: object, *, name: str = "mask") -> np.ndarray:
-    """Validate a 2-D boolean (or 0/1 integer) mask; return it as ``bool``."""
+    """Validate a 2-D boolean (or integer, non-zero = plume) mask; return it as ``bool``.
+
+    Parameters
+    ----------
+    mask : array_like
+        ``(H, W)`` bool or integer mask.
+    name : str
+        The argument's name in error messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` bool. A wrong shape or dtype raises
+        :class:`~dyntarget.errors.InvalidSceneError`.
+
+    Examples
+    --------
+    >>> check_mask(np.array([[0, 2], [1, 0]])).tolist()
+    [[False, True], [True, False]]
+    """
     arr = np.asarray(mask)
     if arr.ndim != 2 or arr.shape[0] < 1 or arr.shape[1] < 1:
         raise InvalidSceneError(
@@ -34,6 +53,22 @@ def mask_to_polygons(mask: np.ndarray) -> list[Polygon]:
     wide (a point, a line, a thin ring: its pixel-centre polygon covers less
     than half its pixels) becomes the union of its pixels' unit squares, so
     every polygon is valid, non-empty and faithful to the mask.
+
+    Parameters
+    ----------
+    mask : array_like
+        ``(H, W)`` bool mask.
+
+    Returns
+    -------
+    list of shapely.geometry.Polygon
+        In pixel-centre coordinates, largest first.
+
+    Examples
+    --------
+    >>> m = np.zeros((10, 10), bool); m[2:5, 2:8] = True; m[8, 8] = True
+    >>> [round(p.area, 1) for p in mask_to_polygons(m)]
+    [10.0, 1.0]
     """
     mask = check_mask(mask)
     if not mask.any():

@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import time
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Polygon
 
+from dyntarget import defaults
 from dyntarget import denoise as denoising
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
-from dyntarget.plan import PlanConfig, Trajectory, plan
+from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
 from dyntarget.scene import check_image
 
 
@@ -29,7 +31,7 @@ class DenoiseConfig:
 class PipelineConfig:
     plan: PlanConfig = field(default_factory=PlanConfig)
     denoise: DenoiseConfig = field(default_factory=DenoiseConfig)
-    threshold: float = 0.5
+    threshold: float = defaults.THRESHOLD
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +48,10 @@ class PlanResult:
     """What ran, in order (``classify: NAME``, ``plan: NAME``), with the reason for any
     fallback a deadline forced."""
     deadline_s: float | None = None
+    planner: str = ""
+    """The planner that made the trajectory (the last resort's under a missed deadline)."""
+    schedule: Any = None
+    """With ``kinematics``: the :class:`dyntarget.schedule.Schedule` flown."""
 
     @property
     def deadline_met(self) -> bool | None:
@@ -56,6 +62,254 @@ class PlanResult:
     def runtime(self) -> float:
         """Total wall time of classify + denoise + plan."""
         return float(sum(self.timings.values()))
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """What ``plan_scene`` schedules under (the observation geometry and agility), and the
+    budgets of the kinematic planners (``utility-max``).
+
+    Parameters
+    ----------
+    geometry : dyntarget.schedule.OrbitGeometry
+        Where the scene lies and when the plan starts.
+    agility : str
+        Agility preset (``dyntarget agility``).
+    budget_s : float or None
+        Time budget from the start, seconds.
+    objective : str
+        What ``utility-max`` maximises.
+    max_pointings : int or None
+        Pointing budget of ``utility-max``.
+    """
+
+    geometry: Any
+    agility: str
+    budget_s: float | None = None
+    objective: str = "gradient"
+    max_pointings: int | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Algorithm 1 up to the planner: the probability, the raw and denoised masks, the polygons.
+
+    ``timings`` holds ``classify`` and ``denoise`` wall seconds.
+    """
+
+    probability: np.ndarray | None
+    raw_mask: np.ndarray
+    mask: np.ndarray
+    polygons: list[Polygon]
+    valid: np.ndarray | None
+    image: np.ndarray
+    timings: dict[str, float]
+
+
+def classify(image: np.ndarray, classifier: Classifier) -> np.ndarray:
+    """Plume probability of ``image`` (the classify stage, timed by the callers).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    classifier : Classifier
+        Fitted (native or ONNX).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32 probability.
+    """
+    return classifier.predict_proba(image)
+
+
+def clean(raw: np.ndarray, config: PipelineConfig, *, denoise: bool = True):
+    """The denoise stage (Algorithm 2, settings from ``config``), or the raw mask's polygons.
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        ``(H, W)`` bool mask.
+    config : PipelineConfig
+        Its ``denoise`` settings.
+    denoise : bool
+        ``False``: keep the mask, only find its polygons.
+
+    Returns
+    -------
+    tuple
+        ``(mask, polygons)``.
+    """
+    if not denoise:
+        return raw, mask_to_polygons(raw)
+    cfg = config.denoise
+    result = denoising.denoise(
+        raw, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction
+    )
+    return result.mask, result.polygons
+
+
+def segment(
+    image: np.ndarray,
+    classifier: Classifier | None = None,
+    *,
+    mask: np.ndarray | None = None,
+    probability: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
+    denoise: bool = True,
+    config: PipelineConfig | None = None,
+) -> Segmentation:
+    """Algorithm 1 before planning: classify (or take a mask or probability), threshold,
+    keep valid pixels, denoise.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    classifier : Classifier or None
+        Fitted classifier; not needed with ``mask`` or ``probability``.
+    mask : numpy.ndarray or None
+        A plume mask to plan on instead of classifying.
+    probability : numpy.ndarray or None
+        A plume probability computed before (thresholded at ``config.threshold``).
+    valid : numpy.ndarray or None
+        ``False`` on nodata pixels: never plume.
+    denoise : bool
+        Apply Algorithm 2.
+    config : PipelineConfig or None
+        Threshold and denoising settings (defaults: the paper's).
+
+    Returns
+    -------
+    Segmentation
+        Probability, raw and denoised masks, polygons, stage timings.
+
+    Examples
+    --------
+    >>> img = np.zeros((4, 40, 40), np.float32); m = np.zeros((40, 40), bool)
+    >>> m[10:30, 5:35] = True; m[2, 2] = True       # a plume and a speck
+    >>> seg = segment(img, mask=m)
+    >>> len(seg.polygons), int(seg.mask.sum())
+    (1, 600)
+    """
+    config = config or PipelineConfig()
+    image = check_image(image)
+    t0 = time.perf_counter()
+    if mask is not None:
+        raw = check_mask(mask)
+        if raw.shape != image.shape[1:]:
+            raise InvalidSceneError(
+                f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
+            )
+    else:
+        if probability is None:
+            if classifier is None:
+                raise InvalidParameterError("plan_scene: give a classifier or a mask")
+            probability = classify(image, classifier)
+        elif np.shape(probability) != image.shape[1:]:
+            raise InvalidSceneError(
+                f"probability: shape {np.shape(probability)} does not match the image's "
+                f"{image.shape[1:]}"
+            )
+        raw = probability >= config.threshold
+    if valid is not None:
+        if np.shape(valid) != raw.shape:
+            raise InvalidSceneError(
+                f"valid: shape {np.shape(valid)} does not match the image's {raw.shape}"
+            )
+        valid = np.asarray(valid, bool)
+        raw = raw & valid
+    timings = {"classify": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    clean_mask, polygons = clean(raw, config, denoise=denoise)
+    timings["denoise"] = time.perf_counter() - t0
+    return Segmentation(probability, raw, clean_mask, polygons, valid, image, timings)
+
+
+def plan_segmentation(
+    segmentation: Segmentation,
+    planner: str,
+    config: PipelineConfig | None = None,
+    *,
+    kinematics: Kinematics | None = None,
+) -> Trajectory:
+    """The plan stage: ``planner`` on a segmentation; pointings on nodata are dropped.
+
+    Parameters
+    ----------
+    segmentation : Segmentation
+        From :func:`segment`.
+    planner : str
+        Registered planner name.
+    config : PipelineConfig or None
+        Its ``plan`` settings.
+    kinematics : Kinematics or None
+        Needed by the kinematic planners (``utility-max``).
+
+    Returns
+    -------
+    Trajectory
+        The planned pointings.
+    """
+    config = config or PipelineConfig()
+    seg = segmentation
+    context = None
+    if kinematics is not None:
+        proba = seg.probability if seg.probability is not None else seg.raw_mask
+        if seg.valid is not None:
+            proba = np.where(seg.valid, proba, 0.0)
+        context = PlanContext(
+            probability=np.asarray(proba, np.float32),
+            image=seg.image,
+            geometry=kinematics.geometry,
+            agility=kinematics.agility,
+            objective=kinematics.objective,
+            budget_s=kinematics.budget_s,
+            max_pointings=kinematics.max_pointings,
+        )
+    trajectory = plan(planner, seg.mask, seg.polygons, config.plan, context)
+    if seg.valid is not None and len(trajectory):
+        shape = seg.raw_mask.shape
+        rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, shape[0] - 1)
+        cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, shape[1] - 1)
+        trajectory = trajectory.without(~seg.valid[rows, cols])  # never point at nodata
+    return trajectory
+
+
+def schedule_plan(
+    trajectory: Trajectory, shape: tuple[int, int], planner: str, kinematics: Kinematics
+):
+    """The schedule stage: time the pointings under the kinematics, keep the feasible.
+
+    A planner that plans under the kinematics (``timed``) is flown as planned; the
+    others fly the better of their own order and earliest-deadline-first
+    (:func:`dyntarget.schedule.make_feasible`).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        As planned.
+    shape : tuple of int
+        WFOV ``(H, W)``.
+    planner : str
+        The planner that made it.
+    kinematics : Kinematics
+        Geometry, agility, budget.
+
+    Returns
+    -------
+    dyntarget.schedule.Schedule
+        What is flown (``.trajectory``) and what was dropped.
+    """
+    from dyntarget.plan import PLANNERS
+    from dyntarget.schedule import make_feasible, schedule
+
+    if getattr(PLANNERS.get(planner), "timed", False):
+        return schedule(trajectory, shape, kinematics.geometry, kinematics.agility)
+    return make_feasible(
+        trajectory, shape, kinematics.geometry, kinematics.agility, budget_s=kinematics.budget_s
+    )
 
 
 def plan_scene(
@@ -69,6 +323,7 @@ def plan_scene(
     config: PipelineConfig | None = None,
     deadline_s: float | None = None,
     fallback: Classifier | None = None,
+    kinematics: Kinematics | None = None,
 ) -> PlanResult:
     """Plan an NFOV trajectory for a WFOV image (Algorithm 1).
 
@@ -80,60 +335,49 @@ def plan_scene(
     mask : a plume mask to plan on instead of classifying (e.g. a hand label).
     valid : ``False`` on nodata pixels (``Scene.valid``): never plume, never pointed at.
     denoise : apply Algorithm 2 before planning (as the paper does).
+    config : threshold, denoising and planner settings.
     deadline_s : wall-clock seconds allowed for classify + denoise + plan. A plan
         is always returned; if the full path would overrun, cheaper ones are taken
         (see :func:`choose_path`), and ``PlanResult.path`` says which and why.
     fallback : a cheaper fitted classifier (e.g. ``band-threshold``) for the deadline.
+    kinematics : schedule the plan under this geometry and agility
+        (``PlanResult.schedule``); needed by ``utility-max``.
+
+    Returns
+    -------
+    PlanResult
+        Masks, polygons, the trajectory, per-stage timings (and the schedule).
     """
     config = config or PipelineConfig()
     image = check_image(image)
     if deadline_s is not None:
-        return _plan_with_deadline(
-            image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback
-        )
-    timings: dict[str, float] = {}
-    probability = None
-    t0 = time.perf_counter()
-    if mask is None:
-        if classifier is None:
-            raise InvalidParameterError("plan_scene: give a classifier or a mask")
-        probability = classifier.predict_proba(image)
-        raw = probability >= config.threshold
+        result = _plan_with_deadline(
+            image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback,
+            kinematics,
+        )  # fmt: skip
     else:
-        raw = check_mask(mask)
-        if raw.shape != image.shape[1:]:
-            raise InvalidSceneError(
-                f"mask: shape {raw.shape} does not match the image's {image.shape[1:]}"
-            )
-    if valid is not None:
-        if np.shape(valid) != raw.shape:
-            raise InvalidSceneError(
-                f"valid: shape {np.shape(valid)} does not match the image's {raw.shape}"
-            )
-        raw = raw & np.asarray(valid, bool)
-    timings["classify"] = time.perf_counter() - t0
+        result = _plan_once(image, classifier, planner, mask, valid, denoise, config, kinematics)
+    if kinematics is not None:
+        flown = schedule_plan(result.trajectory, image.shape[1:], result.planner, kinematics)
+        result = replace(result, schedule=flown)
+    return result
+
+
+def _plan_once(image, classifier, planner, mask, valid, denoise, config, kinematics) -> PlanResult:
+    seg = segment(image, classifier, mask=mask, valid=valid, denoise=denoise, config=config)
     t0 = time.perf_counter()
-    if denoise:
-        cfg = config.denoise
-        result = denoising.denoise(
-            raw, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction
-        )
-        clean, polygons = result.mask, result.polygons
-    else:
-        clean, polygons = raw, mask_to_polygons(raw)
-    timings["denoise"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    trajectory = plan(planner, clean, polygons, config.plan)
-    if valid is not None and len(trajectory):
-        rows = np.clip(np.floor(trajectory.points[:, 1] + 0.5).astype(int), 0, raw.shape[0] - 1)
-        cols = np.clip(np.floor(trajectory.points[:, 0] + 0.5).astype(int), 0, raw.shape[1] - 1)
-        trajectory = trajectory.without(
-            ~np.asarray(valid, bool)[rows, cols]
-        )  # never point at nodata
-    timings["plan"] = time.perf_counter() - t0
+    trajectory = plan_segmentation(seg, planner, config, kinematics=kinematics)
+    timings = {**seg.timings, "plan": time.perf_counter() - t0}
     path = [f"classify: {classifier.name}" if mask is None else "classify: given mask"]
     return PlanResult(
-        probability, raw, clean, polygons, trajectory, timings, [*path, f"plan: {planner}"]
+        seg.probability,
+        seg.raw_mask,
+        seg.mask,
+        seg.polygons,
+        trajectory,
+        timings,
+        [*path, f"plan: {planner}"],
+        planner=planner,
     )
 
 
@@ -173,7 +417,7 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
 
 
 def _plan_with_deadline(
-    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback
+    image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback, kinematics
 ) -> PlanResult:
     """Algorithm 1 under a deadline: the full path, a cheaper classifier, or the last resort."""
     if not (np.isfinite(deadline_s) and deadline_s > 0):
@@ -200,15 +444,12 @@ def _plan_with_deadline(
                 f"{candidate.name} skipped: estimated {estimate:.3f} s, {max(left(), 0):.3f} s left"
             )
     if mask is None and chosen is None:
-        result = plan_scene(
-            image, None, LAST_RESORT, mask=np.zeros(image.shape[1:], bool), valid=valid,
-            denoise=False, config=config,
-        )  # fmt: skip
+        result = _plan_once(
+            image, None, LAST_RESORT, np.zeros(image.shape[1:], bool), valid, False, config, None
+        )
         path = [*notes, "classify: none (no classifier fits the deadline)", f"plan: {LAST_RESORT}"]
     else:
-        result = plan_scene(
-            image, chosen, planner, mask=mask, valid=valid, denoise=denoise, config=config
-        )
+        result = _plan_once(image, chosen, planner, mask, valid, denoise, config, kinematics)
         path = [*notes, *result.path]
     timings = dict(result.timings)
     timings["overhead"] = (time.perf_counter() - start) - sum(result.timings.values())
@@ -221,4 +462,5 @@ def _plan_with_deadline(
         timings,
         path,
         deadline_s,
+        planner=result.planner,
     )

@@ -12,7 +12,6 @@ import numpy as np
 from affine import Affine
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.io.atomic import write_text
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,6 +150,8 @@ class Trajectory:
         crs: str | None = None,
     ) -> Path:
         """Write ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically."""
+        from dyntarget.io.atomic import write_text  # io: the one place files are written
+
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix in (".geojson", ".json"):

@@ -9,7 +9,7 @@ import pytest
 
 from dyntarget.cli import main
 from dyntarget.denoise import denoise
-from dyntarget.plan import BASELINES, PLANNERS, plan
+from dyntarget.plan import BASELINES, geometric_planners, plan
 from helpers import shared_data
 
 DATA = shared_data()
@@ -56,6 +56,7 @@ def test_plan_cli_on_band_files_with_preset(tmp_path, capsys):
     assert (tmp_path / "t.geojson").stat().st_size > 100
 
 
+@pytest.mark.slow
 def test_messy_real_mask_denoise_and_every_planner(patch):
     """The human cloud mask is fragmented (many blobs, holes, border cuts): everything stays correct."""
     import cv2
@@ -73,7 +74,7 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
         if len(cleaned.polygons) > 1
         else cleaned.polygons[0]
     )
-    for name in PLANNERS.available():
+    for name in geometric_planners():
         t = plan(name, cleaned.mask, cleaned.polygons)
         assert len(t) > 0 and np.isfinite(t.points).all()
         assert (t.points[:, 0] >= 0).all() and (t.points[:, 0] <= w - 1).all()
@@ -91,6 +92,7 @@ def test_messy_real_mask_denoise_and_every_planner(patch):
     assert union.area > 0
 
 
+@pytest.mark.slow
 def test_real_pixel_check_small(patch):
     from dyntarget.evaluate.realpixels import real_pixel_check, split_columns
 

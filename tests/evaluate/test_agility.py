@@ -13,6 +13,7 @@ def scenes_dir(tmp_path_factory):
     return synth_dir(tmp_path_factory, "agility-data", scenes=4, size=128, seed=6)
 
 
+@pytest.mark.slow
 def test_evaluate_agility_table(scenes_dir, tmp_path, capsys):
     code = main(
         ["evaluate", "agility", "--data", str(scenes_dir), "--out", str(tmp_path),

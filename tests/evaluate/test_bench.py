@@ -22,6 +22,7 @@ def test_measure_reports_median_and_peak():
     assert m["median_s"] >= 0 and m["min_s"] <= m["median_s"]
 
 
+@pytest.mark.slow
 def test_bench_cli_small(tmp_path, capsys):
     code = main(
         [
@@ -58,6 +59,7 @@ def test_bench_bad_size(tmp_path, capsys):
     assert "at least 32 px" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_unet_flops_scale_with_area_and_tiling_costs_more(tiny_scenes):
     from dyntarget.evaluate.bench import unet_flops
     from dyntarget.perceive import make_classifier
@@ -74,6 +76,7 @@ def test_unet_flops_scale_with_area_and_tiling_costs_more(tiny_scenes):
     assert blend["tiled"] == pytest.approx(49 / 16 * large["one_pass"])
 
 
+@pytest.mark.slow
 def test_bounds_table_in_bench_output(tmp_path, capsys):
     code = main(
         [

@@ -29,6 +29,7 @@ def test_config_validation():
         CVConfig(classifiers=("svm",))
 
 
+@pytest.mark.slow
 def test_small_cross_validation_and_model_reuse(tiny_scenes, tmp_path):
     config = CVConfig(folds=2, factor=2, classifiers=("band-threshold", "decision-tree"))
     first = cross_validate(tiny_scenes, config, models_dir=tmp_path, progress=False)

@@ -86,6 +86,7 @@ def _table(path):
         ("planning", "planning_true_masks.json"),
     ],
 )
+@pytest.mark.slow
 def test_evaluations_on_a_cluster_match_and_resume(
     evaluation, table, scenes_dir, cluster, tmp_path
 ):

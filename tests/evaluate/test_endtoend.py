@@ -71,6 +71,7 @@ def test_claim_rules_on_the_papers_numbers():
     assert verdicts[3]["verdict"] == "holds for windows longer than 13 s"
 
 
+@pytest.mark.slow
 def test_demo_and_reproduce_cli(tmp_path, capsys):
     from dyntarget.cli import main
 

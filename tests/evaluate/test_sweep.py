@@ -79,6 +79,7 @@ def _parts(out):
     return [p for p in (out / "parts").glob("*.json") if not p.name.startswith(".")]
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_with_identical_results(data38, ref38, cluster, tmp_path):
     """38 scenes x 3 classifiers x 6 planners on a 2-worker LocalCluster, stopped halfway."""
     out = tmp_path / "resumed"
@@ -96,6 +97,7 @@ def test_killed_sweep_resumes_with_identical_results(data38, ref38, cluster, tmp
     assert all((out / "parts" / n).stat().st_mtime_ns == t for n, t in mtimes.items())
 
 
+@pytest.mark.slow
 def test_sweep_process_killed_with_sigkill_resumes(data38, ref38, cluster, tmp_path):
     """The real thing: the sweep command's process is killed (SIGKILL) mid-run, then rerun."""
     out = tmp_path / "killed"
@@ -193,6 +195,7 @@ def test_bad_scheduler(data, tmp_path, capsys):
     )
 
 
+@pytest.mark.slow
 def test_sweep_over_agility_presets(data, cluster, tmp_path):
     table = sweep(
         data,

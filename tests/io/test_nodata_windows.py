@@ -98,6 +98,7 @@ def test_too_large_whole_but_fine_in_strips(tmp_path, monkeypatch):
     assert read_scene(tmp_path / "nd.tif", factor=2).shape == (32, 24)
 
 
+@pytest.mark.slow
 def test_training_never_draws_nodata():
     s = _scene_with_nodata()
     image = s.image.copy()

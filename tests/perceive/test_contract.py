@@ -10,6 +10,10 @@ from dyntarget.perceive import CLASSIFIERS, load_classifier, make_classifier
 from helpers import FAST_KWARGS
 
 NAMES = CLASSIFIERS.available()
+CASES = [  # U-Nets train for seconds even at their test size: the slow tier
+    pytest.param(n, marks=pytest.mark.slow) if CLASSIFIERS.get(n).kind == "unet" else n
+    for n in NAMES
+]
 
 
 def test_registry_has_exactly_the_paper_classifiers():
@@ -25,7 +29,7 @@ def test_registry_has_exactly_the_paper_classifiers():
     ]
 
 
-@pytest.fixture(scope="module", params=NAMES)
+@pytest.fixture(scope="module", params=CASES)
 def fitted(request, tiny_scenes):
     name = request.param
     return make_classifier(name, **FAST_KWARGS.get(name, {})).fit(tiny_scenes[:3])
@@ -78,7 +82,7 @@ def test_rejects_nan_image(fitted):
         fitted.predict(image)
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", CASES)
 def test_unfitted_and_bad_training(name, tiny_scenes):
     model = make_classifier(name, **FAST_KWARGS.get(name, {}))
     with pytest.raises(InvalidParameterError, match="fit"):
@@ -111,6 +115,7 @@ def test_unknown_classifier_lists_names():
         make_classifier("svm")
 
 
+@pytest.mark.slow
 def test_unet_tiles_stitch_without_seams(tiny_scenes):
     """Prediction of overlapping tiles equals running the net on the whole image in the tile interiors."""
     import torch

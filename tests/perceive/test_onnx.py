@@ -11,7 +11,11 @@ from dyntarget.perceive import CLASSIFIERS, make_classifier
 from dyntarget.perceive.onnx import TOLERANCE, export_onnx, load_onnx
 from helpers import FAST_KWARGS
 
-EXPORTED = [n for n in CLASSIFIERS.available() if n != "band-threshold"]
+EXPORTED = [
+    pytest.param(n, marks=pytest.mark.slow) if CLASSIFIERS.get(n).kind == "unet" else n
+    for n in CLASSIFIERS.available()
+    if n != "band-threshold"
+]
 
 
 @pytest.mark.parametrize("name", EXPORTED)
@@ -67,9 +71,23 @@ def test_export_and_plan_with_onnx_cli(tiny_scenes, tmp_path, capsys):
     assert outs[0] == outs[1]  # the same mask, so the same trajectory
 
 
-@pytest.mark.parametrize("name", ["mlp", "unet-xception"])
+@pytest.mark.parametrize("name", ["mlp", pytest.param("unet-xception", marks=pytest.mark.slow)])
 def test_export_is_byte_identical(name, tiny_scenes, tmp_path):
     model = make_classifier(name, **FAST_KWARGS.get(name, {})).fit(tiny_scenes[:2])
     a = export_onnx(model, tmp_path / "a").read_bytes()
     b = export_onnx(model, tmp_path / "b").read_bytes()
     assert a == b
+
+
+def test_export_failing_the_parity_check_is_bad_input_and_removed(
+    tiny_scenes, tmp_path, capsys, monkeypatch
+):
+    from dyntarget.perceive import onnx
+
+    model = make_classifier("decision-tree").fit(tiny_scenes[:3])
+    model.save(tmp_path / "m")
+    monkeypatch.setattr(onnx, "TOLERANCE", -1.0)  # no difference can pass
+    assert main(["export-onnx", str(tmp_path / "m"), "--check-size", "64"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "export removed" in err[0] and "internal" not in err[0]
+    assert not (tmp_path / "m" / "model.onnx").exists()

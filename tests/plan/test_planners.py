@@ -12,10 +12,17 @@ from shapely.geometry import Point, Polygon
 from dyntarget import InvalidParameterError, UnknownNameError
 from dyntarget.denoise import denoise
 from dyntarget.masks import mask_to_polygons
-from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, Trajectory, plan
+from dyntarget.plan import (
+    BASELINES,
+    PAPER_PLANNERS,
+    PlanConfig,
+    Trajectory,
+    geometric_planners,
+    plan,
+)
 from dyntarget.plan.geometry import chord, major_axis, sample_polyline
 
-NAMES = PLANNERS.available()
+NAMES = geometric_planners()
 LOOKAHEAD = [n for n in NAMES if n not in BASELINES]
 
 
@@ -165,6 +172,7 @@ def test_baselines_ignore_the_plume():
     assert nadir.points[0, 1] == 99 and nadir.points[-1, 1] == 0 and len(nadir) == 100
 
 
+@pytest.mark.slow
 def test_curved_plume_behaviour_recorded():
     """A banana-shaped plume: the straight major axis cuts across the bend.
 

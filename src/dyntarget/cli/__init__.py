@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from dyntarget import __version__
 from dyntarget.cli import bench, datasets, demo, evaluate, models, plan, sweep, synth
 from dyntarget.cli._common import EXIT_INTERNAL, EXIT_USAGE, Parser
-from dyntarget.errors import DynTargetError
+from dyntarget.errors import DynTargetError, missing_extra
 
 COMMANDS = (synth, models, evaluate, plan, sweep, bench, datasets, demo)
 """The command modules, in the order ``dyntarget --help`` lists them. Each has
@@ -56,6 +56,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # an internal error: one line unless --debug
         if args.debug:
             raise
+        extra = missing_extra(exc) if isinstance(exc, ImportError) else None
+        if extra is not None:  # an optional dependency is not installed: name the extra
+            print(f"dyntarget: error: {extra}", file=sys.stderr)
+            return EXIT_USAGE
         first = str(exc).splitlines()[0] if str(exc) else ""
         print(
             f"dyntarget: internal error: {type(exc).__name__}: {first} (rerun with --debug for a traceback)",

@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from dyntarget import defaults
+
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
 
 
@@ -53,7 +55,7 @@ def positive_float(text: str) -> float:
 
 
 def preset_names() -> list[str]:
-    from dyntarget.io.sensors import PRESETS
+    from dyntarget.io.presets import PRESETS
 
     return list(PRESETS)
 
@@ -88,14 +90,27 @@ def add_evaluation_options(q: argparse.ArgumentParser, *, trains: bool = True) -
     q.add_argument("--data", required=True, help="scene directory with labels")
     q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
     q.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+        "--factor",
+        type=positive_int,
+        default=defaults.FACTOR,
+        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
     )
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
     if trains:
         q.add_argument("--models", help="folder to keep trained models in and reuse them from")
-        q.add_argument("--folds", type=positive_int, default=5, help="number of folds (default 5)")
-        q.add_argument("--epochs", type=positive_int, default=50, help="U-Net epochs (default 50)")
+        q.add_argument(
+            "--folds",
+            type=positive_int,
+            default=defaults.FOLDS,
+            help=f"number of folds (default {defaults.FOLDS})",
+        )
+        q.add_argument(
+            "--epochs",
+            type=positive_int,
+            default=defaults.EPOCHS,
+            help=f"U-Net epochs (default {defaults.EPOCHS})",
+        )
         q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 

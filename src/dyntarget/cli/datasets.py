@@ -6,43 +6,30 @@ import argparse
 
 from dyntarget.cli._common import EXIT_OK, Parser, log
 
-DATASETS = {
-    "industrial-smoke": "Mommert et al. 2020, Sentinel-2 industrial smoke plumes (Zenodo 4250706)"
-}
-
-
-def _check_dataset(name: str) -> None:
-    from dyntarget.errors import UnknownNameError
-
-    if name not in DATASETS:
-        raise UnknownNameError(f"unknown dataset {name!r}; expected one of: {', '.join(DATASETS)}")
-
 
 def cmd_datasets_list(args: argparse.Namespace) -> int:
-    for name, text in DATASETS.items():
-        print(f"{name:20s} {text}")
+    from dyntarget.datasets import DATASETS
+
+    for name, dataset in DATASETS.items():
+        print(f"{name:20s} {dataset.summary}")
     return EXIT_OK
 
 
 def cmd_datasets_fetch(args: argparse.Namespace) -> int:
-    from dyntarget.datasets import industrial_smoke
+    from dyntarget.datasets import get_dataset
 
-    _check_dataset(args.name)
-    paths = industrial_smoke.fetch(
-        args.to, api_url=args.url or industrial_smoke.RECORD_API, progress=not args.quiet
-    )
+    adapter = get_dataset(args.name).adapter()
+    paths = adapter.fetch(args.to, api_url=args.url or adapter.RECORD_API, progress=not args.quiet)
     for p in paths:
         print(p)
     return EXIT_OK
 
 
 def cmd_datasets_prepare(args: argparse.Namespace) -> int:
-    from dyntarget.datasets import industrial_smoke
+    from dyntarget.datasets import get_dataset
 
-    _check_dataset(args.name)
-    ids = industrial_smoke.prepare(
-        args.source, args.out, negatives=args.negatives, progress=not args.quiet
-    )
+    adapter = get_dataset(args.name).adapter()
+    ids = adapter.prepare(args.source, args.out, negatives=args.negatives, progress=not args.quiet)
     log(f"wrote {len(ids)} scenes to {args.out}")
     print(args.out)
     return EXIT_OK

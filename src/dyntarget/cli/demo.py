@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+from dyntarget import defaults
 from dyntarget.cli._common import (
     EXIT_OK,
     SCHEDULER_HELP,
@@ -122,13 +123,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--models", help="folder for trained models (default OUT/models); reused when present"
     )
     p.add_argument(
-        "--folds", type=positive_int, default=5, help="number of folds (default 5, as the paper)"
+        "--folds",
+        type=positive_int,
+        default=defaults.FOLDS,
+        help=f"number of folds (default {defaults.FOLDS}, as the paper)",
     )
     p.add_argument(
-        "--epochs", type=positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
+        "--epochs",
+        type=positive_int,
+        default=defaults.EPOCHS,
+        help=f"U-Net epochs (default {defaults.EPOCHS}, as the paper)",
     )
     p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+        "--factor",
+        type=positive_int,
+        default=defaults.FACTOR,
+        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
@@ -145,7 +155,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+        "--factor",
+        type=positive_int,
+        default=defaults.FACTOR,
+        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
     )
     p.add_argument("--unets", action="store_true", help="also train the two U-Nets (slower)")
     p.add_argument(

@@ -6,6 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
+from dyntarget import defaults
 from dyntarget.cli._common import (
     EXIT_OK,
     Parser,
@@ -146,22 +147,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_evaluation_options(q)
     q.add_argument(
-        "--classifier", default="unet-uavsar", help="classifier to plan on (default unet-uavsar)"
+        "--classifier",
+        default=defaults.AGILITY_CLASSIFIER,
+        help=f"classifier to plan on (default {defaults.AGILITY_CLASSIFIER})",
     )
     q.add_argument("--planners", help="comma-separated geometric planners (default: the four)")
     q.add_argument("--agility", help="comma-separated presets (default: all; 'dyntarget agility')")
     q.add_argument(
         "--objective",
-        default="gradient",
-        choices=["gradient", "intensity", "plume"],
-        help="what utility-max maximises (default gradient)",
+        default=defaults.OBJECTIVE,
+        choices=defaults.OBJECTIVES,
+        help=f"what utility-max maximises (default {defaults.OBJECTIVE})",
     )
-    q.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
+    q.add_argument(
+        "--altitude-km",
+        type=positive_float,
+        default=defaults.ALTITUDE_M / 1e3,
+        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
+    )
     q.add_argument(
         "--look-ahead-km",
         type=float,
-        default=500.0,
-        help="ground distance from nadir to the WFOV scene centre at acquisition (default 500)",
+        default=defaults.LOOK_AHEAD_M / 1e3,
+        help=f"ground distance from nadir to the WFOV scene centre at acquisition (default {defaults.LOOK_AHEAD_M / 1e3:g})",
     )
     add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_agility)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from dyntarget import defaults
 from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int
 
 
@@ -80,7 +81,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--epochs", type=positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
     )
     p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+        "--factor",
+        type=positive_int,
+        default=defaults.FACTOR,
+        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.set_defaults(func=cmd_train)

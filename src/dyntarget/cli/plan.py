@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from dyntarget import defaults
 from dyntarget.cli._common import (
     EXIT_OK,
     add_plan_options,
@@ -23,10 +24,6 @@ def cmd_planners(args: argparse.Namespace) -> int:
         tag = " (baseline)" if name in BASELINES else ""
         tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
         print(f"{name:20s} {doc}{tag}")
-    print(
-        f"{'utility-max':20s} Pointings chosen for the highest expected utility per second "
-        "under orbit kinematics; needs plan --agility PRESET (beyond the paper)"
-    )
     return EXIT_OK
 
 
@@ -35,8 +32,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import load_classifier
-    from dyntarget.pipeline import PipelineConfig, plan_scene
+    from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
+    if args.figure:  # before anything is written
+        from dyntarget.errors import require
+
+        require("matplotlib")
     if args.mask is None and args.model is None:
         if args.classifier:
             raise InvalidParameterError(
@@ -67,8 +68,17 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} does not match the model in {args.model} ({classifier.name})"
             )
     config = PipelineConfig(plan=plan_config(args))
-    if args.planner == "utility-max":
-        return _plan_utility_max(args, wfov, classifier, config)
+    kinematics = None
+    if args.agility:  # fly what the kinematics allow: re-timed, trimmed, maybe reordered
+        from dyntarget.schedule import get_agility
+
+        kinematics = Kinematics(
+            geometry=_geometry(args, wfov),
+            agility=get_agility(args.agility),
+            budget_s=args.budget_s,
+            objective=args.objective,
+            max_pointings=args.max_pointings,
+        )
     fallback = load_classifier(args.fallback_model) if args.fallback_model else None
     result = plan_scene(
         wfov.image,
@@ -80,6 +90,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         config=config,
         deadline_s=args.deadline_s,
         fallback=fallback,
+        kinematics=kinematics,
     )
     if args.deadline_s is not None:
         met = "met" if result.deadline_met else "MISSED"
@@ -94,15 +105,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     log(
         f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
     )
-    if args.agility:  # fly what the kinematics allow: re-timed, trimmed, maybe reordered
-        from dyntarget.schedule import get_agility, make_feasible
-
-        sched = make_feasible(
-            traj, wfov.shape, _geometry(args, wfov), get_agility(args.agility),
-            budget_s=args.budget_s,
-        )  # fmt: skip
-        _log_schedule(args.planner, sched)
-        traj = sched.trajectory
+    if result.schedule is not None:
+        _log_schedule(result.planner, result.schedule)
+        traj = result.schedule.trajectory
     out = traj.save(args.out, transform=wfov.transform, crs=wfov.crs)
     print(out)
     if args.figure:
@@ -136,40 +141,6 @@ def _log_schedule(planner: str, sched) -> None:
         f"planned pointings feasible ({100 * sched.fraction_feasible:.0f} %), "
         f"done {sched.total_s:.1f} s after the start, {sched.time_left_s:.1f} s left in the window"
     )
-
-
-def _plan_utility_max(args, wfov, classifier, config) -> int:
-    """``plan --planner utility-max``: plan under an agility preset, write the timed pointings."""
-    import numpy as np
-
-    from dyntarget.errors import InvalidParameterError
-    from dyntarget.plan.utility import utility_max
-    from dyntarget.schedule import get_agility, schedule
-
-    if not args.agility:
-        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
-    agility = get_agility(args.agility)
-    geometry = _geometry(args, wfov)
-    if classifier is not None:
-        proba = classifier.predict_proba(wfov.image)
-    else:
-        proba = wfov.label.astype(np.float32)
-    proba = np.where(wfov.valid_mask, proba, 0.0).astype(np.float32)
-    step, _ = config.plan.resolved(wfov.shape)
-    traj = utility_max(
-        proba,
-        wfov.image,
-        geometry,
-        agility,
-        step=max(step, 1.0),
-        objective=args.objective,
-        budget_s=args.budget_s,
-        max_pointings=args.max_pointings,
-    )
-    sched = schedule(traj, wfov.shape, geometry, agility)
-    _log_schedule("utility-max", sched)
-    print(sched.trajectory.save(args.out, transform=wfov.transform, crs=wfov.crs))
-    return EXIT_OK
 
 
 def cmd_agility(args: argparse.Namespace) -> int:
@@ -246,12 +217,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plan_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
-    k.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
+    k.add_argument(
+        "--altitude-km",
+        type=positive_float,
+        default=defaults.ALTITUDE_M / 1e3,
+        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
+    )
     k.add_argument(
         "--look-ahead-km",
         type=float,
-        default=500.0,
-        help="ground distance from nadir to the scene centre at acquisition (default 500)",
+        default=defaults.LOOK_AHEAD_M / 1e3,
+        help=f"ground distance from nadir to the scene centre at acquisition (default {defaults.LOOK_AHEAD_M / 1e3:g})",
     )
     k.add_argument(
         "--start-s",
@@ -270,8 +246,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     k.add_argument(
         "--objective",
-        default="gradient",
-        choices=["gradient", "intensity", "plume"],
-        help="what utility-max maximises (default gradient)",
+        default=defaults.OBJECTIVE,
+        choices=defaults.OBJECTIVES,
+        help=f"what utility-max maximises (default {defaults.OBJECTIVE})",
     )
     p.set_defaults(func=cmd_plan)

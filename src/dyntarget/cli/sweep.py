@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dyntarget import defaults
 from dyntarget.cli._common import EXIT_OK, positive_int
 
 
@@ -50,8 +51,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="parameters to sweep: step_fraction, denoise_iterations, min_area_fraction, factor, "
         "agility (presets: unlimited, fast, slow)",
     )
-    p.add_argument("--folds", type=positive_int, default=5, help="number of folds (default 5)")
-    p.add_argument("--epochs", type=positive_int, default=50, help="U-Net epochs (default 50)")
+    p.add_argument(
+        "--folds",
+        type=positive_int,
+        default=defaults.FOLDS,
+        help=f"number of folds (default {defaults.FOLDS})",
+    )
+    p.add_argument(
+        "--epochs",
+        type=positive_int,
+        default=defaults.EPOCHS,
+        help=f"U-Net epochs (default {defaults.EPOCHS})",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--models", help="folder for trained models (default OUT/models)")
     p.add_argument(

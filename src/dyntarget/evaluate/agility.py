@@ -26,15 +26,15 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.denoise import denoise
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, data_signature, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
-from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig, plan
-from dyntarget.plan.utility import OBJECTIVES, utility_max
+from dyntarget.pipeline import Kinematics, PipelineConfig, plan_segmentation, schedule_plan, segment
+from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig
 from dyntarget.scene import Scene
 from dyntarget.schedule import AGILITY, OrbitGeometry, make_feasible, schedule
 
@@ -54,18 +54,18 @@ AGILITY_COLUMNS = [
 
 @dataclass(frozen=True)
 class AgilityConfig:
-    folds: int = 5
-    seed: int = 0
+    folds: int = defaults.FOLDS
+    seed: int = defaults.SEED
     factor: int = DEFAULT_FACTOR
-    epochs: int = 50
-    classifier: str = "unet-uavsar"
+    epochs: int = defaults.EPOCHS
+    classifier: str = defaults.AGILITY_CLASSIFIER
     presets: tuple[str, ...] = tuple(AGILITY)
     planners: tuple[str, ...] = field(
         default_factory=lambda: tuple(p for p in PAPER_PLANNERS if p not in BASELINES)
     )
-    objective: str = "gradient"
-    altitude_m: float = 500e3
-    look_ahead_m: float = 500e3
+    objective: str = defaults.OBJECTIVE
+    altitude_m: float = defaults.ALTITUDE_M
+    look_ahead_m: float = defaults.LOOK_AHEAD_M
     plan: PlanConfig = field(default_factory=PlanConfig)
 
     def __post_init__(self) -> None:
@@ -79,9 +79,9 @@ class AgilityConfig:
                 raise InvalidParameterError(
                     f"agility: unknown preset {name!r}; choose from {', '.join(AGILITY)}"
                 )
-        if self.objective not in OBJECTIVES:
+        if self.objective not in defaults.OBJECTIVES:
             raise InvalidParameterError(
-                f"objective: expected one of {', '.join(OBJECTIVES)}, got {self.objective!r}"
+                f"objective: expected one of {', '.join(defaults.OBJECTIVES)}, got {self.objective!r}"
             )
         OrbitGeometry(altitude_m=self.altitude_m, look_ahead_m=self.look_ahead_m)  # validates
 
@@ -97,17 +97,16 @@ def _agility_task(
     k, i = task
     scene, w = scenes[i], wfov[i]
     maps = UtilityMaps.from_scene(scene)
-    proba = models[k].predict_proba(w.image)
-    valid = w.valid_mask
-    proba = np.where(valid, proba, 0.0).astype(np.float32)
-    cleaned = denoise(proba >= 0.5)
+    pipeline = PipelineConfig(plan=config.plan)
+    seg = segment(
+        w.image, probability=models[k].predict_proba(w.image), valid=w.valid, config=pipeline
+    )
     geometry = OrbitGeometry(
         altitude_m=config.altitude_m,
         look_ahead_m=config.look_ahead_m,
         wfov_gsd_m=scene.gsd * config.factor,
     )
-    step, _ = config.plan.resolved(w.shape)
-    plans = {p: plan(p, cleaned.mask, cleaned.polygons, config.plan) for p in config.planners}
+    plans = {p: plan_segmentation(seg, p, pipeline) for p in config.planners}
     records = []
 
     def record(preset, planner, planned, as_planned, flown):
@@ -137,16 +136,9 @@ def _agility_task(
                 record(preset, name, len(traj), as_planned.fraction_feasible, flown.trajectory)
             )
         budget = max(kept, default=0) if AGILITY[preset].unlimited else None
-        traj = utility_max(
-            proba,
-            w.image,
-            geometry,
-            preset,
-            step=max(step, 1.0),
-            objective=config.objective,
-            max_pointings=budget,
-        )
-        flown = schedule(traj, w.shape, geometry, preset)
+        kinematics = Kinematics(geometry, preset, objective=config.objective, max_pointings=budget)
+        traj = plan_segmentation(seg, "utility-max", pipeline, kinematics=kinematics)
+        flown = schedule_plan(traj, w.shape, "utility-max", kinematics)
         records.append(
             record(preset, "utility-max", len(traj), flown.fraction_feasible, flown.trajectory)
         )

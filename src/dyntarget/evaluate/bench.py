@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.plan import PLANNERS, plan
+from dyntarget.pipeline import PipelineConfig, classify, clean, plan_segmentation, segment
+from dyntarget.plan import geometric_planners
 from dyntarget.synth import generate_scene
 
 DEFAULT_SIZES = (256, 512, 1024, 2048)
@@ -90,12 +90,26 @@ def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
     return {"median_s": float(np.median(times)), "min_s": float(np.min(times)), "peak_mib": peak}
 
 
+def _torch_threads() -> int | None:
+    try:
+        import torch
+    except ImportError:
+        return None
+    return torch.get_num_threads()
+
+
 def machine() -> dict[str, Any]:
+    import importlib.metadata
+
     import cv2
-    import sklearn
-    import torch
 
     import dyntarget
+
+    def version(dist: str) -> str | None:  # optional dependencies may be absent
+        try:
+            return importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return None
 
     cpu = platform.processor() or ""
     try:
@@ -109,13 +123,13 @@ def machine() -> dict[str, Any]:
         "platform": platform.platform(),
         "cpu": cpu,
         "cpus": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
+        "torch_threads": _torch_threads(),
         "python": platform.python_version(),
         "versions": {
             "dyntarget": dyntarget.__version__,
             "numpy": np.__version__,
-            "torch": torch.__version__,
-            "scikit-learn": sklearn.__version__,
+            "torch": version("torch"),
+            "scikit-learn": version("scikit-learn"),
             "opencv": cv2.__version__,
         },
     }
@@ -142,7 +156,7 @@ def run_bench(
     if repeats < 1:
         raise InvalidParameterError(f"repeats: expected a positive integer, got {repeats}")
     classifiers = list(classifiers or CLASSIFIERS.available())
-    planners = list(planners or PLANNERS.available())
+    planners = list(planners or geometric_planners())
     train = [generate_scene(1, i, size=256)[0] for i in range(4)]
     models = {}
     for name in classifiers:
@@ -150,6 +164,7 @@ def run_bench(
         models[name] = make_classifier(name, **kw).fit(train)
     for variant in variants:
         models[f"{variant.split(':')[0]} ({variant.split(':')[-1]})"] = _variant(models, variant)
+    config = PipelineConfig()
     records: list[dict[str, Any]] = []
     bar = tqdm(total=len(sizes) * len(classifiers), desc="bench", disable=not progress)
     for size in sizes:
@@ -159,23 +174,22 @@ def run_bench(
             bar.set_postfix_str(f"{size} px: {name}")
             rec = {"size": size, "stage": "classify", "classifier": name, "planner": None}
             records.append(
-                rec
-                | measure(lambda m=model, img=scene.image: m.predict_proba(img), repeats=repeats)
+                rec | measure(lambda m=model, img=scene.image: classify(img, m), repeats=repeats)
             )
-            mask = model.predict(scene.image)
+            # the pipeline's own stages, timed one by one (Algorithm 1 as plan_scene runs it)
+            seg = segment(scene.image, probability=classify(scene.image, model), config=config)
             records.append(
                 {"size": size, "stage": "denoise", "classifier": name, "planner": None}
-                | measure(lambda mk=mask: denoise(mk), repeats=repeats)
+                | measure(lambda mk=seg.raw_mask: clean(mk, config), repeats=repeats)
             )
-            cleaned = denoise(mask)
             for pname in planners:
-                traj = plan(pname, cleaned.mask, cleaned.polygons)
+                traj = plan_segmentation(seg, pname, config)
                 base = {"size": size, "classifier": name, "planner": pname, "pointings": len(traj)}
                 records.append(
                     base
                     | {"stage": "plan"}
                     | measure(
-                        lambda p=pname, c=cleaned: plan(p, c.mask, c.polygons), repeats=repeats
+                        lambda p=pname, s=seg: plan_segmentation(s, p, config), repeats=repeats
                     )
                 )
                 records.append(

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
@@ -37,7 +38,7 @@ from dyntarget.perceive import (
 )
 from dyntarget.scene import Scene
 
-DEFAULT_FACTOR = 4
+DEFAULT_FACTOR = defaults.FACTOR
 """High-res -> WFOV downsampling factor used by the evaluations (512 px scenes -> 128 px WFOV)."""
 
 TABLE1_COLUMNS = ["Classifier", "Accuracy", "Precision", "Recall", "IoU"]
@@ -47,10 +48,10 @@ TABLE1_COLUMNS = ["Classifier", "Accuracy", "Precision", "Recall", "IoU"]
 class CVConfig:
     """Settings of the classification cross-validation."""
 
-    folds: int = 5
-    seed: int = 0
+    folds: int = defaults.FOLDS
+    seed: int = defaults.SEED
     factor: int = DEFAULT_FACTOR
-    epochs: int = 50
+    epochs: int = defaults.EPOCHS
     classifiers: tuple[str, ...] = field(default_factory=lambda: tuple(CLASSIFIERS.available()))
     denoise_iterations: int = DEFAULT_ITERATIONS
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
@@ -71,8 +72,9 @@ def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
 
     Examples
     --------
-    >>> [f.tolist() for f in kfold_indices(5, 2, seed=0)]
-    [[2, 4, 0], [3, 1]]
+    >>> folds = kfold_indices(5, 2, seed=0)
+    >>> [len(f) for f in folds], sorted(i for f in folds for i in f.tolist())
+    ([3, 2], [0, 1, 2, 3, 4])
     """
     if folds > n:
         raise InvalidParameterError(f"folds: {folds} folds need at least {folds} scenes, got {n}")

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import (
     DEFAULT_FACTOR,
@@ -52,10 +53,10 @@ TABLE2_COLUMNS = [
 class E2EConfig:
     """Settings of the end-to-end evaluation."""
 
-    folds: int = 5
-    seed: int = 0
+    folds: int = defaults.FOLDS
+    seed: int = defaults.SEED
     factor: int = DEFAULT_FACTOR
-    epochs: int = 50
+    epochs: int = defaults.EPOCHS
     classifiers: tuple[str, ...] = field(default_factory=lambda: tuple(CLASSIFIERS.available()))
     planners: tuple[str, ...] = PAPER_PLANNERS
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)

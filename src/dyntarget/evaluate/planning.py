@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, denoise
 from dyntarget.evaluate.crossval import data_signature
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
-from dyntarget.plan import PAPER_PLANNERS, PlanConfig, plan
+from dyntarget.pipeline import PipelineConfig, plan_segmentation, segment
+from dyntarget.plan import PAPER_PLANNERS, PlanConfig
 from dyntarget.scene import Scene
 
 PLANNING_COLUMNS = [
@@ -37,17 +37,17 @@ PLANNING_COLUMNS = [
 def _planning_task(
     i: int, *, scenes: Sequence[Scene], factor: int, config: PlanConfig, planners: list[str]
 ) -> list[list[float]]:
-    """One scene: denoise its WFOV label, then plan and observe with every planner."""
+    """One scene: denoise its WFOV label (the pipeline's Algorithm 1 on the true mask), then
+    plan and observe with every planner."""
     scene = scenes[i]
     wfov = scene.to_wfov(factor)
-    cleaned = denoise(
-        wfov.label, iterations=DEFAULT_ITERATIONS, min_area_fraction=DEFAULT_MIN_AREA_FRACTION
-    )
+    pipeline = PipelineConfig(plan=config)
+    seg = segment(wfov.image, mask=wfov.label, valid=wfov.valid, config=pipeline)
     maps = UtilityMaps.from_scene(scene)
     out = []
     for name in planners:
         t0 = time.perf_counter()
-        traj = plan(name, cleaned.mask, cleaned.polygons, config)
+        traj = plan_segmentation(seg, name, pipeline)
         ms = 1000 * (time.perf_counter() - t0)
         m = observe(traj, maps, factor=factor)
         out.append([m.pixels_observed, m.ratio_plume, m.intensity, m.gradient, ms])

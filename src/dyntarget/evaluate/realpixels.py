@@ -14,14 +14,14 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
-from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import classifier_kwargs
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.plan import BASELINES, PAPER_PLANNERS, plan
+from dyntarget.pipeline import plan_segmentation, segment
+from dyntarget.plan import BASELINES, PAPER_PLANNERS
 from dyntarget.scene import Scene
 
 
@@ -67,16 +67,16 @@ def real_pixel_check(
     maps = UtilityMaps.from_scene(test)
     lookahead = [p for p in PAPER_PLANNERS if p not in BASELINES]
     seg_rows, plan_rows = [], []
+    truth = segment(test.image, mask=test.label, valid=test.valid, denoise=False)
     for name in BASELINES:
-        m = observe(plan(name, test.label), maps, factor=1)
+        m = observe(plan_segmentation(truth, name), maps, factor=1)
         plan_rows.append({"Trajectory Algorithm": display(name), "Classifier": "N/A", **_obs(m)})
     for name in classifiers:
         model = make_classifier(name, **classifier_kwargs(name, seed=seed, epochs=epochs)).fit(
             [train]
         )
-        pred = model.predict(test.image)
-        cleaned = denoise(pred)
-        for denoised, mask in ((False, pred), (True, cleaned.mask)):
+        seg = segment(test.image, model, valid=test.valid)  # Algorithm 1, as plan_scene runs it
+        for denoised, mask in ((False, seg.raw_mask), (True, seg.mask)):
             m = Confusion.from_masks(mask, test.label).metrics()
             seg_rows.append(
                 {
@@ -90,7 +90,7 @@ def real_pixel_check(
                 }
             )
         for pname in lookahead:
-            o = observe(plan(pname, cleaned.mask, cleaned.polygons), maps, factor=1)
+            o = observe(plan_segmentation(seg, pname), maps, factor=1)
             plan_rows.append(
                 {"Trajectory Algorithm": display(pname), "Classifier": display(name), **_obs(o)}
             )

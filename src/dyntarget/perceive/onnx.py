@@ -246,11 +246,17 @@ class OnnxClassifier:
 
             proba = self.stitching.run(image, forward)
         else:
+            from dyntarget.perceive.pixel import PREDICT_CHUNK
+
             h, w = image.shape[1:]
-            x = np.ascontiguousarray(pixels(image), dtype=np.float32)
-            out = self.session.run(None, {self.input: x})
-            probs = next(o for o in out if getattr(o, "ndim", 0) == 2)
-            proba = probs[:, 1].reshape(h, w)
+            x = pixels(image)  # a view; each chunk is copied contiguous on its own
+            proba = np.empty(h * w, np.float32)
+            for start in range(0, h * w, PREDICT_CHUNK):  # bounded memory, as the native path
+                part = np.ascontiguousarray(x[start : start + PREDICT_CHUNK], dtype=np.float32)
+                out = self.session.run(None, {self.input: part})
+                probs = next(o for o in out if getattr(o, "ndim", 0) == 2)
+                proba[start : start + len(part)] = probs[:, 1]
+            proba = proba.reshape(h, w)
         proba = np.asarray(proba, np.float32)
         return np.clip(proba, 0.0, 1.0, out=proba)
 

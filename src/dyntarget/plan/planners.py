@@ -21,10 +21,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 from shapely.geometry import Polygon
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.plan.geometry import (
@@ -39,6 +41,9 @@ from dyntarget.registry import Registry
 from dyntarget.trajectory import Trajectory
 
 PlannerFn = Callable[[np.ndarray, Sequence[Polygon], "PlanConfig"], Trajectory]
+"""A planner: ``(mask, polygons, config) -> Trajectory``. A planner with the attribute
+``needs_context = True`` takes a fourth argument, the :class:`PlanContext`; with
+``timed = True`` its trajectory is already timed under the kinematics."""
 
 PLANNERS: Registry[PlannerFn] = Registry(
     "planner",
@@ -51,14 +56,16 @@ PLANNERS: Registry[PlannerFn] = Registry(
         "naive-transect",
     ),
 )
+KINEMATIC_PLANNERS = ("utility-max",)
+"""Planners that plan under the orbit kinematics: they need a :class:`PlanContext`."""
 BASELINES = ("straight-nadir", "naive-transect")
 """Planners that use no look-ahead knowledge of the plume."""
 PAPER_PLANNERS = PLANNERS.order
 """The paper's four planners and two baselines: the defaults of the Table 2 evaluations.
-Planners beyond the paper (``track-centerline``) are registered after them."""
+Planners beyond the paper (``track-centerline``, ``utility-max``) are registered after them."""
 
-STEP_FRACTION = 0.01
-WIDTH_STEPS = 2.0
+STEP_FRACTION = defaults.STEP_FRACTION
+WIDTH_STEPS = defaults.WIDTH_STEPS
 MIN_STEP = 0.1
 """Smallest step or width accepted, in pixels (finer steps only repeat the same pixel)."""
 
@@ -103,6 +110,54 @@ class PlanConfig:
     def as_dict(self, shape: tuple[int, int]) -> dict[str, float]:
         step, width = self.resolved(shape)
         return {**asdict(self), "step": step, "width": width}
+
+
+def geometric_planners() -> list[str]:
+    """The registered planners that plan on the mask alone (all but :data:`KINEMATIC_PLANNERS`).
+
+    Returns
+    -------
+    list of str
+        Planner names, in registration order.
+
+    Examples
+    --------
+    >>> "utility-max" in geometric_planners(), "track-center" in geometric_planners()
+    (False, True)
+    """
+    return [n for n in PLANNERS.available() if n not in KINEMATIC_PLANNERS]
+
+
+@dataclass(frozen=True, eq=False)
+class PlanContext:
+    """What a planner beyond the mask may use (``utility-max``): the plume probability,
+    the WFOV image and the kinematics it plans under.
+
+    Parameters
+    ----------
+    probability : numpy.ndarray or None
+        ``(H, W)`` plume probability, 0 on nodata.
+    image : numpy.ndarray or None
+        ``(4, H, W)`` WFOV image.
+    geometry : dyntarget.schedule.OrbitGeometry or None
+        Where the scene lies and when the plan starts.
+    agility : str or None
+        Agility preset name.
+    objective : str
+        What ``utility-max`` maximises.
+    budget_s : float or None
+        Time budget from the start, seconds.
+    max_pointings : int or None
+        Pointing budget.
+    """
+
+    probability: np.ndarray | None = None
+    image: np.ndarray | None = None
+    geometry: Any = None
+    agility: str | None = None
+    objective: str = "gradient"
+    budget_s: float | None = None
+    max_pointings: int | None = None
 
 
 def start_point(shape: tuple[int, int]) -> np.ndarray:
@@ -319,6 +374,7 @@ def plan(
     mask: np.ndarray,
     polygons: Sequence[Polygon] | None = None,
     config: PlanConfig | None = None,
+    context: PlanContext | None = None,
 ) -> Trajectory:
     """Plan with the registered planner ``name``.
 
@@ -337,4 +393,10 @@ def plan(
     fn = PLANNERS.get(name)
     if polygons is None:
         polygons = mask_to_polygons(mask)
+    if getattr(fn, "needs_context", False):
+        return fn(mask, list(polygons), config or PlanConfig(), context)
     return fn(mask, list(polygons), config or PlanConfig())
+
+
+# beyond the paper, planning under the kinematics (imports dyntarget.schedule when first used)
+PLANNERS.register_lazy("utility-max", "dyntarget.plan.utility:utility_max_planner")

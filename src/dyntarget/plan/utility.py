@@ -28,11 +28,12 @@ import math
 import cv2
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
 from dyntarget.trajectory import Trajectory
 
-OBJECTIVES = ("gradient", "intensity", "plume")
+OBJECTIVES = defaults.OBJECTIVES
 MAX_CANDIDATES = 1500
 """Candidates kept (highest expected utility first); bounds the planner's cost."""
 _MIN_COST_S = 1e-3
@@ -135,3 +136,50 @@ def utility_max(
         return Trajectory.empty("utility-max", params)
     sel = np.asarray(chosen)
     return Trajectory(pts[sel], np.zeros(len(sel), np.int64), "utility-max", params)
+
+
+def utility_max_planner(mask: np.ndarray, polygons, config, context) -> Trajectory:
+    """Pointings chosen for the highest expected utility per second under orbit kinematics; needs plan --agility PRESET.
+
+    The registered planner ``utility-max``: :func:`utility_max` on the context's
+    plume probability (or the mask, when planning on a given mask), every
+    ``step`` pixels of ``config``.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` plume mask (used when the context has no probability).
+    polygons : list
+        Unused (utility-max ranks pixels, not polygons).
+    config : dyntarget.plan.PlanConfig
+        Its step is the candidate spacing.
+    context : dyntarget.plan.PlanContext
+        The image, the kinematics and the budgets.
+
+    Returns
+    -------
+    Trajectory
+        Timed-feasible pointings in the order they are taken.
+    """
+    if context is None or context.geometry is None or context.agility is None:
+        raise InvalidParameterError("utility-max plans under an agility preset: give --agility")
+    if context.image is None:
+        raise InvalidParameterError("utility-max needs the WFOV image in its plan context")
+    probability = context.probability
+    if probability is None:
+        probability = np.asarray(mask, np.float32)
+    step, _ = config.resolved(mask.shape)
+    return utility_max(
+        probability,
+        context.image,
+        context.geometry,
+        context.agility,
+        step=max(step, 1.0),
+        objective=context.objective,
+        budget_s=context.budget_s,
+        max_pointings=context.max_pointings,
+    )
+
+
+utility_max_planner.needs_context = True  # type: ignore[attr-defined]
+utility_max_planner.timed = True  # type: ignore[attr-defined]

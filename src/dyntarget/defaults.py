@@ -1,0 +1,41 @@
+"""Every shared default, stated once (core: imports nothing).
+
+The owners (configs, stages) and the CLI take their defaults from here, so a
+default changes in one place. Values follow the paper where it states them.
+
+Examples
+--------
+>>> FACTOR, FOLDS, EPOCHS, THRESHOLD
+(4, 5, 50, 0.5)
+"""
+
+from __future__ import annotations
+
+SEED = 0
+"""Random seed of training, folds and synthetic scenes."""
+FACTOR = 4
+"""High-resolution -> WFOV downsampling factor of the evaluations."""
+FOLDS = 5
+"""Cross-validation folds (paper: 5)."""
+EPOCHS = 50
+"""U-Net training epochs (paper: 50)."""
+THRESHOLD = 0.5
+"""Plume probability at or above which a pixel is plume."""
+DENOISE_ITERATIONS = 1
+"""3x3 closing iterations of Algorithm 2."""
+MIN_AREA_FRACTION = 0.01
+"""Smallest kept polygon, as a fraction of the image area (Algorithm 2)."""
+STEP_FRACTION = 0.01
+"""Pointing step as a fraction of the image width (paper: 1 %)."""
+WIDTH_STEPS = 2.0
+"""Transect spacing in steps (paper: 2 x step)."""
+ALTITUDE_M = 500e3
+"""Orbit altitude, metres."""
+LOOK_AHEAD_M = 500e3
+"""Ground distance from nadir to the WFOV scene centre at acquisition, metres."""
+OBJECTIVES = ("gradient", "intensity", "plume")
+"""What ``utility-max`` can maximise (its predicted utility)."""
+OBJECTIVE = "gradient"
+"""The default ``utility-max`` objective."""
+AGILITY_CLASSIFIER = "unet-uavsar"
+"""The classifier the agility evaluation plans on."""
