@@ -68,8 +68,12 @@ def test_unet_flops_scale_with_area_and_tiling_costs_more(tiny_scenes):
     model = make_classifier("unet-uavsar", **FAST_KWARGS["unet-uavsar"]).fit(tiny_scenes[:2])
     small, large = unet_flops(model, 64), unet_flops(model, 128)
     assert small["one_pass"] > 0 and large["one_pass"] == pytest.approx(4 * small["one_pass"])
-    # overlapping tiles (stride tile/2) compute most pixels several times
-    assert large["tiled"] > 2 * large["one_pass"]
+    # halo stitching: the whole 128 px image in one pass, no redundancy
+    assert large["tiled"] == pytest.approx(large["one_pass"])
+    # the former overlapping tiles (stride tile/2) compute most pixels several times:
+    # 32 px tiles at stride 16 over 128 px -> 7 x 7 tiles of 32² px = 49/16 of one pass
+    blend = unet_flops(model.set_stitching("blend"), 128)
+    assert blend["tiled"] == pytest.approx(49 / 16 * large["one_pass"])
 
 
 @pytest.mark.slow

@@ -21,6 +21,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         planners=args.planners.split(",") if args.planners else None,
         repeats=args.repeats,
         progress=not args.quiet,
+        variants=args.variants.split(",") if args.variants else (),
     )
     tables = summary_tables(result)
     write_text(args.out, json.dumps(result, indent=1) + "\n")
@@ -45,4 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="bench.json", help="JSON results (default bench.json)")
     p.add_argument("--markdown", help="also write the Markdown tables here")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--variants",
+        help="extra rows: comma-separated unet-uavsar:blend, unet-xception:blend, "
+        "random-forest:compiled",
+    )
     p.set_defaults(func=cmd_bench)

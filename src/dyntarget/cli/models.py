@@ -49,6 +49,26 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
+    if args.int8:
+        import numpy as np
+
+        from dyntarget.perceive.onnx import load_onnx, quantize_int8
+
+        if args.calibration:
+            images = [s.to_wfov(args.factor).image for s in load_labelled(args.calibration)]
+            where = f"{len(images)} scenes of {args.calibration}"
+        else:
+            images = [generate_scene(args.seed + 1, i, size=256)[0].image for i in range(4)]
+            where = "4 synthetic 256 px scenes (give --calibration for the training scenes)"
+        path = quantize_int8(args.model, images, seed=args.seed)
+        diff8 = float(
+            np.abs(
+                load_onnx(args.model, int8=True).predict_proba(check)
+                - load_onnx(args.model).predict_proba(check)
+            ).max()
+        )
+        log(f"{native.name}: INT8 calibrated on {where}; differs from FP32 by {diff8:.1e} at most")
+        print(path)
     return EXIT_OK
 
 
@@ -83,4 +103,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--check-size", type=positive_int, default=128, help="check scene size (default 128)"
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the check scene (default 0)")
+    p.add_argument(
+        "--int8",
+        action="store_true",
+        help="also write model.int8.onnx: static INT8 quantization (U-Nets and MLP)",
+    )
+    p.add_argument(
+        "--calibration",
+        help="labelled scene directory to calibrate INT8 on (the training scenes; default: "
+        "synthetic scenes)",
+    )
+    p.add_argument(
+        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
     p.set_defaults(func=cmd_export_onnx)

@@ -200,8 +200,14 @@ def run_bench(
     repeats: int = 5,
     epochs: int = 2,
     progress: bool = True,
+    variants: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """Time classify, denoise, plan and observe at each size; returns records and the machine."""
+    """Time classify, denoise, plan and observe at each size; returns records and the machine.
+
+    ``variants`` adds the same trained models run another way, as extra rows named
+    ``"NAME (OPTION)"``: ``unet-uavsar:blend`` / ``unet-xception:blend`` (the former
+    overlapping-tile stitching) and ``random-forest:compiled`` (the compiled forest).
+    """
     from tqdm import tqdm
 
     if repeats < 1:
@@ -214,6 +220,8 @@ def run_bench(
     for name in classifiers:
         kw = {"epochs": epochs} if CLASSIFIERS.get(name).kind == "unet" else {}
         models[name] = make_classifier(name, **kw).fit(train)
+    for variant in variants:
+        models[f"{variant.split(':')[0]} ({variant.split(':')[-1]})"] = _variant(models, variant)
     config = PipelineConfig()
     records: list[dict[str, Any]] = []
     bar = tqdm(total=len(sizes) * len(classifiers), desc="bench", disable=not progress)
@@ -256,6 +264,26 @@ def run_bench(
         "records": records,
         "bounds": lower_bounds(sizes, {n: m for n, m in models.items() if m.kind == "unet"}),
     }
+
+
+def _variant(models: dict[str, Any], variant: str) -> Any:
+    import copy
+
+    base, _, option = variant.partition(":")
+    if base not in models:
+        raise InvalidParameterError(
+            f"variants: {variant!r} names {base!r}, which is not among the benchmarked classifiers"
+        )
+    twin = copy.copy(models[base])
+    if option == "blend" and hasattr(twin, "set_stitching"):
+        return twin.set_stitching("blend")
+    if option == "compiled" and hasattr(twin, "set_backend"):
+        twin.set_backend("compiled")
+        twin.predict_proba(np.zeros((4, 32, 32), np.float32))  # compile before timing
+        return twin
+    raise InvalidParameterError(
+        f"variants: expected unet-*:blend or random-forest:compiled, got {variant!r}"
+    )
 
 
 def machine_rates() -> dict[str, float]:

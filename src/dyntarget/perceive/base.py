@@ -269,3 +269,26 @@ def sample_pixels(
     idx = np.concatenate([rng.choice(pos, n, replace=False), rng.choice(neg, n, replace=False)])
     idx.sort()
     return feats[idx].astype(np.float32), labels[idx].astype(np.int64)
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity on Linux, else ``os.cpu_count()``).
+
+    Every inference path sizes its one thread pool with this: PyTorch's intra-op
+    threads, onnxruntime's intra-op threads and the pixel classifiers' chunk pool (whose
+    chunks then run single-threaded inside), so no two pools multiply.
+
+    Returns
+    -------
+    int
+        At least 1.
+
+    Examples
+    --------
+    >>> available_cores() >= 1
+    True
+    """
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1

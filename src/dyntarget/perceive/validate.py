@@ -384,9 +384,18 @@ def _dims_match(got: Any, want: tuple[int | None, ...]) -> bool:
         if w is None:  # dynamic: a symbolic name (or a positive size) is acceptable
             if isinstance(g, int) and g < 1:
                 return False
+        elif isinstance(w, TileSide):  # a U-Net's height/width: the tile, or symbolic
+            if isinstance(g, int) and g != w:
+                return False
         elif g != w:
             return False
     return True
+
+
+class TileSide(int):
+    """A U-Net's height or width in an ONNX signature: exports before halo stitching fix it
+    to the tile size; later ones leave it symbolic (any size a multiple of the network's
+    downsampling). A fixed size other than the tile is refused."""
 
 
 def onnx_signature(kind: str, tile: int | None = None) -> dict[str, list]:
@@ -401,9 +410,10 @@ def onnx_signature(kind: str, tile: int | None = None) -> dict[str, list]:
     [('image', 'tensor(float)', (None, 4, 32, 32))]
     """
     if kind == "unet":
+        side = TileSide(tile)
         return {
-            "inputs": [("image", _FLOAT, (None, 4, tile, tile))],
-            "outputs": [("logits", _FLOAT, (None, 2, tile, tile))],
+            "inputs": [("image", _FLOAT, (None, 4, side, side))],
+            "outputs": [("logits", _FLOAT, (None, 2, side, side))],
         }
     return {
         "inputs": [("pixels", _FLOAT, (None, N_FEATURES))],

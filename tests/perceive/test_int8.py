@@ -1,0 +1,80 @@
+"""INT8 static quantization of the ONNX U-Nets and MLP: parity with FP32, refusals, CLI."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dyntarget import InvalidParameterError, ModelFileError
+from dyntarget.cli import main
+from dyntarget.perceive import make_classifier
+from dyntarget.perceive.onnx import (
+    INT8_TOLERANCE,
+    calibration_batches,
+    export_onnx,
+    load_onnx,
+    quantize_int8,
+)
+from helpers import FAST_KWARGS
+
+pytest.importorskip("onnxruntime")
+
+
+@pytest.mark.parametrize("name", ["mlp", "unet-xception", "unet-uavsar"])
+def test_int8_matches_fp32_on_a_fixed_scene(name, tiny_scenes, tmp_path):
+    model = make_classifier(name, **FAST_KWARGS.get(name, {})).fit(tiny_scenes[:3])
+    model.save(tmp_path / "m")
+    export_onnx(model, tmp_path / "m")
+    path = quantize_int8(tmp_path / "m", [s.image for s in tiny_scenes[:3]])
+    assert path.name == "model.int8.onnx"
+    fp32, int8 = load_onnx(tmp_path / "m"), load_onnx(tmp_path / "m", int8=True)
+    image = tiny_scenes[3].image
+    a, b = fp32.predict_proba(image), int8.predict_proba(image)
+    assert b.dtype == np.float32 and b.shape == a.shape
+    diff = np.abs(a - b)
+    assert diff.max() <= INT8_TOLERANCE
+    assert diff.max() > 0  # it really is a different (quantized) model
+    import onnx
+
+    ops = {n.op_type for n in onnx.load(str(path)).graph.node}
+    assert {"QuantizeLinear", "DequantizeLinear"} <= ops
+
+
+def test_calibration_tiles_come_from_the_images():
+    img = np.arange(4 * 64 * 96, dtype=np.float32).reshape(4, 64, 96)
+    tiles = calibration_batches("unet", [img], tile=32)
+    assert len(tiles) == 6  # 2 x 3 non-overlapping tiles
+    got = sorted(float(t[0, 0, 0, 0]) for t in tiles)
+    assert got == sorted(float(img[0, r, c]) for r in (0, 32) for c in (0, 32, 64))
+    rows = calibration_batches("pixel", [img])
+    assert sum(len(r) for r in rows) == 64 * 96 and rows[0].shape[1] == 4
+    with pytest.raises(InvalidParameterError, match="at least 32 px"):
+        calibration_batches("unet", [img[:, :16]], tile=32)
+
+
+def test_int8_refusals(tiny_scenes, tmp_path):
+    tree = make_classifier("decision-tree").fit(tiny_scenes[:3])
+    tree.save(tmp_path / "t")
+    export_onnx(tree, tmp_path / "t")
+    with pytest.raises(InvalidParameterError, match="INT8 quantization is offered for"):
+        quantize_int8(tmp_path / "t", [tiny_scenes[0].image])
+    mlp = make_classifier("mlp").fit(tiny_scenes[:3])
+    mlp.save(tmp_path / "m")
+    with pytest.raises(ModelFileError, match="no model.onnx"):
+        quantize_int8(tmp_path / "m", [tiny_scenes[0].image])
+    export_onnx(mlp, tmp_path / "m")
+    with pytest.raises(ModelFileError, match="no model.int8.onnx"):
+        load_onnx(tmp_path / "m", int8=True)
+
+
+def test_export_onnx_int8_cli(tiny_scenes, tmp_path, capsys):
+    model = make_classifier("mlp").fit(tiny_scenes[:3])
+    model.save(tmp_path / "m")
+    assert main(["export-onnx", str(tmp_path / "m"), "--check-size", "64", "--int8"]) == 0
+    out, err = capsys.readouterr()
+    assert out.splitlines()[-1].endswith("model.int8.onnx")
+    assert "INT8 calibrated on 4 synthetic" in err
+    tree = make_classifier("decision-tree").fit(tiny_scenes[:3])
+    tree.save(tmp_path / "t")
+    assert main(["export-onnx", str(tmp_path / "t"), "--check-size", "64", "--int8"]) == 2
+    assert "INT8 quantization is offered for" in capsys.readouterr().err
