@@ -184,8 +184,6 @@ def test_trace_outline_skips_the_image_frame():
     # a plume clear of the frame is traced whole, in one part
     inner = plan("trace-outline", rect_mask(), config=PlanConfig(step=1.0))
     assert len(inner) == 2 * (79 + 19) and set(inner.part.tolist()) == {0}
-    # a plume filling the image has no edge inside it: nothing to trace
-    assert len(plan("trace-outline", np.ones((20, 30), bool))) == 0
 
 
 def _nearest_next_by_brute_force(polygons, start, ends):
@@ -579,3 +577,17 @@ def test_start_point_and_config_bounds_by_hand():
     # the documented bounds are inclusive: the smallest step and a naive square of full size
     assert PlanConfig(step=MIN_STEP, width=MIN_STEP).resolved((10, 10)) == (MIN_STEP, MIN_STEP)
     assert PlanConfig(naive_fraction=1.0).naive_fraction == 1.0
+
+
+def test_trace_outline_flies_the_frame_of_a_plume_that_fills_the_image():
+    # Every boundary point is on the frame: skipping them would leave the plume unobserved.
+    mask = np.ones((12, 12), bool)
+    t = plan("trace-outline", mask, config=PlanConfig(step=1.0))
+    assert len(t) > 0
+    on_frame = (
+        np.isclose(t.points[:, 0], 0)
+        | np.isclose(t.points[:, 0], 11)
+        | np.isclose(t.points[:, 1], 0)
+        | np.isclose(t.points[:, 1], 11)
+    )
+    assert on_frame.all()

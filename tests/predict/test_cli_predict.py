@@ -56,9 +56,19 @@ def _points(path):
 
 def _plan(capsys, looks, out, *extra):
     code, _, err = run(
-        capsys, "plan", looks["cur"], "--mask", looks["cur_mask"], "--planner", "lawnmower-transect",
-        "--out", out, *extra,
-    )  # fmt: skip
+        capsys,
+        "plan",
+        looks["cur"],
+        "--mask",
+        looks["cur_mask"],
+        "--planner",
+        "lawnmower-transect",
+        "--crs",
+        "native",
+        "--out",
+        out,
+        *extra,
+    )  # fmt: skip  (native: the shifts below are checked in the image's metres)
     return code, err
 
 
@@ -89,7 +99,8 @@ def test_wind_prior_alone_in_the_image_crs(tmp_path, capsys, looks):
 
     def centre(p):
         doc = json.loads(p.read_text())
-        assert doc["crs"]["properties"]["name"] == "EPSG:32605"  # stays in the image's CRS
+        # --crs native: the legacy member names the image's CRS the way GDAL reads it
+        assert doc["crs"]["properties"]["name"] == "urn:ogc:def:crs:EPSG::32605"
         pts = [
             f["geometry"]["coordinates"]
             for f in doc["features"]

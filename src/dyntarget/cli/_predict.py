@@ -86,10 +86,13 @@ def _read_previous(args: argparse.Namespace, wfov):
     from dyntarget.errors import InvalidSceneError
     from dyntarget.io.sensors import read_any
 
-    prev = read_any(
-        [args.previous], label=args.previous_mask, bands=args.bands, preset=args.preset,
-        scale=args.scale, offset=args.offset, factor=args.factor,
+    options = dict(
+        bands=args.bands, preset=args.preset, scale=args.scale, offset=args.offset,
+        factor=args.factor,
     )  # fmt: skip
+    # The frames are checked against each other before the previous mask is read onto
+    # the previous frame's grid, so a mismatch is named as such.
+    prev = read_any([args.previous], **options)
     if prev.shape != wfov.shape:
         raise InvalidSceneError(
             f"--previous {args.previous}: {prev.shape[0]} x {prev.shape[1]} px does not match "
@@ -99,6 +102,8 @@ def _read_previous(args: argparse.Namespace, wfov):
         raise InvalidSceneError(
             f"--previous {args.previous}: CRS {prev.crs} does not match the image's {wfov.crs}"
         )
+    if args.previous_mask is not None:
+        prev = read_any([args.previous], label=args.previous_mask, **options)
     return prev
 
 

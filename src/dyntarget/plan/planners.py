@@ -299,7 +299,8 @@ def trace_outline(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanCon
     Where a plume is cut by the image edge, its boundary runs along the image
     frame there; that stretch is the frame, not the plume's edge, so pointings
     on the frame are skipped (:func:`off_frame_pieces`): the outline is flown
-    in pieces, with travel between them.
+    in pieces, with travel between them. A plume whose whole outline is the frame
+    (it fills the image) is flown along the frame, so that it is still observed.
 
     Examples
     --------
@@ -311,7 +312,11 @@ def trace_outline(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanCon
     step, _ = config.resolved(mask.shape)
 
     def path(poly: Polygon, position: np.ndarray) -> list[np.ndarray]:
-        return off_frame_pieces(sample_ring(poly, step, position), mask.shape)
+        ring = sample_ring(poly, step, position)
+        pieces = off_frame_pieces(ring, mask.shape)
+        # A plume that fills the image has no edge of its own in view: fly the frame
+        # rather than leave it unobserved.
+        return pieces if any(len(p) for p in pieces) else [ring]
 
     return _visit(polygons, mask.shape, path, "trace-outline", config.as_dict(mask.shape))
 
