@@ -39,3 +39,16 @@ OBJECTIVE = "gradient"
 """The default ``utility-max`` objective."""
 AGILITY_CLASSIFIER = "unet-uavsar"
 """The classifier the agility evaluation plans on."""
+DYNAMIC_LATENCIES_S = (0.0, 30.0, 60.0, 90.0, 180.0)
+"""``evaluate dynamic``: seconds from the decision frame's acquisition to the start of pointing."""
+DYNAMIC_WIND_BINS_MPS = (
+    (0.0, 2.0),
+    (2.0, 5.0),
+    (5.0, 8.0),
+    (8.0, 12.0),
+    (12.0, 16.0),
+    (16.0, float("inf")),
+)
+"""``evaluate dynamic``: wind speed bins, m/s (lower bound inclusive)."""
+DYNAMIC_MODES = ("static", "predictive", "wind-prior")
+"""``evaluate dynamic``: how a plan meets a moving plume (``dyntarget.evaluate.dynamic.MODES``)."""

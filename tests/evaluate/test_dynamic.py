@@ -192,3 +192,12 @@ def test_on_a_dask_cluster_the_records_equal_the_serial_run(cluster):
     serial = evaluate_dynamic(seqs, config, progress=False)
     remote = evaluate_dynamic(seqs, config, progress=False, scheduler=cluster)
     assert remote["records"] == serial["records"]
+
+
+def test_the_cli_defaults_name_the_evaluations_modes_and_bins():
+    from dyntarget import defaults
+    from dyntarget.evaluate.dynamic import MODES, WIND_BINS, wind_bin
+
+    assert defaults.DYNAMIC_MODES == tuple(MODES)
+    labels = [wind_bin(lo) for lo, _ in WIND_BINS]
+    assert labels == ["0-2", "2-5", "5-8", "8-12", "12-16", "16+"]  # as the --help lists them

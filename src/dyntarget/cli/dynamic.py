@@ -109,10 +109,13 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
 
 def register_evaluation(ev: argparse._SubParsersAction) -> None:
     """Add ``evaluate dynamic`` to the ``evaluate`` sub-commands."""
-    from dyntarget.evaluate.dynamic import DEFAULT_LATENCIES, MODES, WIND_BINS, wind_bin
+    from dyntarget.defaults import DYNAMIC_LATENCIES_S as DEFAULT_LATENCIES
+    from dyntarget.defaults import DYNAMIC_MODES as MODES
+    from dyntarget.defaults import DYNAMIC_WIND_BINS_MPS as WIND_BINS
     from dyntarget.schedule import AGILITY
 
-    bins = ", ".join(wind_bin(lo) for lo, _ in WIND_BINS)
+    # (the parser needs only the defaults: the evaluation itself is imported when it runs)
+    bins = ", ".join(f"{lo:g}+" if hi == float("inf") else f"{lo:g}-{hi:g}" for lo, hi in WIND_BINS)
     q = ev.add_parser(
         "dynamic",
         help="metrics vs latency and wind on moving scenes (pointings scored at their own time)",

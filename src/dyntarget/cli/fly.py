@@ -17,7 +17,6 @@ from dyntarget.cli._common import (
     writes,
 )
 from dyntarget.errors import InvalidParameterError
-from dyntarget.fly.signals import stop_on_signals
 
 
 def _classifier(args: argparse.Namespace):
@@ -90,6 +89,8 @@ def _fly(args: argparse.Namespace) -> int:
         fallback = load_classifier(args.fallback_model)
     out = Path(args.out)
     views = None if args.no_html else ViewCollector()
+    from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
+
     with stop_on_signals() as stop:
         result = fly_pass(
             world,
@@ -137,6 +138,8 @@ def _watch(args: argparse.Namespace) -> int:
     )
     watcher = Watcher(args.watch, args.out, _classifier(args), config, log=log)
     log(f"watching {args.watch} (stop with Ctrl-C or SIGTERM)")
+    from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
+
     with stop_on_signals() as stop:
         n = watcher.run(stop.is_set)
     log(f"planned {n} frame(s) into {args.out}")

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError, UnknownNameError
 from dyntarget.evaluate.crossval import DEFAULT_FACTOR, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
@@ -53,17 +54,10 @@ from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory
 from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule, make_feasible
 from dyntarget.sequence import FrameSequence
 
-DEFAULT_LATENCIES: tuple[float, ...] = (0.0, 30.0, 60.0, 90.0, 180.0)
+DEFAULT_LATENCIES: tuple[float, ...] = defaults.DYNAMIC_LATENCIES_S
 """Seconds from the decision frame's acquisition to the start of pointing."""
 
-WIND_BINS: tuple[tuple[float, float], ...] = (
-    (0.0, 2.0),
-    (2.0, 5.0),
-    (5.0, 8.0),
-    (8.0, 12.0),
-    (12.0, 16.0),
-    (16.0, math.inf),
-)
+WIND_BINS: tuple[tuple[float, float], ...] = defaults.DYNAMIC_WIND_BINS_MPS
 """Wind speed bins, m/s (lower bound inclusive)."""
 
 TRUE_MASK = "true-mask"
