@@ -203,9 +203,6 @@ class OnnxClassifier:
         options.intra_op_num_threads = threads or available_cores()
         options.inter_op_num_threads = 1
         options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        # No CPU memory arena: it keeps the largest chunk's buffers for the process's
-        # life, which the long-lived onboard loop pays in peak memory.
-        options.enable_cpu_mem_arena = False
         try:
             self.session = ort.InferenceSession(
                 str(path), sess_options=options, providers=["CPUExecutionProvider"]
