@@ -119,6 +119,29 @@ def name_lists(**lists: str | None) -> dict[str, tuple[str, ...]]:
     return {key: tuple(text.split(",")) for key, text in lists.items() if text}
 
 
+def add_orbit_options(p, *, look_ahead_type=float) -> None:
+    """``--altitude-km`` and ``--look-ahead-km`` (defaults from :mod:`dyntarget.defaults`).
+
+    ``p`` is a parser or an argument group; ``look_ahead_type`` parses the look-ahead
+    (``positive_float`` where a negative look-ahead makes no sense, as for a pass).
+    """
+    from dyntarget import defaults
+
+    p.add_argument(
+        "--altitude-km",
+        type=positive_float,
+        default=defaults.ALTITUDE_M / 1e3,
+        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
+    )
+    p.add_argument(
+        "--look-ahead-km",
+        type=look_ahead_type,
+        default=defaults.LOOK_AHEAD_M / 1e3,
+        help="ground distance from nadir to the WFOV scene centre at acquisition "
+        f"(default {defaults.LOOK_AHEAD_M / 1e3:g})",
+    )
+
+
 def add_plan_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--step", type=positive_float, help="pixels between pointings (default 1%% of the width)"

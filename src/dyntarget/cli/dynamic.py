@@ -10,11 +10,11 @@ from pathlib import Path
 from dyntarget.cli._common import (
     EXIT_OK,
     SCHEDULER_HELP,
+    add_orbit_options,
     add_plan_options,
     log,
     name_lists,
     plan_config,
-    positive_float,
     positive_int,
     scheduler_address,
     writes,
@@ -171,13 +171,7 @@ def register_evaluation(ev: argparse._SubParsersAction) -> None:
         choices=list(AGILITY),
         help="NFOV agility preset for timing the pointings (default unlimited: all at the latency)",
     )
-    q.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
-    q.add_argument(
-        "--look-ahead-km",
-        type=float,
-        default=500.0,
-        help="ground distance from nadir to the scene centre at the decision frame (default 500)",
-    )
+    add_orbit_options(q)
     q.add_argument(
         "--truth-step-s",
         type=float,

@@ -12,12 +12,12 @@ from dyntarget.cli._common import (
     EXIT_OK,
     Parser,
     add_evaluation_options,
+    add_orbit_options,
     add_plan_options,
     load_labelled,
     log,
     name_lists,
     plan_config,
-    positive_float,
     show_result,
     writes,
 )
@@ -165,18 +165,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=defaults.OBJECTIVES,
         help=f"what utility-max maximises (default {defaults.OBJECTIVE})",
     )
-    q.add_argument(
-        "--altitude-km",
-        type=positive_float,
-        default=defaults.ALTITUDE_M / 1e3,
-        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
-    )
-    q.add_argument(
-        "--look-ahead-km",
-        type=float,
-        default=defaults.LOOK_AHEAD_M / 1e3,
-        help=f"ground distance from nadir to the WFOV scene centre at acquisition (default {defaults.LOOK_AHEAD_M / 1e3:g})",
-    )
+    add_orbit_options(q)
     add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_agility)
 

@@ -8,6 +8,7 @@ from pathlib import Path
 from dyntarget.cli._common import (
     EXIT_OK,
     SCHEDULER_HELP,
+    add_orbit_options,
     add_plan_options,
     log,
     plan_config,
@@ -234,8 +235,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=1,
         help="NFOV footprint in WFOV px (odd; default 1)",
     )
-    p.add_argument("--altitude-km", type=positive_float, default=500.0, help="default 500")
-    p.add_argument("--look-ahead-km", type=positive_float, default=500.0, help="default 500")
+    add_orbit_options(p, look_ahead_type=positive_float)
     p.add_argument(
         "--truth-step-s",
         type=float,

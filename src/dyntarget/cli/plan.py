@@ -7,6 +7,7 @@ import argparse
 from dyntarget import defaults
 from dyntarget.cli._common import (
     EXIT_OK,
+    add_orbit_options,
     add_plan_options,
     log,
     plan_config,
@@ -240,18 +241,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_output_options(p)
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
     k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
-    k.add_argument(
-        "--altitude-km",
-        type=positive_float,
-        default=defaults.ALTITUDE_M / 1e3,
-        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
-    )
-    k.add_argument(
-        "--look-ahead-km",
-        type=float,
-        default=defaults.LOOK_AHEAD_M / 1e3,
-        help=f"ground distance from nadir to the scene centre at acquisition (default {defaults.LOOK_AHEAD_M / 1e3:g})",
-    )
+    add_orbit_options(k)
     k.add_argument(
         "--start-s",
         type=float,
