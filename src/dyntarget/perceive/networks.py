@@ -5,6 +5,10 @@ Imported only when a U-Net is built, trained or loaded natively (it imports torc
 
 from __future__ import annotations
 
+import functools
+import math
+import threading
+
 import torch
 from torch import nn
 
@@ -22,6 +26,10 @@ class _Normalise(nn.Module):
         super().__init__()
         self.register_buffer("mean", torch.zeros(1, channels, 1, 1))
         self.register_buffer("std", torch.ones(1, channels, 1, 1))
+
+    def reset_parameters(self) -> None:
+        self.mean.zero_()
+        self.std.fill_(1.0)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return (x - self.mean) / self.std
@@ -130,3 +138,79 @@ class XceptionUNet(nn.Module):
 
 
 NETWORKS = {"uavsar": UavsarUNet, "xception": XceptionUNet}
+
+
+def build(network: type[nn.Module], width: int, seed: int) -> nn.Module:
+    """Build ``network`` with PyTorch's default initial weights, drawn from its own generator.
+
+    The weights are those ``torch.manual_seed(seed); network(width=width)`` gives,
+    but torch's global generator is neither read nor advanced, so networks built at
+    the same time on several threads (a Dask worker) cannot change each other's
+    weights. The modules are created on the ``meta`` device (no draws), then each
+    convolution is initialised as ``_ConvNd.reset_parameters`` does, in module order.
+
+    Parameters
+    ----------
+    network : type
+        :class:`UavsarUNet` or :class:`XceptionUNet`.
+    width : int
+        Channels of the first level.
+    seed : int
+        Seed of the generator the initial weights are drawn from.
+
+    Returns
+    -------
+    torch.nn.Module
+        The network on the CPU, in training mode.
+
+    Examples
+    --------
+    >>> a, b = build(UavsarUNet, 4, seed=1), build(UavsarUNet, 4, seed=1)
+    >>> all(torch.equal(a.state_dict()[k], b.state_dict()[k]) for k in a.state_dict())
+    True
+    """
+    with torch.device("meta"):
+        model = network(width=width)
+    model = model.to_empty(device="cpu")
+    modules = dict(model.named_modules())
+    gen = torch.Generator().manual_seed(int(seed))
+    with torch.no_grad():
+        for name in _creation_order(network):  # the order torch's default init draws in
+            module = modules[name]
+            if isinstance(module, nn.modules.conv._ConvNd):
+                nn.init.kaiming_uniform_(module.weight, a=math.sqrt(5), generator=gen)
+                if module.bias is not None:
+                    fan_in, _ = nn.init._calculate_fan_in_and_fan_out(module.weight)
+                    bound = 1 / math.sqrt(fan_in) if fan_in > 0 else 0
+                    nn.init.uniform_(module.bias, -bound, bound, generator=gen)
+            else:
+                module.reset_parameters()
+    return model
+
+
+@functools.cache
+def _creation_order(network: type[nn.Module]) -> tuple[str, ...]:
+    """Names of the modules of ``network`` holding parameters or buffers, in creation order.
+
+    Modules are created (and initialised) in the order ``__init__`` runs, which is
+    not always the order of ``named_modules()`` (a U-Net builds each ``up`` block
+    next to its ``dec`` block). Found once per class from the registration hooks.
+    """
+    me, created = threading.get_ident(), []
+
+    def hook(module: nn.Module, name: str, tensor: torch.Tensor | None) -> None:
+        if threading.get_ident() == me:
+            created.append(module)
+
+    hooks = [
+        nn.modules.module.register_module_parameter_registration_hook(hook),
+        nn.modules.module.register_module_buffer_registration_hook(hook),
+    ]
+    try:
+        with torch.device("meta"):
+            model = network(width=2)
+    finally:
+        for h in hooks:
+            h.remove()
+    names = {id(m): n for n, m in model.named_modules()}
+    return tuple(dict.fromkeys(names[id(m)] for m in created if id(m) in names))

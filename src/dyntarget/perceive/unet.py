@@ -40,7 +40,6 @@ tiling (:func:`tiled`) is shared with the ONNX runtime.
 from __future__ import annotations
 
 import contextlib
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, ClassVar
@@ -58,7 +57,6 @@ DEFAULT_MEMORY_MIB = 1024.0
 """Budget for one network pass's activations in ``"halo"`` stitching (estimated, MiB)."""
 IGNORE = -1
 """Target value of nodata pixels: left out of the loss."""
-_GLOBAL_RNG_LOCK = threading.Lock()
 
 
 @contextlib.contextmanager
@@ -362,10 +360,15 @@ class _UNetClassifier(Classifier):
     """Down-sampling levels of the network: tiles are multiples of ``2**levels`` px."""
 
     def network(self, width: int):
-        """A fresh, untrained network of this architecture (imports torch)."""
-        from dyntarget.perceive.networks import NETWORKS
+        """A fresh, untrained network of this architecture (imports torch).
 
-        return NETWORKS[self.architecture](width=width)
+        Its initial weights come from a generator seeded with ``self.seed``, not from
+        torch's global one, so networks built at once on several threads (a Dask
+        worker) do not change each other's weights.
+        """
+        from dyntarget.perceive.networks import NETWORKS, build
+
+        return build(NETWORKS[self.architecture], width, self.seed)
 
     def __init__(
         self,
@@ -444,11 +447,7 @@ class _UNetClassifier(Classifier):
             stack.mean(axis=1, dtype=np.float64),
             np.maximum(stack.std(axis=1, dtype=np.float64), 1e-4),
         )
-        # the initial weights come from torch's global generator: seed it under a lock so
-        # that models trained at once on several threads (a Dask worker) stay deterministic
-        with _GLOBAL_RNG_LOCK, torch.random.fork_rng(devices=[]):
-            torch.manual_seed(self.seed)
-            model = self.network(width=self.width)
+        model = self.network(width=self.width)  # seeded by self.seed, thread-safe
         model.norm.mean.copy_(torch.from_numpy(mean.astype(np.float32)).view(1, 4, 1, 1))
         model.norm.std.copy_(torch.from_numpy(std.astype(np.float32)).view(1, 4, 1, 1))
         gen = torch.Generator().manual_seed(self.seed)
