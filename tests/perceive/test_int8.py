@@ -78,3 +78,32 @@ def test_export_onnx_int8_cli(tiny_scenes, tmp_path, capsys):
     tree.save(tmp_path / "t")
     assert main(["export-onnx", str(tmp_path / "t"), "--check-size", "64", "--int8"]) == 2
     assert "INT8 quantization is offered for" in capsys.readouterr().err
+
+
+def test_plan_and_fly_int8_run_the_int8_file_alone(tiny_scenes, tmp_path, capsys):
+    from dyntarget.io import write_scene
+
+    model = make_classifier("mlp").fit(tiny_scenes[:3])
+    model.save(tmp_path / "m")
+    assert main(["export-onnx", str(tmp_path / "m"), "--check-size", "64", "--int8"]) == 0
+    write_scene(tiny_scenes[3], tmp_path / "in")
+    image = str(next(p for p in (tmp_path / "in").glob("*.tif") if "_mask" not in p.name))
+    plan = ["plan", image, "--model", str(tmp_path / "m"), "--planner", "lawnmower-transect"]
+    (tmp_path / "m" / "model.onnx").unlink()  # only the INT8 file is left: --int8 needs no more
+    assert main([*plan, "--int8", "--out", str(tmp_path / "a.geojson")]) == 0
+    assert (tmp_path / "a.geojson").is_file()
+    capsys.readouterr()
+    assert main([*plan, "--onnx", "--out", str(tmp_path / "b.geojson")]) == 2
+    assert "no model.onnx" in capsys.readouterr().err
+    assert not (tmp_path / "b.geojson").exists()
+    strip = tmp_path / "strip"
+    synth = ["synth", "--strip", "--scenes", "1", "--size", "64", "--plumes", "1", "--seed", "3"]
+    assert main([*synth, "--out", str(strip), "--quiet"]) == 0
+    fly = ["fly", "--scene", str(strip / "strip-0003.tif"), "--model", str(tmp_path / "m")]
+    fly += ["--no-picture", "--compute-budget-s", "0.1", "--quiet"]
+    assert main([*fly, "--int8", "--out", str(tmp_path / "pass")]) == 0
+    assert (tmp_path / "pass" / "timeline.csv").is_file()
+    (tmp_path / "m" / "model.int8.onnx").unlink()
+    capsys.readouterr()
+    assert main([*plan, "--int8", "--out", str(tmp_path / "c.geojson")]) == 2
+    assert "run 'dyntarget export-onnx --int8' first" in capsys.readouterr().err

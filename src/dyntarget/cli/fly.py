@@ -23,10 +23,10 @@ from dyntarget.errors import InvalidParameterError
 def _classifier(args: argparse.Namespace):
     if args.model is None:
         return None
-    if args.onnx:
+    if args.onnx or args.int8:
         from dyntarget.perceive.onnx import load_onnx
 
-        return load_onnx(args.model)
+        return load_onnx(args.model, int8=args.int8)
     from dyntarget.perceive import load_classifier
 
     return load_classifier(args.model)
@@ -159,6 +159,7 @@ def _campaign(args: argparse.Namespace) -> int:
         config=config,
         model=args.model,
         onnx=args.onnx,
+        int8=args.int8,
         scheduler=args.scheduler,
         truth_step_s=args.truth_step_s,
         progress=not args.quiet,
@@ -194,6 +195,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument(
         "--onnx", action="store_true", help="run the model's ONNX export (onnxruntime)"
     )
+    src.add_argument("--int8", action="store_true", help="its INT8 export (implies --onnx)")
     src.add_argument("--fallback-model", help="a cheaper model to fall back on under --deadline-s")
     p.add_argument(
         "--planner",

@@ -64,13 +64,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
         factor=args.factor,
     )
     classifier = None
-    if args.onnx and args.model is None:
-        raise InvalidParameterError("--onnx runs a model's ONNX export: give --model PATH")
+    if (args.onnx or args.int8) and args.model is None:
+        flag = "--int8" if args.int8 else "--onnx"
+        raise InvalidParameterError(f"{flag} runs a model's ONNX export: give --model PATH")
     if args.model is not None:
-        if args.onnx:
+        if args.onnx or args.int8:
             from dyntarget.perceive.onnx import load_onnx
 
-            classifier = load_onnx(args.model)
+            classifier = load_onnx(args.model, int8=args.int8)
         else:
             classifier = load_classifier(args.model)
         if args.classifier and args.classifier != classifier.name:
@@ -199,6 +200,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--classifier", help="classifier name; must match --model")
     p.add_argument(
         "--onnx", action="store_true", help="run the model's ONNX export with onnxruntime"
+    )
+    p.add_argument(
+        "--int8",
+        action="store_true",
+        help="run the model's INT8 ONNX export ('export-onnx --int8'; implies --onnx)",
     )
     p.add_argument(
         "--deadline-s",

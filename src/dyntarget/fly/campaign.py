@@ -61,13 +61,13 @@ def strips_in(directory: str | os.PathLike[str]) -> list[Path]:
 
 
 @functools.lru_cache(maxsize=4)
-def _classifier(model: str | None, onnx: bool):
+def _classifier(model: str | None, onnx: bool, int8: bool = False):
     if model is None:
         return None
-    if onnx:
+    if onnx or int8:
         from dyntarget.perceive.onnx import load_onnx
 
-        return load_onnx(model)
+        return load_onnx(model, int8=int8)
     from dyntarget.perceive import load_classifier
 
     return load_classifier(model)
@@ -90,6 +90,7 @@ def fly_one(
     onnx: bool,
     out: str,
     truth_step_s: float,
+    int8: bool = False,
 ) -> dict[str, Any]:
     """Fly one pass of a campaign and write its outputs; return its row of totals."""
     from dyntarget.fly.report import write_pass
@@ -97,7 +98,7 @@ def fly_one(
 
     world = load_world(task["strip"], truth_step_s=truth_step_s)
     cfg = replace(config, planner=task["planner"], agility=task["agility"])
-    result = fly_pass(world, _classifier(model, onnx), cfg)
+    result = fly_pass(world, _classifier(model, onnx, int8), cfg)
     name = f"{world.id}-{cfg.planner}-{cfg.agility}"
     write_pass(result, world, Path(out) / "passes" / name, picture=False)
     return result.totals()
@@ -112,6 +113,7 @@ def run_campaign(
     config: PassConfig,
     model: str | None = None,
     onnx: bool = False,
+    int8: bool = False,
     scheduler: str | None = None,
     truth_step_s: float = 1.0,
     progress: bool = True,
@@ -126,6 +128,7 @@ def run_campaign(
     config : settings shared by every pass (its planner and agility are replaced per task).
     model, onnx : the classifier's model directory (``None``: plan on the truth) and
         whether to run its ONNX export.
+    int8 : run its INT8 ONNX export (``export-onnx --int8``) instead.
     scheduler : ``None``, ``"local"``, ``"processes"`` or a Dask scheduler address.
     truth_step_s : time quantum of moving strips' truth.
     progress : show a progress bar.
@@ -152,7 +155,8 @@ def run_campaign(
         for a in agilities
     ]
     digests = {str(s): _digest(s) for s in strips}
-    model_id = None if model is None else (model, onnx, _model_digest(Path(model)))
+    runtime = (onnx, "int8") if int8 else (onnx,)  # FP32 keys as before: parts stay valid
+    model_id = None if model is None else (model, *runtime, _model_digest(Path(model)))
     settings = {**config.as_dict(), "truth_step_s": truth_step_s}
 
     def key(task: dict[str, str]) -> str:
@@ -170,6 +174,7 @@ def run_campaign(
             "config": config,
             "model": model,
             "onnx": onnx,
+            "int8": int8,
             "out": str(out),
             "truth_step_s": truth_step_s,
         },
