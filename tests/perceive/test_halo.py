@@ -23,6 +23,7 @@ def _untrained(name: str, width: int = 4):
 
 
 @pytest.mark.parametrize("name", NAMES)
+@pytest.mark.slow
 def test_receptive_radius_bounds_the_gradient_support(name):
     """The analytic radius bounds the measured one (gradient of the centre output pixel
     of a randomly initialised float64 network) and is not far above it. Max pooling
@@ -138,3 +139,19 @@ def test_blend_stitching_is_kept_and_bad_settings_refused():
     for bad in (0, -1, float("nan"), "lots", True):
         with pytest.raises(InvalidParameterError, match="memory_mib"):
             model.set_stitching("halo", memory_mib=bad)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_channels_last_prediction_equals_the_trained_networks_own_pass(name):
+    """predict_proba runs a channels-last copy; the reference is the trained network
+    itself (default memory format) on the whole image, softmax computed here."""
+    import torch
+
+    model = _untrained(name, width=4)
+    image = np.random.default_rng(5).uniform(0, 0.6, (4, 96, 128)).astype(np.float32)
+    with torch.inference_mode():
+        logits = model.model(torch.from_numpy(image[None])).double()
+    expected = torch.softmax(logits, dim=1)[0, 1].numpy()
+    got = model.set_stitching("halo", memory_mib=1e6).predict_proba(image)
+    np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
+    assert all(p.is_contiguous() for p in model.model.parameters())  # the model is untouched
