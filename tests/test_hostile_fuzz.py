@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 
+import pytest
 from affine import Affine
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -78,6 +79,7 @@ documents = st.one_of(
 )
 
 
+@pytest.mark.slow
 @FUZZ
 @given(doc=documents, georef=st.booleans())
 def test_geojson_reader_refuses_or_returns_a_mask(tmp_path, doc, georef):

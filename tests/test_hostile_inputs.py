@@ -231,6 +231,7 @@ def test_duplicate_classifiers_refused(tmp_path, capsys):
 # ---------------------------------------------------------------- item 11: a huge header
 
 
+@pytest.mark.slow
 def test_header_claiming_200000_squared_refused_up_front(tmp_path):
     path = tmp_path / "huge.tif"
     with warnings.catch_warnings():

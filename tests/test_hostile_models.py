@@ -59,6 +59,7 @@ def _image(tmp_path):
     return write_raw_tif(tmp_path / "img.tif", data)
 
 
+@pytest.mark.slow
 def test_crafted_tree_child_index_out_of_range_exits_2_in_subprocess(tmp_path):
     def far_child(nodes, values):
         nodes["left_child"][0] = 10**8

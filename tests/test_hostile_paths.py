@@ -194,6 +194,7 @@ def test_evaluate_reruns_into_its_own_folder(tmp_path, data, capsys):
     assert (out / MARKER).is_file()
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_leaves_nothing_behind(tmp_path, data, capsys):
     out = tmp_path / "out"
     code, err = _run(
@@ -214,6 +215,7 @@ def test_unreachable_scheduler_leaves_nothing_behind(tmp_path, data, capsys):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_leaves_no_parts_folder_in_an_existing_output(tmp_path, data, capsys):
     out = tmp_path / "out"
     ok = ["evaluate", "planning", "--data", data, "--factor", "2", "--quiet", "--out", out]

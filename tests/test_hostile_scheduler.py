@@ -87,6 +87,7 @@ def test_in_process_and_local_threads_give_byte_identical_tables_and_weights(
 # so the training started from other weights (first-epoch loss 0.66 instead of 0.68).
 
 
+@pytest.mark.slow
 def test_building_and_training_a_unet_leaves_torchs_global_generator_alone():
     from dyntarget.perceive import make_classifier
 
@@ -109,6 +110,7 @@ def test_a_networks_initial_weights_are_torchs_default_for_its_seed(architecture
     assert all(torch.equal(got[k], expected[k]) for k in expected)
 
 
+@pytest.mark.slow
 def test_unets_trained_on_two_threads_at_once_equal_those_trained_one_after_another():
     from concurrent.futures import ThreadPoolExecutor
 

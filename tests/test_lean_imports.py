@@ -30,6 +30,7 @@ def _loaded_after(code: str) -> tuple[list[str], str]:
     return json.loads(last), "\n".join(out)
 
 
+@pytest.mark.slow
 def test_importing_the_core_and_stages_loads_nothing_heavy():
     loaded, _ = _loaded_after(
         "import dyntarget, dyntarget.pipeline, dyntarget.plan, dyntarget.observe, dyntarget.io\n"
@@ -39,6 +40,7 @@ def test_importing_the_core_and_stages_loads_nothing_heavy():
     assert loaded == []
 
 
+@pytest.mark.slow
 def test_listing_classifiers_and_planners_loads_nothing_heavy():
     loaded, out = _loaded_after(
         "from dyntarget.cli import main\n"
@@ -50,6 +52,7 @@ def test_listing_classifiers_and_planners_loads_nothing_heavy():
     assert "random-forest" in out and "unet-uavsar" in out and "lawnmower-transect" in out
 
 
+@pytest.mark.slow
 def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
     tiny_scenes, tmp_path
 ):

@@ -76,6 +76,7 @@ def test_plan_geojson_round_trips_through_gdal_within_a_tenth_of_a_pixel(tmp_pat
         assert (lonlat[:, 1] < 0).all()  # southern hemisphere: negative latitudes
 
 
+@pytest.mark.slow
 def test_agility_and_acquired_put_time_on_every_pointing_in_geojson_and_csv(tmp_path, capsys):
     crs, transform = GRIDS["utm32n"]
     image, mask = _scene(tmp_path, crs, transform)
@@ -104,6 +105,7 @@ def test_agility_and_acquired_put_time_on_every_pointing_in_geojson_and_csv(tmp_
     assert [str(v) for v in fields[k]] == [p["time"].rstrip("Z") for p in pts]
 
 
+@pytest.mark.slow
 def test_acquisition_time_is_read_from_the_tiff_tag(tmp_path, capsys):
     import rasterio
 

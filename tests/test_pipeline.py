@@ -50,6 +50,7 @@ def test_plan_segmentation_matches_plan_scene_for_every_geometric_planner():
         assert (cols < 40).all()  # never a pointing on nodata
 
 
+@pytest.mark.slow
 def test_utility_max_is_a_registered_planner_that_needs_the_kinematics():
     image, mask, _ = _scene()
     assert "utility-max" in PLANNERS and "utility-max" not in geometric_planners()

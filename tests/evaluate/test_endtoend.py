@@ -47,6 +47,7 @@ def test_plan_scene_with_mask_and_errors(tiny_scenes):
         plan_scene(image, None, "track-center", mask=np.zeros((3, 3), bool))
 
 
+@pytest.mark.slow
 def test_end_to_end_rows_and_model_sharing(tiny_scenes, tmp_path):
     config = E2EConfig(folds=2, factor=2, classifiers=("band-threshold", "decision-tree"))
     result = evaluate_end_to_end(tiny_scenes, config, models_dir=tmp_path, progress=False)

@@ -40,6 +40,7 @@ def test_only_complete_frame_files_are_candidates(tmp_path):
     assert [p.name for p in candidates(tmp_path)] == ["a.tif"]
 
 
+@pytest.mark.slow
 def test_a_frame_written_slowly_is_read_only_when_complete(tmp_path, classifier, frame_bytes):
     watched, out = tmp_path / "in", tmp_path / "out"
     watched.mkdir()

@@ -21,6 +21,7 @@ pytest.importorskip("onnxruntime")
 
 
 @pytest.mark.parametrize("name", ["mlp", "unet-xception", "unet-uavsar"])
+@pytest.mark.slow
 def test_int8_matches_fp32_on_a_fixed_scene(name, tiny_scenes, tmp_path):
     model = make_classifier(name, **FAST_KWARGS.get(name, {})).fit(tiny_scenes[:3])
     model.save(tmp_path / "m")

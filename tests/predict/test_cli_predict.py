@@ -35,9 +35,11 @@ def _write(path, data, crs="EPSG:32605"):
     return path
 
 
-@pytest.fixture
-def looks(tmp_path):
-    """Two looks 4 s apart of a cloud drifting (1.5, -0.8) px/s, their masks, as GeoTIFFs."""
+@pytest.fixture(scope="module")
+def looks(tmp_path_factory):
+    """Two looks 4 s apart of a cloud drifting (1.5, -0.8) px/s, their masks, as GeoTIFFs
+    (made once per module: the tests only read them)."""
+    tmp_path = tmp_path_factory.mktemp("looks")
     world = RigidCloud(velocity=(1.5, -0.8))
     return {
         "prev": _write(tmp_path / "prev.tif", world.frame(0.0)),
@@ -124,6 +126,7 @@ def test_two_looks_checked_against_the_wind(tmp_path, capsys, looks):
     assert "DISAGREES with the wind prior" in err
 
 
+@pytest.mark.slow
 def test_agility_places_each_pointing_at_its_own_time(tmp_path, capsys, looks):
     code, err = _plan(
         capsys, looks, tmp_path / "t.csv", "--wind-mps", 10, "--wind-from-deg", 270,
@@ -131,6 +134,17 @@ def test_agility_places_each_pointing_at_its_own_time(tmp_path, capsys, looks):
     )  # fmt: skip
     assert code == 0, err
     assert "time_s" in (tmp_path / "t.csv").read_text().splitlines()[0]
+
+
+@pytest.fixture(scope="module")
+def bad_looks(tmp_path_factory, looks):
+    """Frames that do not fit ``looks``: smaller, and in another CRS."""
+    d, world = tmp_path_factory.mktemp("bad-looks"), looks["world"]
+    return {
+        "small": _write(d / "small.tif", world.frame(0.0)[:, :100, :120]),
+        "small_mask": _write(d / "small_mask.tif", world.mask(0.0)[:100, :120]),
+        "geo4326": _write(d / "geo4326.tif", world.frame(0.0), crs="EPSG:32606"),
+    }
 
 
 @pytest.mark.parametrize(
@@ -151,13 +165,12 @@ def test_agility_places_each_pointing_at_its_own_time(tmp_path, capsys, looks):
         (["--lead-s", "5"], "a prediction needs"),
     ],
 )  # fmt: skip
-def test_bad_prediction_inputs_exit_2_with_one_line(tmp_path, capsys, looks, extra, message):
-    world = looks["world"]
-    _write(tmp_path / "small.tif", world.frame(0.0)[:, :100, :120])
-    _write(tmp_path / "small_mask.tif", world.mask(0.0)[:100, :120])
-    _write(tmp_path / "geo4326.tif", world.frame(0.0), crs="EPSG:32606")
-    names = {"small", "small_mask", "geo4326", "prev", "prev_mask", "MISSING"}
-    extra = [str(tmp_path / f"{e}.tif") if e in names else e for e in extra]
+def test_bad_prediction_inputs_exit_2_with_one_line(
+    tmp_path, capsys, looks, bad_looks, extra, message
+):
+    files = {**bad_looks, "prev": looks["prev"], "prev_mask": looks["prev_mask"]}
+    files["MISSING"] = tmp_path / "MISSING.tif"
+    extra = [str(files[e]) if e in files else e for e in extra]
     code, err = _plan(capsys, looks, tmp_path / "t.geojson", *extra)
     assert code == 2, err
     assert message in err and "Traceback" not in err
