@@ -26,7 +26,8 @@ The rule, per function or method:
 * a docstring that numpydoc's ``NumpyDocString`` parses without a warning or an error;
 * when it takes parameters besides ``self``/``cls``: a ``Parameters`` section documenting
   exactly the signature's names (``*args``/``**kwargs`` as ``*args``/``**kwargs`` or
-  without the stars; ``a, b : float`` documents both);
+  without the stars; ``a, b : float`` documents both). Parameters whose names start
+  with ``_`` (a dataclass's private fields) are private and need not be documented;
 * when it returns something: a ``Returns`` section (a ``Yields`` one for generators). It
   returns something when its return annotation is present and not ``None`` (nor
   ``NoReturn``/``Never``); without an annotation, when its body has a ``return`` with a
@@ -148,7 +149,7 @@ def _parameter_names(sig: inspect.Signature, skip_first: bool) -> list[str]:
     params = list(sig.parameters.values())
     if skip_first and params:
         params = params[1:]
-    return [p.name for p in params]
+    return [p.name for p in params if not p.name.startswith("_")]
 
 
 def _check(
