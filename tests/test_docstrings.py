@@ -16,8 +16,8 @@ The public API walked here:
   including those it inherits from a base class defined in ``dyntarget`` (even a private
   one), each checked once on the class that defines it. Dunder methods, hence the methods
   that ``dataclass`` and ``NamedTuple`` generate (``__init__``, ``__repr__``, ``__eq__``...),
-  are not checked themselves. An override without a docstring of its own inherits its
-  base's (``inspect.getdoc``), which must then match the override's signature.
+  are not checked themselves. A class or an override without a docstring of its own
+  inherits its base's (``inspect.getdoc``), which must then match its own signature.
 * properties are attributes: they need a docstring (what the value is), but no
   Parameters or Returns section.
 
@@ -28,19 +28,21 @@ The rule, per function or method:
   exactly the signature's names (``*args``/``**kwargs`` as ``*args``/``**kwargs`` or
   without the stars; ``a, b : float`` documents both). Parameters whose names start
   with ``_`` (a dataclass's private fields) are private and need not be documented;
-* when it returns something: a ``Returns`` section (a ``Yields`` one for generators). It
+* when it returns something: a ``Returns`` or ``Yields`` section (``Yields`` for
+  generators and context managers, by convention; either satisfies the check). It
   returns something when its return annotation is present and not ``None`` (nor
   ``NoReturn``/``Never``); without an annotation, when its body has a ``return`` with a
   value or a ``yield``.
 
 Per class: numpydoc's convention, the constructor's parameters are documented in the
-class docstring's ``Parameters`` section (``__init__`` has no docstring of its own to
-check); for a dataclass or a ``NamedTuple`` these are its ``__init__`` fields. The
-constructor is checked when ``dyntarget`` defines it (an ``__init__`` or ``__new__`` of
-the class or of a ``dyntarget`` base, generated ones included); enums, protocols and
-exceptions that keep ``Exception``'s constructor are not.
+class docstring's ``Parameters`` section (``__init__`` itself is not checked); for a
+dataclass or a ``NamedTuple`` these are its ``__init__`` fields. The constructor is
+checked when ``dyntarget`` defines it (an ``__init__`` or ``__new__`` of the class or of
+a ``dyntarget`` base, generated ones included); enums, protocols, ``int`` subclasses and
+exceptions that keep ``Exception``'s constructor are not, but still need a docstring.
 
-The failure message lists every offender, one line each.
+Only names and sections are checked by machine; types, units and descriptions are
+reviewed by people. The failure message lists every offender, one line each.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ def _returns_something(func) -> bool:
     if annotation is not inspect.Signature.empty:
         if annotation is None or annotation is type(None):
             return False
-        return str(getattr(annotation, "__name__", annotation)) not in NOTHING
+        return str(getattr(annotation, "__name__", annotation)).strip("'\"") not in NOTHING
     try:
         source = textwrap.dedent(inspect.getsource(func))
     except (OSError, TypeError):
@@ -258,9 +260,7 @@ def test_public_api_has_numpydoc_sections():
 def test_the_walk_finds_the_api():
     """The checker sees what it should (a guard against a walk that finds nothing)."""
     labels = {label for label, _ in _public_objects().values()}
-    assert "dyntarget.perceive.unet.UNetConfig" in labels or any(
-        label.startswith("dyntarget.perceive.unet.") for label in labels
-    )
+    assert {"dyntarget.plan.planners.plan", "dyntarget.perceive.unet.Stitching"} <= labels
     assert "dyntarget.cli.main" in labels
     assert not any(label.startswith("dyntarget.cli.plan.") for label in labels)
     assert len(labels) > 100
