@@ -36,7 +36,15 @@ _KERNEL = np.ones((3, 3), np.uint8)
 
 @dataclass(frozen=True)
 class DenoiseResult:
-    """The denoised mask and its polygons (pixel coordinates ``(x, y)`` of pixel centres)."""
+    """The denoised mask and its polygons (pixel coordinates ``(x, y)`` of pixel centres).
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        Boolean ``(H, W)`` denoised mask.
+    polygons : list of shapely.Polygon
+        Its polygons, one per kept connected component.
+    """
 
     mask: np.ndarray
     polygons: list[Polygon]
@@ -48,6 +56,18 @@ def close(mask: np.ndarray, iterations: int) -> np.ndarray:
     The mask is padded with ``iterations + 1`` background pixels first, so a
     blob near the border is not glued onto it, and a blob touching the border
     keeps its shape (the closing of the set in an unbounded background).
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` mask, boolean or 0/1 integers.
+    iterations : int
+        Number of closing iterations (at least 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` uint8 closed mask, 0 or 1.
     """
     pad = iterations + 1
     padded = cv2.copyMakeBorder(
@@ -72,6 +92,11 @@ def denoise(
     iterations : number of 3x3 closing iterations (0 = no merging).
     min_area : smallest kept polygon in pixels; overrides ``min_area_fraction``.
     min_area_fraction : smallest kept polygon as a fraction of the image area.
+
+    Returns
+    -------
+    DenoiseResult
+        The mask with the small components removed and their polygons.
 
     Examples
     --------

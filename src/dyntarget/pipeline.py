@@ -23,7 +23,15 @@ from dyntarget.scene import check_image
 
 @dataclass(frozen=True)
 class DenoiseConfig:
-    """Settings of Algorithm 2 (see :func:`dyntarget.denoise.denoise`)."""
+    """Settings of Algorithm 2 (see :func:`dyntarget.denoise.denoise`).
+
+    Parameters
+    ----------
+    iterations : int
+        Number of 3x3 closing iterations (0 = no merging).
+    min_area_fraction : float
+        Smallest kept polygon as a fraction of the image area.
+    """
 
     iterations: int = denoising.DEFAULT_ITERATIONS
     min_area_fraction: float = denoising.DEFAULT_MIN_AREA_FRACTION
@@ -31,6 +39,18 @@ class DenoiseConfig:
 
 @dataclass(frozen=True)
 class PipelineConfig:
+    """Settings of the whole pipeline: planner, denoising and the classification threshold.
+
+    Parameters
+    ----------
+    plan : dyntarget.plan.PlanConfig
+        Planner settings.
+    denoise : DenoiseConfig
+        Denoising settings.
+    threshold : float
+        Plume probability at or above which a pixel is plume.
+    """
+
     plan: PlanConfig = field(default_factory=PlanConfig)
     denoise: DenoiseConfig = field(default_factory=DenoiseConfig)
     threshold: float = defaults.THRESHOLD
@@ -38,7 +58,35 @@ class PipelineConfig:
 
 @dataclass(frozen=True, eq=False)
 class PlanResult:
-    """What :func:`plan_scene` produced, with per-stage wall times in seconds."""
+    """What :func:`plan_scene` produced, with per-stage wall times in seconds.
+
+    Parameters
+    ----------
+    probability : numpy.ndarray or None
+        ``(H, W)`` plume probability (``None`` when planned from a given mask).
+    raw_mask : numpy.ndarray
+        Boolean ``(H, W)`` mask before denoising.
+    mask : numpy.ndarray
+        Boolean ``(H, W)`` denoised mask.
+    polygons : list of shapely.Polygon
+        The polygons planned over.
+    trajectory : dyntarget.trajectory.Trajectory
+        The plan (timed when a schedule was flown).
+    timings : dict of str to float
+        Wall seconds per stage.
+    path : list of str
+        What ran, in order.
+    deadline_s : float or None
+        The deadline planning ran under, seconds.
+    planner : str
+        The planner that made the trajectory.
+    schedule : dyntarget.schedule.Schedule or None
+        The schedule flown, with ``kinematics``.
+    prediction : dyntarget.predict.Prediction or None
+        The motion and lead time the plan was drawn for.
+    predicted_mask : numpy.ndarray or None
+        The mask carried to ``prediction.lead_s``.
+    """
 
     probability: np.ndarray | None
     raw_mask: np.ndarray
@@ -101,6 +149,23 @@ class Segmentation:
     """Algorithm 1 up to the planner: the probability, the raw and denoised masks, the polygons.
 
     ``timings`` holds ``classify`` and ``denoise`` wall seconds.
+
+    Parameters
+    ----------
+    probability : numpy.ndarray or None
+        ``(H, W)`` plume probability (``None`` when a mask was given).
+    raw_mask : numpy.ndarray
+        Boolean ``(H, W)`` mask before denoising.
+    mask : numpy.ndarray
+        Boolean ``(H, W)`` denoised mask.
+    polygons : list of shapely.Polygon
+        The denoised mask's polygons.
+    valid : numpy.ndarray or None
+        Boolean ``(H, W)``, false on nodata; ``None`` when all pixels are valid.
+    image : numpy.ndarray
+        The ``(4, H, W)`` WFOV image.
+    timings : dict of str to float
+        Wall seconds per stage.
     """
 
     probability: np.ndarray | None
@@ -396,6 +461,18 @@ def predict_segmentation(segmentation: Segmentation, prediction: Prediction) -> 
     planner, ``utility-max`` included, plans on the plume as it will be.
     ``timings`` gains ``predict``.
 
+    Parameters
+    ----------
+    segmentation : Segmentation
+        The segmentation of the current image.
+    prediction : dyntarget.predict.Prediction
+        The motion and the lead time.
+
+    Returns
+    -------
+    Segmentation
+        A copy with the predicted probability, masks and polygons.
+
     Examples
     --------
     >>> from dyntarget.predict import Motion
@@ -468,6 +545,20 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
     (pixels; U-Net tiles) remembered; the estimate scales that to the image.
     Later calls reuse the remembered cost (probe 0 s). Call it once at start-up
     to calibrate a classifier before the first deadline.
+
+    Parameters
+    ----------
+    classifier : dyntarget.perceive.Classifier
+        The classifier to time.
+    image : numpy.ndarray
+        The ``(4, H, W)`` image it will classify.
+
+    Returns
+    -------
+    estimate : float
+        Estimated seconds to classify ``image``.
+    probe : float
+        Seconds spent timing the probe now (0 when the cost was known).
     """
     h, w = image.shape[1:]
     probe = 0.0
@@ -563,18 +654,29 @@ def schedule_on_prediction(
 
     Parameters
     ----------
-    trajectory : the plan from :func:`plan_scene` with ``prediction=``.
-    shape : (H, W) of the WFOV image.
-    geometry, agility : as for :func:`dyntarget.schedule.schedule`.
-    prediction : the one the plan was drawn on.
-    budget_s : as for :func:`~dyntarget.schedule.make_feasible`.
-    attached : with ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
+    trajectory : Trajectory
+        The plan from :func:`plan_scene` with ``prediction=``.
+    shape : tuple of int
+        ``(H, W)`` of the WFOV image.
+    geometry, agility
+        As for :func:`dyntarget.schedule.schedule`.
+    prediction : Prediction
+        The one the plan was drawn on.
+    budget_s : float or None
+        As for :func:`~dyntarget.schedule.make_feasible`.
+    max_iterations : int
+        Most schedule-and-move rounds (at least 1).
+    tolerance_s : float
+        Stop when no kept pointing's time changes by more than this, seconds.
+    attached : numpy.ndarray or None
+        With ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
         denoised current mask: pointings there are not moved (see
         :meth:`~dyntarget.predict.Prediction.pointing_shift`).
 
     Returns
     -------
     Schedule
+        The schedule of the moved pointings.
 
     Examples
     --------
@@ -612,6 +714,30 @@ def iterate_on_prediction(
 
     Returns ``(moved, schedule)``: the whole planned trajectory with every pointing
     moved on to its (last estimated) time, and its schedule (``schedule(moved)``).
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The plan drawn on the prediction.
+    prediction : dyntarget.predict.Prediction
+        The one the plan was drawn on.
+    schedule : callable
+        ``schedule(trajectory) -> Schedule``.
+    max_iterations : int
+        Most schedule-and-move rounds (at least 1).
+    tolerance_s : float
+        Stop when no kept pointing's time changes by more than this, seconds.
+    attached : numpy.ndarray or None
+        Boolean ``(H, W)`` mask (``prediction.attached_mask``): with ``mixed``
+        plumes, pointings inside it are not moved.
+
+    Returns
+    -------
+    moved : dyntarget.trajectory.Trajectory
+        Every planned pointing moved on to its time.
+    schedule : dyntarget.schedule.Schedule
+        ``schedule(moved)``, with ``prediction_iterations`` and
+        ``prediction_residual_px`` in its trajectory's ``params``.
 
     Examples
     --------

@@ -18,6 +18,13 @@ T = TypeVar("T")
 class Registry(Generic[T]):
     """Objects registered under unique names.
 
+    Parameters
+    ----------
+    kind : str
+        What is registered (``"planner"``, ``"classifier"``...), named in error messages.
+    order : tuple of str
+        Names that :meth:`available` lists first, in this order.
+
     Examples
     --------
     >>> r = Registry[type]("widget")
@@ -104,7 +111,13 @@ class Registry(Generic[T]):
         return item
 
     def available(self) -> list[str]:
-        """Registered names: those in ``order`` first (in that order), then the rest as registered."""
+        """Registered names: those in ``order`` first (in that order), then the rest as registered.
+
+        Returns
+        -------
+        list of str
+            The registered names, lazy entries included.
+        """
         first = [n for n in self.order if n in self._items]
         return first + [n for n in self._items if n not in first]
 

@@ -28,6 +28,18 @@ def check_image(image: object, *, name: str = "image") -> np.ndarray:
     number of dimensions or bands, is empty, is not floating point, or holds
     NaN or infinite values. The input is never modified.
 
+    Parameters
+    ----------
+    image : object
+        Array-like reflectance, ``(4, H, W)`` (R, G, B, NIR), floating point.
+    name : str
+        What to call it in error messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        The image as float32 ``(4, H, W)`` (the input itself when it already is).
+
     Examples
     --------
     >>> check_image(np.zeros((4, 2, 3))).dtype
@@ -61,6 +73,25 @@ def check_label(label: object, shape: tuple[int, int], *, name: str = "label") -
 
     Booleans and integers are accepted (non-zero = plume); floats are refused
     because their meaning (probability? 0/255?) is ambiguous.
+
+    Parameters
+    ----------
+    label : object
+        Array-like boolean or integer mask.
+    shape : tuple of int
+        The image's ``(H, W)``, which the label must match.
+    name : str
+        What to call it in error messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean ``(H, W)``, true on plume.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidSceneError
+        On a shape mismatch or a dtype other than bool or integer.
     """
     arr = np.asarray(label)
     if arr.shape != tuple(shape):
@@ -155,6 +186,7 @@ class Scene:
 
     @property
     def georeferenced(self) -> bool:
+        """Whether the scene has both a CRS and a geotransform."""
         return self.crs is not None and self.transform is not None
 
     def to_wfov(self, factor: int) -> Scene:
@@ -168,6 +200,23 @@ class Scene:
         transform is ``transform @ Affine.scale(factor)`` and the GSD is
         multiplied by ``factor``. A WFOV pixel is valid only when all of its
         high-resolution pixels are.
+
+        Parameters
+        ----------
+        factor : int
+            High-resolution pixels per WFOV pixel along each axis (1 returns this scene).
+
+        Returns
+        -------
+        Scene
+            The WFOV scene: image, label and valid mask downsampled, transform and GSD scaled.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For a factor that is not a positive integer or exceeds the smaller side.
+        dyntarget.errors.InvalidSceneError
+            When no WFOV pixel is free of nodata.
         """
         factor = check_factor(factor, self.shape)
         if factor == 1:
@@ -197,7 +246,25 @@ class Scene:
 
 
 def check_factor(factor: object, shape: tuple[int, int]) -> int:
-    """Validate an integer downsampling factor for an image of ``shape``."""
+    """Validate an integer downsampling factor for an image of ``shape``.
+
+    Parameters
+    ----------
+    factor : object
+        The factor to check: a positive integer (not a bool).
+    shape : tuple of int
+        The image's ``(H, W)``; the factor may not exceed ``min(H, W)``.
+
+    Returns
+    -------
+    int
+        The factor as a Python int.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For anything else.
+    """
     if isinstance(factor, bool) or not isinstance(factor, int | np.integer):
         raise InvalidParameterError(f"factor: expected a positive integer, got {factor!r}")
     factor = int(factor)
@@ -214,6 +281,18 @@ def block_mean(stack: np.ndarray, factor: int) -> np.ndarray:
     """Mean over non-overlapping ``factor x factor`` blocks of a ``(C, H, W)`` stack.
 
     Trailing rows/columns that do not fill a block are dropped.
+
+    Parameters
+    ----------
+    stack : numpy.ndarray
+        ``(C, H, W)`` array.
+    factor : int
+        Block side, pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(C, H // factor, W // factor)`` float32 block means (accumulated in float64).
 
     Examples
     --------

@@ -52,7 +52,21 @@ GM_EARTH = 3.986004418e14
 
 @dataclass(frozen=True)
 class OrbitGeometry:
-    """Where the scene lies relative to the spacecraft, and when the plan starts."""
+    """Where the scene lies relative to the spacecraft, and when the plan starts.
+
+    Parameters
+    ----------
+    altitude_m : float
+        Orbit altitude, metres.
+    look_ahead_m : float
+        Along-track ground distance from nadir to the WFOV footprint centre at the
+        acquisition (``t = 0``), metres.
+    wfov_gsd_m : float
+        WFOV ground sample distance, metres per pixel.
+    start_s : float
+        When the plan is ready and the sensor starts at nadir, seconds after the
+        WFOV acquisition.
+    """
 
     altitude_m: float = 500e3
     look_ahead_m: float = 500e3
@@ -80,7 +94,22 @@ class OrbitGeometry:
         return math.sqrt(GM_EARTH / r) * EARTH_RADIUS_M / r
 
     def ground(self, points: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-        """WFOV pixel ``(x, y)`` -> (along-track, cross-track) ground distance from nadir at t=0, m."""
+        """WFOV pixel ``(x, y)`` -> (along-track, cross-track) ground distance from nadir at t=0, m.
+
+        Parameters
+        ----------
+        points : numpy.ndarray
+            ``(n, 2)`` WFOV pixel coordinates ``(x, y)``.
+        shape : tuple of int
+            The WFOV image's ``(H, W)``.
+
+        Returns
+        -------
+        along : numpy.ndarray
+            ``(n,)`` distance ahead of nadir along the ground track, metres.
+        cross : numpy.ndarray
+            ``(n,)`` distance across track (positive towards increasing ``x``), metres.
+        """
         h, w = shape
         pts = np.asarray(points, np.float64).reshape(-1, 2)
         along = self.look_ahead_m + ((h - 1) / 2.0 - pts[:, 1]) * self.wfov_gsd_m
@@ -90,7 +119,26 @@ class OrbitGeometry:
 
 @dataclass(frozen=True)
 class Agility:
-    """How fast the NFOV line of sight can move. ``inf`` rate/acceleration: instantaneous."""
+    """How fast the NFOV line of sight can move. ``inf`` rate/acceleration: instantaneous.
+
+    Parameters
+    ----------
+    name : str
+        Preset name, recorded in schedules.
+    max_rate_deg_s : float
+        Largest slew rate, degrees per second.
+    max_accel_deg_s2 : float
+        Largest slew acceleration, degrees per second squared.
+    settle_s : float
+        Time to settle after each slew, seconds.
+    dwell_s : float
+        Time each pointing is held, seconds.
+    field_of_regard_deg : float or None
+        Largest off-nadir angle a target can be observed at, degrees; ``None``: no
+        limit (unlimited agility).
+    aft_limit_deg : float
+        How far behind nadir (along-track look angle) the sensor may look, degrees.
+    """
 
     name: str
     max_rate_deg_s: float = math.inf
@@ -117,10 +165,22 @@ class Agility:
 
     @property
     def unlimited(self) -> bool:
+        """Whether there is no field of regard (``field_of_regard_deg is None``): every pointing is feasible at once."""
         return self.field_of_regard_deg is None
 
     def slew_time(self, angle_deg: np.ndarray | float) -> np.ndarray:
-        """Rest-to-rest slew time (s) for angles in degrees (trapezoidal rate profile)."""
+        """Rest-to-rest slew time (s) for angles in degrees (trapezoidal rate profile).
+
+        Parameters
+        ----------
+        angle_deg : numpy.ndarray or float
+            Slew angles, degrees (the sign is ignored).
+
+        Returns
+        -------
+        numpy.ndarray
+            Slew times, seconds, of the same shape (settling not included).
+        """
         phi = np.abs(np.asarray(angle_deg, np.float64))
         w, a = self.max_rate_deg_s, self.max_accel_deg_s2
         if math.isinf(a):
@@ -160,6 +220,23 @@ AGILITY: dict[str, Agility] = {
 
 
 def get_agility(name: str) -> Agility:
+    """The agility preset called ``name`` (:data:`AGILITY`).
+
+    Parameters
+    ----------
+    name : str
+        A preset name (``unlimited``, ``fast``, ``slow``...).
+
+    Returns
+    -------
+    Agility
+        The preset.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an unknown name.
+    """
     try:
         return AGILITY[name]
     except KeyError:
@@ -172,6 +249,22 @@ def look_vectors(geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, 
     """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``.
 
     Frame: x along the velocity, y across track, z up (away from Earth's centre).
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The orbit (altitude and ground speed).
+    along : numpy.ndarray
+        Along-track ground distances from nadir at ``t = 0``, metres.
+    cross : numpy.ndarray
+        Cross-track ground distances, metres.
+    t : float or numpy.ndarray
+        Times, seconds after the WFOV acquisition (broadcast with ``along``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., 3)`` unit vectors.
     """
     r = EARTH_RADIUS_M
     rel = (np.asarray(along, np.float64) - geometry.ground_speed * np.asarray(t, np.float64)) / r
@@ -187,16 +280,50 @@ def look_vectors(geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, 
 
 
 def off_nadir_deg(los: np.ndarray) -> np.ndarray:
-    """Angle between the line of sight and nadir, degrees."""
+    """Angle between the line of sight and nadir, degrees.
+
+    Parameters
+    ----------
+    los : numpy.ndarray
+        ``(..., 3)`` unit line-of-sight vectors (z up).
+
+    Returns
+    -------
+    numpy.ndarray
+        Off-nadir angles, degrees.
+    """
     return np.degrees(np.arccos(np.clip(-los[..., 2], -1.0, 1.0)))
 
 
 def pitch_deg(los: np.ndarray) -> np.ndarray:
-    """Along-track look angle, degrees: positive ahead of nadir, negative behind."""
+    """Along-track look angle, degrees: positive ahead of nadir, negative behind.
+
+    Parameters
+    ----------
+    los : numpy.ndarray
+        ``(..., 3)`` unit line-of-sight vectors (x along the velocity, z up).
+
+    Returns
+    -------
+    numpy.ndarray
+        Along-track look angles, degrees.
+    """
     return np.degrees(np.arctan2(los[..., 0], -los[..., 2]))
 
 
 def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle between unit vectors, degrees (along the last axis).
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray
+        Unit vectors ``(..., 3)``, broadcast together.
+
+    Returns
+    -------
+    numpy.ndarray
+        Angles in degrees, 0..180.
+    """
     return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
 
 
@@ -207,6 +334,24 @@ def visibility_windows(
 
     ``t_in > t_out`` marks a point that is never inside (too far across track).
     Unlimited agility: ``(-inf, inf)``.
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The orbit.
+    agility : Agility
+        Its field of regard and aft limit decide the windows.
+    along : numpy.ndarray
+        Along-track ground distances from nadir at ``t = 0``, metres.
+    cross : numpy.ndarray
+        Cross-track ground distances, metres.
+
+    Returns
+    -------
+    t_in : numpy.ndarray
+        When each point enters the field of regard, seconds.
+    t_out : numpy.ndarray
+        When it leaves, seconds.
     """
     along, cross = np.asarray(along, np.float64), np.asarray(cross, np.float64)
     if agility.unlimited:
@@ -251,6 +396,25 @@ class Schedule:
     ``kept`` their indices in the planned trajectory, ``planned`` how many
     pointings were planned. ``window_end_s`` is when the last planned point
     leaves the field of regard (``inf`` without limits).
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The kept pointings, timed, in the order taken.
+    times : numpy.ndarray
+        ``(k,)`` observation start times, seconds after the WFOV acquisition.
+    kept : numpy.ndarray
+        ``(k,)`` int64 indices of the kept pointings in the planned trajectory.
+    planned : int
+        Number of pointings planned.
+    start_s : float
+        When the sensor started, seconds.
+    end_s : float
+        When the sensor was free after the last observation, seconds.
+    window_end_s : float
+        When the last visible planned point leaves the field of regard, seconds.
+    agility : str
+        Name of the agility preset.
     """
 
     trajectory: Trajectory
@@ -264,6 +428,7 @@ class Schedule:
 
     @property
     def fraction_feasible(self) -> float:
+        """Share of the planned pointings that were kept (1.0 for an empty plan)."""
         return len(self.kept) / self.planned if self.planned else 1.0
 
     @property
@@ -283,6 +448,13 @@ class Timer:
     Between observations the sensor keeps tracking the ground, so a slew covers
     the angle between the previous and the next ground point as seen at the
     arrival time (from nadir for the first pointing).
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The orbit and the start time (the sensor starts at nadir at ``start_s``).
+    agility : Agility
+        The sensor's kinematics.
     """
 
     def __init__(self, geometry: OrbitGeometry, agility: Agility) -> None:
@@ -296,7 +468,23 @@ class Timer:
         return look_vectors(self.geometry, self.target[0], self.target[1], t)
 
     def arrival(self, along: np.ndarray, cross: np.ndarray, t_in: np.ndarray) -> np.ndarray:
-        """When observations of the given targets could start if taken next (vectorised)."""
+        """When observations of the given targets could start if taken next (vectorised).
+
+        Parameters
+        ----------
+        along : numpy.ndarray
+            Along-track ground distances of the targets from nadir at ``t = 0``, metres.
+        cross : numpy.ndarray
+            Cross-track ground distances, metres.
+        t_in : numpy.ndarray
+            When each target enters the field of regard, seconds.
+
+        Returns
+        -------
+        numpy.ndarray
+            Earliest observation start per target, seconds (slew and settle from the
+            current target, and not before ``t_in``).
+        """
         if self.agility.unlimited:
             return np.full(np.shape(along), self.t)
         ta = np.full(np.shape(along), self.t)
@@ -309,6 +497,17 @@ class Timer:
         return np.maximum(ta, t_in)
 
     def take(self, along: float, cross: float, start: float) -> None:
+        """Take an observation: the sensor dwells on the target from ``start`` and then tracks it.
+
+        Parameters
+        ----------
+        along : float
+            Along-track ground distance of the target from nadir at ``t = 0``, metres.
+        cross : float
+            Cross-track ground distance, metres.
+        start : float
+            When the observation starts, seconds (the sensor is free at ``start + dwell_s``).
+        """
         self.t = start + self.agility.dwell_s
         self.target = (float(along), float(cross))
 
@@ -326,6 +525,26 @@ def schedule(
 
     ``reorder``: first sort by the time each point leaves the field of regard.
     ``budget_s``: also drop pointings that would end later than ``start_s + budget_s``.
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The plan, in WFOV pixels.
+    shape : tuple of int
+        The WFOV image's ``(H, W)``.
+    geometry : OrbitGeometry
+        The orbit, the scene's placement and the start time.
+    agility : Agility or str
+        The sensor's kinematics, or a preset name.
+    reorder : bool
+        Sort the pointings earliest deadline first before timing them.
+    budget_s : float or None
+        Time budget after ``geometry.start_s``, seconds; ``None`` for none.
+
+    Returns
+    -------
+    Schedule
+        The kept pointings, timed, with the trajectory's ``params`` plus ``agility``.
     """
     agility = get_agility(agility) if isinstance(agility, str) else agility
     if budget_s is not None and not (budget_s >= 0 and math.isfinite(budget_s)):
@@ -385,6 +604,26 @@ def make_feasible(
     plan would visit too late, but interleaves transects across track and so
     costs slews; which matters more depends on the plan and the agility. Pass
     ``as_planned`` when that schedule (same arguments, no reordering) is already at hand.
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The plan, in WFOV pixels.
+    shape : tuple of int
+        The WFOV image's ``(H, W)``.
+    geometry : OrbitGeometry
+        The orbit, the scene's placement and the start time.
+    agility : Agility or str
+        The sensor's kinematics, or a preset name.
+    budget_s : float or None
+        Time budget after ``geometry.start_s``, seconds.
+    as_planned : Schedule or None
+        The schedule of the plan in its own order, if already computed.
+
+    Returns
+    -------
+    Schedule
+        The schedule that keeps more pointings.
     """
     if as_planned is None:
         as_planned = schedule(trajectory, shape, geometry, agility, budget_s=budget_s)

@@ -32,6 +32,21 @@ TruthProvider = Callable[[float], Scene]
 def parse_time(text: str) -> datetime:
     """Parse ISO-8601 (``2026-01-01T00:00:00Z``) or TIFF ``YYYY:MM:DD HH:MM:SS``; naive = UTC.
 
+    Parameters
+    ----------
+    text : str
+        The time.
+
+    Returns
+    -------
+    datetime.datetime
+        Timezone-aware, in UTC.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For anything else.
+
     Examples
     --------
     >>> parse_time("2026-01-01T00:01:30Z").isoformat()
@@ -57,6 +72,18 @@ def parse_time(text: str) -> datetime:
 def format_time(epoch: str | datetime, seconds: float = 0.0) -> str:
     """ISO-8601 UTC (``...Z``, millisecond precision) of ``epoch + seconds``.
 
+    Parameters
+    ----------
+    epoch : str or datetime.datetime
+        The reference time (a string as :func:`parse_time` reads).
+    seconds : float
+        Seconds after ``epoch``.
+
+    Returns
+    -------
+    str
+        ``YYYY-MM-DDTHH:MM:SS.sssZ``.
+
     Examples
     --------
     >>> format_time("2026-01-01T00:00:00Z", 90.5)
@@ -69,6 +96,16 @@ def format_time(epoch: str | datetime, seconds: float = 0.0) -> str:
 
 def seconds_between(epoch: str | datetime, when: str | datetime) -> float:
     """Seconds from ``epoch`` to ``when``.
+
+    Parameters
+    ----------
+    epoch, when : str or datetime.datetime
+        The two times (strings as :func:`parse_time` reads).
+
+    Returns
+    -------
+    float
+        Seconds, negative when ``when`` is before ``epoch``.
 
     Examples
     --------
@@ -162,17 +199,50 @@ class FrameSequence:
 
     @property
     def gsd(self) -> float | None:
+        """Ground sample distance of the frames, metres per pixel (the first frame's; ``None`` if unknown)."""
         return self.frames[0].gsd
 
     def frame_at(self, t: float) -> Scene:
-        """The frame last acquired at or before ``t`` (the first frame before it)."""
+        """The frame last acquired at or before ``t`` (the first frame before it).
+
+        Parameters
+        ----------
+        t : float
+            Time, seconds after the sequence's epoch.
+
+        Returns
+        -------
+        dyntarget.scene.Scene
+            The frame.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For a time that is not finite.
+        """
         if not math.isfinite(t):
             raise InvalidParameterError(f"t: expected finite seconds, got {t!r}")
         i = int(np.searchsorted(self.times, t, side="right")) - 1
         return self.frames[max(i, 0)]
 
     def truth_at(self, t: float) -> Scene:
-        """The labelled scene at time ``t``: the truth provider's, else :meth:`frame_at`'s."""
+        """The labelled scene at time ``t``: the truth provider's, else :meth:`frame_at`'s.
+
+        Parameters
+        ----------
+        t : float
+            Time, seconds after the sequence's epoch.
+
+        Returns
+        -------
+        dyntarget.scene.Scene
+            A labelled scene.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidSceneError
+            Without a truth provider, when the frame has no label.
+        """
         if self.truth is not None:
             return self.truth(float(t))
         scene = self.frame_at(t)
@@ -183,14 +253,47 @@ class FrameSequence:
         return scene
 
     def up_to(self, t: float) -> FrameSequence:
-        """The frames acquired at or before ``t`` (at least the first)."""
+        """The frames acquired at or before ``t`` (at least the first).
+
+        Parameters
+        ----------
+        t : float
+            Time, seconds after the sequence's epoch.
+
+        Returns
+        -------
+        FrameSequence
+            A copy holding those frames and their times.
+        """
         n = max(int(np.searchsorted(self.times, t, side="right")), 1)
         return replace(self, frames=self.frames[:n], times=self.times[:n])
 
     def to_wfov(self, factor: int) -> FrameSequence:
-        """Every frame downsampled to the WFOV grid (the truth provider stays high-res)."""
+        """Every frame downsampled to the WFOV grid (the truth provider stays high-res).
+
+        Parameters
+        ----------
+        factor : int
+            High-resolution pixels per WFOV pixel along each axis.
+
+        Returns
+        -------
+        FrameSequence
+            A copy with the downsampled frames.
+        """
         return replace(self, frames=tuple(f.to_wfov(factor) for f in self.frames))
 
     def time_iso(self, i: int) -> str | None:
-        """ISO-8601 UTC acquisition time of frame ``i`` (``None`` without an epoch)."""
+        """ISO-8601 UTC acquisition time of frame ``i`` (``None`` without an epoch).
+
+        Parameters
+        ----------
+        i : int
+            Frame index.
+
+        Returns
+        -------
+        str or None
+            ``YYYY-MM-DDTHH:MM:SS.sssZ``.
+        """
         return None if self.epoch is None else format_time(self.epoch, float(self.times[i]))

@@ -21,6 +21,20 @@ class Trajectory:
     integer coordinates. ``part[i]`` numbers the polygon (or baseline leg) the
     pointing belongs to: consecutive pointings with different ``part`` are
     joined by a *travel* hop that observes nothing on the way.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        ``(n, 2)`` pointings ``(x, y)``, WFOV pixels; must be finite.
+    part : numpy.ndarray
+        ``(n,)`` integer part of each pointing.
+    planner : str
+        Name of the planner that made it.
+    params : dict
+        The planner's settings, recorded with the plan.
+    times : numpy.ndarray or None
+        ``(n,)`` observation start times, seconds after the WFOV acquisition, or
+        ``None`` for an untimed plan.
     """
 
     points: np.ndarray
@@ -56,10 +70,35 @@ class Trajectory:
 
     @classmethod
     def empty(cls, planner: str, params: dict[str, Any] | None = None) -> Trajectory:
+        """A trajectory with no pointings.
+
+        Parameters
+        ----------
+        planner : str
+            Name of the planner.
+        params : dict or None
+            The planner's settings (default: none).
+
+        Returns
+        -------
+        Trajectory
+            ``(0, 2)`` points, no parts, untimed.
+        """
         return cls(np.zeros((0, 2)), np.zeros(0, np.int64), planner, params or {})
 
     def without(self, drop: np.ndarray) -> Trajectory:
-        """The trajectory without the pointings where ``drop`` (bool per point) is true."""
+        """The trajectory without the pointings where ``drop`` (bool per point) is true.
+
+        Parameters
+        ----------
+        drop : numpy.ndarray
+            ``(n,)`` boolean, true for the pointings to drop.
+
+        Returns
+        -------
+        Trajectory
+            A new trajectory with the kept points, parts and times (planner and params unchanged).
+        """
         keep = ~np.asarray(drop, bool)
         times = self.times[keep] if self.times is not None else None
         return Trajectory(self.points[keep], self.part[keep], self.planner, self.params, times)
@@ -80,7 +119,18 @@ class Trajectory:
         return float(np.hypot(*np.diff(self.points, axis=0)[hops].T).sum())
 
     def world_points(self, transform: Affine | None) -> np.ndarray:
-        """Points in the CRS of ``transform`` (pixel centres: ``transform @ (x + 0.5, y + 0.5)``)."""
+        """Points in the CRS of ``transform`` (pixel centres: ``transform @ (x + 0.5, y + 0.5)``).
+
+        Parameters
+        ----------
+        transform : affine.Affine or None
+            The WFOV grid's geotransform; ``None`` returns the pixel coordinates.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, 2)`` coordinates ``(X, Y)`` (a copy of ``points`` without a transform).
+        """
         if transform is None:
             return self.points.copy()
         a, b, c, d, e, f = tuple(transform)[:6]
@@ -101,6 +151,22 @@ class Trajectory:
         or ``X,Y`` (``crs_mode="native"``) when ``transform`` and ``crs`` are
         given, ``time_s`` when timed and ``time`` (ISO-8601 UTC) when ``acquired``
         is known too.
+
+        Parameters
+        ----------
+        transform : affine.Affine or None
+            The WFOV grid's geotransform.
+        crs : str or None
+            The image's CRS (e.g. ``"EPSG:32633"``).
+        crs_mode : {"rfc7946", "native"}
+            Write WGS 84 ``lon,lat`` or the image CRS's ``X,Y``.
+        acquired : datetime.datetime or str or None
+            When the WFOV image was taken, for the ``time`` column.
+
+        Returns
+        -------
+        str
+            The CSV text, header first.
         """
         from dyntarget.io.geojson import trajectory_csv
 
@@ -122,6 +188,22 @@ class Trajectory:
         WGS 84 lon/lat when ``transform`` and ``crs`` are given (the image's CRS
         with the legacy ``crs`` member when ``crs_mode="native"``), else WFOV
         pixel coordinates ``(column, row)``, said in ``properties.coordinates``.
+
+        Parameters
+        ----------
+        transform : affine.Affine or None
+            The WFOV grid's geotransform.
+        crs : str or None
+            The image's CRS (e.g. ``"EPSG:32633"``).
+        crs_mode : {"rfc7946", "native"}
+            WGS 84 coordinates, or the image's CRS with a legacy ``crs`` member.
+        acquired : datetime.datetime or str or None
+            When the WFOV image was taken, for the pointings' times.
+
+        Returns
+        -------
+        dict
+            The GeoJSON ``FeatureCollection``.
         """
         from dyntarget.io.geojson import trajectory_geojson
 
@@ -139,7 +221,26 @@ class Trajectory:
         acquired: Any = None,
     ) -> Path:
         """Write ``.geojson``/``.json`` (GeoJSON) or ``.csv``, atomically
-        (see :func:`dyntarget.io.geojson.write_trajectory`)."""
+        (see :func:`dyntarget.io.geojson.write_trajectory`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Output file; its suffix chooses the format.
+        transform : affine.Affine or None
+            The WFOV grid's geotransform.
+        crs : str or None
+            The image's CRS.
+        crs_mode : {"rfc7946", "native"}
+            As for :meth:`to_geojson` and :meth:`to_csv`.
+        acquired : datetime.datetime or str or None
+            When the WFOV image was taken.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         from dyntarget.io.geojson import write_trajectory
 
         return write_trajectory(

@@ -21,6 +21,13 @@ COMMANDS = (synth, models, evaluate, plan, fly, sweep, bench, datasets, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``dyntarget`` argument parser, with every command of :data:`COMMANDS` registered.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser; a usage error prints one line and exits with status 2.
+    """
     parser = Parser(
         prog="dyntarget",
         description="Dynamic targeting of plumes: classify look-ahead imagery, denoise, plan NFOV trajectories.",
@@ -36,7 +43,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``dyntarget`` console script; returns the exit code."""
+    """Entry point of the ``dyntarget`` console script; returns the exit code.
+
+    Parameters
+    ----------
+    argv : sequence of str or None
+        The arguments after the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 for bad usage or bad input (or a missing optional extra),
+        1 for an internal error, 130 when interrupted.
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -31,7 +31,13 @@ class Dataset:
     summary: str
 
     def adapter(self) -> ModuleType:
-        """The adapter module (imported now)."""
+        """The adapter module (imported now).
+
+        Returns
+        -------
+        types.ModuleType
+            The module named by ``module``.
+        """
         return importlib.import_module(self.module)
 
 

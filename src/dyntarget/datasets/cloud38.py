@@ -22,7 +22,18 @@ GSD_M = 30.0
 
 
 def read_patch(directory: str | os.PathLike[str]) -> Scene:
-    """Read a 38-Cloud patch folder as a labelled scene (Landsat 8 TOA reflectance, 30 m)."""
+    """Read a 38-Cloud patch folder as a labelled scene (Landsat 8 TOA reflectance, 30 m).
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The patch folder, holding the four band files and the ground-truth mask.
+
+    Returns
+    -------
+    dyntarget.scene.Scene
+        The 4-band scene with its cloud label, id = the folder's name, GSD 30 m.
+    """
     d = Path(directory)
     scene = read_band_files([d / f for f in BAND_FILES], preset="landsat8", scene_id=d.name)
     label = read_label(d / MASK_FILE, shape=scene.shape, crs=scene.crs, transform=scene.transform)

@@ -62,6 +62,20 @@ CHUNK = 1 << 20
 
 @dataclass(frozen=True)
 class RemoteFile:
+    """One file of the Zenodo record.
+
+    Parameters
+    ----------
+    key : str
+        File name in the record.
+    size : int
+        Size, bytes.
+    md5 : str
+        MD5 checksum, hexadecimal.
+    url : str
+        Download URL.
+    """
+
     key: str
     size: int
     md5: str
@@ -80,7 +94,25 @@ def _network_error(url: str, exc: BaseException) -> DataFileError:
 
 
 def record_files(api_url: str = RECORD_API, *, timeout: float = 30.0) -> list[RemoteFile]:
-    """The record's files with sizes and MD5 checksums, from the Zenodo records API."""
+    """The record's files with sizes and MD5 checksums, from the Zenodo records API.
+
+    Parameters
+    ----------
+    api_url : str
+        The Zenodo records API URL.
+    timeout : float
+        Network timeout, seconds.
+
+    Returns
+    -------
+    list of RemoteFile
+        The files of the record.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When the answer is not a record, lists no files or a file has no MD5.
+    """
     try:
         with urllib.request.urlopen(api_url, timeout=timeout) as resp:
             record = json.load(resp)
@@ -110,7 +142,32 @@ def _md5(path: Path) -> str:
 def download(
     remote: RemoteFile, directory: Path, *, timeout: float = 60.0, progress: bool = True
 ) -> Path:
-    """Download one file, resuming ``<name>.part`` with an HTTP Range request; verify its MD5."""
+    """Download one file, resuming ``<name>.part`` with an HTTP Range request; verify its MD5.
+
+    A complete file already at the target with the right size and checksum is
+    not downloaded again.
+
+    Parameters
+    ----------
+    remote : RemoteFile
+        The file to download.
+    directory : pathlib.Path
+        Where to put it (as ``remote.key``).
+    timeout : float
+        Network timeout, seconds.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    pathlib.Path
+        The downloaded file.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When the size or MD5 does not match (the partial download is removed).
+    """
     target = directory / remote.key
     if target.exists() and target.stat().st_size == remote.size and _md5(target) == remote.md5:
         return target
@@ -155,7 +212,22 @@ def download(
 def fetch(
     to: str | os.PathLike[str], *, api_url: str = RECORD_API, progress: bool = True
 ) -> list[Path]:
-    """Download the dataset's files into ``to`` (resumable, checksummed)."""
+    """Download the dataset's files into ``to`` (resumable, checksummed).
+
+    Parameters
+    ----------
+    to : str or os.PathLike
+        Destination folder (created if needed).
+    api_url : str
+        The Zenodo records API URL of the dataset.
+    progress : bool
+        Show progress bars.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The downloaded files.
+    """
     directory = Path(to)
     directory.mkdir(parents=True, exist_ok=True)
     return [download(f, directory, progress=progress) for f in record_files(api_url)]
@@ -167,6 +239,16 @@ def fetch(
 def label_image_name(image_field: str) -> str:
     """The GeoTIFF name a Label Studio ``data.image`` refers to (the authors' rule).
 
+    Parameters
+    ----------
+    image_field : str
+        The ``data.image`` path of the annotation.
+
+    Returns
+    -------
+    str
+        The GeoTIFF's file name.
+
     Examples
     --------
     >>> label_image_name("/data/upload/17-site_2019-05-09T10:26:31.png")
@@ -177,7 +259,28 @@ def label_image_name(image_field: str) -> str:
 
 
 def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
-    """``(image name, polygons in percent)`` from one Label Studio JSON document."""
+    """``(image name, polygons in percent)`` from one Label Studio JSON document.
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed JSON document.
+    source : str
+        Where it came from, for error messages.
+
+    Returns
+    -------
+    name : str
+        The GeoTIFF's file name (:func:`label_image_name`).
+    polygons : list of numpy.ndarray
+        ``(n, 2)`` vertices per polygon (at least 3), percent of the image width
+        and height.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When the document is not a Label Studio annotation or a vertex is not finite.
+    """
     try:
         name = label_image_name(doc["data"]["image"])
         polygons = [
@@ -278,6 +381,23 @@ def prepare(
     Annotated images in ``positive`` folders become labelled scenes. With
     ``negatives``, as many images from ``negative`` folders are added with empty
     labels (the authors' balancing).
+
+    Parameters
+    ----------
+    src : str or os.PathLike
+        The folder :func:`fetch` downloaded into.
+    out : str or os.PathLike
+        The scene directory to write.
+    negatives : bool
+        Also add images from ``negative`` folders, with empty labels, up to as
+        many as the labelled ones.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    list of str
+        The scene ids written.
     """
     src, out = Path(src), Path(out)
     labels: dict[str, list[np.ndarray]] = {}

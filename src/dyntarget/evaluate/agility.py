@@ -54,6 +54,32 @@ AGILITY_COLUMNS = [
 
 @dataclass(frozen=True)
 class AgilityConfig:
+    """Settings of the agility evaluation (see the module docstring).
+
+    Parameters
+    ----------
+    folds : int
+        Cross-validation folds.
+    seed : int
+        Seed of the fold split and the training.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    epochs : int
+        Training epochs of a U-Net classifier.
+    classifier : str
+        The classifier planned on.
+    presets : tuple of str
+        Agility presets to time the plans under.
+    planners : tuple of str
+        Geometric planners (``utility-max`` is always added).
+    objective : str
+        What ``utility-max`` maximises.
+    altitude_m, look_ahead_m : float
+        Orbit geometry, metres.
+    plan : dyntarget.plan.PlanConfig
+        Planner settings.
+    """
+
     folds: int = defaults.FOLDS
     seed: int = defaults.SEED
     factor: int = DEFAULT_FACTOR
@@ -156,7 +182,29 @@ def evaluate_agility(
     scheduler: str | None = None,
     parts: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Feasibility and utility of every planner under every agility preset (see module docstring)."""
+    """Feasibility and utility of every planner under every agility preset (see module docstring).
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        Labelled high-resolution scenes.
+    config : AgilityConfig
+        Settings.
+    models_dir : str or pathlib.Path or None
+        Where the fold models are loaded from or saved to (``fold-K/NAME``).
+    progress : bool
+        Show progress bars.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    parts : str or pathlib.Path or None
+        Folder where finished tasks are kept, so that a rerun resumes.
+
+    Returns
+    -------
+    dict
+        ``rows`` (:func:`agility_rows`), ``records`` (per scene, planner and
+        preset), ``config`` and ``ground_speed_m_s``.
+    """
     check_scheduler(scheduler)
     scenes = list(scenes)
     folds = [sorted(f.tolist()) for f in kfold_indices(len(scenes), config.folds, config.seed)]
@@ -192,6 +240,24 @@ def evaluate_agility(
 def agility_rows(
     records: list[dict[str, Any]], presets: list[str], planners: list[str]
 ) -> list[dict[str, Any]]:
+    """Table rows: means over scenes per agility preset and planner.
+
+    Parameters
+    ----------
+    records : list of dict
+        Per-scene records of :func:`evaluate_agility`.
+    presets : list of str
+        Agility presets, in row order.
+    planners : list of str
+        Planners, in row order within a preset.
+
+    Returns
+    -------
+    list of dict
+        One row per preset and planner with records: planned and observed
+        pointings, the share feasible as planned, gradient and intensity per
+        pointing and in total, ratio plume, and the number of scenes.
+    """
     rows = []
     for preset in presets:
         for name in planners:

@@ -71,7 +71,20 @@ def _release_free_memory() -> None:
 
 
 def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
-    """Median wall time (s) of ``repeats`` runs after a warm-up, and peak memory (MiB) above the start."""
+    """Median wall time (s) of ``repeats`` runs after a warm-up, and peak memory (MiB) above the start.
+
+    Parameters
+    ----------
+    fn : callable
+        The work, called without arguments.
+    repeats : int
+        Timed runs.
+
+    Returns
+    -------
+    dict
+        ``median_s``, ``min_s`` and ``peak_mib`` (``None`` where peak memory cannot be measured).
+    """
     fn()
     times = []
     for _ in range(repeats):
@@ -99,6 +112,15 @@ def _torch_threads() -> int | None:
 
 
 def machine() -> dict[str, Any]:
+    """The machine a benchmark ran on.
+
+    Returns
+    -------
+    dict
+        Platform, CPU model, CPU count, torch threads, Python version and the
+        versions of dyntarget, numpy, torch, scikit-learn and OpenCV (``None``
+        for one not installed).
+    """
     import importlib.metadata
 
     import cv2
@@ -144,6 +166,17 @@ probabilities and masks (a rough upper estimate, not a measurement)."""
 def check_sizes(sizes: Sequence[int]) -> None:
     """Refuse bench sizes that are not integers >= 32, repeated, or too large for memory.
 
+    Parameters
+    ----------
+    sizes : sequence of int
+        WFOV sizes, px.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an empty list or a size that is not an integer >= 32, repeated or
+        too large for the memory available.
+
     Examples
     --------
     >>> check_sizes([64, 128])
@@ -170,6 +203,16 @@ def check_sizes(sizes: Sequence[int]) -> None:
 
 def parse_sizes(text: str) -> list[int]:
     """``"64,128"`` -> ``[64, 128]``, checked by :func:`check_sizes`.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated WFOV sizes, px.
+
+    Returns
+    -------
+    list of int
+        The sizes.
 
     Examples
     --------
@@ -207,6 +250,29 @@ def run_bench(
     ``variants`` adds the same trained models run another way, as extra rows named
     ``"NAME (OPTION)"``: ``unet-uavsar:blend`` / ``unet-xception:blend`` (the former
     overlapping-tile stitching) and ``random-forest:compiled`` (the compiled forest).
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        WFOV sizes, px.
+    classifiers : sequence of str or None
+        Classifiers to time (default: all registered).
+    planners : sequence of str or None
+        Planners to time (default: all registered).
+    repeats : int
+        Timed runs per measurement (at least 1).
+    epochs : int
+        Training epochs of the U-Nets timed.
+    progress : bool
+        Show a progress bar.
+    variants : sequence of str
+        Extra ways to run the trained models (see above).
+
+    Returns
+    -------
+    dict
+        ``machine``, ``repeats``, ``sizes``, ``records`` (one per stage, size,
+        classifier and planner) and ``bounds`` (:func:`lower_bounds`).
     """
     from tqdm import tqdm
 
@@ -287,7 +353,13 @@ def _variant(models: dict[str, Any], variant: str) -> Any:
 
 
 def machine_rates() -> dict[str, float]:
-    """Measured memory copy bandwidth (bytes/s, read + write) and float32 matmul rate (FLOP/s)."""
+    """Measured memory copy bandwidth (bytes/s, read + write) and float32 matmul rate (FLOP/s).
+
+    Returns
+    -------
+    dict of str to float
+        ``copy_bytes_per_s`` and ``matmul_flop_per_s`` (best of 5 runs each).
+    """
     import torch
 
     src = np.ones(1 << 23)  # 64 MiB, far beyond any cache
@@ -306,7 +378,20 @@ def _timed(fn: Callable[[], Any]) -> float:
 
 
 def unet_flops(model: Any, size: int) -> dict[str, float]:
-    """FLOPs of one U-Net pass over a ``size``² image without tile overlap, and as tiled."""
+    """FLOPs of one U-Net pass over a ``size``² image without tile overlap, and as tiled.
+
+    Parameters
+    ----------
+    model : dyntarget.perceive.Classifier
+        A fitted U-Net classifier.
+    size : int
+        Image side, px.
+
+    Returns
+    -------
+    dict of str to float
+        ``one_pass`` and ``tiled`` FLOPs.
+    """
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
@@ -321,7 +406,22 @@ def unet_flops(model: Any, size: int) -> dict[str, float]:
 
 
 def lower_bounds(sizes: Sequence[int], unets: dict[str, Any]) -> dict[str, Any]:
-    """Simple lower bounds on a stage's time at each size (see the module docstring)."""
+    """Simple lower bounds on a stage's time at each size (see the module docstring).
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        WFOV sizes, px.
+    unets : dict
+        Name to fitted U-Net classifier.
+
+    Returns
+    -------
+    dict
+        ``rates`` (:func:`machine_rates`) and, per size (as a string), the time to
+        read the image once (``read_image_s``) and each U-Net's :func:`unet_flops`
+        with their times at the matmul rate.
+    """
     rates = machine_rates()
     out: dict[str, Any] = {"rates": rates, "sizes": {}}
     for size in sizes:
@@ -337,7 +437,20 @@ def lower_bounds(sizes: Sequence[int], unets: dict[str, Any]) -> dict[str, Any]:
 
 
 def scaling_exponent(sizes: Sequence[int], seconds: Sequence[float]) -> float:
-    """Slope of log(time) against log(pixels): 1.0 means cost grows linearly with the pixel count."""
+    """Slope of log(time) against log(pixels): 1.0 means cost grows linearly with the pixel count.
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Image sides, px.
+    seconds : sequence of float
+        Time at each size.
+
+    Returns
+    -------
+    float
+        The slope; NaN with fewer than two positive times.
+    """
     px = np.asarray(sizes, float) ** 2
     t = np.asarray(seconds, float)
     ok = t > 0
@@ -347,7 +460,18 @@ def scaling_exponent(sizes: Sequence[int], seconds: Sequence[float]) -> float:
 
 
 def summary_tables(result: dict[str, Any]) -> str:
-    """Markdown: pipeline latency per classifier and size, stage breakdown, planners, scaling."""
+    """Markdown: pipeline latency per classifier and size, stage breakdown, planners, scaling.
+
+    Parameters
+    ----------
+    result : dict
+        A :func:`run_bench` result.
+
+    Returns
+    -------
+    str
+        The Markdown tables.
+    """
     from dyntarget.evaluate.tables import markdown_table
 
     recs = result["records"]
@@ -430,7 +554,20 @@ def summary_tables(result: dict[str, Any]) -> str:
 
 
 def bounds_table(result: dict[str, Any], get: Callable[..., Any]) -> str:
-    """Markdown: each classifier's time against its lower bound, at the largest size."""
+    """Markdown: each classifier's time against its lower bound, at the largest size.
+
+    Parameters
+    ----------
+    result : dict
+        A :func:`run_bench` result.
+    get : callable
+        ``get(stage, size, classifier)``: the measured median seconds of a record.
+
+    Returns
+    -------
+    str
+        The Markdown table.
+    """
     from dyntarget.evaluate.tables import markdown_table
 
     bounds = result["bounds"]

@@ -21,7 +21,13 @@ WINDOW_S = (10.0, 100.0)
 
 
 def paper_results() -> dict[str, Any]:
-    """The paper's Tables 1 and 2 as stored in the package (``dyntarget/data/paper_results.json``)."""
+    """The paper's Tables 1 and 2 as stored in the package (``dyntarget/data/paper_results.json``).
+
+    Returns
+    -------
+    dict
+        ``source``, ``data``, and the ``table1`` and ``table2`` rows.
+    """
     text = (
         resources.files("dyntarget").joinpath("data/paper_results.json").read_text(encoding="utf-8")
     )
@@ -36,6 +42,18 @@ def _iou(rows, name, denoised):
 
 
 def claim_unets_best(table1: list[dict]) -> dict[str, Any]:
+    """Rule: both U-Nets' best IoU (raw or denoised) is above every other classifier's.
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` (or ``verdict``) and ``detail``.
+    """
     names = sorted({r["classifier"] for r in table1})
     best = {n: max(_iou(table1, n, False), _iou(table1, n, True)) for n in names}
     unets = [n for n in names if n in UNETS]
@@ -60,6 +78,18 @@ def claim_unets_best(table1: list[dict]) -> dict[str, Any]:
 
 
 def claim_denoising_helps(table1: list[dict]) -> dict[str, Any]:
+    """Rule: denoising raises the IoU of more than half of the classifiers.
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` and ``detail``.
+    """
     names = sorted({r["classifier"] for r in table1})
     better = [n for n in names if _iou(table1, n, True) > _iou(table1, n, False)]
     holds = len(better) > len(names) / 2
@@ -138,7 +168,20 @@ def _factor_claim(
 def claim_order_of_magnitude(table1: list[dict], table2: list[dict]) -> dict[str, Any]:
     """Rule: the paper's "an order of magnitude increase in the ratio of plume observed and
     intensity utility": for both metrics, the mean over the two best-IoU classifiers' look-ahead
-    rows is at least 10x the best reference row (baselines, band threshold, naive Bayes)."""
+    rows is at least 10x the best reference row (baselines, band threshold, naive Bayes).
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows.
+    table2 : list of dict
+        Table 2 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` (or ``verdict``) and ``detail``.
+    """
     return _factor_claim(
         table1,
         table2,
@@ -150,7 +193,20 @@ def claim_order_of_magnitude(table1: list[dict], table2: list[dict]) -> dict[str
 
 def claim_gradient_two_orders(table1: list[dict], table2: list[dict]) -> dict[str, Any]:
     """Rule: the paper's "two orders of magnitude increase in the gradient utility": the same
-    factor as :func:`claim_order_of_magnitude`, for the gradient, at least 100x."""
+    factor as :func:`claim_order_of_magnitude`, for the gradient, at least 100x.
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows.
+    table2 : list of dict
+        Table 2 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` (or ``verdict``) and ``detail``.
+    """
     return _factor_claim(
         table1,
         table2,
@@ -165,7 +221,20 @@ def claim_mlp_conservative(table1: list[dict], table2: list[dict]) -> dict[str, 
     high precision and low recall. The MLP observes fewer pixels, yet a higher ratio of these are
     within the plume": the MLP's precision exceeds its recall (with and without denoising), and
     for every look-ahead planner its pixels observed are below, and its ratio plume above, the
-    median of the other classifiers' rows."""
+    median of the other classifiers' rows.
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows.
+    table2 : list of dict
+        Table 2 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` (or ``verdict``) and ``detail``.
+    """
     claim = (
         "The MLP under-classifies (precision > recall) and observes fewer pixels with a "
         "higher ratio plume than the other classifiers"
@@ -197,7 +266,18 @@ def claim_mlp_conservative(table1: list[dict], table2: list[dict]) -> dict[str, 
 
 def claim_runtime(table2: list[dict]) -> dict[str, Any]:
     """Rule: the paper's "runtimes of the workflow are below 13 seconds" (its Table 2: 7.2-13 s
-    per scene, which "meets the 10 to 100 s timing constraints"): the slowest row is at most 13 s."""
+    per scene, which "meets the 10 to 100 s timing constraints"): the slowest row is at most 13 s.
+
+    Parameters
+    ----------
+    table2 : list of dict
+        Table 2 rows.
+
+    Returns
+    -------
+    dict
+        ``claim``, ``holds`` (or ``verdict``) and ``detail``.
+    """
     rows = [r["Runtime (s)"] for r in table2 if r["planner"] not in BASELINES]
     if not rows:
         return {"claim": "End-to-end runtime below 13 s", "verdict": "not tested", "detail": ""}
@@ -214,6 +294,19 @@ def claim_runtime(table2: list[dict]) -> dict[str, Any]:
 
 def check_claims(table1: list[dict], table2: list[dict]) -> list[dict[str, Any]]:
     """All six claims on the given rows (our tables or the paper's).
+
+    Parameters
+    ----------
+    table1 : list of dict
+        Table 1 rows (classification).
+    table2 : list of dict
+        Table 2 rows (end to end).
+
+    Returns
+    -------
+    list of dict
+        One verdict per claim: ``claim``, ``holds`` (or ``verdict`` when not
+        tested) and ``detail``.
 
     Examples
     --------

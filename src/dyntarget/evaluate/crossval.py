@@ -46,7 +46,25 @@ TABLE1_COLUMNS = ["Classifier", "Accuracy", "Precision", "Recall", "IoU"]
 
 @dataclass(frozen=True)
 class CVConfig:
-    """Settings of the classification cross-validation."""
+    """Settings of the classification cross-validation.
+
+    Parameters
+    ----------
+    folds : int
+        Cross-validation folds.
+    seed : int
+        Seed of the fold split and the training.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    epochs : int
+        Training epochs of the U-Nets.
+    classifiers : tuple of str
+        Classifiers to evaluate (default: all registered).
+    denoise_iterations : int
+        Closing iterations of the denoised rows.
+    min_area_fraction : float
+        Smallest kept polygon of the denoised rows, as a fraction of the image area.
+    """
 
     folds: int = defaults.FOLDS
     seed: int = defaults.SEED
@@ -71,6 +89,20 @@ class CVConfig:
 def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
     """Test indices of each fold: a seeded permutation dealt round-robin into ``folds`` parts.
 
+    Parameters
+    ----------
+    n : int
+        Number of scenes.
+    folds : int
+        Number of folds (at most ``n``).
+    seed : int
+        Seed of the permutation.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The test indices of each fold.
+
     Examples
     --------
     >>> folds = kfold_indices(5, 2, seed=0)
@@ -84,6 +116,22 @@ def kfold_indices(n: int, folds: int, seed: int) -> list[np.ndarray]:
 
 
 def classifier_kwargs(name: str, *, seed: int, epochs: int) -> dict[str, Any]:
+    """Constructor arguments of classifier ``name``: the seed, and the epochs for a U-Net.
+
+    Parameters
+    ----------
+    name : str
+        A registered classifier.
+    seed : int
+        Its seed.
+    epochs : int
+        Training epochs (U-Nets only).
+
+    Returns
+    -------
+    dict
+        Keyword arguments for :func:`~dyntarget.perceive.make_classifier`.
+    """
     kwargs: dict[str, Any] = {"seed": seed}
     if CLASSIFIERS.get(name).kind == "unet":
         kwargs["epochs"] = epochs
@@ -93,7 +141,33 @@ def classifier_kwargs(name: str, *, seed: int, epochs: int) -> dict[str, Any]:
 def train_or_load(
     name: str, train: Sequence[Scene], *, seed: int, epochs: int, model_dir: Path | None
 ) -> tuple[Classifier, float, bool]:
-    """Train ``name`` on ``train`` (or reuse a matching saved model). Returns (model, seconds, reused)."""
+    """Train ``name`` on ``train`` (or reuse a matching saved model). Returns (model, seconds, reused).
+
+    A saved model is reused when its classifier, configuration and training
+    scene ids match; otherwise the model is trained and, with ``model_dir``, saved there.
+
+    Parameters
+    ----------
+    name : str
+        A registered classifier.
+    train : sequence of dyntarget.scene.Scene
+        Labelled training scenes.
+    seed : int
+        Its seed.
+    epochs : int
+        Training epochs (U-Nets only).
+    model_dir : pathlib.Path or None
+        Where the model is saved (``None``: not saved).
+
+    Returns
+    -------
+    model : dyntarget.perceive.Classifier
+        The fitted classifier.
+    seconds : float
+        Training time (0 when reused).
+    reused : bool
+        Whether the saved model was loaded.
+    """
     kwargs = classifier_kwargs(name, seed=seed, epochs=epochs)
     ids = [s.id for s in train]
     if model_dir is not None and model_dir.exists():
@@ -117,7 +191,18 @@ def train_or_load(
 
 
 def data_signature(scenes: Sequence[Scene]) -> str:
-    """A key over the scenes' ids, images, labels and valid masks (by content)."""
+    """A key over the scenes' ids, images, labels and valid masks (by content).
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        The scenes.
+
+    Returns
+    -------
+    str
+        A :func:`~dyntarget.evaluate.distributed.task_key`.
+    """
     parts: list[Any] = [[s.id for s in scenes]]
     for s in scenes:
         parts += [s.image, s.label if s.label is not None else "unlabelled"]
@@ -170,6 +255,27 @@ def cross_validate(
     Each fold x classifier is one task of :func:`~dyntarget.evaluate.distributed.run_tasks`
     (``scheduler``: here, or on Dask; ``parts``: a folder where finished tasks are
     kept, so that a rerun resumes).
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        Labelled high-resolution scenes.
+    config : CVConfig
+        Settings.
+    models_dir : str or pathlib.Path or None
+        Where the fold models are loaded from or saved to.
+    progress : bool
+        Show progress bars.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    parts : str or pathlib.Path or None
+        Folder where finished tasks are kept.
+
+    Returns
+    -------
+    dict
+        ``rows`` (Table 1), ``config``, ``folds`` (scene ids per fold),
+        ``wfov_shape`` and ``timing`` (median prediction seconds per scene).
     """
     check_scheduler(scheduler)  # before any training
     scenes = list(scenes)

@@ -44,7 +44,18 @@ class Interrupted(Exception):
 
 
 def task_key(*parts: Any) -> str:
-    """A stable hex key for a task from JSON-able parts and numpy arrays (hashed by content)."""
+    """A stable hex key for a task from JSON-able parts and numpy arrays (hashed by content).
+
+    Parameters
+    ----------
+    *parts : object
+        JSON-able values (others by their ``str``) and numpy arrays.
+
+    Returns
+    -------
+    str
+        24 hexadecimal digits (SHA-1).
+    """
     h = hashlib.sha1(usedforsecurity=False)
     for part in parts:
         if isinstance(part, np.ndarray):
@@ -58,7 +69,19 @@ def task_key(*parts: Any) -> str:
 
 @contextmanager
 def dask_client(scheduler: str) -> Iterator[Any]:
-    """A ``distributed.Client`` for ``local``, ``processes`` or a scheduler address."""
+    """A ``distributed.Client`` for ``local``, ``processes`` or a scheduler address.
+
+    Parameters
+    ----------
+    scheduler : str
+        ``"local"`` (one worker, a thread per core), ``"processes"`` (a worker
+        process per core) or a scheduler address.
+
+    Yields
+    ------
+    distributed.Client
+        The client, closed (with its local cluster) on exit.
+    """
     from distributed import Client, LocalCluster
 
     cores = os.cpu_count() or 1
@@ -99,6 +122,18 @@ def dask_client(scheduler: str) -> Iterator[Any]:
 def check_unique(argument: str, names: Sequence[str]) -> None:
     """Refuse a list that names something twice (each would be one task: two tasks, one key).
 
+    Parameters
+    ----------
+    argument : str
+        The list's name, for the error message.
+    names : sequence of str
+        The list.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When a name is repeated.
+
     Examples
     --------
     >>> check_unique("classifiers", ["mlp", "naive-bayes"])
@@ -117,7 +152,18 @@ def check_unique(argument: str, names: Sequence[str]) -> None:
 
 
 def check_scheduler(scheduler: str | None) -> None:
-    """Refuse a malformed scheduler before any work starts."""
+    """Refuse a malformed scheduler before any work starts.
+
+    Parameters
+    ----------
+    scheduler : str or None
+        ``None``, ``"local"``, ``"processes"`` or an address with ``://``.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For anything else.
+    """
     if scheduler is not None and scheduler not in ("local", "processes") and "://" not in scheduler:
         raise InvalidParameterError(
             f"scheduler: expected local, processes or a scheduler address, got {scheduler!r}"
@@ -196,6 +242,32 @@ def run_tasks(
 
     Results come back in task order. With ``parts``, finished results are kept
     as ``parts/<key(task)>.json`` and reused on the next call.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(task, **shared)``, JSON-able result.
+    tasks : sequence
+        The tasks.
+    key : callable
+        ``key(task)``: a unique file-name-safe key per task.
+    parts : pathlib.Path or None
+        Folder of finished results.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    shared : dict or None
+        Keyword arguments passed to every call.
+    progress : bool
+        Show a progress bar.
+    desc : str
+        The progress bar's label.
+    stop_after : int or None
+        Raise :class:`Interrupted` after this many finished tasks (tests).
+
+    Returns
+    -------
+    list
+        The results, in task order.
     """
     check_scheduler(scheduler)
     shared = shared or {}

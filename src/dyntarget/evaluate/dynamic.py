@@ -80,6 +80,16 @@ DYNAMIC_COLUMNS = [
 def wind_bin(speed_mps: float | None) -> str:
     """The label of the :data:`WIND_BINS` bin holding ``speed_mps`` (``unknown`` for None).
 
+    Parameters
+    ----------
+    speed_mps : float or None
+        Wind speed, m/s.
+
+    Returns
+    -------
+    str
+        ``"LO-HI"``, ``"LO+"`` for the last bin, or ``"unknown"``.
+
     Examples
     --------
     >>> wind_bin(0.0), wind_bin(10.0), wind_bin(16.0), wind_bin(None)
@@ -94,7 +104,18 @@ def wind_bin(speed_mps: float | None) -> str:
 
 
 def sequence_wind(seq: FrameSequence) -> float | None:
-    """Wind speed (m/s) recorded with a sequence: the world spec's, or ``meta["wind"]["speed_mps"]``."""
+    """Wind speed (m/s) recorded with a sequence: the world spec's, or ``meta["wind"]["speed_mps"]``.
+
+    Parameters
+    ----------
+    seq : dyntarget.sequence.FrameSequence
+        The sequence.
+
+    Returns
+    -------
+    float or None
+        Wind speed, m/s; ``None`` when none is recorded.
+    """
     for source in (seq.meta.get("world"), seq.meta):
         if isinstance(source, dict) and isinstance(source.get("wind"), dict):
             speed = source["wind"].get("speed_mps")
@@ -107,14 +128,28 @@ def sequence_wind(seq: FrameSequence) -> float | None:
 class ModeContext:
     """What a mode may use to plan a trajectory (see :data:`MODES`).
 
-    ``frames``: the look-ahead frames on the WFOV grid, the last one the
-    decision frame (``frames.times[-1]``); ``mask``: the WFOV plume mask of
-    the decision frame (classifier output or true mask, not yet denoised);
-    ``classifier``: the fitted classifier (``None`` for the true mask), e.g.
-    to segment earlier frames; ``latency_s``: seconds from the decision frame
-    to the start of pointing; ``schedule``: times a trajectory as it will be
-    flown (the evaluator does this again on whatever the mode returns);
-    ``meta``: the sequence's metadata (e.g. a wind prior, where one is known).
+    Parameters
+    ----------
+    frames : dyntarget.sequence.FrameSequence
+        The look-ahead frames on the WFOV grid, the last one the decision frame
+        (``frames.times[-1]``).
+    mask : numpy.ndarray
+        The WFOV plume mask of the decision frame (classifier output or true
+        mask, not yet denoised).
+    planner : str
+        The planner.
+    latency_s : float
+        Seconds from the decision frame to the start of pointing.
+    pipeline : dyntarget.pipeline.PipelineConfig
+        Settings of the pipeline.
+    schedule : callable
+        Times a trajectory as it will be flown (the evaluator does this again on
+        whatever the mode returns).
+    classifier : dyntarget.perceive.Classifier or None
+        The fitted classifier (``None`` for the true mask), e.g. to segment
+        earlier frames.
+    meta : dict
+        The sequence's metadata (e.g. a wind prior, where one is known).
     """
 
     frames: FrameSequence
@@ -131,7 +166,18 @@ Mode = Callable[[ModeContext], Trajectory]
 
 
 def static_mode(ctx: ModeContext) -> Trajectory:
-    """The paper's pipeline: denoise the decision frame's mask, plan where the plume was seen."""
+    """The paper's pipeline: denoise the decision frame's mask, plan where the plume was seen.
+
+    Parameters
+    ----------
+    ctx : ModeContext
+        The decision frame, its mask and the planner.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The plan.
+    """
     decision = ctx.frames.frames[-1]
     seg = segment(decision.image, mask=ctx.mask, valid=decision.valid, config=ctx.pipeline)
     return plan_segmentation(seg, ctx.planner, ctx.pipeline)
@@ -147,6 +193,21 @@ MODES: dict[str, Mode | str] = {
 
 def get_mode(name: str) -> Mode:
     """Resolve a mode by name (importing a lazy entry).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`MODES`.
+
+    Returns
+    -------
+    callable
+        ``fn(ctx: ModeContext) -> Trajectory``.
+
+    Raises
+    ------
+    dyntarget.errors.UnknownNameError
+        For an unknown name.
 
     Examples
     --------
@@ -167,7 +228,37 @@ def get_mode(name: str) -> Mode:
 
 @dataclass(frozen=True)
 class DynamicConfig:
-    """Settings of the dynamic evaluation (see the module docstring)."""
+    """Settings of the dynamic evaluation (see the module docstring).
+
+    Parameters
+    ----------
+    folds : int
+        Cross-validation folds over the sequences.
+    seed : int
+        Seed of the fold split and the training.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    epochs : int
+        Training epochs of a U-Net classifier.
+    classifiers : tuple of str
+        Classifiers to evaluate.
+    true_mask : bool
+        Also plan on the decision frame's true mask (``true-mask``).
+    planners : tuple of str
+        Planners.
+    modes : tuple of str
+        Modes (:data:`MODES`).
+    latencies : tuple of float
+        Seconds from the decision frame to the start of pointing.
+    agility : str
+        Agility preset of the schedule.
+    altitude_m, look_ahead_m : float
+        Orbit geometry, metres.
+    truth_step_s : float
+        Time grid of a synthetic sequence's truth, seconds.
+    pipeline : dyntarget.pipeline.PipelineConfig
+        Settings of the pipeline.
+    """
 
     folds: int = 5
     seed: int = 0
@@ -379,6 +470,16 @@ def _order(records: list[dict[str, Any]], key: str) -> list[Any]:
 def dynamic_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Tidy rows: means over scenes per mode x classifier x planner x latency x wind bin.
 
+    Parameters
+    ----------
+    records : list of dict
+        Per-sequence records.
+
+    Returns
+    -------
+    list of dict
+        One row per group with the mean metrics and the number of ``scenes``.
+
     Examples
     --------
     >>> recs = [{"mode": "static", "classifier": "mlp", "planner": "p", "latency_s": 0.0,
@@ -441,6 +542,24 @@ def latency_table(
 
     ``wind``: only scenes of that wind bin (``None``: all scenes). Adds the change
     from the first latency to 90 s (or the last latency below it) as ``Δ to 90 s``.
+
+    Parameters
+    ----------
+    records : list of dict
+        Per-sequence records.
+    metric : str
+        The record key tabulated.
+    wind : str or None
+        Wind bin.
+    mode : str
+        The mode tabulated.
+
+    Returns
+    -------
+    rows : list of dict
+        The table rows.
+    columns : list of str
+        Its columns, in order.
     """
     sel = [r for r in records if r["mode"] == mode and (wind is None or r["wind_bin"] == wind)]
     latencies = sorted({r["latency_s"] for r in sel})
@@ -481,7 +600,26 @@ def latency_figure(
     winds: Sequence[str | None] = (None, "8-12"),
     mode: str = "static",
 ) -> Path:
-    """Ratio plume (or ``metric``) against latency: one panel per classifier x wind selection."""
+    """Ratio plume (or ``metric``) against latency: one panel per classifier x wind selection.
+
+    Parameters
+    ----------
+    records : list of dict
+        Per-sequence records.
+    path : str or pathlib.Path
+        The PNG to write.
+    metric : str
+        The record key plotted.
+    winds : sequence of str or None
+        Wind bins, one panel row each (``None``: all scenes).
+    mode : str
+        The mode plotted.
+
+    Returns
+    -------
+    pathlib.Path
+        The figure written.
+    """
     from matplotlib import colormaps
 
     from dyntarget.evaluate.figures import save, subplots

@@ -51,7 +51,25 @@ TABLE2_COLUMNS = [
 
 @dataclass(frozen=True)
 class E2EConfig:
-    """Settings of the end-to-end evaluation."""
+    """Settings of the end-to-end evaluation.
+
+    Parameters
+    ----------
+    folds : int
+        Cross-validation folds.
+    seed : int
+        Seed of the fold split and the training.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    epochs : int
+        Training epochs of the U-Nets.
+    classifiers : tuple of str
+        Classifiers (default: all registered).
+    planners : tuple of str
+        Planners, baselines included.
+    pipeline : dyntarget.pipeline.PipelineConfig
+        Settings of the pipeline.
+    """
 
     folds: int = defaults.FOLDS
     seed: int = defaults.SEED
@@ -88,6 +106,27 @@ def evaluate_end_to_end(
     :func:`~dyntarget.evaluate.distributed.run_tasks` (``scheduler``: here or on
     Dask; ``parts``: where finished tasks are kept so that a rerun resumes).
     Runtimes measured on a parallel scheduler include contention between tasks.
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        Labelled high-resolution scenes.
+    config : E2EConfig
+        Settings.
+    models_dir : str or pathlib.Path or None
+        Where the fold models are loaded from or saved to.
+    progress : bool
+        Show progress bars.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    parts : str or pathlib.Path or None
+        Folder where finished tasks are kept.
+
+    Returns
+    -------
+    dict
+        ``rows`` (Table 2, :func:`table2_rows`), ``records`` (per scene),
+        ``config``, ``folds`` (scene ids per fold) and ``wfov_shape``.
     """
     check_scheduler(scheduler)  # before any training
     scenes = list(scenes)
@@ -198,7 +237,23 @@ def _record(
 def table2_rows(
     records: list[dict[str, Any]], planners: list[str], classifiers: list[str]
 ) -> list[dict[str, Any]]:
-    """Mean over scenes for every (planner, classifier) pair, in the paper's row order."""
+    """Mean over scenes for every (planner, classifier) pair, in the paper's row order.
+
+    Parameters
+    ----------
+    records : list of dict
+        Per-scene records.
+    planners : list of str
+        Planners, in row order.
+    classifiers : list of str
+        Classifiers, in row order within a planner (baselines: ``N/A`` only).
+
+    Returns
+    -------
+    list of dict
+        Pixels observed, ratio plume, intensity, gradient, runtime and the
+        number of scenes per row.
+    """
     rows = []
     for pname in planners:
         for cname in ["N/A"] if pname in BASELINES else classifiers:

@@ -45,7 +45,20 @@ def subplots(nrows: int, ncols: int, *, figsize: tuple[float, float], **kwargs: 
 
 
 def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarray:
-    """An 8-bit-like display image ``(H, W, 3)`` in 0..1 with a 2-98 % stretch."""
+    """An 8-bit-like display image ``(H, W, 3)`` in 0..1 with a 2-98 % stretch.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` image.
+    bands : tuple of int
+        Bands shown as red, green and blue.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (H, W, 3)``.
+    """
     stack = np.stack([image[b] for b in bands], axis=-1).astype(np.float32)
     lo, hi = np.percentile(stack, [2, 98])
     if hi <= lo:
@@ -54,7 +67,22 @@ def rgb(image: np.ndarray, bands: tuple[int, int, int] = (0, 1, 2)) -> np.ndarra
 
 
 def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
-    """Save a figure atomically as PNG."""
+    """Save a figure atomically as PNG.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The PNG to write.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     with atomic_path(path) as tmp:
         fig.savefig(  # the Software tag lets a rerun recognise (and replace) its own figure
             tmp, dpi=dpi, bbox_inches="tight", format="png", metadata={"Software": "dyntarget"}
@@ -65,7 +93,24 @@ def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
 def scenes_figure(
     scenes: Sequence[Scene], path: str | os.PathLike[str], *, max_scenes: int = 4, dpi: int = 110
 ) -> Path:
-    """Rows of scenes: true colour, false colour (NIR, R, G), label."""
+    """Rows of scenes: true colour, false colour (NIR, R, G), label.
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        The scenes.
+    path : str or os.PathLike
+        The PNG to write.
+    max_scenes : int
+        Most scenes shown.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    pathlib.Path
+        The figure written.
+    """
     scenes = list(scenes)[:max_scenes]
     fig, axes = subplots(len(scenes), 3, figsize=(9, 3 * len(scenes)), squeeze=False)
     for row, scene in zip(axes, scenes, strict=True):
@@ -93,7 +138,19 @@ PATH_COLOURS = {
 
 
 def draw_trajectory(ax, trajectory, *, colour: str | None = None, label: str | None = None) -> None:
-    """Draw a trajectory: observation legs as lines with dots, travel hops dashed."""
+    """Draw a trajectory: observation legs as lines with dots, travel hops dashed.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw (pixel coordinates).
+    trajectory : dyntarget.trajectory.Trajectory
+        The trajectory.
+    colour : str or None
+        Line colour (default: the planner's).
+    label : str or None
+        Legend label.
+    """
     pts = trajectory.points
     colour = colour or PATH_COLOURS.get(trajectory.planner, "red")
     if len(pts) == 0:
@@ -124,7 +181,28 @@ def trajectories_figure(
     title: str | None = None,
     dpi: int = 110,
 ) -> Path:
-    """The paper's Figure 3: one panel per trajectory, drawn over the RGB image (and mask outline)."""
+    """The paper's Figure 3: one panel per trajectory, drawn over the RGB image (and mask outline).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    trajectories : iterable of dyntarget.trajectory.Trajectory
+        The trajectories, one panel each.
+    path : str or os.PathLike
+        The PNG to write.
+    mask : numpy.ndarray or None
+        Mask whose outline is drawn.
+    title : str or None
+        Figure title.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    pathlib.Path
+        The figure written.
+    """
     trajectories = list(trajectories)
     n = max(len(trajectories), 1)
     fig, axes = subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
@@ -147,6 +225,20 @@ def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110)
     """The paper's Figure 4: per scene, image / classifier probability / denoised mask.
 
     ``rows`` is a sequence of ``(title, image, probability, denoised_mask, truth)``.
+
+    Parameters
+    ----------
+    rows : sequence of tuple
+        ``(title, image, probability, denoised_mask, truth)`` per scene (``truth`` may be ``None``).
+    path : str or os.PathLike
+        The PNG to write.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    pathlib.Path
+        The figure written.
     """
     rows = list(rows)
     fig, axes = subplots(len(rows), 3, figsize=(9, 3 * len(rows)), squeeze=False)
@@ -166,7 +258,22 @@ def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110)
 
 
 def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
-    """Bar chart: ratio plume, intensity and gradient per planner x classifier; baselines as lines."""
+    """Bar chart: ratio plume, intensity and gradient per planner x classifier; baselines as lines.
+
+    Parameters
+    ----------
+    table2_rows : list of dict
+        Table 2 rows.
+    path : str or os.PathLike
+        The PNG to write.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    pathlib.Path
+        The figure written.
+    """
     from dyntarget.plan import BASELINES
 
     metrics = ("Ratio Plume", "Intensity", "Gradient")

@@ -19,7 +19,13 @@ from dyntarget.errors import InvalidSceneError
 
 @dataclass(frozen=True)
 class Confusion:
-    """Pixel confusion counts for the plume class."""
+    """Pixel confusion counts for the plume class.
+
+    Parameters
+    ----------
+    tp, fp, fn, tn : int
+        True positive, false positive, false negative and true negative pixel counts.
+    """
 
     tp: int = 0
     fp: int = 0
@@ -30,7 +36,27 @@ class Confusion:
     def from_masks(
         cls, predicted: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None
     ) -> Confusion:
-        """Counts over the pixels where ``valid`` (default: all); nodata pixels do not count."""
+        """Counts over the pixels where ``valid`` (default: all); nodata pixels do not count.
+
+        Parameters
+        ----------
+        predicted : numpy.ndarray
+            Boolean predicted mask.
+        truth : numpy.ndarray
+            Boolean true mask, same shape.
+        valid : numpy.ndarray or None
+            Boolean, false on nodata.
+
+        Returns
+        -------
+        Confusion
+            The counts.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidSceneError
+            When the masks differ in shape.
+        """
         predicted, truth = np.asarray(predicted, bool), np.asarray(truth, bool)
         if predicted.shape != truth.shape:
             raise InvalidSceneError(
@@ -50,17 +76,37 @@ class Confusion:
         )
 
     def swapped(self) -> Confusion:
-        """The counts with the classes swapped (metrics of the non-plume class)."""
+        """The counts with the classes swapped (metrics of the non-plume class).
+
+        Returns
+        -------
+        Confusion
+            ``tp`` and ``tn`` swapped, ``fp`` and ``fn`` swapped.
+        """
         return Confusion(tp=self.tn, fp=self.fn, fn=self.fp, tn=self.tp)
 
     def metrics(self) -> dict[str, float]:
-        """Accuracy and plume-class precision, recall and IoU (plus the same for non-plume)."""
+        """Accuracy and plume-class precision, recall and IoU (plus the same for non-plume).
+
+        Returns
+        -------
+        dict of str to float
+            ``accuracy``, ``precision``, ``recall`` and ``iou``, then the same
+            (accuracy excepted) with a ``_background`` suffix.
+        """
         return {
             **_scores(self),
             **{f"{k}_background": v for k, v in _scores(self.swapped()).items() if k != "accuracy"},
         }
 
     def as_dict(self) -> dict[str, int]:
+        """The four counts.
+
+        Returns
+        -------
+        dict of str to int
+            ``tp``, ``fp``, ``fn`` and ``tn``.
+        """
         return asdict(self)
 
 

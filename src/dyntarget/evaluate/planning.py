@@ -64,7 +64,31 @@ def evaluate_planners_on_truth(
     scheduler: str | None = None,
     parts: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Every planner on every scene's true mask; one task per scene (see ``run_tasks``)."""
+    """Every planner on every scene's true mask; one task per scene (see ``run_tasks``).
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        Labelled high-resolution scenes.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    config : dyntarget.plan.PlanConfig or None
+        Planner settings.
+    planners : sequence of str or None
+        Planners (default: the paper's).
+    progress : bool
+        Show a progress bar.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    parts : str or pathlib.Path or None
+        Folder where finished tasks are kept.
+
+    Returns
+    -------
+    dict
+        ``rows`` (mean metrics and median planning time per planner), ``factor``
+        and ``scenes`` (ids).
+    """
     check_scheduler(scheduler)  # before any training
     config = config or PlanConfig()
     planners = list(planners or PAPER_PLANNERS)

@@ -46,6 +46,18 @@ def plan_on_motion(ctx: ModeContext, motion: Motion) -> Trajectory:
 
     The same stages as the ``static`` mode (segment, plan), with the predict stage
     between them (:func:`dyntarget.pipeline.predict_segmentation`).
+
+    Parameters
+    ----------
+    ctx : dyntarget.evaluate.dynamic.ModeContext
+        The decision frame, its mask, the planner, latency and schedule.
+    motion : dyntarget.predict.Motion
+        The plume's motion.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The pointings moved on to their times (untimed; the evaluator schedules them).
     """
     decision = ctx.frames.frames[-1]
     prediction = Prediction(motion, ctx.latency_s)
@@ -59,7 +71,23 @@ def plan_on_motion(ctx: ModeContext, motion: Motion) -> Trajectory:
 
 
 def two_look_motion(ctx: ModeContext) -> Motion:
-    """The motion between the last two frames of ``ctx`` (masks as the mode's classifier sees them)."""
+    """The motion between the last two frames of ``ctx`` (masks as the mode's classifier sees them).
+
+    Parameters
+    ----------
+    ctx : dyntarget.evaluate.dynamic.ModeContext
+        At least two frames.
+
+    Returns
+    -------
+    dyntarget.predict.Motion
+        The two-look estimate.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        With fewer than two frames, or (true mask) an unlabelled previous frame.
+    """
     frames = ctx.frames
     if len(frames) < 2:
         raise InvalidParameterError(
@@ -87,7 +115,18 @@ _MOTIONS: dict[tuple, Motion] = {}
 
 
 def predictive_mode(ctx: ModeContext) -> Trajectory:
-    """Two looks: estimate the motion, plan for the plume as it will be."""
+    """Two looks: estimate the motion, plan for the plume as it will be.
+
+    Parameters
+    ----------
+    ctx : dyntarget.evaluate.dynamic.ModeContext
+        At least two frames.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The plan (:func:`plan_on_motion`).
+    """
     key = (
         ctx.frames.id,
         tuple(np.asarray(ctx.frames.times).tolist()),
@@ -105,6 +144,16 @@ def predictive_mode(ctx: ModeContext) -> Trajectory:
 def recorded_wind(meta: dict[str, Any]) -> tuple[float, float] | None:
     """``(speed_mps, from_deg)`` recorded with a sequence, or ``None``.
 
+    Parameters
+    ----------
+    meta : dict
+        A sequence's metadata (the world spec's wind first).
+
+    Returns
+    -------
+    tuple of float or None
+        The wind, or ``None``.
+
     Examples
     --------
     >>> recorded_wind({"wind": {"speed_mps": 5.0, "from_deg": 90.0}})
@@ -118,7 +167,18 @@ def recorded_wind(meta: dict[str, Any]) -> tuple[float, float] | None:
 
 
 def wind_prior_mode(ctx: ModeContext) -> Trajectory:
-    """One look and the recorded wind; the paper's static plan where no wind is recorded."""
+    """One look and the recorded wind; the paper's static plan where no wind is recorded.
+
+    Parameters
+    ----------
+    ctx : dyntarget.evaluate.dynamic.ModeContext
+        The decision frame, its mask, the planner and the sequence's metadata.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The plan.
+    """
     wind = recorded_wind(ctx.meta)
     if wind is None:
         return static_mode(ctx)

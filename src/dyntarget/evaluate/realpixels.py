@@ -28,7 +28,27 @@ from dyntarget.scene import Scene
 def split_columns(
     scene: Scene, *, train_fraction: float = 0.45, gap: int = 32
 ) -> tuple[Scene, Scene]:
-    """Left ``train_fraction`` of the columns for training, then ``gap`` unused columns, the rest for testing."""
+    """Left ``train_fraction`` of the columns for training, then ``gap`` unused columns, the rest for testing.
+
+    Parameters
+    ----------
+    scene : dyntarget.scene.Scene
+        A labelled scene.
+    train_fraction : float
+        Share of the columns for training.
+    gap : int
+        Columns left unused between the parts.
+
+    Returns
+    -------
+    train, test : dyntarget.scene.Scene
+        The two parts (transforms shifted to their columns).
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When the scene is too narrow for the split.
+    """
     w = scene.shape[1]
     cut = round(train_fraction * w)
     if not 0 < cut < w - gap - 1:
@@ -62,6 +82,29 @@ def real_pixel_check(
     train_fraction: float = 0.45,
     gap: int = 32,
 ) -> dict[str, Any]:
+    """Train every classifier on the left part of ``scene``, score and plan on the right (see the module docstring).
+
+    Parameters
+    ----------
+    scene : dyntarget.scene.Scene
+        A labelled scene.
+    classifiers : sequence of str or None
+        Classifiers (default: all registered).
+    epochs : int
+        Training epochs of the U-Nets.
+    seed : int
+        Seed of the classifiers.
+    train_fraction : float
+        Share of the columns used for training.
+    gap : int
+        Columns left unused between the two parts.
+
+    Returns
+    -------
+    dict
+        ``segmentation`` and ``planning`` rows, ``split`` (column and row counts)
+        and ``plume_fraction`` of each part.
+    """
     train, test = split_columns(scene, train_fraction=train_fraction, gap=gap)
     classifiers = list(classifiers or CLASSIFIERS.available())
     maps = UtilityMaps.from_scene(test)

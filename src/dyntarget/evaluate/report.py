@@ -22,7 +22,18 @@ from dyntarget.scene import Scene
 
 
 def best_classifier(table1_rows: list[dict]) -> str:
-    """Classifier with the highest IoU (raw or denoised)."""
+    """Classifier with the highest IoU (raw or denoised).
+
+    Parameters
+    ----------
+    table1_rows : list of dict
+        Table 1 rows.
+
+    Returns
+    -------
+    str
+        The classifier's name.
+    """
     return max(table1_rows, key=lambda r: r["IoU"])["classifier"]
 
 
@@ -36,7 +47,30 @@ def make_figures(
     factor: int,
     pipeline: PipelineConfig | None = None,
 ) -> dict[str, Path]:
-    """Figure 3 (four planners over one held-out scene), Figure 4 and the utilities chart."""
+    """Figure 3 (four planners over one held-out scene), Figure 4 and the utilities chart.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        Output folder.
+    scenes : list of dyntarget.scene.Scene
+        The evaluated scenes.
+    table1 : dict
+        Cross-validation result (its best classifier and fold 0 are used).
+    table2 : dict
+        End-to-end result.
+    models_dir : pathlib.Path
+        Where the fold models are.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    pipeline : dyntarget.pipeline.PipelineConfig or None
+        Settings of the pipeline.
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        Figure name to file.
+    """
     pipeline = pipeline or PipelineConfig()
     best = best_classifier(table1["rows"])
     fold0 = set(table1["folds"][0])
@@ -139,6 +173,20 @@ def _paper_table2_md(ours: list[dict]) -> str:
 
 
 def claims_md(table1_rows: list[dict], table2_rows: list[dict]) -> str:
+    """Markdown table of the paper's claims: verdicts on our tables and, by the same rules, on the paper's.
+
+    Parameters
+    ----------
+    table1_rows : list of dict
+        Our Table 1 rows.
+    table2_rows : list of dict
+        Our Table 2 rows.
+
+    Returns
+    -------
+    str
+        The Markdown table.
+    """
     ours = check_claims(table1_rows, table2_rows)
     paper = paper_results()
     theirs = check_claims(paper["table1"], paper["table2"])
@@ -165,7 +213,34 @@ def write_report(
     data_note: str,
     compare_with_paper: bool = True,
 ) -> Path:
-    """Write ``report.md`` with both tables, the figures and (optionally) the paper comparison."""
+    """Write ``report.md`` with both tables, the figures and (optionally) the paper comparison.
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        Output folder.
+    title : str
+        Report title.
+    command : str
+        The command that produced it.
+    table1 : dict
+        Cross-validation result.
+    table2 : dict
+        End-to-end result.
+    figures : dict of str to pathlib.Path
+        Figures to show.
+    seconds : float
+        Total wall time.
+    data_note : str
+        What the data were.
+    compare_with_paper : bool
+        Add the paper's tables and the claims.
+
+    Returns
+    -------
+    pathlib.Path
+        ``report.md``.
+    """
     import platform
 
     import dyntarget
@@ -214,6 +289,18 @@ def write_report(
 
 
 def mean_iou_gain(table1_rows: list[dict]) -> float:
+    """Mean over classifiers of the IoU change from denoising.
+
+    Parameters
+    ----------
+    table1_rows : list of dict
+        Table 1 rows, each classifier with and without denoising.
+
+    Returns
+    -------
+    float
+        Denoised minus raw IoU, averaged.
+    """
     by = {(r["classifier"], r["denoised"]): r["IoU"] for r in table1_rows}
     names = {r["classifier"] for r in table1_rows}
     return float(np.mean([by[(n, True)] - by[(n, False)] for n in names]))
@@ -236,6 +323,38 @@ def evaluate_all(
 
     Finished tasks are kept in ``out/parts/`` so that an interrupted run resumes;
     ``scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
+
+    Parameters
+    ----------
+    scenes : list of dyntarget.scene.Scene
+        Labelled high-resolution scenes.
+    out : str or os.PathLike
+        Output folder (tables, figures, ``parts/``).
+    models_dir : str or os.PathLike
+        Where the fold models are loaded from or saved to.
+    classifiers : tuple of str
+        Classifiers.
+    folds : int
+        Cross-validation folds.
+    epochs : int
+        Training epochs of the U-Nets.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    seed : int
+        Seed of the fold split and the training.
+    progress : bool
+        Show progress bars.
+    scheduler : str or None
+        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+
+    Returns
+    -------
+    table1 : dict
+        :func:`~dyntarget.evaluate.crossval.cross_validate` result, with timing.
+    table2 : dict
+        :func:`~dyntarget.evaluate.endtoend.evaluate_end_to_end` result, with timing.
+    figures : dict of str to pathlib.Path
+        The figures written (:func:`make_figures`).
     """
     from dyntarget.evaluate.crossval import CVConfig, cross_validate
     from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end

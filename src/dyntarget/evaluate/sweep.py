@@ -63,6 +63,16 @@ def parse_grid(items: Sequence[str]) -> dict[str, list]:
 
     The whole grid is validated (:func:`check_grid`) before it is returned; a
     parameter given twice is an error.
+
+    Parameters
+    ----------
+    items : sequence of str
+        ``NAME=V1,V2,...`` items (``-`` in a name reads as ``_``).
+
+    Returns
+    -------
+    dict of str to list
+        The grid.
     """
     grid: dict[str, list] = {}
     for item in items:
@@ -91,6 +101,16 @@ def check_grid(grid: dict[str, list]) -> None:
 
     Ranges: ``step_fraction`` in (0, 1], ``denoise_iterations`` an integer >= 0,
     ``min_area_fraction`` in [0, 1), ``factor`` an integer >= 1, ``agility`` a preset.
+
+    Parameters
+    ----------
+    grid : dict of str to list
+        Parameter name to values.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an unknown parameter or a repeated or out-of-range value.
 
     Examples
     --------
@@ -139,7 +159,18 @@ def check_grid(grid: dict[str, list]) -> None:
 
 
 def expand(grid: dict[str, list]) -> list[dict[str, Any]]:
-    """Every point of the grid (unswept parameters at their defaults), in a fixed order."""
+    """Every point of the grid (unswept parameters at their defaults), in a fixed order.
+
+    Parameters
+    ----------
+    grid : dict of str to list
+        Parameter name to values.
+
+    Returns
+    -------
+    list of dict
+        One dict per point, every parameter of :data:`GRID_PARAMETERS` set.
+    """
     names = list(GRID_PARAMETERS)
     axes = [grid.get(n, [DEFAULTS[n]]) for n in names]
     return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*axes)]
@@ -147,6 +178,24 @@ def expand(grid: dict[str, list]) -> list[dict[str, Any]]:
 
 @dataclass(frozen=True)
 class SweepTask:
+    """One sweep task: one scene, one classifier, one grid point.
+
+    Parameters
+    ----------
+    fold : int
+        Fold whose model classifies the scene.
+    scene_path : str
+        The scene's GeoTIFF.
+    classifier : str
+        The classifier.
+    model_dir : str
+        The fold's saved model.
+    params : dict
+        The grid point (see :data:`GRID_PARAMETERS`).
+    run : str
+        Signature of the data and training settings (part of the key).
+    """
+
     fold: int
     scene_path: str
     classifier: str
@@ -157,11 +206,26 @@ class SweepTask:
 
     @property
     def key(self) -> str:
+        """The task's key in ``parts/`` (:func:`~dyntarget.evaluate.distributed.task_key`)."""
         return task_key("sweep", self.run, Path(self.scene_path).stem, self.classifier, self.params)
 
 
 def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
-    """One task, on a worker: classify once, then denoise, plan and observe for every planner."""
+    """One task, on a worker: classify once, then denoise, plan and observe for every planner.
+
+    Parameters
+    ----------
+    task : SweepTask
+        The task.
+    planners : sequence of str
+        Planners.
+
+    Returns
+    -------
+    list of dict
+        One row per planner: the task, fold, scene, classifier, planner, grid
+        point, observation metrics, pointings, feasible fraction and runtime.
+    """
     import time
 
     from dyntarget.io import read_scene
@@ -244,7 +308,40 @@ def sweep(
     progress: bool = True,
     stop_after: int | None = None,
 ) -> Path:
-    """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``."""
+    """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``.
+
+    Parameters
+    ----------
+    data : str or os.PathLike
+        Scene directory of labelled scenes.
+    out : str or os.PathLike
+        Output folder.
+    classifiers : sequence of str
+        Classifiers.
+    planners : sequence of str or None
+        Planners (default: the paper's).
+    grid : dict of str to list or None
+        The grid (:func:`parse_grid`); unswept parameters at their defaults.
+    folds : int
+        Cross-validation folds.
+    seed : int
+        Seed of the fold split and the training.
+    epochs : int
+        Training epochs of the U-Nets.
+    scheduler : str
+        ``"local"``, ``"processes"`` or a Dask scheduler address.
+    models_dir : str or os.PathLike or None
+        Where the fold models are loaded from or saved to.
+    progress : bool
+        Show progress bars.
+    stop_after : int or None
+        Stop after this many finished tasks (tests).
+
+    Returns
+    -------
+    pathlib.Path
+        ``OUT/sweep.csv``.
+    """
     from dyntarget.evaluate.crossval import kfold_indices, train_or_load
     from dyntarget.io import read_scene_dir, scene_ids
     from dyntarget.perceive import CLASSIFIERS
@@ -305,7 +402,20 @@ def sweep(
 
 
 def summary_figure(table: Path, path: Path) -> Path | None:
-    """Mean ratio plume per planner against each swept parameter (one panel per parameter)."""
+    """Mean ratio plume per planner against each swept parameter (one panel per parameter).
+
+    Parameters
+    ----------
+    table : pathlib.Path
+        The sweep's CSV table.
+    path : pathlib.Path
+        The PNG to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The figure, or ``None`` when no parameter varies.
+    """
     import numpy as np
 
     from dyntarget.evaluate.figures import PATH_COLOURS, save, subplots

@@ -31,6 +31,18 @@ DISPLAY_NAMES = {
 
 
 def display(name: str) -> str:
+    """The display name of a planner or classifier (:data:`DISPLAY_NAMES`, else the name).
+
+    Parameters
+    ----------
+    name : str
+        Registered name.
+
+    Returns
+    -------
+    str
+        The name as the paper's tables write it.
+    """
     return DISPLAY_NAMES.get(name, name)
 
 
@@ -43,7 +55,22 @@ def _fmt(value: Any, digits: int) -> str:
 def markdown_table(
     rows: Sequence[dict[str, Any]], columns: Sequence[str], *, digits: int = 3
 ) -> str:
-    """A GitHub Markdown table of ``rows`` (dicts) over ``columns``."""
+    """A GitHub Markdown table of ``rows`` (dicts) over ``columns``.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        The rows.
+    columns : sequence of str
+        The columns, in order.
+    digits : int
+        Decimals of floats.
+
+    Returns
+    -------
+    str
+        The table.
+    """
     head = "| " + " | ".join(columns) + " |"
     sep = "|" + "|".join("---" for _ in columns) + "|"
     body = ["| " + " | ".join(_fmt(r.get(c, ""), digits) for c in columns) + " |" for r in rows]
@@ -51,6 +78,20 @@ def markdown_table(
 
 
 def csv_text(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
+    """CSV of ``rows`` (dicts) over ``columns``; missing values are empty, extra keys ignored.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        The rows.
+    columns : sequence of str
+        The columns, in order.
+
+    Returns
+    -------
+    str
+        The CSV text, header first.
+    """
     buf = io.StringIO()
     writer = csv.DictWriter(
         buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n"
@@ -64,7 +105,24 @@ def csv_text(rows: Sequence[dict[str, Any]], columns: Sequence[str]) -> str:
 def write_result(
     out_dir: str | os.PathLike[str], stem: str, result: dict[str, Any], columns: Sequence[str]
 ) -> dict[str, Path]:
-    """Write an evaluation result: its ``rows`` as the table, ``timing`` apart, the rest as context."""
+    """Write an evaluation result: its ``rows`` as the table, ``timing`` apart, the rest as context.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        Output folder.
+    stem : str
+        File stem.
+    result : dict
+        ``rows``, optional ``timing`` and any context.
+    columns : sequence of str
+        Table columns.
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        See :func:`write_table`.
+    """
     extra = {k: v for k, v in result.items() if k not in ("rows", "timing")}
     return write_table(
         out_dir, stem, result["rows"], columns, extra=extra, timing=result.get("timing")
@@ -86,6 +144,28 @@ def write_table(
     Wall-clock measurements go to ``<stem>.timing.json`` (when ``timing`` is
     given), so the three table files are byte-identical between runs with the
     same seed.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        Output folder.
+    stem : str
+        File stem.
+    rows : sequence of dict
+        The rows.
+    columns : sequence of str
+        Columns of the Markdown and CSV tables.
+    extra : dict or None
+        Context stored in the JSON file beside the rows.
+    timing : dict or None
+        Wall-clock measurements.
+    digits : int
+        Decimals of floats in the Markdown table.
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        ``md``, ``csv``, ``json`` and, with ``timing``, ``timing``.
     """
     out = Path(out_dir)
     paths = {

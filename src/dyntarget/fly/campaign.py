@@ -92,7 +92,28 @@ def fly_one(
     truth_step_s: float,
     int8: bool = False,
 ) -> dict[str, Any]:
-    """Fly one pass of a campaign and write its outputs; return its row of totals."""
+    """Fly one pass of a campaign and write its outputs; return its row of totals.
+
+    Parameters
+    ----------
+    task : dict of str to str
+        ``strip`` (the strip file), ``planner`` and ``agility`` of the pass.
+    config : dyntarget.fly.loop.PassConfig
+        The pass settings (the task's planner and agility replace its own).
+    model : str or None
+        The classifier's model directory (``None``: plan on the truth).
+    onnx : bool
+        Run the exported ONNX model rather than the native one.
+    out : str
+        The campaign's output folder; the pass goes to ``out/passes/<strip>-<planner>-<agility>``.
+    truth_step_s : float
+        Time grid of the moving strip's truth, seconds.
+
+    Returns
+    -------
+    dict
+        :meth:`~dyntarget.fly.loop.PassResult.totals` of the pass.
+    """
     from dyntarget.fly.report import write_pass
     from dyntarget.fly.strip import load_world
 

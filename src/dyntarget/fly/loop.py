@@ -89,6 +89,8 @@ class PassConfig:
         against the wind prior when there is one).
     wind_mps, wind_from_deg : the wind prior (meteorological convention); by
         default a moving strip's own wind (an ideal forecast).
+    pipeline : settings of the pipeline run on each frame
+        (:class:`~dyntarget.pipeline.PipelineConfig`).
     """
 
     planner: str = "lawnmower-transect"
@@ -138,6 +140,13 @@ class PassConfig:
             )
 
     def as_dict(self) -> dict[str, Any]:
+        """The settings as a plain dict, without ``pipeline`` (recorded with the flown trajectory).
+
+        Returns
+        -------
+        dict
+            Field name to value.
+        """
         d = asdict(self)
         d.pop("pipeline")
         return d
@@ -145,7 +154,23 @@ class PassConfig:
 
 @dataclass(frozen=True)
 class FramePlan:
-    """Where the frames of a pass lie on the strip's WFOV grid, and when they are taken."""
+    """Where the frames of a pass lie on the strip's WFOV grid, and when they are taken.
+
+    Parameters
+    ----------
+    wfov_shape : tuple of int
+        The strip's WFOV grid ``(H, W)``.
+    frame_px : int
+        Frame height, WFOV rows.
+    step : int
+        WFOV rows between consecutive frames.
+    cadence_s : float
+        Seconds between frame acquisitions.
+    tops : tuple of int
+        Top WFOV row of each frame, frame 0 (the bottom of the strip) first.
+    geometry : dyntarget.schedule.OrbitGeometry
+        Orbit and WFOV GSD of every frame.
+    """
 
     wfov_shape: tuple[int, int]
     frame_px: int
@@ -156,9 +181,22 @@ class FramePlan:
 
     @property
     def n_frames(self) -> int:
+        """Number of frames of the pass."""
         return len(self.tops)
 
     def acquired_s(self, k: int) -> float:
+        """When frame ``k`` is acquired, seconds into the pass.
+
+        Parameters
+        ----------
+        k : int
+            Frame index.
+
+        Returns
+        -------
+        float
+            ``k * cadence_s``.
+        """
         return k * self.cadence_s
 
 
@@ -204,7 +242,45 @@ def frame_plan(world: World, config: PassConfig) -> FramePlan:
 
 @dataclass
 class FrameRecord:
-    """One row of the timeline."""
+    """One row of the timeline.
+
+    Parameters
+    ----------
+    frame : int
+        Frame index.
+    acquired_s : float
+        When the frame was acquired, seconds into the pass.
+    start_s : float
+        When the loop started on it.
+    ready_s : float
+        When its plan was ready.
+    latency_s : float
+        ``ready_s - acquired_s``.
+    stage_s : dict of str to float
+        Wall seconds per stage (:data:`STAGES`).
+    deadline_met : bool or None
+        Whether the deadline was met (``None``: no deadline).
+    path : str
+        What the pipeline ran, ``"; "``-joined.
+    planned : int
+        Pointings planned.
+    skipped_covered : int
+        Pointings dropped because their pixel was already covered.
+    flown : int
+        Pointings flown.
+    plume_px : float
+        Sum of the plume fractions the flown pointings observed.
+    intensity : float
+        Sum of their intensity utility.
+    gradient : float
+        Sum of their gradient utility.
+    new_plumes : int
+        True plumes observed for the first time in the pass.
+    dropped : bool
+        The frame was dropped (the loop was behind past the deadline).
+    loop_s : float
+        Wall time of the onboard work on this frame.
+    """
 
     frame: int
     acquired_s: float
@@ -226,7 +302,18 @@ class FrameRecord:
     """Wall time of the onboard work on this frame (frame in hand -> plan scheduled), all of it."""
 
     def row(self, *, measured: bool) -> dict[str, Any]:
-        """The timeline row; stage times only when latency was measured (else not deterministic)."""
+        """The timeline row; stage times only when latency was measured (else not deterministic).
+
+        Parameters
+        ----------
+        measured : bool
+            Whether latency was measured (not a fixed compute budget).
+
+        Returns
+        -------
+        dict
+            Column name to value, formatted for ``timeline.csv``.
+        """
         out: dict[str, Any] = {
             "frame": self.frame,
             "acquired_s": f"{self.acquired_s:.4f}",
@@ -259,7 +346,25 @@ TIMELINE_COLUMNS = tuple(
 
 @dataclass
 class Flown:
-    """The pointings flown so far, on the strip's WFOV grid, with their pass times."""
+    """The pointings flown so far, on the strip's WFOV grid, with their pass times.
+
+    Parameters
+    ----------
+    x, y : list of float
+        Pointings on the strip's WFOV grid, pixels.
+    t : list of float
+        When each was observed, seconds into the pass.
+    frame : list of int
+        The frame whose plan each came from.
+    part : list of int
+        Plume visited, numbered over the pass.
+    plume : list of float
+        Plume fraction each observed of the truth at its time.
+    intensity : list of float
+        Intensity utility each observed.
+    plume_id : list of int
+        Id of the true plume each observed (0: none).
+    """
 
     x: list[float] = field(default_factory=list)
     y: list[float] = field(default_factory=list)
@@ -271,7 +376,20 @@ class Flown:
     plume_id: list[int] = field(default_factory=list)
 
     def trajectory(self, planner: str, params: dict[str, Any]) -> Trajectory:
-        """The flown pointings as one timed trajectory (strip WFOV pixels, pass seconds)."""
+        """The flown pointings as one timed trajectory (strip WFOV pixels, pass seconds).
+
+        Parameters
+        ----------
+        planner : str
+            The planner's name.
+        params : dict
+            Settings recorded with the trajectory.
+
+        Returns
+        -------
+        dyntarget.trajectory.Trajectory
+            Timed in seconds into the pass (empty and untimed when nothing was flown).
+        """
         if not self.x:
             return Trajectory.empty(planner, params)
         return Trajectory(
@@ -281,7 +399,29 @@ class Flown:
 
 @dataclass
 class PassState:
-    """Everything the loop carries from frame to frame."""
+    """Everything the loop carries from frame to frame.
+
+    Parameters
+    ----------
+    covered : numpy.ndarray
+        Boolean ``(H, W)`` WFOV pixels of the strip already covered.
+    timer_t : float
+        When the NFOV sensor is free, seconds into the pass.
+    target : tuple of float or None
+        ``(along, cross)`` of what the sensor tracks, metres (``None``: nadir).
+    busy_until : float
+        When the loop finished its last frame, seconds.
+    previous : tuple or None
+        ``(frame, image, mask)`` last seen, for two-look motion.
+    parts : int
+        Plumes visited so far (the next part number).
+    plumes_seen : set of int
+        True plume ids observed so far.
+    records : list of FrameRecord
+        The timeline so far.
+    flown : Flown
+        The pointings flown so far.
+    """
 
     covered: np.ndarray
     timer_t: float = 0.0
@@ -296,7 +436,25 @@ class PassState:
 
 @dataclass(frozen=True, eq=False)
 class PassResult:
-    """A flown pass: the timeline, the flown pointings and the totals."""
+    """A flown pass: the timeline, the flown pointings and the totals.
+
+    Parameters
+    ----------
+    world_id : str
+        The strip's id.
+    config : PassConfig
+        The pass settings.
+    frames : FramePlan
+        Where and when the frames were taken.
+    records : list of FrameRecord
+        The timeline, one record per frame handled.
+    flown : Flown
+        The pointings flown.
+    plumes_at_start : frozenset of int
+        Plume ids in the strip's truth at t = 0.
+    stopped : bool
+        The pass was stopped before its last frame.
+    """
 
     world_id: str
     config: PassConfig
@@ -309,10 +467,18 @@ class PassResult:
 
     @property
     def measured(self) -> bool:
+        """Whether latency was measured (no fixed ``compute_budget_s``)."""
         return self.config.compute_budget_s is None
 
     def totals(self) -> dict[str, Any]:
-        """One row of pass results (what a campaign table holds)."""
+        """One row of pass results (what a campaign table holds).
+
+        Returns
+        -------
+        dict
+            Strip, planner, agility, frame and pointing counts, plume pixels, utility,
+            ratio plume, plumes observed and in total, median and largest latency.
+        """
         lat = np.array([r.latency_s for r in self.records if not r.dropped]) if self.records else []
         observed = {i for i in self.flown.plume_id if i > 0}
         return {
@@ -337,8 +503,18 @@ class PassResult:
 class FrameView:
     """What one frame saw and sent: for views of the pass (not kept by the loop itself).
 
-    ``image`` is the frame's WFOV image, ``plan`` the pipeline's result on it,
-    ``flown`` the slice of :attr:`PassResult.flown` its plan added.
+    Parameters
+    ----------
+    frame : int
+        Frame index.
+    top : int
+        The frame's top row on the strip's WFOV grid.
+    image : numpy.ndarray
+        The frame's ``(4, H, W)`` WFOV image.
+    plan : dyntarget.pipeline.PlanResult
+        The pipeline's result on it.
+    first, end : int
+        The slice of :attr:`PassResult.flown` its plan added.
     """
 
     frame: int

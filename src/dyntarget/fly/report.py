@@ -60,7 +60,18 @@ def timeline_csv(result: PassResult) -> str:
 
 
 def measured_csv(result: PassResult) -> str:
-    """Measured stage wall times per frame (written beside a fixed-budget timeline)."""
+    """Measured stage wall times per frame (written beside a fixed-budget timeline).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+
+    Returns
+    -------
+    str
+        CSV text: ``frame``, one ``<stage>_s`` column per stage and ``loop_s``.
+    """
     lines = ["frame," + ",".join(f"{s}_s" for s in STAGES) + ",loop_s"]
     for rec in result.records:
         stages = ",".join(f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES)
@@ -79,6 +90,20 @@ def pointings_geojson(
     pass), ``time_s`` (seconds after the first frame's acquisition; with the
     strip's acquisition time, an ISO-8601 ``time``), ``frame`` (whose plan it
     came from) and ``plume_fraction`` (what it observed of the truth at its time).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    world : dyntarget.fly.world.World
+        The strip it flew over (its CRS and transform).
+    crs_mode : {"rfc7946", "native"}
+        WGS 84 coordinates, or the strip's CRS.
+
+    Returns
+    -------
+    dict
+        The GeoJSON ``FeatureCollection``.
     """
     from dyntarget.io.geojson import trajectory_geojson
 
@@ -105,7 +130,19 @@ def pointings_geojson(
 def write_progress(
     result: PassResult, world: World, out: str | os.PathLike[str], *, crs_mode: str = "rfc7946"
 ) -> None:
-    """Rewrite ``timeline.csv`` and ``pointings.geojson`` (after every frame)."""
+    """Rewrite ``timeline.csv`` and ``pointings.geojson`` (after every frame).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass so far.
+    world : dyntarget.fly.world.World
+        The strip it flies over.
+    out : str or os.PathLike
+        The output folder.
+    crs_mode : {"rfc7946", "native"}
+        Coordinates of the pointings' GeoJSON.
+    """
     from dyntarget.io.geojson import write_geojson
 
     out = Path(out)
@@ -116,7 +153,22 @@ def write_progress(
 
 
 def summary_md(result: PassResult, picture: str | None, note: str | None = None) -> str:
-    """The pass summary in Markdown: settings, totals, latency."""
+    """The pass summary in Markdown: settings, totals, latency.
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    picture : str or None
+        File name of the pass picture to show (``None``: no picture).
+    note : str or None
+        A line to add.
+
+    Returns
+    -------
+    str
+        The Markdown text.
+    """
     t = result.totals()
     c = result.config
     fp = result.frames
@@ -165,6 +217,20 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
 
     Returns ``None`` (and draws nothing) when matplotlib is not installed
     (the lean onboard install).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    world : dyntarget.fly.world.World
+        The strip it flew over.
+    path : str or os.PathLike
+        The PNG to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The PNG written, or ``None`` without matplotlib.
     """
     try:
         import matplotlib
@@ -231,6 +297,11 @@ class ViewCollector:
 
     Keeps at most ``max_frames`` frames (each holds its WFOV image); beyond that
     the view is not written.
+
+    Parameters
+    ----------
+    max_frames : int
+        Most frames kept.
     """
 
     def __init__(self, max_frames: int = MAX_VIEW_FRAMES) -> None:
@@ -255,6 +326,20 @@ def write_view(
     denoised polygons and the pointings flown from that frame's plan (frame
     pixels, coloured by their time in the pass). ``None`` when plotly is not
     installed (the lean onboard install).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    views : list of dyntarget.fly.loop.FrameView
+        The frames to show.
+    path : str or os.PathLike
+        The HTML file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The page written, or ``None`` without plotly.
     """
     try:
         from dyntarget.view.html import PassFrame, write_pass_view
@@ -303,6 +388,26 @@ def write_pass(
     """Write every output of a (possibly stopped) pass into ``out``; return the paths.
 
     ``views``: frames collected during the pass for ``pass.html`` (none: no view).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    world : dyntarget.fly.world.World
+        The strip it flew over.
+    out : str or os.PathLike
+        The output folder.
+    picture : bool
+        Draw the pass picture (needs matplotlib).
+    views : ViewCollector or None
+        Frames collected for ``pass.html``.
+    crs_mode : {"rfc7946", "native"}
+        Coordinates of the pointings' GeoJSON.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
     """
     out = Path(out)
     write_progress(result, world, out, crs_mode=crs_mode)

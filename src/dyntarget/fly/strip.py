@@ -93,6 +93,17 @@ class MovingStrip:
     pixel belongs to the nearest source at that time (a vent, or a detached
     volcanic cloud where the wind has carried it), so a plume keeps its id as it moves.
 
+    Parameters
+    ----------
+    spec : dyntarget.synth.dynamic.WorldSpec
+        The moving world.
+    window : tuple of int
+        ``(col0, row0, width, height)`` of the strip on the world grid.
+    truth_step_s : float
+        Time grid of the truth, seconds (0: exact times).
+    capacity : int
+        Most truths kept in the cache.
+
     Examples
     --------
     >>> spec, window = strip_spec(0, width=64, length=256, plumes=2, wind_mps=5.0)
@@ -131,7 +142,20 @@ class MovingStrip:
         self._capacity = capacity
 
     def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
-        """Rows ``top:bottom`` of the strip as the look-ahead sensor sees them at ``t``."""
+        """Rows ``top:bottom`` of the strip as the look-ahead sensor sees them at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, bottom - top, W)`` image.
+        """
         c0, r0, w, _ = self.window
         return self.world.render(t, (c0, r0 + top, w, bottom - top)).image
 
@@ -145,7 +169,18 @@ class MovingStrip:
         return np.asarray(pts, np.float64).reshape(-1, 2)
 
     def truth_at(self, t: float) -> Truth:
-        """The truth over the whole strip at ``t`` (rounded to ``truth_step_s``)."""
+        """The truth over the whole strip at ``t`` (rounded to ``truth_step_s``).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        dyntarget.fly.world.Truth
+            Utility maps and plume ids of the whole strip.
+        """
         if self.truth_step_s > 0:
             t = round(t / self.truth_step_s) * self.truth_step_s
         hit = self._cache.get(t)

@@ -49,7 +49,33 @@ ACQUIRED_TAG = "DYNTARGET_ACQUIRED"
 
 @dataclass
 class WatchConfig:
-    """Settings of the live mode (see the module docstring)."""
+    """Settings of the live mode (see the module docstring).
+
+    Parameters
+    ----------
+    planner : str
+        Registered planner name.
+    factor : int
+        High-res -> WFOV downsampling factor.
+    agility : str or None
+        Agility preset; ``None`` writes the plans untimed.
+    altitude_m, look_ahead_m : float
+        Orbit geometry, metres (with ``agility``).
+    deadline_s : float or None
+        Time allowed per frame, seconds (the pipeline's fallbacks apply).
+    poll_s : float
+        Seconds between polls of the directory.
+    settle_s : float
+        Seconds a frame's size and time must stay unchanged before it is read.
+    corrupt_after_s : float
+        Seconds after which a still unreadable frame is rejected.
+    idle_exit_s : float or None
+        Return after this many seconds without a new frame.
+    max_frames : int or None
+        Return after planning this many frames.
+    pipeline : dyntarget.pipeline.PipelineConfig
+        Settings of the pipeline.
+    """
 
     planner: str = "lawnmower-transect"
     factor: int = 4
@@ -112,7 +138,18 @@ def candidates(directory: Path) -> list[Path]:
 
 
 def acquired_time(path: Path) -> float:
-    """A frame's acquisition time as POSIX seconds: its tag, else the file's mtime."""
+    """A frame's acquisition time as POSIX seconds: its tag, else the file's mtime.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The frame's file.
+
+    Returns
+    -------
+    float
+        POSIX seconds (a tag without a time zone is UTC).
+    """
     import rasterio
 
     try:
@@ -172,7 +209,13 @@ class Watcher:
         self.done: set[str] = {p.stem for p in self.out.glob("*.geojson")}
 
     def ready(self) -> list[Path]:
-        """Frames complete and not yet planned, in acquisition order."""
+        """Frames complete and not yet planned, in acquisition order.
+
+        Returns
+        -------
+        list of pathlib.Path
+            The frames.
+        """
         now = self.clock()
         ready = []
         for p in candidates(self.directory):
@@ -197,7 +240,13 @@ class Watcher:
         return read_scene(path, factor=self.config.factor, auto_label=False)
 
     def step(self) -> int:
-        """Plan every frame ready now; return how many were planned."""
+        """Plan every frame ready now; return how many were planned.
+
+        Returns
+        -------
+        int
+            Frames planned.
+        """
         n = 0
         for path in self.ready():
             try:
@@ -214,7 +263,20 @@ class Watcher:
         return n
 
     def plan(self, path: Path, scene) -> Path:
-        """Plan one frame and write its plan and the frames table atomically."""
+        """Plan one frame and write its plan and the frames table atomically.
+
+        Parameters
+        ----------
+        path : pathlib.Path
+            The frame's file.
+        scene : dyntarget.scene.Scene
+            The frame, already read.
+
+        Returns
+        -------
+        pathlib.Path
+            The plan written, ``OUT/<stem>.geojson``.
+        """
         cfg = self.config
         t0 = time.perf_counter()
         result = plan_scene(
@@ -260,7 +322,18 @@ class Watcher:
         self.log(f"{path.name}: skipped, unreadable for {self.config.corrupt_after_s:g} s ({why})")
 
     def run(self, should_stop: Callable[[], bool] = lambda: False) -> int:
-        """Poll until ``should_stop()`` (or the idle/max-frames limits); return frames planned."""
+        """Poll until ``should_stop()`` (or the idle/max-frames limits); return frames planned.
+
+        Parameters
+        ----------
+        should_stop : callable
+            Polled between frames and while idle; the watcher returns once it is true.
+
+        Returns
+        -------
+        int
+            Frames planned in all.
+        """
         cfg = self.config
         last = self.clock()
         while not should_stop():

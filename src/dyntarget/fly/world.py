@@ -37,6 +37,13 @@ class Truth:
 
     ``ids`` numbers the plumes (0: no plume), so a pass can count how many
     distinct plumes it observed.
+
+    Parameters
+    ----------
+    maps : dyntarget.observe.nfov.UtilityMaps
+        Label and utility maps of the strip.
+    ids : numpy.ndarray
+        ``(H, W)`` plume id per pixel.
     """
 
     maps: UtilityMaps
@@ -53,9 +60,37 @@ class World(Protocol):
     valid: np.ndarray | None
     id: str
 
-    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray: ...
+    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """Rows ``top:bottom`` of the strip as the look-ahead sensor sees them at ``t``.
 
-    def truth_at(self, t: float) -> Truth: ...
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, bottom - top, W)`` reflectance.
+        """
+        ...
+
+    def truth_at(self, t: float) -> Truth:
+        """The plume truth over the whole strip at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        Truth
+            Utility maps and plume ids, high resolution.
+        """
+        ...
 
 
 def plume_ids(label: np.ndarray, *, min_fraction: float = MIN_PLUME_FRACTION) -> np.ndarray:
@@ -136,11 +171,35 @@ class StaticWorld:
         self._truth = Truth(UtilityMaps.from_scene(scene), np.asarray(ids, np.int32))
 
     def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
-        """The rows ``top:bottom`` of the strip (the same at every time)."""
+        """The rows ``top:bottom`` of the strip (the same at every time).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass (ignored).
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, bottom - top, W)`` image.
+        """
         return self.scene.image[:, top:bottom]
 
     def truth_at(self, t: float) -> Truth:
-        """The truth (the same at every time)."""
+        """The truth (the same at every time).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass (ignored).
+
+        Returns
+        -------
+        Truth
+            The strip's truth.
+        """
         return self._truth
 
 
@@ -152,6 +211,19 @@ class WfovTruth:
     (as :func:`dyntarget.observe.nfov.observe` scores a pointing); ``ids`` the
     largest plume id under the WFOV pixel; ``valid`` false where any
     high-resolution pixel under the WFOV pixel is nodata.
+
+    Parameters
+    ----------
+    plume : numpy.ndarray
+        ``(H, W)`` WFOV mean plume fraction.
+    intensity : numpy.ndarray
+        ``(H, W)`` WFOV mean intensity utility.
+    gradient : numpy.ndarray
+        ``(H, W)`` WFOV mean gradient utility.
+    ids : numpy.ndarray
+        ``(H, W)`` largest plume id under each WFOV pixel.
+    valid : numpy.ndarray
+        Boolean ``(H, W)``.
     """
 
     plume: np.ndarray

@@ -52,7 +52,7 @@ def _refuse(path: Path, what: str, found: str) -> OutputPathError:
 
 
 def is_ours(path: str | os.PathLike[str]) -> bool:
-    """Whether the existing file ``path`` was written by dyntarget (recognised by content).
+    r"""Whether the existing file ``path`` was written by dyntarget (recognised by content).
 
     Recognised: trajectories and plume polygons (GeoJSON FeatureCollections
     whose ``properties`` hold ``planner`` or ``polygons``), CSV starting ``order,x,y,part``), figures (PNG with a
@@ -61,15 +61,25 @@ def is_ours(path: str | os.PathLike[str]) -> bool:
     Markdown tables, HTML views (``<meta name="generator" content="dyntarget">``) and files
     that start with the marker ``<!-- dyntarget``.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to inspect.
+
+    Returns
+    -------
+    bool
+        False for a folder, a symbolic link or a missing file.
+
     Examples
     --------
     >>> import tempfile, pathlib
     >>> d = pathlib.Path(tempfile.mkdtemp())
-    >>> (d / "t.csv").write_text("order,x,y,part\\n0,1.000,2.000,0\\n")
+    >>> (d / "t.csv").write_text("order,x,y,part\n0,1.000,2.000,0\n")
     31
     >>> is_ours(d / "t.csv"), is_ours(d)
     (True, False)
-    >>> (d / "notes.csv").write_text("name,phone\\n")
+    >>> (d / "notes.csv").write_text("name,phone\n")
     11
     >>> is_ours(d / "notes.csv")
     False
@@ -224,6 +234,13 @@ def check_output_dir(path: str | os.PathLike[str], *, what: str = "output folder
 def claim_output_dir(path: str | os.PathLike[str], *, what: str = "output folder") -> Path:
     """:func:`check_output_dir`, then create ``path`` and mark it as dyntarget's.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output folder.
+    what : str
+        What to call it in error messages.
+
     Returns
     -------
     Path
@@ -253,6 +270,23 @@ def check_model_dir(path: str | os.PathLike[str], *, what: str = "model director
 
     A model directory is recognised by its ``metadata.json`` (format
     ``dyntarget-model``); only such a directory is later replaced, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model directory to write.
+    what : str
+        What to call it in the error message (e.g. the option, ``--out``).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    dyntarget.io.outputs.OutputPathError
+        When ``path`` is something else.
 
     Examples
     --------
@@ -285,6 +319,18 @@ def output_dir(path: str | os.PathLike[str], *, what: str = "output folder") -> 
     When the command fails and the folder did not exist before, it is removed
     again if it holds nothing but the marker and empty folders, so a refused
     run (an unreachable scheduler, bad input found late) leaves nothing behind.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output folder.
+    what : str
+        What to call it in error messages.
+
+    Yields
+    ------
+    pathlib.Path
+        ``path``, claimed.
 
     Examples
     --------

@@ -17,7 +17,23 @@ _LANDSAT = ("B1", "B2", "B3", "B4", "B5", "B6", "B7")
 
 @dataclass(frozen=True)
 class Preset:
-    """Where R, G, B, NIR are in a product's file and how to scale its numbers."""
+    """Where R, G, B, NIR are in a product's file and how to scale its numbers.
+
+    Parameters
+    ----------
+    name : str
+        Preset name (``--preset``).
+    bands : tuple of int
+        1-based band numbers of R, G, B and NIR in the file.
+    scale : float
+        Reflectance per digital number (``reflectance = DN * scale + offset``).
+    offset : float
+        Reflectance added after scaling.
+    band_names : tuple of str
+        Names of the file's bands in order, so ``--bands`` may name them.
+    description : str
+        One line for listings.
+    """
 
     name: str
     bands: tuple[int, int, int, int]

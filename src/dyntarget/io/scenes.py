@@ -114,6 +114,20 @@ def scale_to_reflectance(data: np.ndarray, *, scale: float | None, path: Path | 
     (1/255) for 8-bit data and :data:`DEFAULT_SCALE` (1/10000) for wider
     integers. Floating data are taken as reflectance unless a ``scale`` is given.
 
+    Parameters
+    ----------
+    data : numpy.ndarray
+        Raw raster values, integer or floating point.
+    scale : float or None
+        Reflectance per digital number (positive), or ``None`` for the defaults.
+    path : pathlib.Path or str
+        Where the data came from, for error messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        Float32 reflectance, same shape.
+
     Examples
     --------
     >>> scale_to_reflectance(np.array([[[255]]], np.uint8), scale=None, path="x").item()
@@ -139,6 +153,21 @@ def check_reflectance(
     """Refuse images that cannot be reflectance: non-finite, far out of range, or constant.
 
     Only pixels with data count (``invalid`` marks nodata pixels).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` reflectance.
+    path : pathlib.Path or str
+        Where it came from, for error messages.
+    invalid : numpy.ndarray or None
+        Boolean ``(H, W)``, true on nodata pixels.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidSceneError
+        When no pixel has data, a value is not finite or far outside 0..1
+        (:data:`REFLECTANCE_RANGE`), or the image is constant.
     """
     values = image if invalid is None else image[:, ~invalid]
     if values.size == 0:
@@ -186,6 +215,10 @@ def read_scene(
 ) -> Scene:
     """Read ``<id>.tif`` (and its label, if one sits beside it) as a :class:`Scene`.
 
+    The file's nodata value marks pixels without data (any band): they become
+    ``Scene.valid == False`` and are left out of training, metrics and
+    observation.
+
     Parameters
     ----------
     path : path to a 4-band GeoTIFF (R, G, B, NIR).
@@ -198,9 +231,10 @@ def read_scene(
         in strips of rows, so an image too large to hold whole is never held.
     auto_label : look for ``<id>_mask.tif`` / ``<id>.geojson`` when ``label`` is not given.
 
-    The file's nodata value marks pixels without data (any band): they become
-    ``Scene.valid == False`` and are left out of training, metrics and
-    observation.
+    Returns
+    -------
+    Scene
+        The scene, id ``<id>``, on the WFOV grid of ``factor``.
 
     Examples
     --------
@@ -369,6 +403,22 @@ def read_label(
     does not cover are "not plume"); a mask that does not overlap the image is
     refused. When either has no georeference the mask is used pixel for pixel
     and must have the image's shape.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A single-band raster mask (non-zero = plume) or a ``.geojson``/``.json`` file.
+    shape : tuple of int
+        The image's ``(H, W)``.
+    crs : str or None
+        The image's CRS.
+    transform : affine.Affine or None
+        The image's geotransform.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean ``(H, W)`` label.
     """
     path = Path(path)
     if path.suffix.lower() in (".geojson", ".json"):
@@ -475,6 +525,24 @@ def read_geojson_label(
     An empty FeatureCollection gives an all-``False`` label; polygons that fall
     entirely outside the image are an error, since that is almost always a CRS
     mix-up.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The GeoJSON file.
+    shape : tuple of int
+        The image's ``(H, W)``.
+    crs : str or None
+        The image's CRS.
+    transform : affine.Affine or None
+        The image's geotransform.
+    require_overlap : bool
+        Refuse polygons that all fall outside the image.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean ``(H, W)`` label.
     """
     from rasterio.warp import transform_geom
     from shapely.geometry import box
@@ -596,6 +664,20 @@ def write_scene(
     Files are written atomically; the GSD goes into the ``DYNTARGET_GSD`` tag,
     ``tags`` (e.g. acquisition times) into the image's dataset tags.
     Returns the paths written.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene to write.
+    directory : str or os.PathLike
+        The scene directory (created if needed).
+    tags : dict of str to str or None
+        Extra dataset tags of the image.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The image, then the mask if any.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -643,7 +725,18 @@ def write_scene(
 
 
 def scene_ids(directory: str | os.PathLike[str]) -> list[str]:
-    """Sorted ids of the scenes (``<id>.tif`` not ending in ``_mask``) in ``directory``."""
+    """Sorted ids of the scenes (``<id>.tif`` not ending in ``_mask``) in ``directory``.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The scene directory.
+
+    Returns
+    -------
+    list of str
+        The ids (hidden files excluded).
+    """
     directory = Path(directory)
     if not directory.is_dir():
         raise DataFileError(f"{directory}: not a directory")
@@ -658,7 +751,27 @@ def scene_ids(directory: str | os.PathLike[str]) -> list[str]:
 def read_scene_dir(
     directory: str | os.PathLike[str], *, scale: float | None = None, require_labels: bool = False
 ) -> list[Scene]:
-    """Read every scene of a scene directory, sorted by id."""
+    """Read every scene of a scene directory, sorted by id.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The scene directory (``<id>.tif`` with ``<id>_mask.tif`` or ``<id>.geojson`` labels).
+    scale : float or None
+        Reflectance per digital number for integer images (see :func:`read_scene`).
+    require_labels : bool
+        Refuse the directory when a scene has no label.
+
+    Returns
+    -------
+    list of Scene
+        The scenes.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When the directory holds no scene.
+    """
     directory = Path(directory)
     ids = scene_ids(directory)
     if not ids:

@@ -43,6 +43,23 @@ def parse_bands(
 ) -> tuple[int, int, int, int]:
     """Parse a band selection for R, G, B, NIR: ``"3,2,1,7"`` (1-based) or names like ``"B4,B3,B2,B8"``.
 
+    Parameters
+    ----------
+    text : str or sequence of int or str
+        Four comma-separated selectors, or a sequence of four.
+    names : sequence of str
+        The file's band names in order, for selection by name (case-insensitive).
+
+    Returns
+    -------
+    tuple of int
+        1-based band numbers of R, G, B and NIR.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For anything but four different, existing bands.
+
     Examples
     --------
     >>> parse_bands("3,2,1,7")
@@ -97,7 +114,27 @@ def read_multiband(
     scale: float | None = None,
     offset: float | None = None,
 ) -> Scene:
-    """Read R, G, B, NIR from one multi-band raster (selected by ``bands`` or a ``preset``)."""
+    """Read R, G, B, NIR from one multi-band raster (selected by ``bands`` or a ``preset``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The raster.
+    bands : str or sequence of int or str or None
+        R, G, B, NIR selection (:func:`parse_bands`); default the preset's, else
+        bands 1-4 of a 4-band file.
+    preset : str or None
+        Sensor preset (:mod:`dyntarget.io.presets`).
+    scale : float or None
+        Reflectance per digital number (default: the preset's, else by dtype).
+    offset : float or None
+        Reflectance added after scaling (default: the preset's, else 0).
+
+    Returns
+    -------
+    Scene
+        The unlabelled scene, id the file's stem; GSD from a projected CRS's pixel size.
+    """
     path = Path(path)
     p = get_preset(preset) if preset else None
     with scene_io._open(path) as src:
@@ -148,7 +185,26 @@ def read_band_files(
     offset: float | None = None,
     scene_id: str | None = None,
 ) -> Scene:
-    """Read one single-band file per band, given in the order R, G, B, NIR (the Landsat/38-Cloud layout)."""
+    """Read one single-band file per band, given in the order R, G, B, NIR (the Landsat/38-Cloud layout).
+
+    Parameters
+    ----------
+    paths : sequence of str or os.PathLike
+        Four single-band rasters of the same shape: R, G, B, NIR.
+    preset : str or None
+        Sensor preset for the default scale and offset.
+    scale : float or None
+        Reflectance per digital number (default: the preset's, else by dtype).
+    offset : float or None
+        Reflectance added after scaling (default: the preset's, else 0).
+    scene_id : str or None
+        The scene's id (default: the first file's folder name).
+
+    Returns
+    -------
+    Scene
+        The unlabelled 4-band scene.
+    """
     if len(paths) != 4:
         raise InvalidParameterError(
             f"band files: expected 4 files (R, G, B, NIR), got {len(paths)}"
@@ -187,7 +243,22 @@ def read_band_files(
 def read_npz(
     path: str | os.PathLike[str], *, scale: float | None = None, offset: float = 0.0
 ) -> Scene:
-    """Read ``image`` (4, H, W) or ``red``, ``green``, ``blue``, ``nir`` arrays (and an optional ``label``)."""
+    """Read ``image`` (4, H, W) or ``red``, ``green``, ``blue``, ``nir`` arrays (and an optional ``label``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.npz`` file (read without pickles).
+    scale : float or None
+        Reflectance per digital number (default by dtype).
+    offset : float
+        Reflectance added after scaling.
+
+    Returns
+    -------
+    Scene
+        The scene, labelled when the file has a ``label``.
+    """
     path = Path(path)
     if not path.is_file():
         raise DataFileError(f"{path}: no such file")
@@ -235,6 +306,28 @@ def read_any(
     only when given; no sibling file is picked up. A plain 4-band GeoTIFF is
     read in strips straight onto the WFOV grid (:func:`dyntarget.io.read_scene`
     with ``factor``); the other forms are read whole, then downsampled.
+
+    Parameters
+    ----------
+    paths : sequence of str or os.PathLike
+        One file, or four band files in the order R, G, B, NIR.
+    label : str or os.PathLike or None
+        Label file (mask raster or GeoJSON).
+    bands : str or None
+        R, G, B, NIR selection in a multi-band file (:func:`parse_bands`).
+    preset : str or None
+        Sensor preset (:mod:`dyntarget.io.presets`).
+    scale : float or None
+        Reflectance per digital number (default: the preset's, else by dtype).
+    offset : float or None
+        Reflectance added after scaling (default: the preset's, else 0).
+    factor : int
+        High-resolution pixels per WFOV pixel.
+
+    Returns
+    -------
+    Scene
+        The scene on the WFOV grid.
     """
     if len(paths) == 4:
         if bands:

@@ -57,6 +57,18 @@ TIFF_TIME_TAG = "TIFFTAG_DATETIME"
 def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> list[Path]:
     """Write ``directory/<seq.id>/`` (frames, labels, ``sequence.json`` last); return the paths.
 
+    Parameters
+    ----------
+    seq : FrameSequence
+        The sequence to write.
+    directory : str or os.PathLike
+        The parent folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The frames' images and masks, then ``sequence.json``.
+
     Examples
     --------
     >>> import tempfile, numpy as np
@@ -134,6 +146,20 @@ def read_sequence(
     ``factor`` reads every frame straight onto the WFOV grid (see
     :func:`dyntarget.io.read_scene`). The sequence's ``meta`` holds what the
     sidecar stored (e.g. the world spec); no truth provider is attached here.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The sequence folder.
+    scale : float or None
+        Reflectance per digital number for integer images.
+    factor : int
+        High-resolution pixels per WFOV pixel.
+
+    Returns
+    -------
+    FrameSequence
+        The frames with their times.
     """
     folder = Path(directory)
     if not folder.is_dir():
@@ -206,13 +232,35 @@ def _seconds(epoch: str, when: str, where: Path) -> float:
 
 
 def is_sequence_dir(directory: str | os.PathLike[str]) -> bool:
-    """Whether ``directory`` holds sequence folders (sub-folders with ``sequence.json``)."""
+    """Whether ``directory`` holds sequence folders (sub-folders with ``sequence.json``).
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The folder to inspect.
+
+    Returns
+    -------
+    bool
+        False for anything but a directory.
+    """
     d = Path(directory)
     return d.is_dir() and any((p / SEQUENCE_FILE).exists() for p in d.iterdir() if p.is_dir())
 
 
 def sequence_ids(directory: str | os.PathLike[str]) -> list[str]:
-    """Sorted names of the sequence folders (with ``sequence.json`` or ``*.tif``) in ``directory``."""
+    """Sorted names of the sequence folders (with ``sequence.json`` or ``*.tif``) in ``directory``.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The sequence directory.
+
+    Returns
+    -------
+    list of str
+        The folder names (hidden folders excluded).
+    """
     d = Path(directory)
     if not d.is_dir():
         raise DataFileError(f"{d}: not a directory")
@@ -228,7 +276,27 @@ def sequence_ids(directory: str | os.PathLike[str]) -> list[str]:
 def read_sequence_dir(
     directory: str | os.PathLike[str], *, scale: float | None = None, factor: int = 1
 ) -> list[FrameSequence]:
-    """Read every sequence folder of a sequence directory, sorted by name."""
+    """Read every sequence folder of a sequence directory, sorted by name.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The sequence directory.
+    scale : float or None
+        Reflectance per digital number for integer images.
+    factor : int
+        High-resolution pixels per WFOV pixel.
+
+    Returns
+    -------
+    list of FrameSequence
+        The sequences.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When it holds no sequence.
+    """
     ids = sequence_ids(directory)
     if not ids:
         raise DataFileError(

@@ -37,7 +37,19 @@ from dyntarget.trajectory import Trajectory
 
 @dataclass(frozen=True)
 class UtilityMaps:
-    """High-resolution truth used for scoring: plume label and the two utility maps."""
+    """High-resolution truth used for scoring: plume label and the two utility maps.
+
+    Parameters
+    ----------
+    label : numpy.ndarray
+        Boolean ``(H, W)`` high-resolution plume label.
+    intensity : numpy.ndarray
+        ``(H, W)`` float32 intensity utility, 0..1.
+    gradient : numpy.ndarray
+        ``(H, W)`` float32 gradient utility, 0..1.
+    valid : numpy.ndarray or None
+        Boolean ``(H, W)``, false on nodata; ``None`` when all pixels are valid.
+    """
 
     label: np.ndarray
     intensity: np.ndarray
@@ -46,6 +58,23 @@ class UtilityMaps:
 
     @classmethod
     def from_scene(cls, scene: Scene) -> UtilityMaps:
+        """The utility maps of a labelled high-resolution scene (see the module docstring).
+
+        Parameters
+        ----------
+        scene : dyntarget.scene.Scene
+            The high-resolution scene, with its label.
+
+        Returns
+        -------
+        UtilityMaps
+            Its label, intensity and gradient maps and valid mask.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidSceneError
+            When the scene has no label.
+        """
         if scene.label is None:
             raise InvalidSceneError(
                 f"scene {scene.id!r} has no label; scoring observations needs the truth"
@@ -65,7 +94,19 @@ class UtilityMaps:
 
 @dataclass(frozen=True)
 class ObservationMetrics:
-    """What the NFOV sensor observed along one trajectory."""
+    """What the NFOV sensor observed along one trajectory.
+
+    Parameters
+    ----------
+    pixels_observed : int
+        Distinct WFOV pixels observed (pointings inside the image, off nodata).
+    ratio_plume : float
+        Mean plume fraction of the observed footprints, 0..1.
+    intensity : float
+        Mean intensity utility over the observed footprints, 0..1.
+    gradient : float
+        Mean gradient utility over the observed footprints, 0..1.
+    """
 
     pixels_observed: int
     ratio_plume: float
@@ -73,11 +114,31 @@ class ObservationMetrics:
     gradient: float
 
     def as_dict(self) -> dict[str, float]:
+        """The metrics as a plain dict.
+
+        Returns
+        -------
+        dict of str to float
+            ``pixels_observed``, ``ratio_plume``, ``intensity`` and ``gradient``.
+        """
         return asdict(self)
 
 
 def observed_pixels(trajectory: Trajectory, wfov_shape: tuple[int, int]) -> np.ndarray:
-    """Distinct WFOV pixels ``(row, col)`` hit by the pointings, in first-visit order."""
+    """Distinct WFOV pixels ``(row, col)`` hit by the pointings, in first-visit order.
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The pointings, in WFOV pixels.
+    wfov_shape : tuple of int
+        The WFOV grid's ``(H, W)``; pointings outside it are dropped.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(k, 2)`` int64 ``(row, col)`` of the pixels under the rounded pointings.
+    """
     if len(trajectory) == 0:
         return np.zeros((0, 2), np.int64)
     cols = np.floor(trajectory.points[:, 0] + 0.5).astype(np.int64)
@@ -139,6 +200,22 @@ def observe(
 
     ``factor`` is the high-res -> WFOV downsampling factor the trajectory was
     planned at; ``footprint`` the NFOV footprint in WFOV pixels (odd, >= 1).
+
+    Parameters
+    ----------
+    trajectory : dyntarget.trajectory.Trajectory
+        The pointings, in WFOV pixels.
+    truth : dyntarget.scene.Scene or UtilityMaps
+        The labelled high-resolution scene, or its utility maps.
+    factor : int
+        High-resolution pixels per WFOV pixel along each axis.
+    footprint : int
+        NFOV footprint side in WFOV pixels (odd, at least 1).
+
+    Returns
+    -------
+    ObservationMetrics
+        The trajectory's scores (all 0 when it observes nothing).
     """
     maps = truth if isinstance(truth, UtilityMaps) else UtilityMaps.from_scene(truth)
     factor = check_factor(factor, maps.label.shape)

@@ -46,7 +46,13 @@ DEFAULT_MAX_PIXELS_PER_CLASS = 50_000
 
 
 class Classifier(ABC):
-    """Base class: ``fit(scenes)``, ``predict_proba(image)``, ``predict(image)``, ``save``/``load``."""
+    """Base class: ``fit(scenes)``, ``predict_proba(image)``, ``predict(image)``, ``save``/``load``.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of everything random in training (pixel samples, initial weights).
+    """
 
     name: ClassVar[str]
     summary: ClassVar[str]
@@ -62,12 +68,34 @@ class Classifier(ABC):
 
     # -- configuration -------------------------------------------------------------
     def get_config(self) -> dict[str, Any]:
-        """Constructor arguments as JSON-able values (stored in the model's metadata)."""
+        """Constructor arguments as JSON-able values (stored in the model's metadata).
+
+        Returns
+        -------
+        dict
+            Argument name to value; ``cls(**get_config())`` builds an unfitted twin.
+        """
         return {"seed": self.seed}
 
     # -- learning ------------------------------------------------------------------
     def fit(self, scenes: Sequence[Scene]) -> Classifier:
-        """Train on labelled scenes (already on the grid the classifier will see)."""
+        """Train on labelled scenes (already on the grid the classifier will see).
+
+        Parameters
+        ----------
+        scenes : sequence of dyntarget.scene.Scene
+            Labelled scenes holding both plume and background pixels.
+
+        Returns
+        -------
+        Classifier
+            This classifier, fitted.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidSceneError
+            When a scene has no label, or the scenes hold no plume or no background pixel.
+        """
         scenes = list(scenes)
         if not scenes:
             raise InvalidParameterError("scenes: expected at least one training scene, got none")
@@ -93,7 +121,18 @@ class Classifier(ABC):
     def _fit(self, scenes: list[Scene]) -> None: ...
 
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        """Plume probability ``float32 (H, W)`` in 0..1 for a ``(4, H, W)`` image."""
+        """Plume probability ``float32 (H, W)`` in 0..1 for a ``(4, H, W)`` image.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance (R, G, B, NIR).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W)`` plume probability.
+        """
         if not self.fitted:
             raise InvalidParameterError(f"{self.name}: call fit() or load() before predicting")
         image = check_image(image)
@@ -105,11 +144,35 @@ class Classifier(ABC):
 
     def work_units(self, shape: tuple[int, int]) -> float:
         """How much work predicting an image of ``shape`` is, in units whose cost is
-        constant (here pixels); used to extrapolate a timed probe to a whole image."""
+        constant (here pixels); used to extrapolate a timed probe to a whole image.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            The work, in the classifier's units.
+        """
         return float(shape[0] * shape[1])
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
-        """Plume mask: ``predict_proba(image) >= threshold``."""
+        """Plume mask: ``predict_proba(image) >= threshold``.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance (R, G, B, NIR).
+        threshold : float
+            Probability at or above which a pixel is plume, 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(H, W)`` mask.
+        """
         if not 0.0 <= float(threshold) <= 1.0:
             raise InvalidParameterError(
                 f"threshold: expected a probability in 0..1, got {threshold!r}"
@@ -118,7 +181,18 @@ class Classifier(ABC):
 
     # -- persistence ---------------------------------------------------------------
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the model directory ``path`` (replacing it atomically)."""
+        """Write the model directory ``path`` (replacing it atomically).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The model directory: free, an empty folder, or a model directory of ours.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         if not self.fitted:
             raise InvalidParameterError(
                 f"{self.name}: nothing to save, the classifier is not fitted"
@@ -164,7 +238,23 @@ class Classifier(ABC):
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Classifier:
-        """Load a model directory written by :meth:`save` (checking its metadata)."""
+        """Load a model directory written by :meth:`save` (checking its metadata).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The model directory.
+
+        Returns
+        -------
+        Classifier
+            The fitted classifier.
+
+        Raises
+        ------
+        dyntarget.errors.ModelFileError
+            When the directory holds another classifier or its metadata does not fit this one.
+        """
         meta = read_metadata(path)
         if meta["classifier"] != cls.name:
             raise ModelFileError(f"{path}: holds a {meta['classifier']!r} model, not {cls.name!r}")
@@ -207,7 +297,25 @@ for _name, _target in (  # lazy: the module is imported when the classifier is f
 
 
 def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read and check a model directory's ``metadata.json``."""
+    """Read and check a model directory's ``metadata.json``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model directory.
+
+    Returns
+    -------
+    dict
+        The parsed metadata.
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        When ``path`` is not a directory.
+    dyntarget.errors.ModelFileError
+        When the metadata is missing, not JSON, or of another format, version or band order.
+    """
     path = Path(path)
     meta_path = path / METADATA
     if not path.is_dir():
@@ -236,18 +344,53 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def load_classifier(path: str | os.PathLike[str]) -> Classifier:
-    """Load any saved classifier, dispatching on its metadata."""
+    """Load any saved classifier, dispatching on its metadata.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model directory.
+
+    Returns
+    -------
+    Classifier
+        The fitted classifier of the class its metadata names.
+    """
     meta = read_metadata(path)
     return CLASSIFIERS.get(meta["classifier"]).load(path)
 
 
 def make_classifier(name: str, **kwargs: Any) -> Classifier:
-    """Construct a registered classifier by name."""
+    """Construct a registered classifier by name.
+
+    Parameters
+    ----------
+    name : str
+        A registered classifier (``dyntarget classifiers`` lists them).
+    **kwargs
+        Constructor arguments of that classifier.
+
+    Returns
+    -------
+    Classifier
+        The unfitted classifier.
+    """
     return CLASSIFIERS.get(name)(**kwargs)
 
 
 def pixels(image: np.ndarray) -> np.ndarray:
-    """``(4, H, W)`` image -> ``(H*W, 4)`` feature matrix (a view where possible)."""
+    """``(4, H, W)`` image -> ``(H*W, 4)`` feature matrix (a view where possible).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` image.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H*W, 4)`` band values per pixel, in row-major pixel order.
+    """
     return image.reshape(image.shape[0], -1).T
 
 
@@ -259,6 +402,22 @@ def sample_pixels(
     From each class (plume, background) ``min(max_per_class, n_plume, n_background)``
     pixels are drawn without replacement, uniformly over all training pixels of
     that class, so both classes are equally represented. Nodata pixels are never drawn.
+
+    Parameters
+    ----------
+    scenes : sequence of dyntarget.scene.Scene
+        Labelled scenes.
+    max_per_class : int
+        Most pixels drawn per class.
+    rng : numpy.random.Generator
+        Source of the draws.
+
+    Returns
+    -------
+    X : numpy.ndarray
+        ``(n, 4)`` float32 band values, plume and background pixels in equal numbers.
+    y : numpy.ndarray
+        ``(n,)`` int64 class, 1 = plume.
     """
     feats = np.concatenate([pixels(s.image) for s in scenes])
     labels = np.concatenate([s.label.ravel() for s in scenes])

@@ -36,7 +36,17 @@ class _Normalise(nn.Module):
 
 
 class UavsarUNet(nn.Module):
-    """Classic compact U-Net (conv-conv-pool encoder, transpose-conv decoder, skips)."""
+    """Classic compact U-Net (conv-conv-pool encoder, transpose-conv decoder, skips).
+
+    Parameters
+    ----------
+    width : int
+        Channels of the first level (``w``: levels ``w, 2w, 4w``, bottleneck ``8w``).
+    in_channels : int
+        Input bands.
+    classes : int
+        Output classes.
+    """
 
     def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
         super().__init__()
@@ -61,6 +71,18 @@ class UavsarUNet(nn.Module):
         self.head = nn.Conv2d(ch[0], classes, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits of a batch.
+
+        Parameters
+        ----------
+        x : torch.Tensor
+            ``(n, in_channels, h, w)`` reflectance, ``h`` and ``w`` multiples of 8.
+
+        Returns
+        -------
+        torch.Tensor
+            ``(n, classes, h, w)`` logits.
+        """
         x = self.norm(x)
         skips = []
         for enc in self.enc:
@@ -81,7 +103,17 @@ class _SeparableConv(nn.Sequential):
 
 
 class XceptionUNet(nn.Module):
-    """Xception-style U-Net of the Keras segmentation example (residual blocks, no long skips)."""
+    """Xception-style U-Net of the Keras segmentation example (residual blocks, no long skips).
+
+    Parameters
+    ----------
+    width : int
+        Base channels ``w`` (``2w, 4w, 8w`` down, ``8w, 4w, 2w, w`` up).
+    in_channels : int
+        Input bands.
+    classes : int
+        Output classes.
+    """
 
     def __init__(self, width: int = 16, in_channels: int = 4, classes: int = 2) -> None:
         super().__init__()
@@ -129,6 +161,18 @@ class XceptionUNet(nn.Module):
         self.head = nn.Conv2d(width, classes, 3, padding=1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits of a batch.
+
+        Parameters
+        ----------
+        x : torch.Tensor
+            ``(n, in_channels, h, w)`` reflectance, ``h`` and ``w`` multiples of 16.
+
+        Returns
+        -------
+        torch.Tensor
+            ``(n, classes, h, w)`` logits.
+        """
         x = self.entry(self.norm(x))
         for block, res in zip(self.down, self.down_res, strict=True):
             x = block(x) + res(x)

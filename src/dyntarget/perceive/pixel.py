@@ -113,6 +113,13 @@ class PixelClassifier(Classifier):
 
     scikit-learn and skops are imported only when an estimator is built, trained,
     saved or loaded natively.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample (and of the estimator, where it draws).
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
     """
 
     kind = "pixel"
@@ -133,9 +140,23 @@ class PixelClassifier(Classifier):
         self.estimator: BaseEstimator | None = None
 
     def get_config(self) -> dict[str, Any]:
+        """Constructor arguments as JSON-able values (stored in the model's metadata).
+
+        Returns
+        -------
+        dict
+            ``seed`` and ``max_pixels_per_class``.
+        """
         return {"seed": self.seed, "max_pixels_per_class": self.max_pixels_per_class}
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh, unfitted scikit-learn estimator (each subclass builds its own).
+
+        Returns
+        -------
+        sklearn.base.BaseEstimator
+            An estimator with ``fit(X, y)`` and ``predict_proba(X)``.
+        """
         raise NotImplementedError
 
     def _fit(self, scenes) -> None:
@@ -172,7 +193,13 @@ class PixelClassifier(Classifier):
         return out.reshape(h, w)
 
     def chunk_predictor(self):
-        """``(n, 4) float32 -> (n,)`` plume probability of a chunk of pixels."""
+        """``(n, 4) float32 -> (n,)`` plume probability of a chunk of pixels.
+
+        Returns
+        -------
+        callable
+            The predictor of the fitted estimator.
+        """
         return lambda part: self.estimator.predict_proba(part)[:, 1]
 
     def _save_weights(self, directory: Path) -> None:
@@ -208,10 +235,27 @@ class PixelClassifier(Classifier):
 
 @CLASSIFIERS.register("naive-bayes")
 class NaiveBayes(PixelClassifier):
+    """Gaussian naive Bayes on the four band values (bands assumed independent).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample.
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
+    """
+
     name = "naive-bayes"
     summary = "Gaussian naive Bayes on the 4 band values (bands assumed independent)"
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh ``GaussianNB``.
+
+        Returns
+        -------
+        sklearn.naive_bayes.GaussianNB
+            The unfitted estimator.
+        """
         from sklearn.naive_bayes import GaussianNB
 
         return GaussianNB()
@@ -219,10 +263,27 @@ class NaiveBayes(PixelClassifier):
 
 @CLASSIFIERS.register("logistic-regression")
 class LogisticRegressionClassifier(PixelClassifier):
+    """A logistic regression on the standardised four band values.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample.
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
+    """
+
     name = "logistic-regression"
     summary = "standardised logistic regression on the 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh pipeline: ``StandardScaler`` then ``LogisticRegression(C=1.0)``.
+
+        Returns
+        -------
+        sklearn.pipeline.Pipeline
+            The unfitted pipeline.
+        """
         from sklearn.linear_model import LogisticRegression
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler
@@ -232,10 +293,27 @@ class LogisticRegressionClassifier(PixelClassifier):
 
 @CLASSIFIERS.register("decision-tree")
 class DecisionTree(PixelClassifier):
+    """A decision tree (depth at most 12, 20 pixels per leaf) on the four band values.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample and of the tree.
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
+    """
+
     name = "decision-tree"
     summary = "decision tree (depth <= 12) on the 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh ``DecisionTreeClassifier(max_depth=12, min_samples_leaf=20)``.
+
+        Returns
+        -------
+        sklearn.tree.DecisionTreeClassifier
+            Seeded with ``seed``.
+        """
         from sklearn.tree import DecisionTreeClassifier
 
         return DecisionTreeClassifier(max_depth=12, min_samples_leaf=20, random_state=self.seed)
@@ -243,6 +321,16 @@ class DecisionTree(PixelClassifier):
 
 @CLASSIFIERS.register("random-forest")
 class RandomForest(PixelClassifier):
+    """A random forest (50 trees, depth at most 14) on the four band values.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample and of the forest.
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
+    """
+
     name = "random-forest"
     summary = "random forest (50 trees, depth <= 14) on the 4 band values"
 
@@ -278,7 +366,13 @@ class RandomForest(PixelClassifier):
         return self
 
     def chunk_predictor(self):
-        """scikit-learn's ``predict_proba``, or the compiled forest (see :meth:`set_backend`)."""
+        """scikit-learn's ``predict_proba``, or the compiled forest (see :meth:`set_backend`).
+
+        Returns
+        -------
+        callable
+            ``(n, 4) float32 -> (n,)`` plume probability.
+        """
         if self.backend != "compiled":
             return super().chunk_predictor()
         cached = getattr(self, "_compiled", None)
@@ -289,6 +383,13 @@ class RandomForest(PixelClassifier):
         return cached[1]
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh ``RandomForestClassifier`` (50 trees, depth at most 14, 5 pixels per leaf, one job).
+
+        Returns
+        -------
+        sklearn.ensemble.RandomForestClassifier
+            Seeded with ``seed``.
+        """
         from sklearn.ensemble import RandomForestClassifier
 
         return RandomForestClassifier(
@@ -298,10 +399,27 @@ class RandomForest(PixelClassifier):
 
 @CLASSIFIERS.register("mlp")
 class MLP(PixelClassifier):
+    """A multilayer perceptron (two hidden layers of 32) on the standardised four band values.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the training pixel sample and of the network's weights.
+    max_pixels_per_class : int
+        Most training pixels drawn per class (at least 10).
+    """
+
     name = "mlp"
     summary = "multilayer perceptron (32, 32) on the standardised 4 band values"
 
     def make_estimator(self) -> BaseEstimator:
+        """A fresh pipeline: ``StandardScaler`` then ``MLPClassifier((32, 32))`` with early stopping.
+
+        Returns
+        -------
+        sklearn.pipeline.Pipeline
+            The unfitted pipeline, the network seeded with ``seed``.
+        """
         from sklearn.neural_network import MLPClassifier
         from sklearn.pipeline import make_pipeline
         from sklearn.preprocessing import StandardScaler
@@ -318,7 +436,13 @@ class MLP(PixelClassifier):
 
     def chunk_predictor(self):
         """The fitted network as three float32 matrix products, the scaler folded into the
-        first layer (:func:`mlp_float32`); scikit-learn's own path otherwise."""
+        first layer (:func:`mlp_float32`); scikit-learn's own path otherwise.
+
+        Returns
+        -------
+        callable
+            ``(n, 4) float32 -> (n,)`` plume probability.
+        """
         fast = mlp_float32(self.estimator)
         return fast if fast is not None else super().chunk_predictor()
 

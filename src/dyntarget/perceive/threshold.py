@@ -36,7 +36,20 @@ HOT_SLOPE, HOT_OFFSET = 0.5, 0.08
 
 
 def hot_features(image_or_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(HOT, NIR/visible ratio)`` for a ``(4, ...)`` array."""
+    """``(HOT, NIR/visible ratio)`` for a ``(4, ...)`` array.
+
+    Parameters
+    ----------
+    image_or_pixels : numpy.ndarray
+        Bands R, G, B, NIR along the first axis: a ``(4, H, W)`` image or ``(4, n)`` pixels.
+
+    Returns
+    -------
+    hot : numpy.ndarray
+        ``blue - 0.5 * red - 0.08``, shaped as the rest of the input.
+    ratio : numpy.ndarray
+        ``NIR / mean(R, G, B)`` (the mean at least 1e-3).
+    """
     r, g, b, nir = image_or_pixels[0], image_or_pixels[1], image_or_pixels[2], image_or_pixels[3]
     hot = b - HOT_SLOPE * r - HOT_OFFSET
     ratio = nir / np.maximum((r + g + b) / 3.0, 1e-3)
@@ -45,6 +58,17 @@ def hot_features(image_or_pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @CLASSIFIERS.register("band-threshold")
 class BandThreshold(Classifier):
+    """The HOT haze test and the NIR/visible ratio test (see the module docstring).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the class-balanced pixel sample the thresholds are fitted on.
+    softness : float
+        Width of the sigmoids that turn the two tests into a probability, in
+        feature units (smaller is sharper).
+    """
+
     name = "band-threshold"
     kind = "threshold"
     summary = "HOT haze test (Zhang et al. 2002) + NIR/visible ratio test; thresholds fitted on training scenes"
@@ -56,6 +80,13 @@ class BandThreshold(Classifier):
         self.ratio_threshold = 1.0
 
     def get_config(self) -> dict[str, Any]:
+        """Constructor arguments as JSON-able values (stored in the model's metadata).
+
+        Returns
+        -------
+        dict
+            ``seed`` and ``softness``.
+        """
         return {"seed": self.seed, "softness": self.softness}
 
     def _fit(self, scenes) -> None:

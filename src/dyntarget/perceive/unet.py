@@ -76,7 +76,22 @@ def _fixed_threads(n: int) -> Iterator[None]:
 
 
 def tile_origins(length: int, tile: int, stride: int) -> list[int]:
-    """Start offsets of tiles of ``tile`` px covering ``length`` px (last one flush with the end)."""
+    """Start offsets of tiles of ``tile`` px covering ``length`` px (last one flush with the end).
+
+    Parameters
+    ----------
+    length : int
+        Length to cover, px.
+    tile : int
+        Tile side, px.
+    stride : int
+        Step between tile starts, px.
+
+    Returns
+    -------
+    list of int
+        The starts (``[0]`` when one tile covers ``length``).
+    """
     if length <= tile:
         return [0]
     starts = list(range(0, length - tile + 1, stride))
@@ -150,7 +165,18 @@ def receptive_radius(architecture: str) -> int:
 
 
 def blend_window(tile: int) -> np.ndarray:
-    """Smooth, strictly positive 2-D weight for blending overlapping tiles."""
+    """Smooth, strictly positive 2-D weight for blending overlapping tiles.
+
+    Parameters
+    ----------
+    tile : int
+        Tile side, px.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (tile, tile)`` Hann window product, plus 1e-3.
+    """
     w = np.hanning(tile + 2)[1:-1]
     return np.outer(w, w).astype(np.float32) + 1e-3
 
@@ -201,7 +227,27 @@ def tiled(image: np.ndarray, forward, tile: int) -> np.ndarray:
 
 
 def check_stitching(stitch: str, memory_mib: float) -> tuple[str, float]:
-    """Validate a stitching name and memory budget; returns them (budget as float)."""
+    """Validate a stitching name and memory budget; returns them (budget as float).
+
+    Parameters
+    ----------
+    stitch : str
+        ``"halo"`` or ``"blend"``.
+    memory_mib : float
+        Activation budget of one pass, MiB (positive, finite).
+
+    Returns
+    -------
+    stitch : str
+        The stitching.
+    memory_mib : float
+        The budget.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For another stitching or a budget that is not a positive number.
+    """
     if stitch not in STITCHINGS:
         raise InvalidParameterError(
             f"stitch: expected one of {', '.join(STITCHINGS)}, got {stitch!r}"
@@ -278,7 +324,28 @@ class Stitching:
         stitch: str = DEFAULT_STITCH,
         memory_mib: float = DEFAULT_MEMORY_MIB,
     ) -> Stitching:
-        """The stitching of a ``uavsar`` / ``xception`` U-Net of ``width`` and ``levels``."""
+        """The stitching of a ``uavsar`` / ``xception`` U-Net of ``width`` and ``levels``.
+
+        Parameters
+        ----------
+        architecture : {"uavsar", "xception"}
+            The network.
+        levels : int
+            Its down-sampling levels (the factor is ``2**levels``).
+        width : int
+            Its base channel count (sets the memory per pixel).
+        tile : int
+            Training tile size, px.
+        stitch : {"halo", "blend"}
+            The stitching.
+        memory_mib : float
+            Activation budget of one pass, MiB (``"halo"``).
+
+        Returns
+        -------
+        Stitching
+            The stitching, halo from the network's receptive-field radius.
+        """
         factor = 2**levels
         return cls(
             tile=tile,
@@ -296,6 +363,16 @@ class Stitching:
         and, relative to it, the centre whose prediction is kept. The kept centres
         partition the image; a window reaches ``halo`` px beyond its centre except at
         the image's edge. One window covers the whole image when it fits the budget.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The padded image's ``(H, W)``, multiples of ``factor``.
+
+        Returns
+        -------
+        list of tuple of slice
+            ``(rows_in, cols_in, rows_keep, cols_keep)`` per window.
         """
         hp, wp = shape
         f, halo = self.factor, self.halo
@@ -318,14 +395,36 @@ class Stitching:
         return out
 
     def padded_shape(self, shape: tuple[int, int]) -> tuple[int, int]:
-        """``shape`` rounded up to multiples of ``factor`` (what ``"halo"`` runs on)."""
+        """``shape`` rounded up to multiples of ``factor`` (what ``"halo"`` runs on).
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        tuple of int
+            The padded ``(H, W)``.
+        """
         return (
             -(-shape[0] // self.factor) * self.factor,
             -(-shape[1] // self.factor) * self.factor,
         )
 
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles."""
+        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            Input pixels over ``tile**2`` (for ``"blend"``: the number of tiles).
+        """
         if self.stitch == "blend":
             hp, wp = max(shape[0], self.tile), max(shape[1], self.tile)
             stride = self.tile // 2
@@ -343,6 +442,18 @@ class Stitching:
 
         ``forward`` maps a ``(n, 4, h, w)`` float32 batch to ``(n, h, w)`` plume
         probability (``h, w`` multiples of ``factor`` for ``"halo"``, ``tile`` for ``"blend"``).
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` image.
+        forward : callable
+            The network's batch prediction.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W)`` plume probability.
         """
         if self.stitch == "blend":
             return tiled(image, forward, self.tile)
@@ -368,6 +479,16 @@ class _UNetClassifier(Classifier):
         Its initial weights come from a generator seeded with ``self.seed``, not from
         torch's global one, so networks built at once on several threads (a Dask
         worker) do not change each other's weights.
+
+        Parameters
+        ----------
+        width : int
+            Base channel count.
+
+        Returns
+        -------
+        torch.nn.Module
+            The untrained network.
         """
         from dyntarget.perceive.networks import NETWORKS, build
 
@@ -413,6 +534,13 @@ class _UNetClassifier(Classifier):
         self.history: list[float] = []
 
     def get_config(self) -> dict[str, Any]:
+        """Constructor arguments as JSON-able values (stored in the model's metadata).
+
+        Returns
+        -------
+        dict
+            ``seed``, ``epochs``, ``tile``, ``width``, ``batch_size`` and ``learning_rate``.
+        """
         return {
             "seed": self.seed,
             "epochs": self.epochs,
@@ -550,7 +678,13 @@ class _UNetClassifier(Classifier):
         return self
 
     def stitching(self) -> Stitching:
-        """This model's :class:`Stitching` (tile, factor, halo, memory per pixel)."""
+        """This model's :class:`Stitching` (tile, factor, halo, memory per pixel).
+
+        Returns
+        -------
+        Stitching
+            Built from the model's architecture, levels, width, tile and stitching settings.
+        """
         return Stitching.for_architecture(
             self.architecture,
             levels=self.levels,
@@ -561,11 +695,35 @@ class _UNetClassifier(Classifier):
         )
 
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles."""
+        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            :meth:`Stitching.work_units` of ``shape``.
+        """
         return self.stitching().work_units(shape)
 
     def tiled(self, image: np.ndarray, forward) -> np.ndarray:
-        """:meth:`Stitching.run` with this model's settings."""
+        """:meth:`Stitching.run` with this model's settings.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` image.
+        forward : callable
+            The network's batch prediction (see :meth:`Stitching.run`).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W)`` plume probability.
+        """
         return self.stitching().run(image, forward)
 
     def _save_weights(self, directory: Path) -> None:
@@ -594,6 +752,24 @@ class _UNetClassifier(Classifier):
 
 @CLASSIFIERS.register("unet-uavsar")
 class UavsarUNetClassifier(_UNetClassifier):
+    """The compact classic U-Net (see the module docstring), trained with PyTorch.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the initial weights and the training order.
+    epochs : int
+        Training epochs (at least 1).
+    tile : int
+        Training tile size, px (a multiple of ``2**levels``).
+    width : int
+        Channels of the first level (at least 2).
+    batch_size : int
+        Tiles per training batch (at least 1).
+    learning_rate : float
+        Adam's learning rate, in (0, 1).
+    """
+
     name = "unet-uavsar"
     summary = (
         "compact classic U-Net (conv-conv-pool encoder, transpose-conv decoder, skip connections)"
@@ -604,6 +780,24 @@ class UavsarUNetClassifier(_UNetClassifier):
 
 @CLASSIFIERS.register("unet-xception")
 class XceptionUNetClassifier(_UNetClassifier):
+    """The Xception-style U-Net (see the module docstring), trained with PyTorch.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the initial weights and the training order.
+    epochs : int
+        Training epochs (at least 1).
+    tile : int
+        Training tile size, px (a multiple of ``2**levels``).
+    width : int
+        Base channel count (at least 2).
+    batch_size : int
+        Tiles per training batch (at least 1).
+    learning_rate : float
+        Adam's learning rate, in (0, 1).
+    """
+
     name = "unet-xception"
     summary = (
         "Xception-style U-Net (separable convs, residual down/up blocks) as in the Keras example"

@@ -404,6 +404,18 @@ def onnx_signature(kind: str, tile: int | None = None) -> dict[str, list]:
     Each entry is ``(name, element type, shape)`` with ``None`` for a dynamic
     dimension. ``kind`` is ``"unet"`` (needs ``tile``) or ``"pixel"``.
 
+    Parameters
+    ----------
+    kind : {"unet", "pixel"}
+        The model family.
+    tile : int or None
+        The U-Net's tile side, px.
+
+    Returns
+    -------
+    dict of str to list
+        ``(name, element type, shape)`` entries under ``"inputs"`` and ``"outputs"``.
+
     Examples
     --------
     >>> onnx_signature("unet", 32)["inputs"]

@@ -8,7 +8,21 @@ from shapely.geometry import Polygon
 
 
 def resample_ring(polygon: Polygon, spacing: float = 1.0) -> np.ndarray:
-    """Points evenly spaced (about ``spacing`` px) along the exterior ring."""
+    """Points evenly spaced (about ``spacing`` px) along the exterior ring.
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The polygon whose exterior ring is sampled.
+    spacing : float
+        Wanted distance between points, pixels (at least 4 points are returned).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 2)`` points ``(x, y)`` along the ring from its first vertex, the last
+        one short of closing the ring.
+    """
     ring = polygon.exterior
     n = max(int(np.ceil(ring.length / spacing)), 4)
     return interpolate_ring(np.asarray(ring.coords), np.linspace(0, ring.length, n, endpoint=False))
@@ -20,6 +34,18 @@ def interpolate_ring(coords: np.ndarray, s: np.ndarray) -> np.ndarray:
     The same linear interpolation as shapely's ``line_interpolate_point``, done
     for all points at once with ``np.interp`` (shapely walks the ring once per
     point, which is slow for long rings).
+
+    Parameters
+    ----------
+    coords : numpy.ndarray
+        ``(n, 2)`` coordinates of the closed ring (first point repeated at the end).
+    s : numpy.ndarray
+        Arc lengths along the ring from its first point, same units as ``coords``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(len(s), 2)`` points ``(x, y)``.
     """
     cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(coords, axis=0).T))])
     return np.column_stack([np.interp(s, cum, coords[:, 0]), np.interp(s, cum, coords[:, 1])])
@@ -31,6 +57,18 @@ def major_axis(polygon: Polygon) -> tuple[np.ndarray, np.ndarray]:
     Returns ``(centre, direction)``: the mean of the contour points (resampled
     evenly so vertex density does not bias the fit) and the unit principal
     direction, oriented so its larger component is positive (deterministic).
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The polygon, in pixel coordinates.
+
+    Returns
+    -------
+    centre : numpy.ndarray
+        ``(x, y)`` mean of the resampled contour points.
+    direction : numpy.ndarray
+        Unit ``(dx, dy)`` principal direction (``(1, 0)`` when no axis is preferred).
     """
     pts = resample_ring(polygon, spacing=max(polygon.exterior.length / 400.0, 0.5))
     centre = pts.mean(axis=0)
@@ -53,6 +91,21 @@ def chords(polygon: Polygon, origins: np.ndarray, direction: np.ndarray) -> np.n
     crossed whole), NaN where a line misses it. Both extremes lie on the
     exterior ring, so only its segments are intersected, all lines at once
     (vectorised: one matrix of line x segment crossings).
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The polygon to cross (only its exterior ring is used).
+    origins : numpy.ndarray
+        ``(k, 2)`` points ``(x, y)``, one per line (a single ``(2,)`` point is one line).
+    direction : numpy.ndarray
+        ``(dx, dy)`` direction shared by all lines.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(k, 2)`` float array of ``(t_min, t_max)`` in units of ``direction``; both NaN
+        for a line that misses the polygon.
     """
     ring = np.asarray(polygon.exterior.coords, dtype=np.float64)
     a, e = ring[:-1], np.diff(ring, axis=0)  # segments a + u e, u in [0, 1]
@@ -75,7 +128,23 @@ def chords(polygon: Polygon, origins: np.ndarray, direction: np.ndarray) -> np.n
 def chord(
     polygon: Polygon, origin: np.ndarray, direction: np.ndarray
 ) -> tuple[float, float] | None:
-    """:func:`chords` for one line: ``(t_min, t_max)``, or ``None`` when the line misses the polygon."""
+    """:func:`chords` for one line: ``(t_min, t_max)``, or ``None`` when the line misses the polygon.
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The polygon to cross.
+    origin : numpy.ndarray
+        ``(x, y)`` point of the line.
+    direction : numpy.ndarray
+        ``(dx, dy)`` direction of the line.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(t_min, t_max)``, the line parameters of the first entry and last exit, in
+        units of ``direction``; ``None`` when the line misses the polygon.
+    """
     t0, t1 = chords(polygon, np.asarray(origin)[None], direction)[0]
     return None if np.isnan(t0) else (float(t0), float(t1))
 
@@ -98,6 +167,19 @@ def centerline(polygon: Polygon, spacing: float) -> np.ndarray:
     that bend by more than 90 degrees from their axis are followed only as far
     as the perpendicular chords can see. Returns ``(n, 2)`` vertices (empty if
     the polygon is degenerate).
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The plume polygon, in WFOV pixel coordinates.
+    spacing : float
+        Distance between stations along the major axis, pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 2)`` float vertices ``(x, y)`` of the centreline, from one tip to the
+        other; ``(0, 2)`` when no chord meets the polygon.
     """
     centre, u = major_axis(polygon)
     n = np.array([-u[1], u[0]])
@@ -140,6 +222,18 @@ def sample_polyline(vertices: np.ndarray, step: float) -> np.ndarray:
 
     The last vertex is added when the remaining stretch is longer than half a
     step, so paths end near their end point. A single vertex gives itself.
+
+    Parameters
+    ----------
+    vertices : numpy.ndarray
+        ``(n, 2)`` vertices ``(x, y)`` of the polyline, in pixels.
+    step : float
+        Arc length between samples, pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(m, 2)`` float points ``(x, y)``; empty for no vertices.
     """
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
     if len(vertices) == 0:
@@ -158,7 +252,22 @@ def sample_polyline(vertices: np.ndarray, step: float) -> np.ndarray:
 
 
 def sample_ring(polygon: Polygon, step: float, start: np.ndarray) -> np.ndarray:
-    """Points every ``step`` px along the exterior ring, starting at the ring point nearest ``start``."""
+    """Points every ``step`` px along the exterior ring, starting at the ring point nearest ``start``.
+
+    Parameters
+    ----------
+    polygon : shapely.Polygon
+        The polygon whose exterior ring is sampled.
+    step : float
+        Arc length between samples, pixels.
+    start : numpy.ndarray
+        ``(x, y)`` point; sampling starts at the ring point nearest it.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 2)`` points ``(x, y)`` going once round the ring (at least one point).
+    """
     ring = polygon.exterior
     length = ring.length
     s0 = ring.project(shapely.Point(start))

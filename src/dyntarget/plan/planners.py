@@ -75,10 +75,16 @@ MIN_STEP = 0.1
 class PlanConfig:
     """Planner settings (all lengths in WFOV pixels).
 
-    step : pixels between consecutive pointings (default ``step_fraction * W``, at least 1 px).
-    step_fraction : step as a fraction of the image width (paper: 1 %).
-    width : spacing of cross-transects (default ``2 * step``).
-    naive_fraction : side of the naive-transect square, as a fraction of min(H, W).
+    Parameters
+    ----------
+    step : float or None
+        Pixels between consecutive pointings (default ``step_fraction * W``, at least 1 px).
+    step_fraction : float
+        Step as a fraction of the image width (paper: 1 %).
+    width : float or None
+        Spacing of cross-transects (default ``2 * step``).
+    naive_fraction : float
+        Side of the naive-transect square, as a fraction of min(H, W).
     """
 
     step: float | None = None
@@ -103,12 +109,38 @@ class PlanConfig:
             )
 
     def resolved(self, shape: tuple[int, int]) -> tuple[float, float]:
-        """``(step, width)`` in pixels for an image of ``shape`` (H, W)."""
+        """``(step, width)`` in pixels for an image of ``shape`` (H, W).
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        step : float
+            Pixels between consecutive pointings.
+        width : float
+            Spacing of cross-transects, pixels.
+        """
         step = self.step if self.step is not None else max(self.step_fraction * shape[1], 1.0)
         width = self.width if self.width is not None else WIDTH_STEPS * step
         return float(step), float(width)
 
     def as_dict(self, shape: tuple[int, int]) -> dict[str, float]:
+        """The settings as a plain dict, with ``step`` and ``width`` resolved for ``shape``.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        dict of str to float
+            ``step``, ``step_fraction``, ``width`` and ``naive_fraction`` (as recorded in a
+            trajectory's ``params``).
+        """
         step, width = self.resolved(shape)
         return {**asdict(self), "step": step, "width": width}
 
@@ -162,7 +194,18 @@ class PlanContext:
 
 
 def start_point(shape: tuple[int, int]) -> np.ndarray:
-    """Where the NFOV sensor starts: bottom centre (the first ground the spacecraft reaches)."""
+    """Where the NFOV sensor starts: bottom centre (the first ground the spacecraft reaches).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The image's ``(H, W)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(x, y) = ((W - 1) / 2, H - 1)``, in pixels.
+    """
     h, w = shape
     return np.array([(w - 1) / 2.0, h - 1.0])
 
@@ -302,6 +345,20 @@ def trace_outline(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanCon
     in pieces, with travel between them. A plume whose whole outline is the frame
     (it fills the image) is flown along the frame, so that it is still observed.
 
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (its shape sets the frame).
+    polygons : sequence of shapely.Polygon
+        The plume polygons, in pixel coordinates.
+    config : PlanConfig
+        The step.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings; each off-frame piece of an outline is a part of its own.
+
     Examples
     --------
     >>> m = np.zeros((40, 40), bool); m[0:10, 10:30] = True  # cut by the top edge: 19 px on it
@@ -323,7 +380,22 @@ def trace_outline(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanCon
 
 @PLANNERS.register("track-center")
 def track_center(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
-    """Pointings every ``step`` along each polygon's major axis, from where it enters to where it leaves."""
+    """Pointings every ``step`` along each polygon's major axis, from where it enters to where it leaves.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        The plume polygons, in pixel coordinates.
+    config : PlanConfig
+        The step.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, one ``part`` per polygon.
+    """
     step, _ = config.resolved(mask.shape)
 
     def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
@@ -341,7 +413,22 @@ def track_center(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConf
 def track_centerline(
     mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
 ) -> Trajectory:
-    """Pointings every ``step`` along a smoothed centreline that follows curved plumes."""
+    """Pointings every ``step`` along a smoothed centreline that follows curved plumes.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        The plume polygons, in pixel coordinates.
+    config : PlanConfig
+        The step, and ``width``, the spacing of the centreline's stations.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, one ``part`` per polygon.
+    """
     step, width = config.resolved(mask.shape)
 
     def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
@@ -439,7 +526,22 @@ def _transects(
 def diagonal_transect(
     mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
 ) -> Trajectory:
-    """Zig-zag transects at an angle across each polygon's major axis (see :func:`_transects`)."""
+    """Zig-zag transects at an angle across each polygon's major axis (see :func:`_transects`).
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        The plume polygons, in pixel coordinates.
+    config : PlanConfig
+        Step and transect spacing.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, one ``part`` per polygon.
+    """
     step, width = config.resolved(mask.shape)
 
     def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
@@ -452,7 +554,22 @@ def diagonal_transect(
 def lawnmower_transect(
     mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig
 ) -> Trajectory:
-    """Boustrophedon transects perpendicular to each polygon's major axis."""
+    """Boustrophedon transects perpendicular to each polygon's major axis.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        The plume polygons, in pixel coordinates.
+    config : PlanConfig
+        Step and transect spacing.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, one ``part`` per polygon.
+    """
     step, width = config.resolved(mask.shape)
 
     def path(poly: Polygon, position: np.ndarray) -> np.ndarray:
@@ -463,7 +580,22 @@ def lawnmower_transect(
 
 @PLANNERS.register("straight-nadir")
 def straight_nadir(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanConfig) -> Trajectory:
-    """Baseline: a line along-track through the scene centre, bottom to top, every ``step``."""
+    """Baseline: a line along-track through the scene centre, bottom to top, every ``step``.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        Ignored (the baseline does not look at the plume).
+    config : PlanConfig
+        The step.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, all in part 0.
+    """
     step, _ = config.resolved(mask.shape)
     h, w = mask.shape
     x = (w - 1) / 2.0
@@ -480,6 +612,20 @@ def naive_transect(mask: np.ndarray, polygons: Sequence[Polygon], config: PlanCo
     The square is centred on the scene, of side ``naive_fraction * min(H, W)``
     (default 30 %); transects run across-track (along x), spaced by ``width``,
     alternating direction, from the bottom of the square to its top.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask (only its shape is used).
+    polygons : sequence of shapely.Polygon
+        Ignored (the baseline does not look at the plume).
+    config : PlanConfig
+        Step, transect spacing and ``naive_fraction``.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The untimed pointings, all in part 0.
     """
     step, width = config.resolved(mask.shape)
     h, w = mask.shape
@@ -509,6 +655,24 @@ def plan(
     ``polygons`` default to the mask's polygons (:func:`mask_to_polygons`);
     pass the denoised polygons from :func:`dyntarget.denoise.denoise`
     to plan as the paper does.
+
+    Parameters
+    ----------
+    name : str
+        A registered planner (``dyntarget planners`` lists them).
+    mask : numpy.ndarray
+        ``(H, W)`` boolean plume mask in WFOV pixels.
+    polygons : sequence of shapely.Polygon or None
+        The plume polygons to plan over (default: the mask's).
+    config : PlanConfig or None
+        Planner settings (default ``PlanConfig()``).
+    context : PlanContext or None
+        What planners beyond the mask use (``utility-max``); ignored by the others.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The planned pointings, untimed.
 
     Examples
     --------

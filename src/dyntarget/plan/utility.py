@@ -41,7 +41,27 @@ _MIN_COST_S = 1e-3
 
 
 def predicted_utility(probability: np.ndarray, image: np.ndarray, objective: str) -> np.ndarray:
-    """Expected utility per WFOV pixel, 0..1, from the plume probability and the WFOV image."""
+    """Expected utility per WFOV pixel, 0..1, from the plume probability and the WFOV image.
+
+    Parameters
+    ----------
+    probability : numpy.ndarray
+        ``(H, W)`` plume probability, 0..1.
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image; its band 2 (blue) weighs the intensity.
+    objective : {"gradient", "intensity", "plume"}
+        Which utility map (see the module docstring).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` float32 expected utility.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an unknown ``objective``.
+    """
     if objective not in OBJECTIVES:
         raise InvalidParameterError(
             f"objective: expected one of {', '.join(OBJECTIVES)}, got {objective!r}"
@@ -72,7 +92,33 @@ def utility_max(
     budget_s: float | None = None,
     max_pointings: int | None = None,
 ) -> Trajectory:
-    """Plan greedily for the highest expected utility per second (see the module docstring)."""
+    """Plan greedily for the highest expected utility per second (see the module docstring).
+
+    Parameters
+    ----------
+    probability : numpy.ndarray
+        ``(H, W)`` plume probability, 0..1.
+    image : numpy.ndarray
+        ``(4, H, W)`` WFOV image.
+    geometry : dyntarget.schedule.OrbitGeometry
+        Where the scene lies and when the plan starts.
+    agility : dyntarget.schedule.Agility or str
+        The sensor's kinematics, or an agility preset name.
+    step : float
+        Spacing of the candidate grid, pixels (at least 1).
+    objective : {"gradient", "intensity", "plume"}
+        What to maximise (see the module docstring).
+    budget_s : float or None
+        Time budget after ``geometry.start_s``, seconds; ``None`` for none.
+    max_pointings : int or None
+        Pointing budget; needed with unlimited agility.
+
+    Returns
+    -------
+    dyntarget.trajectory.Trajectory
+        The chosen pointings in visiting order, all in part 0, untimed (empty when
+        no candidate can be reached).
+    """
     agility = get_agility(agility) if isinstance(agility, str) else agility
     if not (math.isfinite(step) and step >= 1):
         raise InvalidParameterError(f"step: expected a number of pixels >= 1, got {step!r}")

@@ -35,6 +35,21 @@ from dyntarget.predict.motion import Motion
 def check_lead(lead_s: object) -> float:
     """Validate a lead time (seconds after the current look, finite, >= 0).
 
+    Parameters
+    ----------
+    lead_s : object
+        The lead time, anything ``float()`` accepts.
+
+    Returns
+    -------
+    float
+        The lead time, seconds.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When it is not a finite number >= 0.
+
     Examples
     --------
     >>> check_lead(0)
@@ -175,6 +190,16 @@ def front_speed(motion: Motion) -> float:
     """How fast attached plumes' far ends advance, px/s: the fastest measured front, or
     the full speed when none was measured (wind prior).
 
+    Parameters
+    ----------
+    motion : dyntarget.predict.Motion
+        The motion estimate.
+
+    Returns
+    -------
+    float
+        Front speed, pixels per second.
+
     Examples
     --------
     >>> front_speed(Motion((3.0, 4.0), regime="attached"))
@@ -190,6 +215,18 @@ def attached_region(mask: np.ndarray, motion: Motion) -> np.ndarray:
 
     ``attached``: every plume; ``mixed``: the 8-connected plumes within
     :data:`VENT_RADIUS` px of a vent of ``motion.attached``; otherwise none.
+
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        ``(H, W)`` plume mask.
+    motion : dyntarget.predict.Motion
+        Its regime and, for ``mixed``, the vents of the attached plumes.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean ``(H, W)``.
 
     Examples
     --------
@@ -222,6 +259,25 @@ def predict_mask(mask: np.ndarray, motion: Motion, lead_s: float) -> np.ndarray:
     The mask is advected as a 0/1 field (:func:`predict_field`) and thresholded
     at 0.5, so sub-pixel displacements move edges by the nearest pixel.
 
+    Parameters
+    ----------
+    mask : numpy.ndarray
+        Non-empty ``(H, W)`` boolean or integer (non-zero = plume) mask.
+    motion : dyntarget.predict.Motion
+        How the plume moves.
+    lead_s : float
+        Seconds after the current look.
+
+    Returns
+    -------
+    numpy.ndarray
+        Boolean ``(H, W)`` predicted mask.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidSceneError
+        For a mask of the wrong shape or dtype.
+
     Examples
     --------
     >>> m = np.zeros((5, 5), bool); m[2, 0] = True
@@ -247,6 +303,13 @@ class Prediction:
     the NFOV will be there). With agility, the pipeline moves each pointing on
     to its own scheduled time (:func:`dyntarget.pipeline.schedule_on_prediction`).
 
+    Parameters
+    ----------
+    motion : dyntarget.predict.Motion
+        How the plume moves.
+    lead_s : float
+        When the plan is drawn for, seconds after the current look-ahead acquisition.
+
     Examples
     --------
     >>> p = Prediction(Motion((1.0, 0.0)), 2)
@@ -266,17 +329,49 @@ class Prediction:
         object.__setattr__(self, "lead_s", check_lead(self.lead_s))
 
     def mask(self, mask: np.ndarray) -> np.ndarray:
-        """The mask at ``lead_s`` (:func:`predict_mask`)."""
+        """The mask at ``lead_s`` (:func:`predict_mask`).
+
+        Parameters
+        ----------
+        mask : numpy.ndarray
+            ``(H, W)`` boolean or integer plume mask of the current look.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(H, W)`` predicted mask.
+        """
         return predict_mask(mask, self.motion, self.lead_s)
 
     def field(self, field: np.ndarray) -> np.ndarray:
-        """A probability field at ``lead_s`` (:func:`predict_field`)."""
+        """A probability field at ``lead_s`` (:func:`predict_field`).
+
+        Parameters
+        ----------
+        field : numpy.ndarray
+            ``(H, W)`` field of the current look, e.g. the plume probability.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(H, W)`` float32 advected field.
+        """
         return predict_field(field, self.motion, self.lead_s)
 
     def attached_mask(self, mask: np.ndarray) -> np.ndarray:
         """Where the attached plumes of the current ``mask`` will be at ``lead_s`` (bool).
 
         For :meth:`pointing_shift`: pointings there are not moved.
+
+        Parameters
+        ----------
+        mask : numpy.ndarray
+            ``(H, W)`` plume mask of the current look.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(H, W)``; all false when no plume is attached.
         """
         m = np.asarray(mask, bool)
         region = attached_region(m, self.motion)
@@ -297,6 +392,20 @@ class Prediction:
         ``lead_s`` stays inside a continuous plume seconds later: no shift. With ``mixed`` plumes, the
         pointings at ``points`` inside ``attached`` (:meth:`attached_mask`) stay,
         the others move; without them, none moves.
+
+        Parameters
+        ----------
+        dt_s : numpy.ndarray
+            ``(n,)`` seconds after ``lead_s`` each pointing is observed.
+        points : numpy.ndarray or None
+            ``(n, 2)`` pointings ``(x, y)``, needed for ``mixed`` plumes.
+        attached : numpy.ndarray or None
+            Boolean ``(H, W)`` from :meth:`attached_mask`, needed for ``mixed`` plumes.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, 2)`` shifts ``(dx, dy)``, pixels.
         """
         dt = np.asarray(dt_s, np.float64).reshape(-1)
         shift = np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)

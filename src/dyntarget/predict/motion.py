@@ -71,23 +71,34 @@ ATTACHED_UPWIND = 0.5
 class Motion:
     """How the plume moves, in pixels of the current frame's grid.
 
-    Attributes
+    Parameters
     ----------
-    velocity : (vx, vy) in pixels per second, x = column (east in a north-up
+    velocity : tuple of float
+        ``(vx, vy)`` in pixels per second, x = column (east in a north-up
         image), y = row (south in a north-up image); relative to the ground.
-    regime : ``"calm"``, ``"detached"`` (moves as a whole), ``"attached"``
-        (vent end fixed, the plume stretches downwind) or ``"mixed"`` (both kinds
-        of plume in the scene: see ``attached``).
-    confidence : 0 (no information) to 1; see :data:`LOW_CONFIDENCE`.
-    source : ``"two-looks"`` or ``"wind-prior"``.
-    method : how the velocity was obtained (e.g. ``"DIS flow"``).
-    vent : (x, y) of the attached plume's upwind end in the current frame, else ``None``.
-    ground_shift : (dx, dy) pixels the ground moved between the looks (misregistration).
-    upwind_shift, downwind_shift : displacement (px) of the masks' upwind and
-        downwind edges along the flow direction between the looks (two looks only).
-    interval_s : seconds between the looks (two looks only).
-    notes : anything the estimate wants the user to know.
-    attached : ``(vent x, vent y, front speed px/s)`` per attached plume seen by two
+    regime : {"calm", "detached", "attached", "mixed"}
+        ``"detached"`` moves as a whole, ``"attached"`` has its vent end fixed
+        and stretches downwind, ``"mixed"`` has both kinds of plume in the scene
+        (see ``attached``).
+    confidence : float
+        0 (no information) to 1; see :data:`LOW_CONFIDENCE`.
+    source : str
+        ``"two-looks"`` or ``"wind-prior"``.
+    method : str
+        How the velocity was obtained (e.g. ``"DIS flow"``).
+    vent : tuple of float or None
+        ``(x, y)`` of the attached plume's upwind end in the current frame, else ``None``.
+    ground_shift : tuple of float
+        ``(dx, dy)`` pixels the ground moved between the looks (misregistration).
+    upwind_shift, downwind_shift : float or None
+        Displacement (px) of the masks' upwind and downwind edges along the flow
+        direction between the looks (two looks only).
+    interval_s : float or None
+        Seconds between the looks (two looks only).
+    notes : tuple of str
+        Anything the estimate wants the user to know.
+    attached : tuple of tuple of float
+        ``(vent x, vent y, front speed px/s)`` per attached plume seen by two
         looks; plumes of the mask near none of these vents move as a whole. Empty
         for a wind prior (then ``regime`` applies to every plume and an attached
         plume's front advances at the full speed).
@@ -131,13 +142,30 @@ class Motion:
         return self.confidence >= LOW_CONFIDENCE
 
     def displacement(self, dt_s: float) -> tuple[float, float]:
-        """Pixels the plume material moves in ``dt_s`` seconds (0 in calm air)."""
+        """Pixels the plume material moves in ``dt_s`` seconds (0 in calm air).
+
+        Parameters
+        ----------
+        dt_s : float
+            Seconds.
+
+        Returns
+        -------
+        tuple of float
+            ``(dx, dy)``, pixels.
+        """
         if self.regime == "calm":
             return 0.0, 0.0
         return self.velocity[0] * dt_s, self.velocity[1] * dt_s
 
     def summary(self) -> str:
-        """One line for logs: regime, velocity, confidence, method."""
+        """One line for logs: regime, velocity, confidence, method.
+
+        Returns
+        -------
+        str
+            The line.
+        """
         vx, vy = self.velocity
         s = (
             f"{self.regime} plume, velocity ({vx:+.3f}, {vy:+.3f}) px/s "
@@ -148,7 +176,14 @@ class Motion:
         return s + "".join(f"; {n}" for n in self.notes)
 
     def to_dict(self) -> dict:
-        """A JSON-ready dictionary of the estimate."""
+        """A JSON-ready dictionary of the estimate.
+
+        Returns
+        -------
+        dict
+            Velocity, speed, regime, confidence, reliability, source, method, vent,
+            shifts, interval, notes and attached plumes (lengths in px, times in s).
+        """
         return {
             "velocity_px_s": list(self.velocity),
             "speed_px_s": self.speed,
@@ -198,6 +233,21 @@ def _check_frame(image: object, name: str) -> np.ndarray:
 def check_interval(interval_s: object) -> float:
     """Validate the time between two looks (seconds, finite, > 0).
 
+    Parameters
+    ----------
+    interval_s : object
+        The interval, anything ``float()`` accepts.
+
+    Returns
+    -------
+    float
+        The interval, seconds.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When it is not a finite number > 0.
+
     Examples
     --------
     >>> check_interval(5)
@@ -214,6 +264,16 @@ def check_interval(interval_s: object) -> float:
 
 def brightness(image: np.ndarray) -> np.ndarray:
     """The band used for motion: the mean of R, G, B and NIR, ``float32 (H, W)``.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` image.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (H, W)`` mean over the bands.
 
     Examples
     --------
@@ -233,6 +293,23 @@ FLOWS = {"dis": "DIS", "farneback": "Farneback"}
 
 def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndarray:
     """Dense optical flow from 8-bit image ``a`` to ``b``, ``float32 (H, W, 2)`` in px.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray
+        ``uint8 (H, W)`` images, first and second.
+    flow : {"farneback", "dis"}
+        The OpenCV optical flow method.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (H, W, 2)`` displacement ``(dx, dy)`` per pixel of ``a``, pixels.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an unknown ``flow``.
 
     Examples
     --------
@@ -641,6 +718,24 @@ def wind_motion(
     on it hit plume either way, while an attached prediction of a detached
     cloud points at air it has left.
 
+    Parameters
+    ----------
+    speed_mps : float
+        Wind speed, m/s (0 gives a calm plume).
+    from_deg : float
+        Direction the wind blows *from*, degrees clockwise from north.
+    transform : affine.Affine or None
+        The image's pixel -> projected-metres transform.
+    gsd_m : float or None
+        Metres per pixel of a north-up image, used when ``transform`` is absent.
+    regime : {"detached", "attached", "mixed", "calm"}
+        The regime to assume.
+
+    Returns
+    -------
+    Motion
+        The velocity in pixels per second, from the wind prior.
+
     Examples
     --------
     >>> wind_motion(0.0, 90.0, gsd_m=10.0).regime
@@ -667,6 +762,21 @@ def check_against_prior(estimate: Motion, prior: Motion, *, tolerance: float = 0
     differs from the prior's by more than ``tolerance`` times the prior's speed.
     An unreliable estimate is replaced by the prior (with its regime if the
     looks could tell one), and the note says so.
+
+    Parameters
+    ----------
+    estimate : Motion
+        The two-look estimate.
+    prior : Motion
+        The wind prior.
+    tolerance : float
+        Largest velocity difference, as a fraction of the prior's speed, that
+        counts as agreement.
+
+    Returns
+    -------
+    Motion
+        The estimate with a note, or the prior when the estimate is unreliable.
 
     Examples
     --------

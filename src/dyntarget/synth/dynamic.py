@@ -82,6 +82,13 @@ Window = tuple[int, int, int, int]
 class Wind:
     """Wind: speed in m/s and the direction it blows *from*, degrees clockwise from north.
 
+    Parameters
+    ----------
+    speed_mps : float
+        Wind speed, m/s.
+    from_deg : float
+        Direction the wind blows from, degrees clockwise from north.
+
     Examples
     --------
     >>> Wind(10.0, 0.0).velocity_px(8.0)  # from the north: moves south, down the image
@@ -100,7 +107,18 @@ class Wind:
             )
 
     def velocity_px(self, gsd: float) -> tuple[float, float]:
-        """``(dx/dt, dy/dt)`` in pixels per second on a north-up grid of ``gsd`` m."""
+        """``(dx/dt, dy/dt)`` in pixels per second on a north-up grid of ``gsd`` m.
+
+        Parameters
+        ----------
+        gsd : float
+            Ground sample distance, metres per pixel.
+
+        Returns
+        -------
+        tuple of float
+            ``(vx, vy)``, x = column (east), y = row (south).
+        """
         rad = math.radians(self.from_deg)
         east = -self.speed_mps * math.sin(rad)
         north = -self.speed_mps * math.cos(rad)
@@ -111,16 +129,35 @@ class Wind:
 class VentSpec:
     """A vent emitting an attached plume (positions in world pixels, times in s).
 
-    ``emission_optical_depth``: centreline optical depth near the vent;
-    ``source_sigma_m``: puff radius at release; ``eruption_age_s``: how long the
-    vent has emitted at ``t = 0``; ``fade_s``: e-folding time of a puff's
-    optical depth (dilution, fallout); ``diffusivity_m2s``: small-scale
-    diffusion; ``turbulence``: relative dispersion, sigma grows by
-    ``turbulence * wind * age``; ``gustiness``: log-normal sigma of the puff
-    masses; ``meander``: std of each puff's crosswind velocity as a fraction
-    of the wind; ``ash_fraction``/``ash_fade_s``: ash near the vent, steam downwind;
-    ``pulsation``: std of the log emission rate, a smooth random function of the
-    release time with periods around ``pulse_period_s`` (pulsing eruptions).
+    Parameters
+    ----------
+    x, y : float
+        Vent position, world pixels.
+    emission_optical_depth : float
+        Centreline optical depth near the vent.
+    source_sigma_m : float
+        Puff radius at release, metres.
+    eruption_age_s : float
+        How long the vent has emitted at ``t = 0``, seconds.
+    fade_s : float
+        E-folding time of a puff's optical depth (dilution, fallout), seconds.
+    diffusivity_m2s : float
+        Small-scale diffusion, m²/s.
+    turbulence : float
+        Relative dispersion: sigma grows by ``turbulence * wind * age``.
+    gustiness : float
+        Log-normal sigma of the puff masses.
+    meander : float
+        Std of each puff's crosswind velocity as a fraction of the wind.
+    ash_fraction : float
+        Ash share near the vent (steam downwind).
+    ash_fade_s : float
+        E-folding time of the ash share with puff age, seconds.
+    pulsation : float
+        Std of the log emission rate, a smooth random function of the release
+        time (pulsing eruptions; 0: steady).
+    pulse_period_s : float
+        Typical period of the pulsation, seconds.
     """
 
     x: float
@@ -173,9 +210,18 @@ class VentSpec:
 class CloudSpec:
     """A cloud drifting with the wind as a whole; ``volcanic`` clouds are part of the truth.
 
-    ``x``, ``y``: centre at ``t = 0`` (world pixels); ``radius_m``: Gaussian
-    envelope radius; ``optical_depth``: peak optical depth before texture;
-    ``ash_fraction``: colour between steam (0) and ash (1) for volcanic clouds.
+    Parameters
+    ----------
+    x, y : float
+        Centre at ``t = 0``, world pixels.
+    radius_m : float
+        Gaussian envelope radius, metres.
+    optical_depth : float
+        Peak optical depth before texture.
+    volcanic : bool
+        A volcanic ash/steam cloud (part of the truth) rather than a meteorological one.
+    ash_fraction : float
+        Colour between steam (0) and ash (1), for volcanic clouds.
     """
 
     x: float
@@ -196,7 +242,47 @@ class CloudSpec:
 
 @dataclass(frozen=True)
 class WorldSpec:
-    """Everything that fixes one moving world; ``to_json``/``from_json`` round-trip exactly."""
+    """Everything that fixes one moving world; ``to_json``/``from_json`` round-trip exactly.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of every random draw of the rendering (ground, texture, puffs).
+    size : int
+        Side of the world's own tile, pixels (the default window).
+    gsd : float
+        Ground sample distance, metres per pixel.
+    wind : Wind
+        The wind.
+    vents : tuple of VentSpec
+        The vents emitting attached plumes.
+    clouds : tuple of CloudSpec
+        Drifting clouds, volcanic or meteorological.
+    label_optical_depth : float
+        Optical depth above which a pixel is plume in the truth.
+    plume_texture : float
+        Amplitude of the plume's multiplicative texture (0: none).
+    tile : int
+        Period of the ground's noise tiles, pixels.
+    water_fraction, lava_fraction, vegetation_fraction : float
+        Land-cover shares, as in :class:`~dyntarget.synth.volcano.SceneParams`.
+    sun_azimuth_deg, sun_elevation_deg : float
+        Sun position for the hillshade, degrees.
+    haze : float
+        Strength of the haze (blend weight of the haze colour).
+    noise_sigma : float
+        Std of the Gaussian sensor noise, reflectance units.
+    origin_easting, origin_northing : float
+        CRS coordinates of the world grid's top-left corner, metres.
+    crs : str
+        The CRS (default UTM zone 5N, near Kilauea).
+    epoch : str
+        ISO-8601 UTC time of ``t = 0``.
+    id : str
+        World id, the prefix of its scenes' ids.
+    version : int
+        Version of the JSON layout (:data:`SPEC_VERSION`).
+    """
 
     seed: int
     size: int
@@ -252,15 +338,44 @@ class WorldSpec:
         object.__setattr__(self, "clouds", tuple(self.clouds))
 
     def to_dict(self) -> dict[str, Any]:
+        """The spec as nested plain dicts and lists (``dataclasses.asdict``).
+
+        Returns
+        -------
+        dict
+            JSON-ready; :meth:`from_dict` reads it back.
+        """
         return asdict(self)
 
     def to_json(self) -> str:
-        """Canonical JSON (sorted keys); floats round-trip exactly."""
+        """Canonical JSON (sorted keys); floats round-trip exactly.
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         return json.dumps(self.to_dict(), sort_keys=True)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> WorldSpec:
-        """Rebuild a spec from :meth:`to_dict` output; unknown keys are refused."""
+        """Rebuild a spec from :meth:`to_dict` output; unknown keys are refused.
+
+        Parameters
+        ----------
+        d : dict
+            A spec as :meth:`to_dict` writes it.
+
+        Returns
+        -------
+        WorldSpec
+            The spec.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For something else than a dict, unknown fields or a malformed spec.
+        """
         if not isinstance(d, dict):
             raise InvalidParameterError(
                 f"world spec: expected a JSON object, got {type(d).__name__}"
@@ -280,6 +395,23 @@ class WorldSpec:
 
     @classmethod
     def from_json(cls, text: str) -> WorldSpec:
+        """Rebuild a spec from :meth:`to_json` output.
+
+        Parameters
+        ----------
+        text : str
+            The JSON text.
+
+        Returns
+        -------
+        WorldSpec
+            The spec.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For text that is not JSON or not a spec (:meth:`from_dict`).
+        """
         try:
             d = json.loads(text)
         except ValueError as exc:
@@ -301,6 +433,26 @@ def sample_world(
     Wind speed is drawn uniformly in 0..16 m/s (so every wind bin from calm to
     gale is covered evenly) and its direction uniformly, unless given.
     World ``i`` depends only on ``(seed, i)`` and the arguments.
+
+    Parameters
+    ----------
+    seed : int
+        The set's seed.
+    index : int
+        The world's index in the set.
+    size : int
+        Side of the world's tile, pixels (at least 16).
+    gsd : float
+        Ground sample distance, metres per pixel.
+    wind_mps : float or None
+        Wind speed, m/s (default: drawn).
+    wind_from_deg : float or None
+        Wind direction, degrees from north (default: drawn).
+
+    Returns
+    -------
+    WorldSpec
+        The world's spec.
 
     Examples
     --------
@@ -396,7 +548,21 @@ def sample_world(
 
 @dataclass(frozen=True, eq=False)
 class WorldFrame:
-    """One rendering: ``image`` (4, H, W) float32, truth ``mask`` bool, plume optical depth ``tau``."""
+    """One rendering: ``image`` (4, H, W) float32, truth ``mask`` bool, plume optical depth ``tau``.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` float32 reflectance.
+    mask : numpy.ndarray
+        Boolean ``(H, W)`` truth.
+    tau : numpy.ndarray
+        ``(H, W)`` optical depth of attached plumes and volcanic clouds.
+    t : float
+        Time rendered, seconds after the look-ahead acquisition.
+    window : tuple of int
+        ``(col0, row0, width, height)`` rendered.
+    """
 
     image: np.ndarray
     mask: np.ndarray
@@ -406,7 +572,25 @@ class WorldFrame:
 
 
 def check_window(window: object, size: int) -> Window:
-    """Validate ``(col0, row0, width, height)``; ``None`` is the world's own tile ``(0, 0, size, size)``."""
+    """Validate ``(col0, row0, width, height)``; ``None`` is the world's own tile ``(0, 0, size, size)``.
+
+    Parameters
+    ----------
+    window : object
+        ``None`` or four integers.
+    size : int
+        The world's tile size, pixels.
+
+    Returns
+    -------
+    tuple of int
+        ``(col0, row0, width, height)``.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For anything else, or a width or height below 1.
+    """
     if window is None:
         return (0, 0, size, size)
     try:
@@ -587,7 +771,18 @@ class World:
         return 0.5 * np.cos(2.0 * math.pi * np.outer(release, freq) + phase).sum(axis=1)
 
     def puff_step_s(self, vent: VentSpec) -> float:
-        """Time between puff releases: spacing ``wind * step`` at most 0.4 source sigma."""
+        """Time between puff releases: spacing ``wind * step`` at most 0.4 source sigma.
+
+        Parameters
+        ----------
+        vent : VentSpec
+            The vent.
+
+        Returns
+        -------
+        float
+            Seconds between releases, clipped to 0.5..20 s.
+        """
         return float(
             np.clip(0.4 * vent.source_sigma_m / max(self.spec.wind.speed_mps, 1e-6), 0.5, 20.0)
         )
@@ -715,6 +910,20 @@ class World:
 
         ``tau`` is the optical depth of attached plumes and volcanic clouds; the
         mask is ``tau > label_optical_depth``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds after the look-ahead acquisition.
+        window : tuple of int or None
+            ``(col0, row0, width, height)`` (``None``: the world's tile).
+
+        Returns
+        -------
+        mask : numpy.ndarray
+            Boolean ``(height, width)`` truth.
+        tau : numpy.ndarray
+            ``(height, width)`` optical depth of attached plumes and volcanic clouds.
         """
         t = _check_time(t)
         window = check_window(window, self.spec.size)
@@ -783,7 +992,18 @@ class World:
         return WorldFrame(image, ptau > s.label_optical_depth, ptau.astype(np.float32), t, window)
 
     def transform(self, window: Window | None = None) -> Affine:
-        """Pixel -> CRS transform of ``window`` (north up, ``gsd`` m pixels)."""
+        """Pixel -> CRS transform of ``window`` (north up, ``gsd`` m pixels).
+
+        Parameters
+        ----------
+        window : tuple of int or None
+            ``(col0, row0, width, height)`` (``None``: the world's tile).
+
+        Returns
+        -------
+        affine.Affine
+            The window's geotransform in the spec's CRS.
+        """
         c0, r0, _, _ = check_window(window, self.spec.size)
         s = self.spec
         return Affine.translation(
@@ -792,6 +1012,20 @@ class World:
 
     def scene(self, t: float, window: Window | None = None, *, id: str | None = None) -> Scene:
         """The rendering at ``t`` as a labelled, georeferenced :class:`~dyntarget.scene.Scene`.
+
+        Parameters
+        ----------
+        t : float
+            Seconds after the look-ahead acquisition.
+        window : tuple of int or None
+            ``(col0, row0, width, height)`` (``None``: the world's tile).
+        id : str or None
+            Scene id (default: the spec's id and the time).
+
+        Returns
+        -------
+        dyntarget.scene.Scene
+            The 4-band image with its truth label, GSD, CRS and transform.
 
         Examples
         --------
@@ -815,6 +1049,17 @@ class TruthCache:
 
     ``step_s`` rounds the requested times to a grid (0: exact times), so that
     pointings a few milliseconds apart share one rendering.
+
+    Parameters
+    ----------
+    world : World
+        The world to render.
+    step_s : float
+        Grid the requested times are rounded to, seconds (0: exact times).
+    window : tuple of int or None
+        ``(col0, row0, width, height)`` to render (``None``: the world's tile).
+    capacity : int
+        Most renderings kept (least recently used dropped first).
 
     Examples
     --------
@@ -897,6 +1142,19 @@ def world_sequence(
 def truth_provider(meta: dict[str, Any], *, step_s: float = 1.0) -> TruthCache | None:
     """Rebuild the truth provider of a sequence from its stored ``meta`` (``None`` without a world).
 
+    Parameters
+    ----------
+    meta : dict
+        The sequence's metadata, with the world spec under ``"world"`` and the
+        window under ``"window"``.
+    step_s : float
+        Time grid of the cache, seconds (see :class:`TruthCache`).
+
+    Returns
+    -------
+    TruthCache or None
+        The provider, or ``None`` when ``meta`` holds no world.
+
     Examples
     --------
     >>> seq = world_sequence(World(sample_world(0, 0, size=32)), frames=1, interval_s=1.0)
@@ -926,6 +1184,30 @@ def generate_sequences(
     wind_from_deg: float | None = None,
 ) -> Iterator[FrameSequence]:
     """Yield sequences ``0 .. n-1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
+
+    Parameters
+    ----------
+    n : int
+        Number of sequences (at least 1).
+    size : int
+        Side of each world, pixels.
+    seed : int
+        The set's seed.
+    gsd : float
+        Ground sample distance, metres per pixel.
+    frames : int
+        Frames per sequence.
+    interval_s : float
+        Seconds between frames.
+    wind_mps : float or None
+        Wind speed for every world, m/s (default: drawn per world).
+    wind_from_deg : float or None
+        Wind direction for every world, degrees from north (default: drawn).
+
+    Yields
+    ------
+    dyntarget.sequence.FrameSequence
+        Sequence ``i`` of world ``i``, with its truth provider.
 
     Examples
     --------
@@ -957,6 +1239,30 @@ def sample_strip(
     ``width`` columns); vents are spread along it, one per ``length / plumes``
     rows, each with its own draws as in :func:`sample_world`. Render the whole
     strip with ``World(spec).render(t, window)`` or any sub-window of it.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the strip's draws.
+    length : int
+        Rows of the strip (at least ``width``).
+    width : int
+        Columns of the strip.
+    plumes : int
+        Number of vents (at least 1).
+    gsd : float
+        Ground sample distance, metres per pixel.
+    wind_mps : float or None
+        Wind speed, m/s (default: drawn).
+    wind_from_deg : float or None
+        Wind direction, degrees from north (default: drawn).
+
+    Returns
+    -------
+    spec : WorldSpec
+        The world.
+    window : tuple of int
+        ``(0, 0, width, length)``, the strip on the world grid.
 
     Examples
     --------

@@ -19,6 +19,24 @@ def fractal_noise(
     terrain. ``stretch > 1`` elongates features along direction ``angle``
     (radians, image x axis), as for cirrus streaks. Deterministic in ``rng``.
 
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the random phases and amplitudes.
+    shape : tuple of int
+        ``(H, W)`` of the field.
+    beta : float
+        Spectral slope.
+    stretch : float
+        Elongation of the features (1: isotropic).
+    angle : float
+        Direction of the elongation, radians from the image x axis.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (H, W)`` field.
+
     Examples
     --------
     >>> f = fractal_noise(np.random.default_rng(0), (64, 64))

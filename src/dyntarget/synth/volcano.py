@@ -55,7 +55,55 @@ ORIGIN_EASTING, ORIGIN_NORTHING = 240_000.0, 2_160_000.0
 
 @dataclass(frozen=True)
 class SceneParams:
-    """Parameters of one synthetic scene (lengths in pixels, angles in radians)."""
+    """Parameters of one synthetic scene (lengths in pixels, angles in radians).
+
+    Parameters
+    ----------
+    size : int
+        Side of the square scene, pixels.
+    gsd : float
+        Ground sample distance, metres per pixel.
+    water_fraction : float
+        Share of the scene that is water (the lowest terrain).
+    lava_fraction : float
+        Share of the land that is lava (basalt or ash field).
+    vegetation_fraction : float
+        Share of the remaining land that is vegetated (the rest is bare soil).
+    sun_azimuth, sun_elevation : float
+        Sun position for the hillshade, radians.
+    vent_x, vent_y : float
+        Vent position, pixels.
+    wind_direction : float
+        Direction the plume leaves the vent, radians from the image x axis.
+    wind_speed : float
+        Wind speed, m/s (sets the plume's length and spread).
+    curvature : float
+        Curvature of the centreline, 1/pixels (0: straight; the sign turns it).
+    source_width : float
+        Plume sigma at the vent, pixels.
+    spread : float
+        Growth of the sigma per pixel downwind.
+    decay_length : float
+        E-folding distance of the optical depth along the plume, pixels.
+    optical_depth : float
+        Plume optical depth at the source.
+    ash_fraction : float
+        Share of ash (against steam) at the vent.
+    label_optical_depth : float
+        Optical depth above which a pixel is labelled plume.
+    cloud_cover : float
+        Share of the scene under cumulus (0: none).
+    cloud_optical_depth : float
+        Scale of the cumulus optical depth.
+    cirrus_optical_depth : float
+        Peak cirrus optical depth (0: none).
+    cloud_shadow_dx, cloud_shadow_dy : float
+        Offset of the cloud shadows, pixels.
+    haze : float
+        Strength of the haze (blend weight of the haze colour).
+    noise_sigma : float
+        Std of the Gaussian sensor noise, reflectance units.
+    """
 
     size: int
     gsd: float
@@ -84,11 +132,33 @@ class SceneParams:
     noise_sigma: float
 
     def to_json(self) -> str:
+        """Canonical JSON of the parameters (sorted keys).
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         return json.dumps(asdict(self), sort_keys=True)
 
 
 def sample_params(rng: np.random.Generator, *, size: int, gsd: float) -> SceneParams:
-    """Draw one scene's parameters from the documented ranges."""
+    """Draw one scene's parameters from the documented ranges.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    size : int
+        Side of the scene, pixels.
+    gsd : float
+        Ground sample distance, metres per pixel.
+
+    Returns
+    -------
+    SceneParams
+        The parameters.
+    """
     u = rng.uniform
     wind_speed = u(2.0, 15.0)  # m/s, near-surface to low-troposphere winds
     curved = u() < 0.35
@@ -147,6 +217,20 @@ def plume_coordinates(
     Straight plume: projections on the wind direction and its normal. Curved
     plume: the centreline is a circular arc of curvature ``p.curvature`` that
     leaves the vent along the wind; ``s`` is arc length, ``d`` radial offset.
+
+    Parameters
+    ----------
+    p : SceneParams
+        The vent, wind direction and curvature.
+    xx, yy : numpy.ndarray
+        Pixel column and row coordinates.
+
+    Returns
+    -------
+    s : numpy.ndarray
+        Distance along the plume from the vent, pixels (negative upwind).
+    d : numpy.ndarray
+        Signed distance across the centreline, pixels.
     """
     tx, ty = np.cos(p.wind_direction), np.sin(p.wind_direction)
     nx, ny = -ty, tx
@@ -165,7 +249,24 @@ def plume_coordinates(
 def render(
     params: SceneParams, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Render a scene; returns ``(image (4,H,W) float32, label bool, plume optical depth)``."""
+    """Render a scene; returns ``(image (4,H,W) float32, label bool, plume optical depth)``.
+
+    Parameters
+    ----------
+    params : SceneParams
+        The scene's parameters.
+    rng : numpy.random.Generator
+        Source of the noise fields.
+
+    Returns
+    -------
+    image : numpy.ndarray
+        ``(4, size, size)`` float32 reflectance, clipped to 0..1.
+    label : numpy.ndarray
+        Boolean ``(size, size)`` plume label.
+    tau : numpy.ndarray
+        ``(size, size)`` float32 plume optical depth.
+    """
     p = params
     n = p.size
     shape = (n, n)
@@ -270,6 +371,24 @@ def generate_scene(
     order or in part. Scenes are georeferenced in UTM zone 5N near Kilauea,
     each on its own tile, so GeoJSON exports are real coordinates.
 
+    Parameters
+    ----------
+    seed : int
+        The set's seed (>= 0).
+    index : int
+        The scene's index in the set (>= 0).
+    size : int
+        Side of the square scene, pixels (at least 16).
+    gsd : float
+        Ground sample distance, metres per pixel.
+
+    Returns
+    -------
+    scene : dyntarget.scene.Scene
+        The labelled, georeferenced scene, id ``synth-SSSS-IIII``.
+    params : SceneParams
+        The parameters drawn for it.
+
     Examples
     --------
     >>> scene, params = generate_scene(0, 0, size=64)
@@ -301,7 +420,26 @@ def generate_scene(
 
 
 def generate_scenes(n: int, *, size: int = 512, seed: int = 0, gsd: float = 8.0):
-    """Yield ``(scene, params)`` for scenes ``0 .. n-1`` of the set with ``seed``."""
+    """Yield ``(scene, params)`` for scenes ``0 .. n-1`` of the set with ``seed``.
+
+    Parameters
+    ----------
+    n : int
+        Number of scenes (at least 1).
+    size : int
+        Side of each scene, pixels.
+    seed : int
+        The set's seed.
+    gsd : float
+        Ground sample distance, metres per pixel.
+
+    Yields
+    ------
+    scene : dyntarget.scene.Scene
+        Scene ``i``.
+    params : SceneParams
+        Its parameters.
+    """
     _check_positive_int("scenes", n, minimum=1)
     for i in range(n):
         yield generate_scene(seed, i, size=size, gsd=gsd)
@@ -313,7 +451,13 @@ SYNTH_BYTES_PER_PIXEL = 320
 
 
 def available_memory() -> int:
-    """Bytes of memory available now (``MemAvailable`` on Linux, else physical memory)."""
+    """Bytes of memory available now (``MemAvailable`` on Linux, else physical memory).
+
+    Returns
+    -------
+    int
+        Bytes (a huge number when unknown, so that nothing is refused).
+    """
     try:
         with open("/proc/meminfo", encoding="ascii") as fh:
             for line in fh:
@@ -329,6 +473,20 @@ def available_memory() -> int:
 
 def check_memory(argument: str, size: int, *, bytes_per_pixel: int) -> None:
     """Refuse a ``size`` x ``size`` px job whose estimated peak memory exceeds what is available.
+
+    Parameters
+    ----------
+    argument : str
+        The argument's name, for the error message.
+    size : int
+        Side of the job, pixels.
+    bytes_per_pixel : int
+        Estimated peak memory per pixel, bytes.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When ``size ** 2 * bytes_per_pixel`` exceeds :func:`available_memory`.
 
     Examples
     --------

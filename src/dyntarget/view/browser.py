@@ -78,7 +78,23 @@ Plotly.Fx.hover(gd, [{curveNumber: k, pointNumber: arguments[2]}]);
 
 @dataclass(frozen=True)
 class Rendered:
-    """What Chromium showed for a view page."""
+    """What Chromium showed for a view page.
+
+    Parameters
+    ----------
+    console : list of dict
+        Browser console entries.
+    traces : list of str
+        Names of the plotted traces.
+    pointings : numpy.ndarray
+        ``(N, 2)`` pointings as plotly holds them.
+    drawn : numpy.ndarray
+        ``(M, 2)`` data coordinates of the drawn pointing markers.
+    px_per_unit : float
+        Screen pixels per WFOV pixel on the x axis.
+    images : int
+        Number of ``<image>`` elements drawn.
+    """
 
     console: list[dict]
     """Browser console entries (``level``, ``message``), errors and warnings included."""
