@@ -108,6 +108,8 @@ def fly_one(
         The campaign's output folder; the pass goes to ``out/passes/<strip>-<planner>-<agility>``.
     truth_step_s : float
         Time grid of the moving strip's truth, seconds.
+    int8 : bool
+        Run the INT8 ONNX export (``model.int8.onnx``) instead.
 
     Returns
     -------
