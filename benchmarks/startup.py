@@ -159,7 +159,7 @@ def main() -> None:
     write_text(
         args.markdown,
         f"Whole processes from the shell, median of {args.runs} runs after a warm-up "
-        f"(`python benchmarks/startup.py`; timed: `{args.dyntarget or "dyntarget"}`).\n\n{table}\n",
+        f"(`python benchmarks/startup.py`; timed: `{args.dyntarget or 'dyntarget'}`).\n\n{table}\n",
     )
     print(table)
 
