@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dyntarget import InvalidParameterError, Scene
+from dyntarget import InvalidParameterError, InvalidSceneError, Scene
 from dyntarget.denoise import denoise
 from dyntarget.observe import observe, observe_at
 from dyntarget.plan import PAPER_PLANNERS, PlanConfig, Trajectory, plan
@@ -82,3 +82,98 @@ def test_bad_latency_and_provider_are_refused():
         observe_at(traj, "not callable", factor=FACTOR)
     with pytest.raises(InvalidParameterError, match="truth provider"):
         observe_at(traj, lambda t: np.zeros((8, 8)), factor=FACTOR)
+
+
+ZERO = (0, 0.0, 0.0, 0.0)
+
+
+def _maps(h, w, plume, valid=None):
+    """Utility maps worked by hand: label = intensity = gradient = ``plume`` (0/1)."""
+    from dyntarget.observe.nfov import UtilityMaps
+
+    p = np.asarray(plume, np.float32)
+    return UtilityMaps(p > 0, p.copy(), p.copy(), None if valid is None else np.asarray(valid))
+
+
+def _metrics(m):
+    return (m.pixels_observed, m.ratio_plume, m.intensity, m.gradient)
+
+
+def test_nothing_observed_scores_exactly_zero():
+    maps = _maps(8, 8, np.ones((8, 8)))
+    empty = Trajectory(np.zeros((0, 2)), np.zeros(0), "t")
+    assert _metrics(observe_at(empty, lambda t: maps, factor=FACTOR)) == ZERO
+    # every pointing off the 2 x 2 WFOV grid: one column or row too far on each side
+    off = np.array([[2.0, 0.0], [0.0, 2.0], [-1.0, 0.0], [0.0, -1.0], [2.0, 2.0]])
+    traj = Trajectory(off, np.zeros(len(off)), "t", times=np.zeros(len(off)))
+    assert _metrics(observe_at(traj, lambda t: maps, factor=FACTOR)) == ZERO
+    # every pointing on nodata
+    nodata = _maps(8, 8, np.ones((8, 8)), valid=np.zeros((8, 8), bool))
+    on = Trajectory(np.array([[0.0, 0.0], [1.0, 1.0]]), np.zeros(2), "t")
+    assert _metrics(observe_at(on, lambda t: nodata, factor=FACTOR)) == ZERO
+
+
+def test_nodata_pointing_dropped_valid_one_kept_by_hand():
+    valid = np.ones((8, 8), bool)
+    valid[4:, 4:] = False  # WFOV pixel (1, 1) is nodata
+    maps = _maps(8, 8, np.ones((8, 8)), valid=valid)
+    traj = Trajectory(np.array([[0.0, 0.0], [1.0, 1.0]]), np.zeros(2), "t")
+    assert _metrics(observe_at(traj, lambda t: maps, factor=FACTOR)) == (1, 1.0, 1.0, 1.0)
+
+
+def test_distinct_pixels_of_a_tall_grid_counted_apart():
+    # a 12 x 4 truth at factor 2: a 6 x 2 WFOV grid, taller than wide; WFOV (row 2, col 0) is
+    # plume, (row 0, col 1) is not: two pixels, ratio 1/2
+    plume = np.zeros((12, 4))
+    plume[4:6, 0:2] = 1
+    traj = Trajectory(np.array([[0.0, 2.0], [1.0, 0.0]]), np.zeros(2), "t")
+    m = observe_at(traj, lambda t: _maps(12, 4, plume), factor=2)
+    assert m.pixels_observed == 2 and m.ratio_plume == 0.5
+
+
+def test_latency_delays_every_pointing():
+    # one pointing at WFOV (1, 1) taken at t = 0: with 60 s latency it sees the plume that has
+    # moved there by t = 60; without latency it sees none
+    traj = Trajectory(np.array([[1.0, 1.0]]), np.zeros(1), "t", times=np.zeros(1))
+    assert observe_at(traj, _moving_block(), factor=FACTOR, latency_s=60.0).ratio_plume == 1.0
+    assert observe_at(traj, _moving_block(), factor=FACTOR).ratio_plume == 0.0
+
+
+def test_truth_on_another_grid_refused_with_both_grids_and_times():
+    small, tall = _maps(8, 8, np.ones((8, 8))), _maps(16, 8, np.ones((16, 8)))
+    traj = Trajectory(np.array([[0.0, 0.0], [1.0, 1.0]]), np.zeros(2), "t", times=[0.0, 60.0])
+    with pytest.raises(
+        InvalidSceneError,
+        match=r"^truth at t=60 s: WFOV grid \(4, 2\) differs from \(2, 2\) at t=0 s$",
+    ):
+        observe_at(traj, lambda t: small if t < 60 else tall, factor=FACTOR)
+
+
+def test_provider_errors_name_the_problem():
+    traj = Trajectory(np.zeros((1, 2)), np.zeros(1), "t")
+    with pytest.raises(
+        InvalidParameterError, match=r"^truth: expected a callable t -> Scene \(a truth provider\)$"
+    ):
+        observe_at(traj, "not callable", factor=FACTOR)
+    with pytest.raises(InvalidParameterError, match="UtilityMaps, got ndarray$"):
+        observe_at(traj, lambda t: np.zeros((8, 8)), factor=FACTOR)
+
+
+@pytest.mark.parametrize("as_maps", [True, False])
+def test_footprint_by_hand_from_maps_and_scenes(as_maps):
+    # a 4 x 4 truth at factor 2 (2 x 2 WFOV grid) with plume only under WFOV (0, 0): footprint 1
+    # sees it whole (ratio 1); footprint 3 centred there averages the four WFOV pixels that
+    # exist (the other five are off the image): ratio 1/4. The same Scene object is asked
+    # for both footprints, so a cache must keep them apart.
+    plume = np.zeros((4, 4))
+    plume[:2, :2] = 1
+    truth = (
+        _maps(4, 4, plume) if as_maps else Scene(np.ones((4, 4, 4), np.float32), label=plume > 0)
+    )
+    traj = Trajectory(np.zeros((1, 2)), np.zeros(1), "t")
+    one = observe_at(traj, lambda t: truth, factor=2, footprint=1)
+    three = observe_at(traj, lambda t: truth, factor=2, footprint=3)
+    assert one.pixels_observed == three.pixels_observed == 1
+    assert one.ratio_plume == 1.0 and three.ratio_plume == pytest.approx(0.25)
+    if as_maps:  # intensity = gradient = the plume here
+        assert three.intensity == pytest.approx(0.25) and three.gradient == pytest.approx(0.25)

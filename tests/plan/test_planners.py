@@ -301,7 +301,9 @@ def test_sample_polyline_by_hand():
         ({"step": -1.0}, "step"),
         ({"width": float("nan")}, "width"),
         ({"step_fraction": 2}, "step_fraction"),
+        ({"step_fraction": 0}, "step_fraction"),
         ({"naive_fraction": 0}, "naive_fraction"),
+        ({"naive_fraction": 1.5}, "naive_fraction"),
     ],
 )
 def test_config_validation(kw, match):
@@ -577,6 +579,7 @@ def test_start_point_and_config_bounds_by_hand():
     # the documented bounds are inclusive: the smallest step and a naive square of full size
     assert PlanConfig(step=MIN_STEP, width=MIN_STEP).resolved((10, 10)) == (MIN_STEP, MIN_STEP)
     assert PlanConfig(naive_fraction=1.0).naive_fraction == 1.0
+    assert PlanConfig(step_fraction=1.0).resolved((10, 20)) == (20.0, 40.0)  # one step: W px
 
 
 def test_trace_outline_flies_the_frame_of_a_plume_that_fills_the_image():
@@ -591,3 +594,80 @@ def test_trace_outline_flies_the_frame_of_a_plume_that_fills_the_image():
         | np.isclose(t.points[:, 1], 11)
     )
     assert on_frame.all()
+
+
+def test_oriented_reverses_only_when_the_last_point_is_nearer():
+    from dyntarget.plan.planners import _oriented
+
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    # from (1.2, 5): the last point is 0.8 px off in x, the first 1.2 px: reversed, although the
+    # middle point (0.2 px off) is nearer still
+    np.testing.assert_array_equal(_oriented(line, np.array([1.2, 5.0])), line[::-1])
+    np.testing.assert_array_equal(_oriented(line, np.array([0.8, 5.0])), line)  # first nearer
+    pair = np.array([[0.0, 0.0], [2.0, 0.0]])  # a two-point path is oriented too
+    np.testing.assert_array_equal(_oriented(pair, np.array([1.5, 0.0])), pair[::-1])
+    one = np.array([[3.0, 4.0]])
+    np.testing.assert_array_equal(_oriented(one, np.array([0.0, 0.0])), one)
+
+
+@pytest.mark.parametrize(("cols", "near_x", "next_x"), [((10, 30), 29, 28), ((70, 90), 70, 71)])
+def test_transects_start_on_the_side_nearer_the_sensor(cols, near_x, next_x):
+    # a vertical plume x cols[0]..cols[1]-1, y 20..89 beside the sensor at (49.5, 99): its axis
+    # is vertical, the transects run along x. By hand: ceil(69 / 4) = 18 stations 69 / 18 px
+    # apart, the last at y = 89 - 69 / 36; the walk starts at that station's end on the side
+    # facing the sensor (x = 29 for the left plume, x = 70 for the right one) and crosses away
+    m = rect_mask(rows=(20, 90), cols=cols)
+    t = plan("lawnmower-transect", m, config=PlanConfig(step=1.0, width=4.0))
+    np.testing.assert_allclose(t.points[0], [near_x, 89 - 69 / 36], atol=1e-9)
+    np.testing.assert_allclose(t.points[1], [next_x, 89 - 69 / 36], atol=1e-9)
+
+
+def _box(x0, y0, x1, y1):
+    return Polygon([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+
+
+@pytest.mark.parametrize(
+    ("bar", "decoy", "position", "d_decoy"),
+    [
+        # a bar along x whose left end is 2 px from the position; a 1 px square 4.03 px away
+        (_box(29, 28, 89, 29), _box(24, 24, 25, 25), (27.0, 28.5), np.hypot(2, 3.5)),
+        # the same from the bar's right end, the square below-left of the position
+        (_box(29, 88, 89, 89), _box(92, 93, 93, 94), (91.0, 88.5), np.hypot(1, 4.5)),
+        # a bar along y whose bottom end is 2 px from the position
+        (_box(88, 29, 89, 89), _box(92, 92, 93, 93), (88.5, 91.0), np.hypot(3.5, 1)),
+    ],
+)
+def test_nearest_next_takes_a_long_bar_whose_end_is_nearest(bar, decoy, position, d_decoy):
+    from dyntarget.plan.planners import _NearestNext
+
+    # The bar's bounding box is centred ~32 px away, the square's ~5 px: only the exact
+    # distances (2 px to the bar's end, d_decoy to the square) put the bar first.
+    p = np.array(position)
+    assert bar.exterior.distance(Point(p)) == pytest.approx(2.0)
+    assert decoy.exterior.distance(Point(p)) == pytest.approx(d_decoy)
+    walk = _NearestNext([decoy, bar])
+    assert walk.take(p) == 1 and walk.take(p) == 0
+
+
+def test_plan_hands_a_planner_that_needs_context_its_arguments(monkeypatch):
+    from dyntarget.plan import planners
+
+    seen = []
+
+    def stub(mask, polygons, config, context):
+        seen.append((mask, polygons, config, context))
+        return Trajectory.empty("stub", {})
+
+    stub.needs_context = True
+    monkeypatch.setattr(planners.PLANNERS, "get", lambda name: stub)
+    m = rect_mask()
+    context = planners.PlanContext(agility="fast")
+    config = PlanConfig(step=3.0)
+    plan("stub", m, config=config, context=context)
+    mask, polygons, got_config, got_context = seen[-1]
+    np.testing.assert_array_equal(mask, m)
+    assert isinstance(polygons, list) and len(polygons) == 1
+    assert polygons[0].equals(_box(10, 40, 89, 59))  # the rectangle's pixel-centre outline
+    assert got_config is config and got_context is context
+    plan("stub", m)  # no config: the defaults; no context: None
+    assert seen[-1][2] == PlanConfig() and seen[-1][3] is None
