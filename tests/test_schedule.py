@@ -193,3 +193,31 @@ def test_make_feasible_flies_the_better_order():
     assert len(flown.kept) >= len(
         schedule(row, (128, 128), OrbitGeometry(), SLOW, reorder=True).kept
     )
+
+
+def test_arrival_one_gives_the_vectorised_arrivals_floats_to_the_bit():
+    """The scalar path (one pointing at a time) against the numpy path on random
+    orbits, presets, custom kinematics and sensor states: the same floats."""
+    from dyntarget.schedule import AGILITY, Agility, OrbitGeometry, Timer
+
+    rng = np.random.default_rng(0)
+    custom = Agility("custom", max_rate_deg_s=2.5, max_accel_deg_s2=0.7, settle_s=1.5,
+                     dwell_s=0.5, field_of_regard_deg=30.0)  # fmt: skip
+    rate_only = Agility("rate-only", max_rate_deg_s=3.0, field_of_regard_deg=30.0)
+    kinds = [a for a in AGILITY.values() if not a.unlimited] + [custom, rate_only]
+    compared = 0
+    for k in range(60):
+        geometry = OrbitGeometry(altitude_m=float(rng.uniform(300e3, 900e3)), start_s=5.0)
+        timer = Timer(geometry, kinds[k % len(kinds)])
+        for _ in range(3):
+            along, cross = rng.uniform(-6e5, 6e5, 6), rng.uniform(-3e5, 3e5, 6)
+            t_in = rng.uniform(-50, 150, 6)
+            expected = timer.arrival(along, cross, t_in)
+            for i in range(6):
+                got = timer.arrival_one(float(along[i]), float(cross[i]), float(t_in[i]))
+                assert got == expected[i]
+                compared += 1
+            timer.take(along[0], cross[0], float(expected[0]))
+    assert compared == 60 * 3 * 6
+    unlimited = Timer(OrbitGeometry(start_s=7.0), AGILITY["unlimited"])
+    assert unlimited.arrival_one(1e5, 0.0, -3.0) == 7.0

@@ -981,6 +981,16 @@ def _schedule(
             # once (Timer.arrival is elementwise) gives exactly the one-by-one result
             chunk = order[pos : pos + CHUNK]
             maybe = (t_in[chunk] <= t_out[chunk]) & (timer.t + floor <= t_out[chunk])
+            first = int(np.argmax(maybe))
+            if maybe[first]:  # most often the first candidate is taken: time it alone
+                j = int(chunk[first])
+                start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
+                if start + agility.dwell_s <= t_out[j]:
+                    timer.take(along[j], cross[j], start)
+                    kept.append(j)
+                    times.append(start)
+                    pos += first + 1
+                    continue
             ok = np.zeros(len(chunk), bool)
             begin = np.zeros(len(chunk))
             if maybe.any():
