@@ -155,3 +155,35 @@ def test_channels_last_prediction_equals_the_trained_networks_own_pass(name):
     got = model.set_stitching("halo", memory_mib=1e6).predict_proba(image)
     np.testing.assert_allclose(got, expected, atol=1e-5, rtol=0)
     assert all(p.is_contiguous() for p in model.model.parameters())  # the model is untouched
+
+
+@pytest.mark.parametrize("architecture", ["uavsar", "xception"])
+def test_folding_batch_norms_keeps_the_networks_function(architecture):
+    """With non-trivial batch-norm statistics (a fresh network's are 0/1, which any
+    folding would pass), the folded network gives the unfolded one's logits to float
+    rounding and holds no batch norm any more (Xception's sit after separable and
+    transposed convolutions too)."""
+    import torch
+    from torch import nn
+
+    from dyntarget.perceive.networks import NETWORKS, build, fold_batch_norms
+
+    net = build(NETWORKS[architecture], 4, seed=0).eval()
+    gen = torch.Generator().manual_seed(1)
+    norms = [m for m in net.modules() if isinstance(m, nn.BatchNorm2d)]
+    assert len(norms) == {"uavsar": 14, "xception": 15}[architecture]
+    for bn in norms:
+        bn.running_mean.copy_(torch.rand(bn.num_features, generator=gen) - 0.5)
+        bn.running_var.copy_(torch.rand(bn.num_features, generator=gen) + 0.5)
+        bn.weight.data.copy_(torch.rand(bn.num_features, generator=gen) + 0.5)
+        bn.bias.data.copy_(torch.rand(bn.num_features, generator=gen) - 0.5)
+    x = torch.rand(2, 4, 48, 64, generator=gen)
+    with torch.no_grad():
+        expected = net(x)
+        got = fold_batch_norms(net)(x)
+    assert not any(isinstance(m, nn.BatchNorm2d) for m in net.modules())
+    spread = float(expected.max() - expected.min())
+    assert spread > 0.1
+    torch.testing.assert_close(got, expected, atol=1e-5 * spread, rtol=0)
+    with pytest.raises(ValueError, match="evaluation mode"):
+        fold_batch_norms(build(NETWORKS[architecture], 4, seed=0))

@@ -32,8 +32,9 @@ stitchings:
 * ``"blend"``: the former stitching (:func:`tiled`), ``tile`` px tiles at stride
   ``tile/2`` blended with a smooth window, each pixel computed about four times.
 
-PyTorch prediction runs a channels-last copy of the network (faster convolutions on
-the CPU; equal to the trained network to float32 rounding, tested).
+PyTorch prediction runs a copy of the network with its batch norms folded into the
+convolutions, in channels-last memory format (faster on the CPU; equal to the trained
+network to float rounding, tested).
 
 This module imports no torch: the networks (:mod:`dyntarget.perceive.networks`)
 and torch are loaded when a U-Net is built, trained or loaded natively; the
@@ -627,21 +628,28 @@ class _UNetClassifier(Classifier):
         return state
 
     def _inference_network(self):
-        """An evaluation-mode copy of the network in channels-last memory format.
+        """An evaluation-mode copy of the network, batch norms folded, channels-last.
 
-        oneDNN runs these convolutions 1.6-1.8x faster channels-last on the CPU (the
-        depthwise ones above all); the sums run in another order, so probabilities move
-        by float32 rounding (~1e-7). The trained network itself stays as it is, so
-        saving, export and further training are unchanged. Rebuilt when ``model`` changes.
+        Folding each batch norm into the convolution before it
+        (:func:`~dyntarget.perceive.networks.fold_batch_norms`) saves a pass over the
+        activations; oneDNN runs the convolutions
+        channels-last faster on the CPU (the depthwise ones above all). Together
+        1.3-2x faster at 1024 px; the sums run in another order, so probabilities move
+        by float rounding (up to 2.4e-6 on the 50-epoch models, no pixel changing
+        class on the 38 held-out scenes). The trained network itself stays as it is,
+        so saving, export and further training are unchanged. Rebuilt when ``model``
+        changes.
         """
         import copy
 
         import torch
 
+        from dyntarget.perceive.networks import fold_batch_norms
+
         cached = getattr(self, "_inference", None)
         if cached is None or cached[0] is not self.model:
-            net = copy.deepcopy(self.model).eval().to(memory_format=torch.channels_last)
-            self._inference = cached = (self.model, net)
+            net = fold_batch_norms(copy.deepcopy(self.model).eval())
+            self._inference = cached = (self.model, net.to(memory_format=torch.channels_last))
         return cached[1]
 
     # -- stitching (shared by the PyTorch and ONNX runtimes) -------------------------
