@@ -90,13 +90,22 @@ def commands(
 ) -> list[tuple[str, list[str], float | None, float | None]]:
     """``(label, arguments, target seconds, target MiB)`` for each timed command."""
     plan = ["plan", str(paths["image"]), "--planner", PLANNER, "--out", str(paths["out"])]
-    return [
+    timed = [
         ("dyntarget --help", ["--help"], 0.5, None),
         ("dyntarget planners", ["planners"], 0.5, None),
         ("plan 1024 px --mask", [*plan, "--mask", str(paths["mask"])], 1.0, None),
         ("plan 1024 px --model rf --onnx", [*plan, "--model", str(paths["model"]), "--onnx"], 1.5, 250.0),
-        ("plan 1024 px --model rf (native)", [*plan, "--model", str(paths["model"])], None, None),
-    ][: None if native else -1]  # fmt: skip
+    ]  # fmt: skip
+    if native:
+        timed.append(
+            (
+                "plan 1024 px --model rf (native)",
+                [*plan, "--model", str(paths["model"])],
+                None,
+                None,
+            )
+        )
+    return timed
 
 
 def main() -> None:

@@ -991,6 +991,7 @@ def _schedule(
                     times.append(start)
                     pos += first + 1
                     continue
+                maybe[first] = False  # timed above: it cannot be taken
             ok = np.zeros(len(chunk), bool)
             begin = np.zeros(len(chunk))
             if maybe.any():

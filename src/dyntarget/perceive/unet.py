@@ -618,7 +618,7 @@ class _UNetClassifier(Classifier):
         def forward(batch: np.ndarray) -> np.ndarray:
             with torch.inference_mode():
                 x = torch.from_numpy(batch).contiguous(memory_format=channels_last)
-                return np.ascontiguousarray(torch.softmax(net(x), dim=1)[:, 1].numpy())
+                return torch.softmax(net(x), dim=1)[:, 1].numpy()
 
         return self.tiled(image, forward)
 
