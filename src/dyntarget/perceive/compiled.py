@@ -4,7 +4,7 @@ scikit-learn walks each tree through an array of 64-byte node records; TL2cgen t
 every tree into nested ``if``/``else`` C code, compiled with the machine's C compiler
 into a shared library. Measured on this project's machine (docs/performance.md), the
 compiled forest gives the same probabilities as scikit-learn (bit-identical in the
-tests); compiling a 50-tree forest (~70 000 nodes) takes about 20 s on one core (one
+tests); compiling a 50-tree forest (~70 000 nodes) takes about 17 s on one core (one
 C file per tree at ``-O1``) and needs a C compiler at run time. Treelite's own interpreter
 (GTIL) measured 8x *slower* than scikit-learn, and a numpy level-by-level traversal
 costs several array passes per tree level (14 levels x 50 trees), so neither is offered.
@@ -64,7 +64,7 @@ def _require():
 def _recipe(trees: int) -> dict:
     """How the forest is compiled: one C file per tree, integer (quantized) thresholds,
     ``-O1``, one compiler per core. Measured on a 50-tree forest (docs/performance.md):
-    20 s to compile on one core, against minutes with 8 files at ``-O3``, and no slower
+    17 s to compile on one core, against minutes with 8 files at ``-O3``, and no slower
     to predict than ``-O2``/``-O3`` (branchy code gains little from them)."""
     from dyntarget.perceive.base import available_cores
 

@@ -1,0 +1,255 @@
+"""Inference variants behind issue 17's choices: U-Net layouts, the forest's compile recipe,
+ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
+
+``unet-layouts``
+    Each U-Net (width 16) at ``--size`` px, one whole-image pass on the machine's
+    threads: the trained network as it is, a channels-last copy, and the copy with its
+    batch norms folded (what prediction runs). With ``--models DIR`` (``DIR/fold-K/NAME``,
+    e.g. ``reproduce/models``) and ``--data SCENES``, also the largest probability
+    difference and the pixels whose class changes between the default network and the
+    prediction copy on the cross-validation's held-out scenes (WFOV factor 4).
+``forest-recipes``
+    The random forest of ``--model`` compiled with TL2cgen at ``-O1``/``-O2``/``-O3``
+    (quantized thresholds, one C file per tree) and ``-O2`` unquantized, each with one
+    compiler thread: compile time, then one-thread prediction of ``--image`` (median of
+    3) and parity with scikit-learn.
+``ort-spinning``
+    The ONNX export of ``--model`` on ``--image`` (4 chunks, 2 intra-op threads) with
+    ``session.intra_op.allow_spinning`` on and off, alternating, 5 runs each.
+``roofline``
+    Each U-Net's one-pass FLOP bound at ``--size`` px against a roofline bound that adds,
+    per convolution, the input + output activations beyond the L3 cache at the copy rate.
+
+    python benchmarks/inference_variants.py unet-layouts [--models reproduce/models --data scenes/]
+    python benchmarks/inference_variants.py forest-recipes --model RF --image IMG.tif
+    python benchmarks/inference_variants.py ort-spinning --model RF --image IMG.tif
+    python benchmarks/inference_variants.py roofline
+
+Each prints a Markdown table; ``--out FILE.json`` also keeps the numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dyntarget.evaluate.bench import machine_rates
+from dyntarget.evaluate.tables import markdown_table
+from dyntarget.io import read_scene
+from dyntarget.io.atomic import write_text
+
+
+def _median_s(fn, repeats: int = 3) -> float:
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def unet_layouts(args) -> list[dict]:
+    import torch
+
+    from dyntarget.perceive import make_classifier
+    from dyntarget.perceive.networks import fold_batch_norms
+
+    rows = []
+    x = torch.rand(1, 4, args.size, args.size, generator=torch.Generator().manual_seed(0))
+    xc = x.contiguous(memory_format=torch.channels_last)
+    for name in ("unet-uavsar", "unet-xception"):
+        net = make_classifier(name).model.eval()
+        last = copy.deepcopy(net).to(memory_format=torch.channels_last)
+        folded = fold_batch_norms(copy.deepcopy(net)).to(memory_format=torch.channels_last)
+        with torch.inference_mode():
+            row = {
+                "classifier": name,
+                "default (s)": _median_s(lambda net=net: net(x)),
+                "channels-last (s)": _median_s(lambda last=last: last(xc)),
+                "folded + channels-last (s)": _median_s(lambda folded=folded: folded(xc)),
+            }
+        if args.models and args.data:
+            row.update(_held_out_change(name, args.models, args.data))
+        rows.append(row)
+    return rows
+
+
+def _held_out_change(name: str, models: str, data: str) -> dict:
+    from dyntarget.evaluate.crossval import CVConfig, kfold_indices
+    from dyntarget.io import read_scene_dir
+    from dyntarget.perceive import load_classifier
+
+    config = CVConfig()
+    wfov = [s.to_wfov(config.factor) for s in read_scene_dir(data, require_labels=True)]
+    flips = pixels = 0
+    largest = 0.0
+    for k, test in enumerate(kfold_indices(len(wfov), config.folds, config.seed)):
+        model = load_classifier(Path(models) / f"fold-{k}" / name)
+        for i in test:
+            scene = wfov[i]
+            copy_ = model.predict_proba(scene.image)  # the prediction copy
+            model._inference = (model.model, model.model.eval())  # the network as trained
+            plain = model.predict_proba(scene.image)
+            del model._inference
+            largest = max(largest, float(np.abs(copy_ - plain).max()))
+            valid = scene.valid_mask
+            flips += int(((copy_ >= 0.5) != (plain >= 0.5))[valid].sum())
+            pixels += int(valid.sum())
+    return {"largest difference": largest, "class changes": f"{flips} of {pixels}"}
+
+
+def forest_recipes(args) -> list[dict]:
+    import tempfile
+
+    import tl2cgen
+    import treelite
+
+    from dyntarget.perceive import load_classifier
+
+    forest = load_classifier(args.model).estimator
+    model = treelite.sklearn.import_model(forest)
+    image = read_scene(args.image).image
+    pixels = np.ascontiguousarray(image.reshape(4, -1).T, dtype=np.float32)
+    expected = forest.predict_proba(pixels)[:, 1]
+    rows = []
+    recipes = [("-O1", 1), ("-O2", 1), ("-O3", 1), ("-O2", 0)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for level, quantize in recipes:
+            lib = Path(tmp) / f"forest{level}{quantize}.so"
+            params = {"parallel_comp": len(forest.estimators_), "quantize": quantize}
+            t0 = time.perf_counter()
+            tl2cgen.export_lib(
+                model, toolchain="gcc", libpath=str(lib), params=params, nthread=1, options=[level]
+            )
+            compile_s = time.perf_counter() - t0
+            predictor = tl2cgen.Predictor(str(lib), nthread=1)
+            dmat = tl2cgen.DMatrix(pixels)
+            out = {}
+
+            def run(predictor=predictor, dmat=dmat, out=out):
+                out["p"] = np.asarray(predictor.predict(dmat)).reshape(len(pixels), -1)[:, -1]
+
+            seconds = _median_s(run)
+            rows.append(
+                {
+                    "recipe": f"{level}, {'quantized' if quantize else 'float'} thresholds",
+                    "compile (s)": compile_s,
+                    "predict, 1 thread (s)": seconds,
+                    "bit-identical to scikit-learn": bool(np.array_equal(out["p"], expected)),
+                }
+            )
+    return rows
+
+
+def ort_spinning(args) -> list[dict]:
+    import onnxruntime as ort
+
+    image = read_scene(args.image).image
+    pixels = np.ascontiguousarray(image.reshape(4, -1).T, dtype=np.float32)
+    chunk = len(pixels) // 4 + 1
+    times: dict[str, list[float]] = {"1": [], "0": []}
+    for _ in range(5):
+        for spin in ("1", "0"):
+            options = ort.SessionOptions()
+            options.intra_op_num_threads, options.inter_op_num_threads = 2, 1
+            options.add_session_config_entry("session.intra_op.allow_spinning", spin)
+            session = ort.InferenceSession(
+                str(Path(args.model) / "model.onnx"), options, providers=["CPUExecutionProvider"]
+            )
+            name = session.get_inputs()[0].name
+
+            def run(session=session, name=name):
+                for i in range(0, len(pixels), chunk):
+                    session.run(None, {name: pixels[i : i + chunk]})
+
+            times[spin].append(_median_s(run, repeats=1))
+    return [
+        {"allow_spinning": spin, "median (s)": statistics.median(t), "min (s)": min(t)}
+        for spin, t in times.items()
+    ]
+
+
+def roofline(args) -> list[dict]:
+    import torch
+    from torch import nn
+    from torch.utils.flop_counter import FlopCounterMode
+
+    from dyntarget.perceive import make_classifier
+
+    l3 = _l3_bytes()
+    rates = machine_rates()
+    rows = []
+    for name in ("unet-uavsar", "unet-xception"):
+        net = make_classifier(name).model.eval()
+        names = {m: n for n, m in net.named_modules()}
+        traffic = []
+
+        def hook(module, inputs, output, traffic=traffic):
+            traffic.append((module, 4 * (inputs[0].numel() + output.numel())))
+
+        hooks = [
+            m.register_forward_hook(hook)
+            for m in net.modules()
+            if isinstance(m, nn.modules.conv._ConvNd)
+        ]
+        with FlopCounterMode(display=False) as counter, torch.inference_mode():
+            net(torch.zeros(1, 4, args.size, args.size))
+        for h in hooks:
+            h.remove()
+        per_module = counter.get_flop_counts()
+        flop_s = roof_s = 0.0
+        for module, nbytes in traffic:
+            key = ".".join(filter(None, (type(net).__name__, names[module])))
+            flops = sum(per_module.get(key, {}).values())
+            flop_s += flops / rates["matmul_flop_per_s"]
+            roof_s += max(
+                flops / rates["matmul_flop_per_s"], max(0, nbytes - l3) / rates["copy_bytes_per_s"]
+            )
+        rows.append(
+            {
+                "classifier": name,
+                "FLOP bound (s)": flop_s,
+                "roofline bound (s)": roof_s,
+                "roofline / FLOP": roof_s / flop_s,
+            }
+        )
+    return rows
+
+
+def _l3_bytes() -> int:
+    path = Path("/sys/devices/system/cpu/cpu0/cache/index3/size")
+    text = path.read_text().strip() if path.exists() else "32768K"
+    return int(text[:-1]) * 1024 if text.endswith("K") else int(text)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=["unet-layouts", "forest-recipes", "ort-spinning", "roofline"])
+    ap.add_argument("--size", type=int, default=1024, help="WFOV px (unet-layouts, roofline)")
+    ap.add_argument("--models", help="unet-layouts: trained models, DIR/fold-K/NAME")
+    ap.add_argument("--data", help="unet-layouts: the labelled scenes of those models")
+    ap.add_argument("--model", help="forest-recipes, ort-spinning: a random-forest model dir")
+    ap.add_argument("--image", help="forest-recipes, ort-spinning: a 4-band GeoTIFF")
+    ap.add_argument("--out", help="also write the rows here (JSON)")
+    args = ap.parse_args()
+    run = {
+        "unet-layouts": unet_layouts,
+        "forest-recipes": forest_recipes,
+        "ort-spinning": ort_spinning,
+        "roofline": roofline,
+    }[args.what]
+    rows = run(args)
+    print(markdown_table(rows, list(rows[0]), digits=3))
+    if args.out:
+        write_text(args.out, json.dumps({"what": args.what, "rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
