@@ -103,6 +103,7 @@ def latency(args) -> None:
         },
         "per_frame_loop_s": loop.round(4).tolist(),
         "per_frame_stage_sum_s": stages.round(4).tolist(),
+        "per_frame_stage_s": [{k: round(v, 4) for k, v in r.stage_s.items()} for r in recs],
     }
     table = (
         f"Per-frame loop latency, {size} x {size} px WFOV frames, {data['classifier']}, "
