@@ -1,4 +1,4 @@
-"""Inference variants behind issue 17's choices: U-Net layouts, the forest's compile recipe,
+"""Inference variants behind issue 17's choices: U-Net layouts, the forest's predictors,
 ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
 
 ``unet-layouts``
@@ -8,11 +8,12 @@ ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
     e.g. ``reproduce/models``) and ``--data SCENES``, also the largest probability
     difference and the pixels whose class changes between the default network and the
     prediction copy on the cross-validation's held-out scenes (WFOV factor 4).
-``forest-recipes``
-    The random forest of ``--model`` compiled with TL2cgen at ``-O1``/``-O2``/``-O3``
-    (quantized thresholds, one C file per tree) and ``-O2`` unquantized, each with one
-    compiler thread: compile time, then one-thread prediction of ``--image`` (median of
-    3) and parity with scikit-learn.
+``forest-kernel``
+    The random forest of ``--model`` on ``--image``: scikit-learn, the former TL2cgen
+    backend (when installed), and dyntarget's kernel built portable and with
+    ``-march=native``, each on one thread (median of ``--repeats``), with build time and
+    parity; then the kernel through ``predict_proba`` on the chunk pool, and the mean
+    root-to-leaf depth the pixels take (every ``--stride``-th pixel).
 ``ort-spinning``
     The ONNX export of ``--model`` on ``--image`` (4 chunks, 2 intra-op threads) with
     ``session.intra_op.allow_spinning`` on and off, alternating, 5 runs each.
@@ -21,7 +22,7 @@ ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
     per convolution, the input + output activations beyond the L3 cache at the copy rate.
 
     python benchmarks/inference_variants.py unet-layouts [--models reproduce/models --data scenes/]
-    python benchmarks/inference_variants.py forest-recipes --model RF --image IMG.tif
+    python benchmarks/inference_variants.py forest-kernel --model RF --image IMG.tif
     python benchmarks/inference_variants.py ort-spinning --model RF --image IMG.tif
     python benchmarks/inference_variants.py roofline
 
@@ -43,6 +44,7 @@ from dyntarget.evaluate.bench import machine_rates
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene
 from dyntarget.io.atomic import write_text
+from dyntarget.perceive.base import available_cores
 
 
 def _median_s(fn, repeats: int = 3) -> float:
@@ -105,47 +107,83 @@ def _held_out_change(name: str, models: str, data: str) -> dict:
     return {"largest difference": largest, "class changes": f"{flips} of {pixels}"}
 
 
-def forest_recipes(args) -> list[dict]:
+def forest_kernel(args) -> list[dict]:
     import tempfile
 
-    import tl2cgen
-    import treelite
+    from dyntarget.perceive import compiled, load_classifier
 
-    from dyntarget.perceive import load_classifier
-
-    forest = load_classifier(args.model).estimator
-    model = treelite.sklearn.import_model(forest)
+    model = load_classifier(args.model)
+    forest = model.estimator
     image = read_scene(args.image).image
     pixels = np.ascontiguousarray(image.reshape(4, -1).T, dtype=np.float32)
-    expected = forest.predict_proba(pixels)[:, 1]
+    expected = forest.predict_proba(pixels)[:, 1].astype(np.float32)
+    trees = len(forest.estimators_)
+    out: dict = {}
     rows = []
-    recipes = [("-O1", 1), ("-O2", 1), ("-O3", 1), ("-O2", 0)]
+
+    def row(name, build_s, fn, threads=1):
+        seconds = _median_s(lambda: out.__setitem__("p", fn()), repeats=args.repeats)
+        rows.append(
+            {
+                "predictor": name,
+                "threads": threads,
+                "build (s)": build_s,
+                "predict (s)": seconds,
+                "ns per pixel and tree": seconds * threads / (len(pixels) * trees) * 1e9,
+                "bit-identical to scikit-learn": bool(
+                    np.array_equal(np.asarray(out["p"], np.float32).ravel(), expected)
+                ),
+            }
+        )
+
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        row("scikit-learn predict_proba", 0.0, lambda: forest.predict_proba(pixels)[:, 1])
     with tempfile.TemporaryDirectory() as tmp:
-        for level, quantize in recipes:
-            lib = Path(tmp) / f"forest{level}{quantize}.so"
-            params = {"parallel_comp": len(forest.estimators_), "quantize": quantize}
+        try:
+            import tl2cgen
+            import treelite
+        except ImportError:
+            tl2cgen = None
+        if tl2cgen is not None:  # the former backend, when installed, for comparison
+            lib = Path(tmp) / "tl2cgen.so"
             t0 = time.perf_counter()
             tl2cgen.export_lib(
-                model, toolchain="gcc", libpath=str(lib), params=params, nthread=1, options=[level]
+                treelite.sklearn.import_model(forest), toolchain="gcc", libpath=str(lib),
+                params={"parallel_comp": trees, "quantize": 1}, nthread=1, options=["-O1"],
+            )  # fmt: skip
+            build_s = time.perf_counter() - t0
+            predictor, dmat = tl2cgen.Predictor(str(lib), nthread=1), tl2cgen.DMatrix(pixels)
+            row(
+                "TL2cgen C per tree, -O1, quantized (former backend)",
+                build_s,
+                lambda: np.asarray(predictor.predict(dmat)).reshape(len(pixels), -1)[:, -1],
             )
-            compile_s = time.perf_counter() - t0
-            predictor = tl2cgen.Predictor(str(lib), nthread=1)
-            dmat = tl2cgen.DMatrix(pixels)
-            out = {}
-
-            def run(predictor=predictor, dmat=dmat, out=out):
-                out["p"] = np.asarray(predictor.predict(dmat)).reshape(len(pixels), -1)[:, -1]
-
-            seconds = _median_s(run)
-            rows.append(
-                {
-                    "recipe": f"{level}, {'quantized' if quantize else 'float'} thresholds",
-                    "compile (s)": compile_s,
-                    "predict, 1 thread (s)": seconds,
-                    "bit-identical to scikit-learn": bool(np.array_equal(out["p"], expected)),
-                }
-            )
+        for portable in (True, False):
+            t0 = time.perf_counter()
+            predict = compiled.compile_forest(forest, directory=tmp, portable=portable)
+            build_s = time.perf_counter() - t0
+            what = "AVX-512" if predict.vectorised else "no AVX-512"
+            name = f"dyntarget kernel, {'portable' if portable else '-march=native'} ({what})"
+            row(name, build_s, lambda predict=predict: predict(pixels))
+    model.set_backend("compiled")
+    row("dyntarget kernel through predict_proba (chunk pool)", 0.0,
+        lambda: model.predict_proba(image), threads=available_cores())  # fmt: skip
+    leaves = forest.apply(pixels[:: args.stride])
+    depth = [_node_depths(t.tree_)[leaves[:, i]] for i, t in enumerate(forest.estimators_)]
+    print(f"mean root-to-leaf depth over pixels and trees: {np.mean(depth):.2f} "
+          f"(max_depth {max(t.tree_.max_depth for t in forest.estimators_)})")  # fmt: skip
     return rows
+
+
+def _node_depths(tree) -> np.ndarray:
+    depth = np.zeros(tree.node_count, int)
+    for k in range(tree.node_count):  # parents come before their children
+        for child in (tree.children_left[k], tree.children_right[k]):
+            if child != -1:
+                depth[child] = depth[k] + 1
+    return depth
 
 
 def ort_spinning(args) -> list[dict]:
@@ -231,17 +269,19 @@ def _l3_bytes() -> int:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=["unet-layouts", "forest-recipes", "ort-spinning", "roofline"])
+    ap.add_argument("what", choices=["unet-layouts", "forest-kernel", "ort-spinning", "roofline"])
     ap.add_argument("--size", type=int, default=1024, help="WFOV px (unet-layouts, roofline)")
     ap.add_argument("--models", help="unet-layouts: trained models, DIR/fold-K/NAME")
     ap.add_argument("--data", help="unet-layouts: the labelled scenes of those models")
-    ap.add_argument("--model", help="forest-recipes, ort-spinning: a random-forest model dir")
-    ap.add_argument("--image", help="forest-recipes, ort-spinning: a 4-band GeoTIFF")
+    ap.add_argument("--model", help="forest-kernel, ort-spinning: a random-forest model dir")
+    ap.add_argument("--image", help="forest-kernel, ort-spinning: a 4-band GeoTIFF")
+    ap.add_argument("--repeats", type=int, default=5, help="forest-kernel: timed runs")
+    ap.add_argument("--stride", type=int, default=16, help="forest-kernel: depth sample")
     ap.add_argument("--out", help="also write the rows here (JSON)")
     args = ap.parse_args()
     run = {
         "unet-layouts": unet_layouts,
-        "forest-recipes": forest_recipes,
+        "forest-kernel": forest_kernel,
         "ort-spinning": ort_spinning,
         "roofline": roofline,
     }[args.what]

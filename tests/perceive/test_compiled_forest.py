@@ -1,51 +1,158 @@
-"""The compiled random forest (treelite + tl2cgen) against scikit-learn."""
+"""dyntarget's compiled forest kernel against scikit-learn's own prediction.
+
+The expected values are always ``RandomForestClassifier.predict_proba``: a different
+implementation (scikit-learn walks its node records one pixel at a time, in float64
+comparisons), so every test here checks the packing and the kernel, never a formula
+against itself. Both builds of the kernel are checked: the AVX-512 one (where this CPU
+has it) and the portable one.
+"""
 
 from __future__ import annotations
 
-import shutil
+import pickle
 
 import numpy as np
 import pytest
 
 from dyntarget import InvalidParameterError
-from dyntarget.perceive import make_classifier
+from dyntarget.errors import MissingExtraError
+from dyntarget.perceive import compiled, make_classifier
+from dyntarget.perceive.compiled import build_library, compile_forest, pack_forest
 
-pytest.importorskip("tl2cgen")
-pytest.importorskip("treelite")
-if shutil.which("gcc") is None:
+if compiled.compiler() is None:
     pytest.skip("no C compiler", allow_module_level=True)
 
+BUILDS = [pytest.param(False, id="native"), pytest.param(True, id="portable")]
 
-@pytest.mark.slow
-def test_compiled_forest_equals_scikit_learn(tiny_scenes, tmp_path, monkeypatch):
-    """A small forest (5 trees, depth 6, so it compiles in seconds) through the
-    compiled backend gives scikit-learn's probabilities bit for bit."""
+
+def _forest(x, y, **kw):
     from sklearn.ensemble import RandomForestClassifier
 
-    from dyntarget.perceive.base import sample_pixels
-    from dyntarget.perceive.compiled import compile_forest
+    return RandomForestClassifier(random_state=0, n_jobs=1, **kw).fit(x, y)
 
+
+def _reference(est, x):
+    return est.predict_proba(x)[:, 1].astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def project_forest(tiny_scenes):
+    """The project's own random forest (50 trees, depth <= 14) on three tiny scenes."""
+    model = make_classifier("random-forest", max_pixels_per_class=3000)
+    return model.fit(tiny_scenes[:3])
+
+
+@pytest.mark.parametrize("portable", BUILDS)
+def test_project_forest_equals_scikit_learn_on_a_scene(project_forest, tiny_scenes, portable):
+    """A 50-tree, depth-14 forest on a held-out scene's pixels: bit-identical."""
+    est = project_forest.estimator
+    x = np.ascontiguousarray(tiny_scenes[3].image.reshape(4, -1).T)
+    np.testing.assert_array_equal(compile_forest(est, portable=portable)(x), _reference(est, x))
+
+
+@pytest.mark.parametrize("portable", BUILDS)
+def test_pixels_on_and_beside_every_threshold_go_where_scikit_learn_sends_them(
+    project_forest, portable
+):
+    """Pixels whose value equals a split's threshold rounded to float32, or is the next
+    float32 up or down: the rounding of float64 thresholds must match ``x <= t``."""
+    est = project_forest.estimator
+    rng = np.random.default_rng(1)
+    rows = []
+    for tree in est.estimators_[:10]:
+        t = tree.tree_
+        inner = np.flatnonzero(t.children_left != -1)
+        for k in inner[:40]:
+            t32 = np.float32(t.threshold[k])
+            for v in (t32, np.nextafter(t32, np.float32(np.inf)), np.nextafter(t32, np.float32(0))):
+                row = rng.random(4, dtype=np.float32)
+                row[t.feature[k]] = v
+                rows.append(row)
+    x = np.array(rows, np.float32)
+    assert len(x) > 500
+    np.testing.assert_array_equal(compile_forest(est, portable=portable)(x), _reference(est, x))
+
+
+@pytest.mark.parametrize("portable", BUILDS)
+@pytest.mark.parametrize("features", [1, 3, 5, 8])
+def test_feature_counts_and_shallow_trees(features, portable):
+    """1 to 8 features (1 to 4 bits of feature in the node code), trees shallower than the
+    register-table levels, and pixel counts that leave partial groups and blocks."""
+    rng = np.random.default_rng(features)
+    x = rng.normal(size=(3000, features)).astype(np.float32)
+    y = (x[:, 0] + 0.5 * x[:, -1] > 0.2).astype(int)
+    for depth in (1, 3, 6, None):
+        est = _forest(x, y, n_estimators=7, max_depth=depth, min_samples_leaf=3)
+        predict = compile_forest(est, portable=portable)
+        for n in (1, 17, 1025, 3000):
+            np.testing.assert_array_equal(predict(x[:n]), _reference(est, x[:n]))
+
+
+def test_a_tree_that_is_a_single_leaf():
+    """A bootstrap sample with one class gives a tree with no split: its value is constant."""
+    x = np.arange(40, dtype=np.float32).reshape(-1, 1)
+    y = (x[:, 0] > 37).astype(int)  # two positives: some bootstrap samples miss both
+    est = _forest(x, y, n_estimators=20)
+    assert min(t.tree_.node_count for t in est.estimators_) == 1
+    np.testing.assert_array_equal(compile_forest(est)(x), _reference(est, x))
+
+
+def test_packing_by_hand():
+    """A stump on one feature, packed by hand: breadth-first, children side by side,
+    the float64 threshold rounded down to float32, leaves pointing to themselves."""
+    x = np.array([[0.0], [0.1], [0.9], [1.0]], np.float32)
+    est = _forest(x, [0, 0, 1, 1], n_estimators=1, bootstrap=False)
+    t = est.estimators_[0].tree_
+    packed = pack_forest(est)
+    assert packed.fshift == 0 and packed.depth == 1 and list(packed.roots) == [0]
+    # midpoint of 0.1 and 0.9 in float64, below the float32 nearest to it
+    assert packed.threshold[0] <= t.threshold[0] < np.nextafter(packed.threshold[0], np.inf)
+    assert list(packed.code[:3]) == [1, 1, 2]  # root -> node 1 (left) / 2 (right); leaves self
+    assert np.isinf(packed.threshold[1:3]).all()
+    assert list(packed.value[:3]) == [0.0, 0.0, 1.0]
+    assert packed.node[0] == (1 << 32) | int(packed.threshold[:1].view(np.uint32)[0])
+
+
+def test_the_kernel_is_built_once_per_build_and_cached(tmp_path, monkeypatch, project_forest):
     monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
-    x, y = sample_pixels(tiny_scenes[:3], max_per_class=2000, rng=np.random.default_rng(0))
-    est = RandomForestClassifier(n_estimators=5, max_depth=6, random_state=0).fit(x, y)
-    predict = compile_forest(est)
-    assert len(list((tmp_path / "forests").glob("forest-*.so"))) == 1
-    image = tiny_scenes[3].image
-    px = image.reshape(4, -1).T
-    got = predict(px)
-    np.testing.assert_array_equal(got, est.predict_proba(px)[:, 1].astype(np.float32))
-    # through the classifier, with the compiled library reused from the cache
-    model = make_classifier("random-forest")
-    model.estimator, model.fitted = est, True
-    ref = model.predict_proba(image)
-    np.testing.assert_array_equal(model.set_backend("compiled").predict_proba(image), ref)
-    assert len(list((tmp_path / "forests").glob("forest-*.so"))) == 1
+    lib = build_library()
+    assert lib.parent == tmp_path / "forests" and lib.is_file()
+    stamp = lib.stat().st_mtime_ns
+    assert build_library() == lib and lib.stat().st_mtime_ns == stamp
+    assert build_library(portable=True) != lib
+    assert len(list((tmp_path / "forests").glob("forest-kernel-*.so"))) == 2
+    assert not [p for p in (tmp_path / "forests").iterdir() if p.is_dir()]  # no leftovers
 
 
-def test_backend_choice_is_checked():
-    with pytest.raises(InvalidParameterError, match="backend: expected 'sklearn' or 'compiled'"):
-        make_classifier("random-forest").set_backend("gpu")
-    from dyntarget.perceive.compiled import compile_forest
-
+def test_bad_pixels_and_bad_forests_are_refused(project_forest):
+    predict = compile_forest(project_forest.estimator)
+    with pytest.raises(InvalidParameterError, match=r"expected shape \(n, 4\)"):
+        predict(np.zeros((5, 3), np.float32))
+    bad = np.zeros((5, 4), np.float32)
+    bad[2, 1] = np.nan
+    with pytest.raises(InvalidParameterError, match="NaN"):
+        predict(bad)
     with pytest.raises(InvalidParameterError, match="RandomForestClassifier"):
         compile_forest(object())
+
+
+def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatch):
+    """``auto`` (default), ``compiled`` and ``sklearn`` give the same probability maps;
+    ``auto`` falls back to scikit-learn without a compiler, ``compiled`` says why."""
+    image = tiny_scenes[3].image
+    ref = project_forest.estimator.predict_proba(image.reshape(4, -1).T)[:, 1]
+    ref = ref.astype(np.float32).reshape(image.shape[1:])
+    assert project_forest.backend == "auto"
+    for backend in ("auto", "compiled", "sklearn"):
+        got = project_forest.set_backend(backend).predict_proba(image)
+        np.testing.assert_array_equal(got, ref)
+    clone = pickle.loads(pickle.dumps(project_forest.set_backend("compiled")))
+    np.testing.assert_array_equal(clone.predict_proba(image), ref)  # the kernel reloads
+
+    monkeypatch.setattr(compiled, "compiler", lambda: None)
+    np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
+    assert project_forest._compiled[1] is None  # scikit-learn ran
+    with pytest.raises(MissingExtraError, match="C compiler"):
+        project_forest.set_backend("compiled").predict_proba(image)
+    with pytest.raises(InvalidParameterError, match="backend: expected 'auto', 'sklearn'"):
+        project_forest.set_backend("gpu")

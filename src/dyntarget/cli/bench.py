@@ -49,6 +49,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--variants",
         help="extra rows: comma-separated unet-uavsar:blend, unet-xception:blend, "
-        "random-forest:compiled",
+        "random-forest:sklearn, random-forest:compiled",
     )
     p.set_defaults(func=cmd_bench)

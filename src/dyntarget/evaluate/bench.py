@@ -249,7 +249,8 @@ def run_bench(
 
     ``variants`` adds the same trained models run another way, as extra rows named
     ``"NAME (OPTION)"``: ``unet-uavsar:blend`` / ``unet-xception:blend`` (the former
-    overlapping-tile stitching) and ``random-forest:compiled`` (the compiled forest).
+    overlapping-tile stitching), ``random-forest:sklearn`` and ``random-forest:compiled``
+    (the forest on scikit-learn, or on the compiled kernel, whatever the default picks).
 
     Parameters
     ----------
@@ -348,12 +349,12 @@ def _variant(models: dict[str, Any], variant: str) -> Any:
     twin = copy.copy(models[base])
     if option == "blend" and hasattr(twin, "set_stitching"):
         return twin.set_stitching("blend")
-    if option == "compiled" and hasattr(twin, "set_backend"):
-        twin.set_backend("compiled")
+    if option in ("compiled", "sklearn") and hasattr(twin, "set_backend"):
+        twin.set_backend(option)
         twin.predict_proba(np.zeros((4, 32, 32), np.float32))  # compile before timing
         return twin
     raise InvalidParameterError(
-        f"variants: expected unet-*:blend or random-forest:compiled, got {variant!r}"
+        f"variants: expected unet-*:blend or random-forest:sklearn|compiled, got {variant!r}"
     )
 
 
