@@ -3,8 +3,9 @@ ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
 
 ``unet-layouts``
     Each U-Net (width 16) at ``--size`` px, one whole-image pass on the machine's
-    threads: the trained network as it is, a channels-last copy, and the copy with its
-    batch norms folded (what prediction runs). With ``--models DIR`` (``DIR/fold-K/NAME``,
+    threads: the trained network as it is, a channels-last copy, the copy with its
+    batch norms folded, and the copy prediction runs (``networks.prepare_inference``:
+    for UNET-Xception also in-place ReLUs and sums and one upsampling per up stage). With ``--models DIR`` (``DIR/fold-K/NAME``,
     e.g. ``reproduce/models``) and ``--data SCENES``, also the largest probability
     difference and the pixels whose class changes between the default network and the
     prediction copy on the cross-validation's held-out scenes (WFOV factor 4).
@@ -61,7 +62,7 @@ def unet_layouts(args) -> list[dict]:
     import torch
 
     from dyntarget.perceive import make_classifier
-    from dyntarget.perceive.networks import fold_batch_norms
+    from dyntarget.perceive.networks import fold_batch_norms, prepare_inference
 
     rows = []
     x = torch.rand(1, 4, args.size, args.size, generator=torch.Generator().manual_seed(0))
@@ -70,12 +71,14 @@ def unet_layouts(args) -> list[dict]:
         net = make_classifier(name).model.eval()
         last = copy.deepcopy(net).to(memory_format=torch.channels_last)
         folded = fold_batch_norms(copy.deepcopy(net)).to(memory_format=torch.channels_last)
+        prepared = prepare_inference(copy.deepcopy(net))  # what prediction runs
         with torch.inference_mode():
             row = {
                 "classifier": name,
                 "default (s)": _median_s(lambda net=net: net(x)),
                 "channels-last (s)": _median_s(lambda last=last: last(xc)),
                 "folded + channels-last (s)": _median_s(lambda folded=folded: folded(xc)),
+                "prediction copy (s)": _median_s(lambda prepared=prepared: prepared(xc)),
             }
         if args.models and args.data:
             row.update(_held_out_change(name, args.models, args.data))

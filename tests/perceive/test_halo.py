@@ -187,3 +187,39 @@ def test_folding_batch_norms_keeps_the_networks_function(architecture):
     torch.testing.assert_close(got, expected, atol=1e-5 * spread, rtol=0)
     with pytest.raises(ValueError, match="evaluation mode"):
         fold_batch_norms(build(NETWORKS[architecture], 4, seed=0))
+
+
+def test_xception_inference_forward_changes_no_number():
+    """prepare_inference's Xception forward (residual first, ReLUs and sums in place,
+    one upsampling after each up stage's sum) against the plain forward of the same
+    folded, channels-last weights: equal bit for bit, the caller's input untouched,
+    and the trained network's own forward unchanged."""
+    import copy
+
+    import torch
+    from torch import nn
+
+    from dyntarget.perceive.networks import (
+        XceptionUNet,
+        build,
+        fold_batch_norms,
+        prepare_inference,
+    )
+
+    net = build(XceptionUNet, 4, seed=0).eval()
+    gen = torch.Generator().manual_seed(2)
+    for bn in [m for m in net.modules() if isinstance(m, nn.BatchNorm2d)]:
+        bn.running_mean.copy_(torch.rand(bn.num_features, generator=gen) - 0.5)
+        bn.bias.data.copy_(torch.rand(bn.num_features, generator=gen) - 0.5)
+    plain = fold_batch_norms(copy.deepcopy(net)).to(memory_format=torch.channels_last)
+    fast = prepare_inference(copy.deepcopy(net))
+    assert fast.inference and not plain.inference and not net.inference
+    assert all(m.inplace for m in fast.modules() if isinstance(m, nn.ReLU))
+    x = torch.rand(2, 4, 64, 96, generator=gen).contiguous(memory_format=torch.channels_last)
+    before = x.clone()
+    with torch.inference_mode():
+        expected, got = plain(x), fast(x)
+        assert torch.equal(net(x), net(x))  # the trained network's forward is not in place
+    assert float(expected.max() - expected.min()) > 0.1
+    assert torch.equal(got, expected)
+    assert torch.equal(x, before)

@@ -160,6 +160,7 @@ class XceptionUNet(nn.Module):
             )
             prev = c
         self.head = nn.Conv2d(width, classes, 3, padding=1)
+        self.inference = False  # set by prepare_inference() on an evaluation copy
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Logits of a batch.
@@ -174,11 +175,28 @@ class XceptionUNet(nn.Module):
         torch.Tensor
             ``(n, classes, h, w)`` logits.
         """
+        if self.inference:
+            return self._infer(x)
         x = self.entry(self.norm(x))
         for block, res in zip(self.down, self.down_res, strict=True):
             x = block(x) + res(x)
         for block, res in zip(self.upb, self.up_res, strict=True):
             x = block(x) + res(x)
+        return self.head(x)
+
+    def _infer(self, x: torch.Tensor) -> torch.Tensor:
+        # forward() with fewer passes over the activations, the same numbers bit for bit,
+        # for a copy whose ReLUs work in place (prepare_inference): each residual branch
+        # runs before the block that overwrites its input, sums are formed in place, and
+        # an up stage upsamples once, after its sum (nearest upsampling commutes with the
+        # 1x1 convolution of the residual and with the sum)
+        x = self.entry(self.norm(x))
+        for block, res in zip(self.down, self.down_res, strict=True):
+            r = res(x)
+            x = block(x).add_(r)
+        for block, res in zip(self.upb, self.up_res, strict=True):
+            r = res[1](x)
+            x = block[-1](block[:-1](x).add_(r))
         return self.head(x)
 
 
@@ -235,6 +253,48 @@ def fold_batch_norms(model: nn.Module) -> nn.Module:
             conv_owner._modules[conv_name] = fuse_conv_bn_eval(conv, bn, transpose=transpose)
             seq._modules[name] = nn.Identity()
     return model
+
+
+def prepare_inference(model: nn.Module) -> nn.Module:
+    """Turn an evaluation copy of a network into the one prediction runs.
+
+    Batch norms are folded (:func:`fold_batch_norms`: the same function up to float
+    rounding) and the weights and activations go channels-last, where oneDNN's
+    convolutions run faster on the CPU. An :class:`XceptionUNet` also runs its ReLUs in
+    place and a forward pass that computes each residual branch before the block that
+    overwrites its input, forms its sums in place and upsamples each up stage once,
+    after its sum instead of both terms before it; those steps change no number (tested
+    bit for bit) and save six passes over its largest activations. Never train the
+    result: the in-place forward is for evaluation only.
+
+    Parameters
+    ----------
+    model : torch.nn.Module
+        A copy of a network of this module in evaluation mode; changed in place.
+
+    Returns
+    -------
+    torch.nn.Module
+        ``model``.
+
+    Examples
+    --------
+    >>> import copy
+    >>> net = build(XceptionUNet, 4, seed=0).eval()
+    >>> x = torch.rand(1, 4, 32, 32)
+    >>> with torch.no_grad():
+    ...     before = net(x)
+    ...     after = prepare_inference(copy.deepcopy(net))(x)
+    >>> bool(torch.allclose(before, after, atol=1e-5))
+    True
+    """
+    fold_batch_norms(model)
+    if isinstance(model, XceptionUNet):
+        for module in model.modules():
+            if isinstance(module, nn.ReLU):
+                module.inplace = True
+        model.inference = True
+    return model.to(memory_format=torch.channels_last)
 
 
 def build(network: type[nn.Module], width: int, seed: int) -> nn.Module:

@@ -1,8 +1,10 @@
 """Onboard-ready models: export classifiers to ONNX and run them with onnxruntime.
 
 * The two U-Nets are exported with PyTorch's ONNX exporter (``torch.onnx.export``,
-  opset 18, batch dimension dynamic); prediction stitches the same overlapping
-  tiles as the PyTorch path (:func:`dyntarget.perceive.unet.tiled`).
+  opset 18, batch, height and width dynamic); prediction stitches the image as the
+  PyTorch path does (:class:`dyntarget.perceive.unet.Stitching`). UNET-Xception is
+  exported with the forward pass that upsamples each up stage once, after its sum
+  (the same function, about a fifth faster in ONNX Runtime at 1024 px).
 * The five scikit-learn pixel classifiers are converted with skl2onnx
   (probabilities as a plain ``(n, 2)`` tensor, no ZipMap).
 * ``band-threshold`` is not exported: it is three comparisons per pixel in numpy.
@@ -22,6 +24,7 @@ needs ``dyntarget[full]``.
 from __future__ import annotations
 
 import contextlib
+import copy
 import io
 import logging
 import os
@@ -114,7 +117,9 @@ def _export_unet(classifier) -> bytes:
 
     _require("onnx")
     _require("onnxscript")
-    net = classifier.model.eval()
+    net = copy.deepcopy(classifier.model).eval()
+    if hasattr(net, "inference"):  # XceptionUNet: the graph that upsamples after each sum
+        net.inference = True
     f = 2**classifier.levels  # height and width: any multiple of the downsampling factor
     example = torch.zeros(2, 4, 2 * f, 3 * f)
     exporter_log = logging.getLogger("torch.onnx")
