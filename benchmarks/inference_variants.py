@@ -45,7 +45,7 @@ from dyntarget.evaluate.bench import machine_rates
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene
 from dyntarget.io.atomic import write_text
-from dyntarget.perceive.base import available_cores
+from dyntarget.perceive.base import available_cores, keep_freed_memory
 
 
 def _median_s(fn, repeats: int = 3) -> float:
@@ -282,6 +282,7 @@ def main() -> None:
     ap.add_argument("--stride", type=int, default=16, help="forest-kernel: depth sample")
     ap.add_argument("--out", help="also write the rows here (JSON)")
     args = ap.parse_args()
+    keep_freed_memory()  # as the dyntarget command does
     run = {
         "unet-layouts": unet_layouts,
         "forest-kernel": forest_kernel,

@@ -26,6 +26,7 @@ import numpy as np
 from dyntarget.evaluate.bench import machine, measure
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.perceive import CLASSIFIERS, make_classifier
+from dyntarget.perceive.base import keep_freed_memory
 from dyntarget.perceive.onnx import INT8_SUPPORTED, export_onnx, load_onnx, quantize_int8
 from dyntarget.synth import generate_scene
 
@@ -37,6 +38,7 @@ def main() -> None:
     ap.add_argument("--out", default="docs/benchmarks/onnx_latency.json")
     ap.add_argument("--markdown", default="docs/benchmarks/onnx_latency.md")
     args = ap.parse_args()
+    keep_freed_memory()  # as the dyntarget command does
     sizes = [int(s) for s in args.sizes.split(",")]
     train = [generate_scene(1, i, size=256)[0] for i in range(4)]
     images = {s: generate_scene(0, 0, size=s)[0].image for s in sizes}
