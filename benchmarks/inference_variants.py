@@ -9,6 +9,9 @@ ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
     e.g. ``reproduce/models``) and ``--data SCENES``, also the largest probability
     difference and the pixels whose class changes between the default network and the
     prediction copy on the cross-validation's held-out scenes (WFOV factor 4).
+``unet-profile``
+    UNET-Xception's operators at ``--size`` px by self CPU time (``torch.profiler``, top
+    ``--top``), in the folded channels-last network and in the prediction copy.
 ``forest-kernel``
     The random forest of ``--model`` on ``--image``: scikit-learn, the former TL2cgen
     backend (when installed), and dyntarget's kernel built portable and with
@@ -23,11 +26,14 @@ ONNX Runtime thread spinning, and a roofline bound for the U-Nets.
     per convolution, the input + output activations beyond the L3 cache at the copy rate.
 
     python benchmarks/inference_variants.py unet-layouts [--models reproduce/models --data scenes/]
+    python benchmarks/inference_variants.py unet-profile [--default-allocator]
     python benchmarks/inference_variants.py forest-kernel --model RF --image IMG.tif
     python benchmarks/inference_variants.py ort-spinning --model RF --image IMG.tif
     python benchmarks/inference_variants.py roofline
 
-Each prints a Markdown table; ``--out FILE.json`` also keeps the numbers.
+Each prints a Markdown table; ``--out FILE.json`` also keeps the numbers. Like the
+``dyntarget`` command, the script keeps large freed blocks in the heap
+(``keep_freed_memory``); ``--default-allocator`` leaves glibc's defaults.
 """
 
 from __future__ import annotations
@@ -83,6 +89,42 @@ def unet_layouts(args) -> list[dict]:
         if args.models and args.data:
             row.update(_held_out_change(name, args.models, args.data))
         rows.append(row)
+    return rows
+
+
+def unet_profile(args) -> list[dict]:
+    import torch
+    from torch.profiler import ProfilerActivity, profile
+
+    from dyntarget.perceive import make_classifier
+    from dyntarget.perceive.networks import fold_batch_norms, prepare_inference
+
+    x = torch.rand(1, 4, args.size, args.size, generator=torch.Generator().manual_seed(0))
+    x = x.contiguous(memory_format=torch.channels_last)
+    net = make_classifier("unet-xception").model.eval()
+    rows = []
+    for label, copy_ in (
+        ("folded + channels-last", fold_batch_norms(copy.deepcopy(net)).to(
+            memory_format=torch.channels_last)),
+        ("prediction copy", prepare_inference(copy.deepcopy(net))),
+    ):  # fmt: skip
+        with torch.inference_mode():
+            copy_(x)
+            with profile(activities=[ProfilerActivity.CPU], record_shapes=True) as prof:
+                copy_(x)
+        events = prof.key_averages(group_by_input_shape=True)
+        total = sum(e.self_cpu_time_total for e in events)
+        for e in sorted(events, key=lambda e: -e.self_cpu_time_total)[: args.top]:
+            rows.append(
+                {
+                    "network": label,
+                    "op": e.key,
+                    "input shapes": str(e.input_shapes)[:60],
+                    "calls": e.count,
+                    "self ms": e.self_cpu_time_total / 1e3,
+                    "share": e.self_cpu_time_total / total,
+                }
+            )
     return rows
 
 
@@ -272,7 +314,10 @@ def _l3_bytes() -> int:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=["unet-layouts", "forest-kernel", "ort-spinning", "roofline"])
+    ap.add_argument(
+        "what",
+        choices=["unet-layouts", "unet-profile", "forest-kernel", "ort-spinning", "roofline"],
+    )
     ap.add_argument("--size", type=int, default=1024, help="WFOV px (unet-layouts, roofline)")
     ap.add_argument("--models", help="unet-layouts: trained models, DIR/fold-K/NAME")
     ap.add_argument("--data", help="unet-layouts: the labelled scenes of those models")
@@ -280,11 +325,19 @@ def main() -> None:
     ap.add_argument("--image", help="forest-kernel, ort-spinning: a 4-band GeoTIFF")
     ap.add_argument("--repeats", type=int, default=5, help="forest-kernel: timed runs")
     ap.add_argument("--stride", type=int, default=16, help="forest-kernel: depth sample")
+    ap.add_argument("--top", type=int, default=12, help="unet-profile: ops per network")
+    ap.add_argument(
+        "--default-allocator",
+        action="store_true",
+        help="leave glibc's malloc thresholds as they are (no keep_freed_memory)",
+    )
     ap.add_argument("--out", help="also write the rows here (JSON)")
     args = ap.parse_args()
-    keep_freed_memory()  # as the dyntarget command does
+    if not args.default_allocator:
+        keep_freed_memory()  # as the dyntarget command does
     run = {
         "unet-layouts": unet_layouts,
+        "unet-profile": unet_profile,
         "forest-kernel": forest_kernel,
         "ort-spinning": ort_spinning,
         "roofline": roofline,
