@@ -82,6 +82,44 @@ def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
     assert onnx_out.read_text() == native_out.read_text()  # the same mask, the same plan
 
 
+@pytest.mark.slow
+def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_ml(
+    tiny_scenes, tmp_path
+):
+    """forest.npz beside model.onnx: the lean path loads neither scikit-learn nor torch,
+    maps the forest kernel where it builds with AVX-512, and plans what the native model
+    plans (bit-identical probabilities, so the same mask)."""
+    pytest.importorskip("onnxruntime")
+    pytest.importorskip("skl2onnx")
+    from dyntarget.cli import main
+    from dyntarget.io import write_scene
+    from dyntarget.perceive import compiled, make_classifier
+    from dyntarget.perceive.onnx import export_onnx
+
+    model_dir = tmp_path / "rf"
+    model = make_classifier("random-forest", max_pixels_per_class=2000).fit(tiny_scenes[:3])
+    model.save(model_dir)
+    export_onnx(model, model_dir)
+    image = write_scene(tiny_scenes[3], tmp_path / "scene")[0]
+    native_out = tmp_path / "native.csv"
+    args = ["plan", str(image), "--model", str(model_dir), "--planner", "track-center"]
+    assert main([*args, "--out", str(native_out)]) == 0
+
+    onnx_out = tmp_path / "onnx.csv"
+    loaded, out = _loaded_after(
+        "from dyntarget.cli import main\n"
+        f"assert main({[*args, '--onnx', '--out', str(onnx_out)]!r}) == 0\n"
+        "print(any('forest-kernel' in line for line in open('/proc/self/maps')))"
+    )
+    assert not set(loaded) & set(NATIVE_ML), loaded
+    fast = (
+        compiled.compiler() is not None
+        and compiled.forest_predictor(compiled.pack_forest(model.estimator)).vectorised
+    )
+    assert out.strip().splitlines()[-1] == str(fast)  # the kernel ran where it can
+    assert onnx_out.read_text() == native_out.read_text()
+
+
 def test_a_missing_optional_dependency_names_its_extra(tiny_scenes, tmp_path, monkeypatch, capsys):
     from dyntarget.cli import main
     from dyntarget.io import write_scene

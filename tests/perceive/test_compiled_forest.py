@@ -156,3 +156,125 @@ def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatc
         project_forest.set_backend("compiled").predict_proba(image)
     with pytest.raises(InvalidParameterError, match="backend: expected 'auto', 'sklearn'"):
         project_forest.set_backend("gpu")
+
+
+# -- the packed forest in an exported model directory (forest.npz) ----------------------
+
+
+def _saved(project_forest, tmp_path):
+    from dyntarget.perceive.compiled import save_forest
+
+    return save_forest(pack_forest(project_forest.estimator), tmp_path / "forest.npz")
+
+
+def _rewrite(path, **changes):
+    with np.load(path) as npz:
+        data = {k: npz[k] for k in npz.files}
+    data.update(changes)
+    with open(path, "wb") as fh:
+        np.savez(fh, **data)
+    return path
+
+
+def test_a_saved_forest_loads_to_the_same_arrays_and_probabilities(project_forest, tmp_path):
+    from dyntarget.perceive.compiled import forest_predictor, load_forest
+
+    packed = pack_forest(project_forest.estimator)
+    back = load_forest(_saved(project_forest, tmp_path))
+    for name in ("threshold", "code", "node", "value", "roots"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(packed, name))
+    assert (back.depth, back.features, back.fshift) == (packed.depth, 4, 2)
+    x = np.random.default_rng(3).uniform(0, 0.6, (5000, 4)).astype(np.float32)
+    np.testing.assert_array_equal(
+        forest_predictor(back)(x), _reference(project_forest.estimator, x)
+    )
+
+
+def _hostile_cases(path):
+    """(name, how to break the file, words the refusal must name)."""
+    with np.load(path) as npz:
+        code, thr, roots = npz["code"].copy(), npz["threshold"].copy(), npz["roots"]
+    inner = int(np.flatnonzero(np.isfinite(thr[: len(thr) - 32]))[3])
+    leaf = int(np.flatnonzero(np.isposinf(thr))[0])
+    out_of_range, cycle, bad_leaf, bad_feature = code.copy(), code.copy(), code.copy(), code.copy()
+    out_of_range[inner] = (10**6 << 2) | (code[inner] & 3)  # a child far past the nodes
+    cycle[inner] = code[0] & ~3  # back to the root: a loop, not breadth-first
+    bad_leaf[leaf] = (leaf + 1) << 2  # a leaf that walks on
+    bad_feature[inner] = (code[inner] & ~3) | 3
+    nan_thr = thr.copy()
+    nan_thr[inner] = np.nan
+    return [
+        ("child out of range", dict(code=out_of_range), "breadth-first"),
+        ("a cycle", dict(code=cycle), "breadth-first"),
+        ("a leaf that moves", dict(code=bad_leaf), "leaf does not point to itself"),
+        ("feature 3 of 3", dict(code=bad_feature, features=np.int64(3)), "features 3"),
+        ("NaN threshold", dict(threshold=nan_thr), "non-finite threshold"),
+        ("deeper than declared", dict(depth=np.int64(13)), "declared depth 13"),
+        ("declared too deep", dict(depth=np.int64(40)), "declared depth 40"),
+        ("float64 codes", dict(code=code.astype(np.float64)), "code missing or not int32"),
+        ("roots out of order", dict(roots=roots[::-1].copy()), "roots"),
+        ("value above 1", dict(value=np.full(len(thr) - 32, 2.0)), "0..1"),
+        ("depth as an array", dict(depth=np.array([14, 14])), "single numbers"),
+    ]
+
+
+def test_hostile_packed_forests_are_refused_naming_the_problem(project_forest, tmp_path):
+    """Node indices are memory addresses to the kernel: every broken rule is refused with
+    one line before any pixel reaches it."""
+    from dyntarget.errors import ModelFileError
+    from dyntarget.perceive.compiled import load_forest
+
+    good = _saved(project_forest, tmp_path)
+    for name, changes, words in _hostile_cases(good):
+        bad = _rewrite(_copy(good, tmp_path / f"{name.replace(' ', '-')}.npz"), **changes)
+        with pytest.raises(ModelFileError, match=words) as info:
+            load_forest(bad)
+        assert "\n" not in str(info.value), name
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"PK\x03\x04 not really a zip")
+    with pytest.raises(ModelFileError, match="unreadable"):
+        load_forest(junk)
+    pickled = tmp_path / "pickled.npz"
+    with open(pickled, "wb") as fh:
+        np.savez(fh, threshold=np.array([object()], dtype=object))
+    with pytest.raises(ModelFileError, match="unreadable"):
+        load_forest(pickled)
+
+
+def _copy(src, dst):
+    dst.write_bytes(src.read_bytes())
+    return dst
+
+
+@pytest.mark.slow
+def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
+    project_forest, tiny_scenes, tmp_path
+):
+    """export-onnx writes forest.npz beside model.onnx; the twin runs it on the kernel,
+    bit-identical to scikit-learn, ``kernel=False`` runs ONNX Runtime, and ``plan --onnx``
+    refuses a broken forest.npz with one line and exit code 2."""
+    pytest.importorskip("onnxruntime")
+    from dyntarget.cli import main
+    from dyntarget.io import write_scene
+    from dyntarget.perceive.onnx import export_checked, load_onnx
+
+    model_dir = tmp_path / "rf"
+    project_forest.save(model_dir)
+    image = tiny_scenes[3].image
+    _, diff = export_checked(project_forest, model_dir, image)
+    assert (model_dir / "forest.npz").is_file() and diff < 1e-4
+    twin = load_onnx(model_dir)
+    np.testing.assert_array_equal(
+        twin.predict_proba(image), project_forest.set_backend("sklearn").predict_proba(image)
+    )
+    assert twin.backend == ("forest kernel" if twin.forest is not None else "onnxruntime")
+    ort = load_onnx(model_dir, kernel=False)
+    assert ort.forest is None
+    ort.predict_proba(image)
+    assert ort.backend == "onnxruntime"
+
+    scene = write_scene(tiny_scenes[3], tmp_path / "scene")[0]
+    _rewrite(model_dir / "forest.npz", depth=np.int64(40))
+    args = ["plan", str(scene), "--model", str(model_dir), "--onnx", "--planner", "track-center"]
+    assert main([*args, "--out", str(tmp_path / "t.csv")]) == 2
+    assert not (tmp_path / "t.csv").exists()

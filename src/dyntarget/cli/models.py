@@ -42,13 +42,16 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
-    onnx_path = Path(args.model) / "model.onnx"
-    if onnx_path.is_symlink() or (onnx_path.exists() and not onnx_path.is_file()):
-        raise OutputPathError(f"{onnx_path}: not a regular file; it is left as it is")
+    for name in ("model.onnx", "forest.npz"):  # forest.npz: a random forest's packed arrays
+        out = Path(args.model) / name
+        if out.is_symlink() or (out.exists() and not out.is_file()):
+            raise OutputPathError(f"{out}: not a regular file; it is left as it is")
     check = generate_scene(args.seed, 0, size=args.check_size)[0].image
     path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
+    if (Path(args.model) / "forest.npz").is_file() and native.name == "random-forest":
+        print(Path(args.model) / "forest.npz")  # the packed forest, for the forest kernel
     if args.int8:
         import numpy as np
 

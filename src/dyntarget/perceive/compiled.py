@@ -42,11 +42,18 @@ from pathlib import Path
 
 import numpy as np
 
-from dyntarget.errors import InvalidParameterError, MissingExtraError
+from dyntarget.errors import InvalidParameterError, MissingExtraError, ModelFileError
 
 PAD = 32
 """Entries after the last tree in ``threshold`` and ``code`` (the kernel's register table
 reads a tree's first 32 nodes, past the end for a small last tree)."""
+
+FOREST_FILE = "forest.npz"
+"""The packed forest in an exported model directory (beside ``model.onnx``): lets the
+lean onboard install, which has no scikit-learn, run the kernel too."""
+
+MAX_DEPTH = 64
+"""Deepest tree a packed-forest file may declare."""
 
 FLAGS = ("-O2", "-march=native", "-std=c11", "-shared", "-fPIC")
 """Compiler flags of the kernel; without ``-march=native`` when the compiler refuses it."""
@@ -201,6 +208,142 @@ def pack_forest(estimator) -> PackedForest:
     )
 
 
+def save_forest(packed: PackedForest, path: str | os.PathLike[str]) -> Path:
+    """Write a packed forest to ``path`` (``.npz``, no pickled objects; atomic).
+
+    Parameters
+    ----------
+    packed : PackedForest
+        From :func:`pack_forest`.
+    path : path
+        The file, usually ``MODEL_DIR/forest.npz`` (:data:`FOREST_FILE`).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from sklearn.ensemble import RandomForestClassifier
+    >>> x = np.array([[0.0], [1.0], [2.0], [3.0]], np.float32)
+    >>> est = RandomForestClassifier(n_estimators=2, random_state=0).fit(x, [0, 0, 1, 1])
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     back = load_forest(save_forest(pack_forest(est), Path(tmp) / FOREST_FILE))
+    >>> back.depth == pack_forest(est).depth
+    True
+    """
+    from dyntarget.io.atomic import atomic_path
+
+    path = Path(path)
+    arrays = {n: getattr(packed, n) for n in ("threshold", "code", "value", "roots")}
+    scalars = {n: np.int64(getattr(packed, n)) for n in ("depth", "features", "fshift")}
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays, **scalars)
+    return path
+
+
+def load_forest(path: str | os.PathLike[str]) -> PackedForest:
+    """Read and check a packed forest written by :func:`save_forest`.
+
+    The kernel trusts the arrays (node indices are memory addresses to it), so every
+    rule it relies on is checked first: dtypes and shapes; trees laid out one after
+    another, each breadth-first with the children of each internal node side by side
+    (which also makes every tree a tree: in range, acyclic, each node reached once);
+    leaves pointing to themselves with threshold ``+inf``; finite thresholds and
+    feature indices below the feature count at internal nodes; leaf values in 0..1; the
+    declared depth the trees' true depth.
+
+    Parameters
+    ----------
+    path : path
+        A ``forest.npz``.
+
+    Returns
+    -------
+    PackedForest
+        The checked forest.
+
+    Raises
+    ------
+    ModelFileError
+        One line naming the first rule the file breaks.
+    """
+    path = Path(path)
+
+    def fail(why: str) -> ModelFileError:
+        return ModelFileError(f"{path}: not a usable packed forest ({why})")
+
+    try:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as npz:
+            data = {k: npz[k] for k in npz.files}
+    except Exception as exc:  # numpy raises several types on a corrupt archive
+        raise fail(f"unreadable: {exc}") from None
+    expected = {"threshold": np.float32, "code": np.int32, "value": np.float64,
+                "roots": np.int32, "depth": np.int64, "features": np.int64,
+                "fshift": np.int64}  # fmt: skip
+    for name, dtype in expected.items():
+        if name not in data or data[name].dtype != dtype:
+            raise fail(f"{name} missing or not {np.dtype(dtype).name}")
+    threshold, code, value, roots = (data[n] for n in ("threshold", "code", "value", "roots"))
+    if any(data[n].ndim != 0 for n in ("depth", "features", "fshift")):
+        raise fail("depth, features and fshift must be single numbers")
+    depth, features, fshift = (int(data[n]) for n in ("depth", "features", "fshift"))
+    if any(a.ndim != 1 for a in (threshold, code, value, roots)):
+        raise fail("arrays must be one-dimensional")
+    total = len(value)
+    if not 1 <= features <= 8 or fshift != (features - 1).bit_length():
+        raise fail(f"features {features} with fshift {fshift}")
+    if len(threshold) != total + PAD or len(code) != total + PAD or total < 1:
+        raise fail("threshold, code and value lengths disagree")
+    if (total + PAD) << fshift >= 2**31 or not 0 <= depth <= MAX_DEPTH:
+        raise fail(f"{total} nodes of depth {depth} are out of the kernel's range")
+    if len(roots) < 1 or roots[0] != 0 or (np.diff(roots) < 1).any() or roots[-1] >= total:
+        raise fail("tree roots are not increasing offsets into the nodes")
+    node = np.arange(total)
+    thr, cod = threshold[:total], code[:total]
+    leaf = np.isposinf(thr)
+    child = cod >> fshift
+    if (leaf & ((child != node) | ((cod & ((1 << fshift) - 1)) != 0))).any():
+        raise fail("a leaf does not point to itself")
+    if not np.isfinite(thr[~leaf]).all():
+        raise fail("an internal node has a non-finite threshold")
+    if ((cod & ((1 << fshift) - 1)) >= features)[~leaf].any():
+        raise fail(f"an internal node splits on a feature out of range (features {features})")
+    if not (np.isfinite(value) & (value >= 0) & (value <= 1)).all():
+        raise fail("leaf values must lie in 0..1")
+    ends = np.append(roots[1:], total)
+    for start, end in zip(roots.tolist(), ends.tolist(), strict=True):
+        inner = np.flatnonzero(~leaf[start:end]) + start
+        # breadth-first, siblings adjacent: the children of the internal nodes, in order,
+        # are exactly the tree's other nodes, in order
+        if not np.array_equal(child[inner], np.arange(start + 1, end, 2)):
+            raise fail(f"the tree at node {start} is not laid out breadth-first")
+    level = np.full(total, -1)
+    level[roots] = 0
+    deepest = 0
+    while deepest <= MAX_DEPTH:  # every node is reached once, from its parent
+        parents = np.flatnonzero((level == deepest) & ~leaf)
+        if not len(parents):
+            break
+        children = child[parents]
+        deepest += 1
+        level[children] = level[children + 1] = deepest
+    if depth != deepest:
+        raise fail(f"declared depth {depth}, the trees are {deepest} deep")
+    return PackedForest(
+        threshold=threshold,
+        code=code,
+        node=(cod.astype(np.int64) << 32) | thr.view(np.uint32),
+        value=value,
+        roots=roots,
+        depth=depth,
+        features=features,
+        fshift=fshift,
+    )
+
+
 def _cpu() -> str:
     """The CPU's model and feature flags (part of the cache key: ``-march=native``)."""
     try:
@@ -304,7 +447,31 @@ def compile_forest(
     >>> bool((predict(x) == est.predict_proba(x)[:, 1].astype(np.float32)).all())
     True
     """
-    packed = pack_forest(estimator)
+    return forest_predictor(pack_forest(estimator), directory=directory, portable=portable)
+
+
+def forest_predictor(
+    packed: PackedForest,
+    *,
+    directory: str | os.PathLike[str] | None = None,
+    portable: bool = False,
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The kernel's predictor for a packed forest (:func:`pack_forest` or :func:`load_forest`).
+
+    Parameters
+    ----------
+    packed : PackedForest
+        The forest.
+    directory : path, optional
+        Cache directory of the kernel (default :func:`cache_dir`).
+    portable : bool
+        Use the kernel built without ``-march=native``.
+
+    Returns
+    -------
+    callable
+        As :func:`compile_forest`'s.
+    """
     dll = _load(build_library(directory, portable=portable))
 
     def predict(part: np.ndarray) -> np.ndarray:

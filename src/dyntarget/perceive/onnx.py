@@ -81,6 +81,11 @@ def supports_onnx(classifier: Classifier) -> bool:
 def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Path:
     """Write ``model_dir/model.onnx`` for a fitted classifier.
 
+    A random forest also gets ``forest.npz`` (:func:`dyntarget.perceive.compiled.save_forest`):
+    its packed arrays, which the ONNX twin runs on dyntarget's forest kernel where it
+    builds with AVX-512, bit-identical to scikit-learn and about 4x faster than ONNX
+    Runtime's tree ensemble (see :class:`OnnxClassifier`).
+
     Parameters
     ----------
     classifier : Classifier
@@ -109,6 +114,10 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
         data = _export_sklearn(classifier)
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(data)
+    if classifier.name == "random-forest":  # the lean install's way to the forest kernel
+        from dyntarget.perceive.compiled import FOREST_FILE, pack_forest, save_forest
+
+        save_forest(pack_forest(classifier.estimator), Path(model_dir) / FOREST_FILE)
     return path
 
 
@@ -188,6 +197,10 @@ class OnnxClassifier:
         height and width were dynamic takes only ``tile`` px tiles: ``"blend"`` is used.
     threads : int or None
         onnxruntime intra-op threads (default: the cores this process may use).
+    forest : dyntarget.perceive.compiled.PackedForest or None
+        A random forest's packed arrays (``forest.npz``): pixels then go through
+        dyntarget's forest kernel where it builds with AVX-512 (a C compiler on the
+        PATH), and through ``model.onnx`` otherwise. :attr:`backend` says which ran.
     """
 
     def __init__(
@@ -200,7 +213,10 @@ class OnnxClassifier:
         width: int = 16,
         stitch: str = "halo",
         threads: int | None = None,
+        forest=None,
     ) -> None:
+        self.forest, self._kernel = forest, None
+        self.backend = "onnxruntime"  # "forest kernel" once a forest has predicted on it
         ort = _require("onnxruntime", "onboard")
         options = ort.SessionOptions()
         options.log_severity_level = 3
@@ -252,6 +268,10 @@ class OnnxClassifier:
                 return (e[:, 1] / e.sum(axis=1)).astype(np.float32)
 
             proba = self.stitching.run(image, forward)
+        elif self._forest_kernel() is not None:
+            from dyntarget.perceive.pixel import predict_in_chunks
+
+            proba = predict_in_chunks(image, self._kernel)
         else:
             from dyntarget.perceive.pixel import PREDICT_CHUNK
 
@@ -266,6 +286,22 @@ class OnnxClassifier:
             proba = proba.reshape(h, w)
         proba = np.asarray(proba, np.float32)
         return np.clip(proba, 0.0, 1.0, out=proba)
+
+    def _forest_kernel(self):
+        """The forest kernel's predictor, built on first use; ``None`` to use ONNX Runtime."""
+        if self.forest is not None and self._kernel is None:
+            from dyntarget.errors import MissingExtraError
+            from dyntarget.perceive.compiled import forest_predictor
+
+            try:
+                kernel = forest_predictor(self.forest)
+            except (MissingExtraError, OSError):  # no compiler: ONNX Runtime, silently
+                kernel = None
+            if kernel is None or not kernel.vectorised:
+                self.forest = None  # the portable build is not faster than ONNX Runtime here
+            else:
+                self._kernel, self.backend = kernel, "forest kernel"
+        return self._kernel
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
         """Plume mask ``predict_proba(image) >= threshold``.
@@ -289,11 +325,14 @@ class OnnxClassifier:
         return self.predict_proba(image) >= threshold
 
 
-def load_onnx(model_dir: str | os.PathLike[str], *, int8: bool = False) -> OnnxClassifier:
+def load_onnx(
+    model_dir: str | os.PathLike[str], *, int8: bool = False, kernel: bool = True
+) -> OnnxClassifier:
     """The ONNX twin of the model in ``model_dir`` (exported with :func:`export_onnx`).
 
-    Only ``metadata.json`` and ``model.onnx`` are read; the native weights, torch,
-    scikit-learn and skops are not touched.
+    Only ``metadata.json``, ``model.onnx`` and, for a random forest, ``forest.npz`` are
+    read (the last checked rule by rule: :func:`dyntarget.perceive.compiled.load_forest`);
+    the native weights, torch, scikit-learn and skops are not touched.
 
     Parameters
     ----------
@@ -301,6 +340,9 @@ def load_onnx(model_dir: str | os.PathLike[str], *, int8: bool = False) -> OnnxC
         A model directory with ``model.onnx``.
     int8 : bool
         Load ``model.int8.onnx`` (from :func:`quantize_int8`) instead.
+    kernel : bool
+        Let a random forest run on dyntarget's forest kernel when ``forest.npz`` is there
+        (default); ``False`` runs ``model.onnx`` in ONNX Runtime whatever the directory holds.
 
     Returns
     -------
@@ -324,7 +366,13 @@ def load_onnx(model_dir: str | os.PathLike[str], *, int8: bool = False) -> OnnxC
     width = meta["config"].get("width", 16)
     if kind == "unet" and (isinstance(width, bool) or not isinstance(width, int) or width < 1):
         raise ModelFileError(f"{model_dir}: metadata config width {width!r} is not a width")
-    return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width)
+    forest = None
+    if kernel and name == "random-forest":
+        from dyntarget.perceive.compiled import FOREST_FILE, load_forest
+
+        if (Path(model_dir) / FOREST_FILE).is_file():
+            forest = load_forest(Path(model_dir) / FOREST_FILE)
+    return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width, forest=forest)
 
 
 def export_checked(
@@ -351,10 +399,18 @@ def export_checked(
     from dyntarget.errors import ExportError
 
     path = export_onnx(native, model_dir)
-    twin = load_onnx(model_dir)
-    diff = float(np.abs(twin.predict_proba(check_image) - native.predict_proba(check_image)).max())
+    expected = native.predict_proba(check_image)
+    diff = float(
+        np.abs(load_onnx(model_dir, kernel=False).predict_proba(check_image) - expected).max()
+    )
+    twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel where it runs
+    if twin.forest is not None:
+        diff = max(diff, float(np.abs(twin.predict_proba(check_image) - expected).max()))
     if not diff <= TOLERANCE:
+        from dyntarget.perceive.compiled import FOREST_FILE
+
         path.unlink()
+        (Path(model_dir) / FOREST_FILE).unlink(missing_ok=True)
         raise ExportError(
             f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
             f"(> {TOLERANCE:g}); export removed"

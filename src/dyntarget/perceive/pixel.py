@@ -21,6 +21,7 @@ mlp                    StandardScaler -> MLPClassifier((32, 32), early_stopping,
 
 from __future__ import annotations
 
+import contextlib
 import io
 import re
 import zipfile
@@ -108,6 +109,60 @@ def _canonical_skops(archive: bytes) -> bytes:
     return out.getvalue()
 
 
+def predict_in_chunks(image: np.ndarray, proba) -> np.ndarray:
+    """Run a per-pixel predictor over an image in fixed chunks on a pool of threads.
+
+    The chunks are :data:`PREDICT_CHUNK` pixels, one thread per available core, with
+    BLAS and OpenMP inside each chunk held to one thread where threadpoolctl is
+    installed (2 threads on 2 cores, not 2 x 2); each pixel's result depends on its own
+    values only, so the output equals one call over all pixels (tested).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(4, H, W)`` float32 image.
+    proba : callable
+        ``(n, 4) float32 -> (n,)`` plume probability; called from several threads.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32 (H, W)``.
+
+    Examples
+    --------
+    >>> image = np.zeros((4, 3, 2), np.float32)
+    >>> image[3] = [[0, 1], [2, 3], [4, 5]]
+    >>> predict_in_chunks(image, lambda px: px[:, 3] / 10)
+    array([[0. , 0.1],
+           [0.2, 0.3],
+           [0.4, 0.5]], dtype=float32)
+    """
+    h, w = image.shape[1:]
+    x = np.ascontiguousarray(pixels(image))
+    out = np.empty(h * w, np.float32)
+    starts = range(0, h * w, PREDICT_CHUNK)
+
+    def chunk(start: int) -> None:
+        part = x[start : start + PREDICT_CHUNK]
+        out[start : start + len(part)] = proba(part)
+
+    if len(starts) == 1:
+        chunk(0)
+    else:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # the lean install: no BLAS-threaded predictor to hold back
+            limits = contextlib.nullcontext()
+        else:
+            limits = threadpool_limits(limits=1)
+        # the pool is the parallelism: BLAS / OpenMP inside each chunk stay on one
+        # thread, so 2 cores run 2 threads, not 2 x 2
+        with limits, ThreadPoolExecutor(max_workers=available_cores()) as pool:
+            list(pool.map(chunk, starts))
+    return out.reshape(h, w)
+
+
 class PixelClassifier(Classifier):
     """A scikit-learn estimator over the four band values of each pixel.
 
@@ -167,30 +222,7 @@ class PixelClassifier(Classifier):
         self.estimator = est
 
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
-        h, w = image.shape[1:]
-        x = np.ascontiguousarray(pixels(image))
-        out = np.empty(h * w, np.float32)
-        starts = range(0, h * w, PREDICT_CHUNK)
-
-        proba = self.chunk_predictor()
-
-        def chunk(start: int) -> None:
-            part = x[start : start + PREDICT_CHUNK]
-            out[start : start + len(part)] = proba(part)
-
-        if len(starts) == 1:
-            chunk(0)
-        else:
-            from threadpoolctl import threadpool_limits
-
-            # the pool is the parallelism: BLAS / OpenMP inside each chunk stay on one
-            # thread, so 2 cores run 2 threads, not 2 x 2
-            with (
-                threadpool_limits(limits=1),
-                ThreadPoolExecutor(max_workers=available_cores()) as pool,
-            ):
-                list(pool.map(chunk, starts))
-        return out.reshape(h, w)
+        return predict_in_chunks(image, self.chunk_predictor())
 
     def chunk_predictor(self):
         """``(n, 4) float32 -> (n,)`` plume probability of a chunk of pixels.
