@@ -124,6 +124,22 @@ def test_the_kernel_is_built_once_per_build_and_cached(tmp_path, monkeypatch, pr
     assert not [p for p in (tmp_path / "forests").iterdir() if p.is_dir()]  # no leftovers
 
 
+def test_a_cached_build_serves_without_a_compiler(tmp_path, monkeypatch, project_forest):
+    """A flight computer may get the cache built on the ground: no compiler needed then,
+    and without either the refusal names the compiler."""
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
+    lib = build_library()
+    monkeypatch.setattr(compiled, "compiler", lambda: None)
+    assert build_library() == lib
+    x = np.random.default_rng(4).uniform(0, 0.6, (300, 4)).astype(np.float32)
+    np.testing.assert_array_equal(
+        compile_forest(project_forest.estimator)(x), _reference(project_forest.estimator, x)
+    )
+    lib.unlink()
+    with pytest.raises(MissingExtraError, match="C compiler"):
+        build_library()
+
+
 def test_bad_pixels_and_bad_forests_are_refused(project_forest):
     predict = compile_forest(project_forest.estimator)
     with pytest.raises(InvalidParameterError, match=r"expected shape \(n, 4\)"):
@@ -136,7 +152,7 @@ def test_bad_pixels_and_bad_forests_are_refused(project_forest):
         compile_forest(object())
 
 
-def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatch):
+def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatch, tmp_path):
     """``auto`` (default), ``compiled`` and ``sklearn`` give the same probability maps;
     ``auto`` falls back to scikit-learn without a compiler, ``compiled`` says why."""
     image = tiny_scenes[3].image
@@ -149,6 +165,7 @@ def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatc
     clone = pickle.loads(pickle.dumps(project_forest.set_backend("compiled")))
     np.testing.assert_array_equal(clone.predict_proba(image), ref)  # the kernel reloads
 
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))  # no cached build either
     monkeypatch.setattr(compiled, "compiler", lambda: None)
     np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
     assert project_forest._compiled[1] is None  # scikit-learn ran

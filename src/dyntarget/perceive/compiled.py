@@ -7,8 +7,10 @@ at once with AVX-512 where the CPU has it, reads the first five levels of every 
 registers and stops a group of pixels as soon as all of them sit on leaves. The kernel is
 compiled once per machine with the C compiler found on the PATH (``cc -O2 -march=native``,
 about a second) and cached under :func:`cache_dir`, keyed by a SHA-256 of its source, the
-flags, the compiler's version and the CPU's feature flags. The forest itself is data, so
-one library serves every forest, and nothing compiled is ever read from a model directory.
+flags and the CPU's model and feature flags; a cached build serves without a compiler (a
+flight computer can get the cache directory built on the ground on the same CPU). The
+forest itself is data, so one library serves every forest, and nothing compiled is ever
+read from a model directory.
 
 Layout (per tree, trees one after another): nodes in breadth-first order with the two
 children of a node next to each other, so a pixel goes from node ``k`` to
@@ -374,28 +376,32 @@ def build_library(
     Raises
     ------
     MissingExtraError
-        No C compiler, or the kernel does not compile.
+        No C compiler and no cached build, or the kernel does not compile.
     """
+    source = files("dyntarget.perceive").joinpath("_forest.c").read_bytes()
+    where = Path(directory) if directory is not None else cache_dir()
+    first = [f for f in FLAGS if f != "-march=native"] if portable else list(FLAGS)
+    builds = []  # (flags, library), the preferred first; without -march=native as a fallback
+    for flags in (first, [f for f in first if f != "-march=native"])[: 2 if not portable else 1]:
+        key = b"\0".join([source, " ".join(flags).encode(), _cpu().encode()])
+        builds.append((flags, where / f"forest-kernel-{hashlib.sha256(key).hexdigest()[:24]}.so"))
     cc = compiler()
+    for flags, lib in builds:  # a cached build serves without a compiler (e.g. shipped)
+        if lib.is_file() and (cc is None or flags is builds[0][0]):
+            return lib
     if cc is None:
         raise MissingExtraError("the compiled forest needs a C compiler (cc or gcc) on the PATH")
-    source = files("dyntarget.perceive").joinpath("_forest.c").read_bytes()
-    try:
-        version = subprocess.run([cc, "--version"], capture_output=True, timeout=30).stdout
-    except (OSError, subprocess.SubprocessError) as exc:
-        raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
-    where = Path(directory) if directory is not None else cache_dir()
-    attempts = [f for f in FLAGS if f != "-march=native"] if portable else list(FLAGS)
-    for flags in (attempts, [f for f in attempts if f != "-march=native"]):
-        key = b"\0".join([source, " ".join(flags).encode(), version, _cpu().encode()])
-        lib = where / f"forest-kernel-{hashlib.sha256(key).hexdigest()[:24]}.so"
+    for flags, lib in builds:
         if lib.is_file():
             return lib
         where.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=where) as tmp:
             src, part = Path(tmp) / "_forest.c", Path(tmp) / lib.name
             src.write_bytes(source)
-            done = subprocess.run([cc, *flags, str(src), "-o", str(part)], capture_output=True)
+            try:
+                done = subprocess.run([cc, *flags, str(src), "-o", str(part)], capture_output=True)
+            except OSError as exc:
+                raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
             if done.returncode == 0:
                 os.replace(part, lib)  # atomic: a reader never sees half a library
                 return lib
