@@ -16,7 +16,7 @@ import pytest
 
 from dyntarget import InvalidParameterError
 from dyntarget.errors import MissingExtraError
-from dyntarget.perceive import compiled, make_classifier
+from dyntarget.perceive import compiled, load_classifier, make_classifier
 from dyntarget.perceive.compiled import build_library, compile_forest, pack_forest
 
 if compiled.compiler() is None:
@@ -225,13 +225,17 @@ def _hostile_cases(path):
         ("a cycle", dict(code=cycle), "breadth-first"),
         ("a leaf that moves", dict(code=bad_leaf), "leaf does not point to itself"),
         ("feature 3 of 3", dict(code=bad_feature, features=np.int64(3)), "features 3"),
-        ("NaN threshold", dict(threshold=nan_thr), "non-finite threshold"),
+        ("NaN threshold", dict(threshold=nan_thr), "NaN threshold"),
         ("deeper than declared", dict(depth=np.int64(13)), "declared depth 13"),
         ("declared too deep", dict(depth=np.int64(40)), "declared depth 40"),
-        ("float64 codes", dict(code=code.astype(np.float64)), "code missing or not int32"),
+        ("float64 codes", dict(code=code.astype(np.float64)), "code is not int32"),
         ("roots out of order", dict(roots=roots[::-1].copy()), "roots"),
         ("value above 1", dict(value=np.full(len(thr) - 32, 2.0)), "0..1"),
         ("depth as an array", dict(depth=np.array([14, 14])), "single numbers"),
+        # int32 differences that wrap around: every step looks positive
+        ("roots that overflow", dict(roots=np.array([0, 5, -(2**31) + 3, 1], np.int32)), "roots"),
+        ("an extra member", dict(junk=np.zeros(10)), "members"),
+        ("bound to another model", dict(model_sha256=np.ones(32, np.uint8)), "another model"),
     ]
 
 
@@ -245,17 +249,93 @@ def test_hostile_packed_forests_are_refused_naming_the_problem(project_forest, t
     for name, changes, words in _hostile_cases(good):
         bad = _rewrite(_copy(good, tmp_path / f"{name.replace(' ', '-')}.npz"), **changes)
         with pytest.raises(ModelFileError, match=words) as info:
-            load_forest(bad)
+            load_forest(bad, model_sha256="")  # saved unbound: "" is its binding
         assert "\n" not in str(info.value), name
     junk = tmp_path / "junk.npz"
     junk.write_bytes(b"PK\x03\x04 not really a zip")
     with pytest.raises(ModelFileError, match="unreadable"):
         load_forest(junk)
-    pickled = tmp_path / "pickled.npz"
-    with open(pickled, "wb") as fh:
-        np.savez(fh, threshold=np.array([object()], dtype=object))
+    pickled = _rewrite(_copy(good, tmp_path / "pickled.npz"), threshold=np.array([object()]))
     with pytest.raises(ModelFileError, match="unreadable"):
         load_forest(pickled)
+
+
+def test_an_unreachable_cycle_is_refused(tmp_path):
+    """A tree whose internal node 3 points to itself, with nodes 3 and 4 out of reach:
+    breadth-first in its layout, but not a tree. Built by hand."""
+    from dyntarget.errors import ModelFileError
+    from dyntarget.perceive.compiled import PAD, load_forest
+
+    inf = np.inf
+    threshold = np.array([0.5, inf, inf, 0.5, inf] + [0.0] * PAD, np.float32)
+    code = np.array([1, 1, 2, 3, 4] + [0] * PAD, np.int32)  # fshift 0: code = child
+    path = tmp_path / "cycle.npz"
+    with open(path, "wb") as fh:
+        np.savez(fh, threshold=threshold, code=code, value=np.array([0, 0.2, 0.9, 0, 1.0]),
+                 roots=np.array([0], np.int32), depth=np.int64(1), features=np.int64(1),
+                 fshift=np.int64(0), model_sha256=np.zeros(0, np.uint8))  # fmt: skip
+    with pytest.raises(ModelFileError, match="not reached from its tree's root"):
+        load_forest(path)
+    code[3] = 0  # a plain leaf at 3 (pointing at 0 is not itself): the leaf rule
+    threshold[3] = inf
+    _rewrite(path, code=code, threshold=threshold)
+    with pytest.raises(ModelFileError, match="leaf does not point to itself"):
+        load_forest(path)
+
+
+def test_forests_beyond_the_kernel_fall_back_to_scikit_learn(tmp_path, monkeypatch):
+    """Trees deeper than the kernel takes and multi-output forests are refused by
+    pack_forest; the default backend then predicts with scikit-learn, and the ONNX
+    export holds no forest.npz. A forest trained with missing values (+inf split
+    thresholds) is packed, and agrees with scikit-learn on finite pixels."""
+    from sklearn.ensemble import RandomForestClassifier
+
+    from dyntarget.perceive.compiled import MAX_DEPTH
+
+    x = np.arange(600, dtype=np.float32).reshape(-1, 1)
+    y = (np.arange(600) // 2) % 2  # alternating pairs: a chain of splits
+    deep = _forest(x, y, n_estimators=1, bootstrap=False)
+    assert deep.estimators_[0].tree_.max_depth > MAX_DEPTH
+    with pytest.raises(InvalidParameterError, match="deep"):
+        pack_forest(deep)
+    with pytest.raises(InvalidParameterError, match="single-output"):
+        pack_forest(_forest(x, np.column_stack([y, 1 - y]), n_estimators=2))
+
+    model = make_classifier("random-forest")
+    model.estimator, model.fitted = deep, True
+    px = np.zeros((4, 10, 60), np.float32)
+    px[0] = (np.arange(600, dtype=np.float32) / 1000).reshape(10, 60)
+    model.estimator = RandomForestClassifier(n_estimators=1, bootstrap=False, random_state=0)
+    model.estimator.fit(np.column_stack([x[:, 0] / 1000] * 4), y)
+    assert model.estimator.estimators_[0].tree_.max_depth > MAX_DEPTH
+    ref = model.estimator.predict_proba(px.reshape(4, -1).T)[:, 1].astype(np.float32)
+    np.testing.assert_array_equal(model.predict_proba(px).ravel(), ref)  # auto: scikit-learn
+    assert model._compiled[1] is None
+
+    rng = np.random.default_rng(5)
+    xm = rng.random((2000, 2)).astype(np.float32)
+    ym = (xm[:, 0] > 0.5).astype(int)
+    xm[rng.random(2000) < 0.2, 1] = np.nan
+    ym[np.isnan(xm[:, 1])] = 1
+    with_nan = _forest(xm, ym, n_estimators=5, max_depth=6)
+    assert any(np.isposinf(t.tree_.threshold).any() for t in with_nan.estimators_)
+    finite = rng.random((3000, 2)).astype(np.float32)
+    np.testing.assert_array_equal(compile_forest(with_nan)(finite), _reference(with_nan, finite))
+
+
+def test_a_compiler_named_with_arguments(monkeypatch, tmp_path):
+    """$CC as "gcc -O0" (a launcher or flags before the compiler) is found and used."""
+    import shutil
+
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("no gcc")
+    monkeypatch.setenv("CC", "gcc -O0")
+    assert compiled.compiler() == f"{gcc} -O0"
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
+    assert build_library().is_file()
+    monkeypatch.setenv("CC", "no-such-compiler-here")
+    assert compiled.compiler() is None
 
 
 def _copy(src, dst):
@@ -289,6 +369,22 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     assert ort.forest is None
     ort.predict_proba(image)
     assert ort.backend == "onnxruntime"
+
+    # a model.onnx that is not the one the forest was exported with: refused, not mixed
+    other = tmp_path / "other"
+    make_classifier("random-forest", seed=1, max_pixels_per_class=500).fit(tiny_scenes[:2]).save(
+        other
+    )
+    from dyntarget.errors import ModelFileError
+    from dyntarget.perceive.onnx import export_onnx
+
+    export_onnx(load_classifier(other), other)
+    saved = (model_dir / "model.onnx").read_bytes()
+    (model_dir / "model.onnx").write_bytes((other / "model.onnx").read_bytes())
+    with pytest.raises(ModelFileError, match="another model.onnx"):
+        load_onnx(model_dir)
+    assert load_onnx(model_dir, kernel=False).forest is None  # ONNX Runtime on its own file
+    (model_dir / "model.onnx").write_bytes(saved)
 
     scene = write_scene(tiny_scenes[3], tmp_path / "scene")[0]
     _rewrite(model_dir / "forest.npz", depth=np.int64(40))

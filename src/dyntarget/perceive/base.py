@@ -469,7 +469,10 @@ def keep_freed_memory(limit: int = 2**31 - 1) -> bool:
     except (OSError, AttributeError):
         return False
     m_trim_threshold, m_mmap_threshold = -1, -3  # <malloc.h>
-    return mallopt(m_mmap_threshold, int(limit)) == 1 and mallopt(m_trim_threshold, int(limit)) == 1
+    trim = mallopt(m_trim_threshold, int(limit)) == 1
+    # some glibc versions refuse an mmap threshold above 32 MiB: keep that much, then
+    mmap = mallopt(m_mmap_threshold, int(limit)) == 1 or mallopt(m_mmap_threshold, 32 << 20) == 1
+    return trim and mmap
 
 
 def available_cores() -> int:

@@ -33,6 +33,7 @@ import ctypes
 import hashlib
 import os
 import platform
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -55,7 +56,11 @@ FOREST_FILE = "forest.npz"
 lean onboard install, which has no scikit-learn, run the kernel too."""
 
 MAX_DEPTH = 64
-"""Deepest tree a packed-forest file may declare."""
+"""Deepest tree the kernel takes."""
+
+MAX_NODES = 1 << 27
+"""Most nodes a packed forest may hold (every node index, shifted by up to 3 feature bits,
+stays a positive int32)."""
 
 FLAGS = ("-O2", "-march=native", "-std=c11", "-shared", "-fPIC")
 """Compiler flags of the kernel; without ``-march=native`` when the compiler refuses it."""
@@ -87,15 +92,18 @@ def compiler() -> str | None:
     Returns
     -------
     str or None
-        Its path, or ``None`` when there is none.
+        Its path (and the arguments ``$CC`` gives it), or ``None`` when there is none.
 
     Examples
     --------
     >>> compiler() is None or isinstance(compiler(), str)
     True
     """
-    cc = os.environ.get("CC")
-    return shutil.which(cc) if cc else shutil.which("cc") or shutil.which("gcc")
+    words = shlex.split(os.environ.get("CC", ""))  # e.g. "ccache gcc"
+    if words:
+        found = shutil.which(words[0])
+        return shlex.join([found, *words[1:]]) if found else None
+    return shutil.which("cc") or shutil.which("gcc")
 
 
 @dataclass(frozen=True)
@@ -166,16 +174,26 @@ def pack_forest(estimator) -> PackedForest:
     """
     from sklearn.ensemble import RandomForestClassifier
 
-    if not isinstance(estimator, RandomForestClassifier) or len(estimator.classes_) != 2:
+    if (
+        not isinstance(estimator, RandomForestClassifier)
+        or getattr(estimator, "n_outputs_", 1) != 1
+        or len(estimator.classes_) != 2
+    ):
         raise InvalidParameterError(
-            f"estimator: expected a fitted two-class RandomForestClassifier, got {estimator!r}"
+            "estimator: expected a fitted single-output two-class RandomForestClassifier, "
+            f"got {estimator!r}"
+        )
+    deepest = max(tree.tree_.max_depth for tree in estimator.estimators_)
+    if deepest > MAX_DEPTH:
+        raise InvalidParameterError(
+            f"estimator: trees {deepest} deep; the kernel takes up to {MAX_DEPTH}"
         )
     nfeat = int(estimator.n_features_in_)
     if not 1 <= nfeat <= 8:
         raise InvalidParameterError(f"estimator: the kernel takes 1 to 8 features, not {nfeat}")
     fshift = (nfeat - 1).bit_length()
     total = sum(tree.tree_.node_count for tree in estimator.estimators_)
-    if (total + PAD) << fshift >= 2**31:
+    if total > MAX_NODES:
         raise InvalidParameterError(f"estimator: {total} nodes are too many for the kernel")
     threshold = np.zeros(total + PAD, np.float32)
     code = np.zeros(total + PAD, np.int32)
@@ -191,7 +209,12 @@ def pack_forest(estimator) -> PackedForest:
         child = np.where(leaf, here, base + pos[np.where(leaf, 0, t.children_left[order])])
         code[here] = (child << fshift) | np.where(leaf, 0, t.feature[order])
         t64 = t.threshold[order]
-        t32 = t64.astype(np.float32)
+        if np.isnan(t64)[~leaf].any():
+            raise InvalidParameterError("estimator: a split threshold is NaN")
+        # +inf: a split trained on missing values, every finite pixel goes left; as FLT_MAX
+        t64 = np.where(np.isposinf(t64), float(np.finfo(np.float32).max), t64)
+        with np.errstate(over="ignore"):  # beyond float32: rounds to inf, then down below
+            t32 = t64.astype(np.float32)
         t32 = np.where(t32 > t64, np.nextafter(t32, np.float32(-np.inf)), t32)
         threshold[here] = np.where(leaf, np.inf, t32)
         value[here] = np.where(leaf, t.value[order, 0, 1], 0.0)
@@ -204,13 +227,15 @@ def pack_forest(estimator) -> PackedForest:
         node=node,
         value=value,
         roots=np.asarray(roots, np.int32),
-        depth=max(tree.tree_.max_depth for tree in estimator.estimators_),
+        depth=deepest,
         features=nfeat,
         fshift=fshift,
     )
 
 
-def save_forest(packed: PackedForest, path: str | os.PathLike[str]) -> Path:
+def save_forest(
+    packed: PackedForest, path: str | os.PathLike[str], *, model_sha256: str = ""
+) -> Path:
     """Write a packed forest to ``path`` (``.npz``, no pickled objects; atomic).
 
     Parameters
@@ -219,6 +244,9 @@ def save_forest(packed: PackedForest, path: str | os.PathLike[str]) -> Path:
         From :func:`pack_forest`.
     path : path
         The file, usually ``MODEL_DIR/forest.npz`` (:data:`FOREST_FILE`).
+    model_sha256 : str
+        Hex SHA-256 of the ``model.onnx`` exported with it, so that a reader can refuse a
+        forest that does not belong to the model beside it (empty: not bound).
 
     Returns
     -------
@@ -241,26 +269,31 @@ def save_forest(packed: PackedForest, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     arrays = {n: getattr(packed, n) for n in ("threshold", "code", "value", "roots")}
     scalars = {n: np.int64(getattr(packed, n)) for n in ("depth", "features", "fshift")}
+    bound = np.frombuffer(bytes.fromhex(model_sha256), np.uint8)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays, **scalars)
+        np.savez(fh, **arrays, **scalars, model_sha256=bound)
     return path
 
 
-def load_forest(path: str | os.PathLike[str]) -> PackedForest:
+def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None) -> PackedForest:
     """Read and check a packed forest written by :func:`save_forest`.
 
     The kernel trusts the arrays (node indices are memory addresses to it), so every
-    rule it relies on is checked first: dtypes and shapes; trees laid out one after
-    another, each breadth-first with the children of each internal node side by side
-    (which also makes every tree a tree: in range, acyclic, each node reached once);
-    leaves pointing to themselves with threshold ``+inf``; finite thresholds and
-    feature indices below the feature count at internal nodes; leaf values in 0..1; the
-    declared depth the trees' true depth.
+    rule it relies on is checked first: the file's members, their dtypes and sizes
+    (before they are read); tree roots as increasing offsets; each tree laid out
+    breadth-first with the children of each internal node side by side and every node
+    reached from its root once (so each tree is a tree: in range and acyclic); leaves
+    pointing to themselves with threshold ``+inf``; no NaN threshold and feature indices
+    below the feature count at internal nodes; leaf values in 0..1; the declared depth
+    the trees' true depth.
 
     Parameters
     ----------
     path : path
         A ``forest.npz``.
+    model_sha256 : str or None
+        Hex SHA-256 of the ``model.onnx`` beside it: the file must have been saved bound
+        to that model (``None``: not checked).
 
     Returns
     -------
@@ -272,26 +305,44 @@ def load_forest(path: str | os.PathLike[str]) -> PackedForest:
     ModelFileError
         One line naming the first rule the file breaks.
     """
+    import zipfile
+
     path = Path(path)
 
     def fail(why: str) -> ModelFileError:
         return ModelFileError(f"{path}: not a usable packed forest ({why})")
 
-    try:
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as npz:
-            data = {k: npz[k] for k in npz.files}
-    except Exception as exc:  # numpy raises several types on a corrupt archive
-        raise fail(f"unreadable: {exc}") from None
     expected = {"threshold": np.float32, "code": np.int32, "value": np.float64,
                 "roots": np.int32, "depth": np.int64, "features": np.int64,
-                "fshift": np.int64}  # fmt: skip
+                "fshift": np.int64, "model_sha256": np.uint8}  # fmt: skip
+    limit = (MAX_NODES + PAD) * 8 + 4096  # the largest member a forest can need, header included
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = {i.filename: i.file_size for i in archive.infolist()}
+    except (OSError, zipfile.BadZipFile, ValueError) as exc:
+        raise fail(f"unreadable: {exc}") from None
+    names = {f"{name}.npy" for name in expected}
+    if set(members) != names:
+        raise fail(f"members {sorted(members)}, expected {sorted(names)}")
+    if max(members.values()) > limit:
+        raise fail(f"a member of {max(members.values())} bytes is beyond any forest's size")
+    try:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as npz:
+            data = {k: npz[k] for k in expected}
+    except Exception as exc:  # numpy raises several types on a corrupt archive
+        raise fail(f"unreadable: {exc}") from None
     for name, dtype in expected.items():
-        if name not in data or data[name].dtype != dtype:
-            raise fail(f"{name} missing or not {np.dtype(dtype).name}")
+        if data[name].dtype != dtype:
+            raise fail(f"{name} is not {np.dtype(dtype).name}")
     threshold, code, value, roots = (data[n] for n in ("threshold", "code", "value", "roots"))
     if any(data[n].ndim != 0 for n in ("depth", "features", "fshift")):
         raise fail("depth, features and fshift must be single numbers")
     depth, features, fshift = (int(data[n]) for n in ("depth", "features", "fshift"))
+    if model_sha256 is not None and data["model_sha256"].tobytes().hex() != model_sha256:
+        raise ModelFileError(
+            f"{path}: exported with another model.onnx than the one beside it; "
+            "run 'dyntarget export-onnx' again"
+        )
     if any(a.ndim != 1 for a in (threshold, code, value, roots)):
         raise fail("arrays must be one-dimensional")
     total = len(value)
@@ -299,39 +350,45 @@ def load_forest(path: str | os.PathLike[str]) -> PackedForest:
         raise fail(f"features {features} with fshift {fshift}")
     if len(threshold) != total + PAD or len(code) != total + PAD or total < 1:
         raise fail("threshold, code and value lengths disagree")
-    if (total + PAD) << fshift >= 2**31 or not 0 <= depth <= MAX_DEPTH:
+    if total > MAX_NODES or not 0 <= depth <= MAX_DEPTH:
         raise fail(f"{total} nodes of depth {depth} are out of the kernel's range")
-    if len(roots) < 1 or roots[0] != 0 or (np.diff(roots) < 1).any() or roots[-1] >= total:
+    starts = roots.astype(np.int64)
+    if len(starts) < 1 or starts[0] != 0 or (np.diff(starts) < 1).any() or starts[-1] >= total:
         raise fail("tree roots are not increasing offsets into the nodes")
     node = np.arange(total)
     thr, cod = threshold[:total], code[:total]
     leaf = np.isposinf(thr)
-    child = cod >> fshift
-    if (leaf & ((child != node) | ((cod & ((1 << fshift) - 1)) != 0))).any():
+    child = (cod >> fshift).astype(np.int64)
+    feature = cod & ((1 << fshift) - 1)
+    if (leaf & ((child != node) | (feature != 0))).any():
         raise fail("a leaf does not point to itself")
-    if not np.isfinite(thr[~leaf]).all():
-        raise fail("an internal node has a non-finite threshold")
-    if ((cod & ((1 << fshift) - 1)) >= features)[~leaf].any():
+    if np.isnan(thr[~leaf]).any():
+        raise fail("an internal node has a NaN threshold")
+    if (feature >= features)[~leaf].any():
         raise fail(f"an internal node splits on a feature out of range (features {features})")
     if not (np.isfinite(value) & (value >= 0) & (value <= 1)).all():
         raise fail("leaf values must lie in 0..1")
-    ends = np.append(roots[1:], total)
-    for start, end in zip(roots.tolist(), ends.tolist(), strict=True):
-        inner = np.flatnonzero(~leaf[start:end]) + start
-        # breadth-first, siblings adjacent: the children of the internal nodes, in order,
-        # are exactly the tree's other nodes, in order
-        if not np.array_equal(child[inner], np.arange(start + 1, end, 2)):
-            raise fail(f"the tree at node {start} is not laid out breadth-first")
+    # breadth-first, siblings side by side: in each tree the children of the internal
+    # nodes, in order, are exactly the tree's other nodes, in order
+    inner = np.flatnonzero(~leaf)
+    others = np.setdiff1d(node, starts, assume_unique=True)
+    sizes = np.diff(np.append(starts, total))
+    if not np.array_equal(sizes - 1, 2 * np.add.reduceat(~leaf, starts)) or not np.array_equal(
+        child[inner], others[0::2]
+    ):
+        raise fail("a tree is not laid out breadth-first")
     level = np.full(total, -1)
-    level[roots] = 0
+    level[starts] = 0
     deepest = 0
-    while deepest <= MAX_DEPTH:  # every node is reached once, from its parent
+    while deepest <= MAX_DEPTH:  # from the roots down: every node must be reached
         parents = np.flatnonzero((level == deepest) & ~leaf)
         if not len(parents):
             break
         children = child[parents]
         deepest += 1
         level[children] = level[children + 1] = deepest
+    if (level < 0).any():
+        raise fail("a node is not reached from its tree's root")
     if depth != deepest:
         raise fail(f"declared depth {depth}, the trees are {deepest} deep")
     return PackedForest(
@@ -399,8 +456,12 @@ def build_library(
             src, part = Path(tmp) / "_forest.c", Path(tmp) / lib.name
             src.write_bytes(source)
             try:
-                done = subprocess.run([cc, *flags, str(src), "-o", str(part)], capture_output=True)
-            except OSError as exc:
+                done = subprocess.run(
+                    [*shlex.split(cc), *flags, str(src), "-o", str(part)],
+                    capture_output=True,
+                    timeout=300,
+                )
+            except (OSError, subprocess.SubprocessError) as exc:
                 raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
             if done.returncode == 0:
                 os.replace(part, lib)  # atomic: a reader never sees half a library

@@ -264,7 +264,8 @@ def prepare_inference(model: nn.Module) -> nn.Module:
     place and a forward pass that computes each residual branch before the block that
     overwrites its input, forms its sums in place and upsamples each up stage once,
     after its sum instead of both terms before it; those steps change no number (tested
-    bit for bit) and save six passes over its largest activations. Never train the
+    bit for bit on this machine: it relies on oneDNN computing a 1x1 convolution alike at
+    both resolutions) and save six passes over its largest activations. Never train the
     result: the in-place forward is for evaluation only.
 
     Parameters

@@ -42,7 +42,7 @@ from dyntarget.perceive.base import (
     read_metadata,
 )
 from dyntarget.perceive.validate import check_onnx_session
-from dyntarget.scene import check_image
+from dyntarget.scene import BANDS, check_image
 
 ONNX_FILE = "model.onnx"
 TOLERANCE = 1e-4
@@ -115,9 +115,17 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(data)
     if classifier.name == "random-forest":  # the lean install's way to the forest kernel
+        import hashlib
+
         from dyntarget.perceive.compiled import FOREST_FILE, pack_forest, save_forest
 
-        save_forest(pack_forest(classifier.estimator), Path(model_dir) / FOREST_FILE)
+        forest = Path(model_dir) / FOREST_FILE
+        try:
+            packed = pack_forest(classifier.estimator)
+        except InvalidParameterError:  # beyond the kernel (e.g. deeper than it takes)
+            forest.unlink(missing_ok=True)  # model.onnx alone, run by ONNX Runtime
+        else:
+            save_forest(packed, forest, model_sha256=hashlib.sha256(data).hexdigest())
     return path
 
 
@@ -331,7 +339,8 @@ def load_onnx(
     """The ONNX twin of the model in ``model_dir`` (exported with :func:`export_onnx`).
 
     Only ``metadata.json``, ``model.onnx`` and, for a random forest, ``forest.npz`` are
-    read (the last checked rule by rule: :func:`dyntarget.perceive.compiled.load_forest`);
+    read (the last checked rule by rule, and against the SHA-256 of the ``model.onnx``
+    it was exported with: :func:`dyntarget.perceive.compiled.load_forest`);
     the native weights, torch, scikit-learn and skops are not touched.
 
     Parameters
@@ -371,7 +380,15 @@ def load_onnx(
         from dyntarget.perceive.compiled import FOREST_FILE, load_forest
 
         if (Path(model_dir) / FOREST_FILE).is_file():
-            forest = load_forest(Path(model_dir) / FOREST_FILE)
+            import hashlib
+
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            forest = load_forest(Path(model_dir) / FOREST_FILE, model_sha256=digest)
+            if forest.features != len(BANDS):
+                raise ModelFileError(
+                    f"{model_dir}: {FOREST_FILE} takes {forest.features} features, not "
+                    f"the {len(BANDS)} bands"
+                )
     return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width, forest=forest)
 
 
@@ -397,20 +414,29 @@ def export_checked(
         :class:`~dyntarget.errors.ExportError`.
     """
     from dyntarget.errors import ExportError
+    from dyntarget.perceive.compiled import FOREST_FILE
 
-    path = export_onnx(native, model_dir)
-    expected = native.predict_proba(check_image)
-    diff = float(
-        np.abs(load_onnx(model_dir, kernel=False).predict_proba(check_image) - expected).max()
-    )
-    twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel where it runs
-    if twin.forest is not None:
-        diff = max(diff, float(np.abs(twin.predict_proba(check_image) - expected).max()))
-    if not diff <= TOLERANCE:
-        from dyntarget.perceive.compiled import FOREST_FILE
-
-        path.unlink()
+    def remove() -> None:
+        (Path(model_dir) / ONNX_FILE).unlink(missing_ok=True)
         (Path(model_dir) / FOREST_FILE).unlink(missing_ok=True)
+
+    try:
+        path = export_onnx(native, model_dir)
+        expected = native.predict_proba(check_image)
+        ort = load_onnx(model_dir, kernel=False).predict_proba(check_image)
+        diff = float(np.abs(ort - expected).max())
+        twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel
+        if twin.forest is not None:
+            got = twin.predict_proba(check_image)
+            if twin.backend == "forest kernel":  # bit-identical to scikit-learn, or refused
+                reference = copy.copy(native).set_backend("sklearn").predict_proba(check_image)
+                if not np.array_equal(got, reference):
+                    diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
+    except BaseException:
+        remove()  # nothing half-written
+        raise
+    if not diff <= TOLERANCE:
+        remove()
         raise ExportError(
             f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
             f"(> {TOLERANCE:g}); export removed"

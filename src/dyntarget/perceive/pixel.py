@@ -417,7 +417,7 @@ class RandomForest(PixelClassifier):
 
             try:
                 predictor = compile_forest(self.estimator)
-            except (MissingExtraError, OSError):
+            except (MissingExtraError, InvalidParameterError, OSError):  # e.g. too deep
                 if self.backend == "compiled":
                     raise
                 predictor = None
