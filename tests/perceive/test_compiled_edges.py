@@ -257,3 +257,57 @@ def test_a_saved_forest_of_each_feature_count_round_trips(tmp_path):
         np.testing.assert_array_equal(
             forest_predictor(back)(x), est.predict_proba(x)[:, 1].astype(np.float32)
         )
+
+
+def test_a_compiler_that_hangs_is_stopped(tmp_path, monkeypatch):
+    monkeypatch.setattr(compiled, "COMPILE_TIMEOUT_S", 0.5)
+    monkeypatch.setenv("CC", _fake_compiler(tmp_path, "sleep 5"))
+    with pytest.raises(MissingExtraError, match="does not run .*timed out"):
+        build_library(tmp_path / "cache")
+
+
+def test_the_compile_happens_in_the_cache_not_in_the_temporary_directory(tmp_path, monkeypatch):
+    """The half-built library sits beside its final name (one atomic rename), so a
+    temporary directory elsewhere, or none at all, does not matter."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "no-such-directory"))
+    assert build_library(tmp_path / "cache").is_file()
+
+
+def test_a_forest_exactly_as_deep_as_the_kernel_takes_is_packed(tmp_path):
+    x = np.arange(600, dtype=np.float32).reshape(-1, 1)
+    y = (np.arange(600) // 2) % 2
+    est = _forest(x, y, n_estimators=1, bootstrap=False, max_depth=MAX_DEPTH)
+    assert est.estimators_[0].tree_.max_depth == MAX_DEPTH
+    packed = pack_forest(est)
+    assert packed.depth == MAX_DEPTH
+    np.testing.assert_array_equal(
+        forest_predictor(packed)(x), est.predict_proba(x)[:, 1].astype(np.float32)
+    )
+
+
+def test_a_nan_split_threshold_is_refused(small):
+    import copy
+
+    est = copy.deepcopy(small[0])
+    est.estimators_[0].tree_.threshold[0] = np.nan  # a split no training makes
+    with pytest.raises(InvalidParameterError, match="estimator: a split threshold is NaN"):
+        pack_forest(est)
+
+
+def test_a_forest_trained_with_missing_values_round_trips_through_its_file(tmp_path):
+    """Missing-value splits carry +inf thresholds; packed as FLT_MAX they stay internal
+    nodes, so the file loads (a +inf would read as a broken leaf) and predicts alike."""
+    rng = np.random.default_rng(5)
+    x = rng.random((2000, 4)).astype(np.float32)
+    y = (x[:, 0] > 0.5).astype(int)
+    x[rng.random(2000) < 0.2, 1] = np.nan
+    y[np.isnan(x[:, 1])] = 1
+    est = _forest(x, y, n_estimators=5, max_depth=6)
+    assert any(np.isposinf(t.tree_.threshold).any() for t in est.estimators_)
+    back = load_forest(save_forest(pack_forest(est), tmp_path / "forest.npz"))
+    finite = rng.random((3000, 4)).astype(np.float32)
+    np.testing.assert_array_equal(
+        forest_predictor(back)(finite), est.predict_proba(finite)[:, 1].astype(np.float32)
+    )

@@ -58,6 +58,9 @@ lean onboard install, which has no scikit-learn, run the kernel too."""
 MAX_DEPTH = 64
 """Deepest tree the kernel takes."""
 
+COMPILE_TIMEOUT_S = 300
+"""Longest a compile of the kernel may take before the compiler is taken as broken."""
+
 MAX_NODES = 1 << 27
 """Most nodes a packed forest may hold (every node index, shifted by up to 3 feature bits,
 stays a positive int32)."""
@@ -459,7 +462,7 @@ def build_library(
                 done = subprocess.run(
                     [*shlex.split(cc), *flags, str(src), "-o", str(part)],
                     capture_output=True,
-                    timeout=300,
+                    timeout=COMPILE_TIMEOUT_S,
                 )
             except (OSError, subprocess.SubprocessError) as exc:
                 raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
