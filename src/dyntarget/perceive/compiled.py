@@ -326,7 +326,10 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
         raise fail(f"unreadable: {exc}") from None
     names = {f"{name}.npy" for name in expected}
     if set(members) != names:
-        raise fail(f"members {sorted(members)}, expected {sorted(names)}")
+        raise fail(
+            f"members {sorted(members)}, expected {sorted(names)}; "
+            "a forest.npz of dyntarget's is rewritten by 'dyntarget export-onnx'"
+        )
     if max(members.values()) > limit:
         raise fail(f"a member of {max(members.values())} bytes is beyond any forest's size")
     try:
