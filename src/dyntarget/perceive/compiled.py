@@ -30,6 +30,7 @@ the same scene in about a third of that and needs no extra package (docs/perform
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
@@ -119,8 +120,6 @@ class PackedForest:
         ``float32`` per node (+ :data:`PAD`): the split threshold rounded down, ``+inf`` at leaves.
     code : numpy.ndarray
         ``int32`` per node (+ :data:`PAD`): ``child << fshift | feature``; a leaf's child is itself.
-    node : numpy.ndarray
-        ``int64`` per node: ``code << 32 | bits(threshold)``, one load per node.
     value : numpy.ndarray
         ``float64`` per node: the leaf's fraction of plume (0 at internal nodes).
     roots : numpy.ndarray
@@ -135,12 +134,24 @@ class PackedForest:
 
     threshold: np.ndarray
     code: np.ndarray
-    node: np.ndarray
     value: np.ndarray
     roots: np.ndarray
     depth: int
     features: int
     fshift: int
+
+    @functools.cached_property
+    def node(self) -> np.ndarray:
+        """``int64`` per node: ``code << 32 | bits(threshold)``, one load per node.
+
+        Returns
+        -------
+        numpy.ndarray
+            Built once per forest from ``code`` and ``threshold``.
+        """
+        total = len(self.value)
+        words = self.code[:total].astype(np.int64) << 32
+        return words | self.threshold[:total].view(np.uint32)
 
 
 def _breadth_first(left: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -223,11 +234,9 @@ def pack_forest(estimator) -> PackedForest:
         value[here] = np.where(leaf, t.value[order, 0, 1], 0.0)
         roots.append(base)
         base += t.node_count
-    node = (code[:total].astype(np.int64) << 32) | threshold[:total].view(np.uint32)
     return PackedForest(
         threshold=threshold,
         code=code,
-        node=node,
         value=value,
         roots=np.asarray(roots, np.int32),
         depth=deepest,
@@ -400,7 +409,6 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
     return PackedForest(
         threshold=threshold,
         code=code,
-        node=(cod.astype(np.int64) << 32) | thr.view(np.uint32),
         value=value,
         roots=roots,
         depth=depth,
@@ -521,6 +529,31 @@ def compile_forest(
     True
     """
     return forest_predictor(pack_forest(estimator), directory=directory, portable=portable)
+
+
+def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The kernel's predictor where it is the faster path, else ``None``.
+
+    That is where the kernel builds (or is cached) with AVX-512; without a compiler and
+    cache, or on another CPU (whose portable build is not faster than scikit-learn or
+    ONNX Runtime), ``None`` says to use those. The policy of ``RandomForest``'s ``"auto"``
+    backend and of a forest's ONNX twin.
+
+    Parameters
+    ----------
+    packed : PackedForest
+        The forest.
+
+    Returns
+    -------
+    callable or None
+        As :func:`forest_predictor`'s, or ``None``.
+    """
+    try:
+        predictor = forest_predictor(packed)
+    except (MissingExtraError, OSError):  # no compiler, or an unwritable cache
+        return None
+    return predictor if predictor.vectorised else None
 
 
 def forest_predictor(

@@ -298,17 +298,13 @@ class OnnxClassifier:
     def _forest_kernel(self):
         """The forest kernel's predictor, built on first use; ``None`` to use ONNX Runtime."""
         if self.forest is not None and self._kernel is None:
-            from dyntarget.errors import MissingExtraError
-            from dyntarget.perceive.compiled import forest_predictor
+            from dyntarget.perceive.compiled import fast_predictor
 
-            try:
-                kernel = forest_predictor(self.forest)
-            except (MissingExtraError, OSError):  # no compiler: ONNX Runtime, silently
-                kernel = None
-            if kernel is None or not kernel.vectorised:
-                self.forest = None  # the portable build is not faster than ONNX Runtime here
+            self._kernel = fast_predictor(self.forest)
+            if self._kernel is None:
+                self.forest = None  # ONNX Runtime, silently
             else:
-                self._kernel, self.backend = kernel, "forest kernel"
+                self.backend = "forest kernel"
         return self._kernel
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:

@@ -412,17 +412,15 @@ class RandomForest(PixelClassifier):
             return super().chunk_predictor()
         cached = getattr(self, "_compiled", None)
         if cached is None or cached[0] is not self.estimator:  # refitted: pack anew
-            from dyntarget.errors import MissingExtraError
-            from dyntarget.perceive.compiled import compile_forest
+            from dyntarget.perceive.compiled import compile_forest, fast_predictor, pack_forest
 
-            try:
+            if self.backend == "compiled":
                 predictor = compile_forest(self.estimator)
-            except (MissingExtraError, InvalidParameterError, OSError):  # e.g. too deep
-                if self.backend == "compiled":
-                    raise
-                predictor = None
-            if self.backend == "auto" and predictor is not None and not predictor.vectorised:
-                predictor = None
+            else:
+                try:
+                    predictor = fast_predictor(pack_forest(self.estimator))
+                except InvalidParameterError:  # beyond the kernel, e.g. too deep
+                    predictor = None
             self._compiled = cached = (self.estimator, predictor)
         return cached[1] or super().chunk_predictor()
 
