@@ -218,29 +218,3 @@ def test_a_wind_prior_keeps_pointings_on_a_drifting_cloud():
 def test_a_wind_prediction_needs_a_wind():
     with pytest.raises(InvalidParameterError, match="wind"):
         fly_pass(DriftingCloud(8.0), None, PassConfig(predict="wind", compute_budget_s=0.1))
-
-
-@pytest.mark.parametrize("agility", ["fast", "slow"])
-def test_first_frame_schedule_equals_the_kinematics_one_by_one(agility):
-    # the pass scheduler screens pointings in chunks; from a fresh sensor it must keep
-    # exactly what dyntarget.schedule.make_feasible (one pointing at a time) keeps
-    from dyntarget.fly.loop import PassState, _schedule
-    from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
-    from dyntarget.trajectory import Trajectory
-
-    rng = np.random.default_rng(4)
-    points = rng.uniform(0, 511, (300, 2))  # random order over 16 km: long slews, some dropped
-    shape = (512, 512)
-    geometry = OrbitGeometry(wfov_gsd_m=32.0)
-    state = PassState(covered=np.zeros(shape, bool))
-    kept, times, _, _ = _schedule(points, shape, geometry, get_agility(agility), 0.0, state, 0.7)
-    traj = Trajectory(points, np.zeros(len(points)), "demo")
-    ref = make_feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
-    assert kept.tolist() == ref.kept.tolist()
-    np.testing.assert_allclose(times, ref.times, rtol=0, atol=1e-9)
-    assert 0 < len(kept) < len(points)
-    from dyntarget.fly.loop import feasible
-
-    flown = feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
-    np.testing.assert_allclose(flown.points, ref.trajectory.points, rtol=0, atol=0)
-    np.testing.assert_allclose(flown.times, ref.times, rtol=0, atol=1e-9)

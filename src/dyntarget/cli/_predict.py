@@ -134,7 +134,8 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
     mask returned, so the pipeline plans on it without classifying again.
     """
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.predict import Prediction, check_against_prior, estimate_motion, wind_motion
+    from dyntarget.pipeline import two_look_motion
+    from dyntarget.predict import Prediction, wind_motion
 
     _check_args(args)
     prior = None
@@ -161,12 +162,10 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
         prev = _read_previous(args, wfov)
         _, prev_mask = _mask_of(prev, classifier, threshold)
         current_raw, cur_mask = _mask_of(wfov, classifier, threshold)
-        motion = estimate_motion(
+        motion = two_look_motion(
             prev.image, wfov.image, args.interval_s, previous_mask=prev_mask,
-            current_mask=cur_mask,
+            current_mask=cur_mask, prior=prior,
         )  # fmt: skip
-        if prior is not None:
-            motion = check_against_prior(motion, prior)
     log(f"motion: {motion.summary()}")
     if not motion.reliable:
         log("motion: LOW CONFIDENCE; the prediction may be wrong (see docs/onboard.md)")

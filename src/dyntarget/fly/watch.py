@@ -35,11 +35,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from dyntarget.errors import DataFileError, DynTargetError, InvalidParameterError
-from dyntarget.fly.loop import feasible
 from dyntarget.io.atomic import write_text
 from dyntarget.perceive.base import Classifier
 from dyntarget.pipeline import PipelineConfig, plan_scene
-from dyntarget.schedule import OrbitGeometry, get_agility
+from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
 
 FRAMES = "frames.csv"
 REJECTED = "rejected.csv"
@@ -295,7 +294,7 @@ class Watcher:
                 wfov_gsd_m=scene.gsd or OrbitGeometry().wfov_gsd_m,
                 start_s=result.runtime,
             )
-            traj = feasible(traj, scene.shape, geometry, cfg.agility)
+            traj = make_feasible(traj, scene.shape, geometry, cfg.agility).trajectory
         out = traj.save(self.out / f"{path.stem}.geojson", transform=scene.transform, crs=scene.crs)
         latency = time.perf_counter() - t0
         self.done.add(path.stem)
