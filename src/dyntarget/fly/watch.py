@@ -11,9 +11,10 @@ For hardware-in-the-loop tests and ground replays. The rules (also in
   modification time have not changed for ``settle_s`` seconds *and* it opens
   and reads completely as a 4-band GeoTIFF. A file that stays unreadable for
   ``corrupt_after_s`` is reported once (``rejected.csv``) and skipped.
-* **Order.** Ready frames are planned in order of acquisition time (the
-  ``DYNTARGET_ACQUIRED`` or ``TIFFTAG_DATETIME`` tag, else the file's
-  modification time; the name breaks ties).
+* **Order.** Ready frames are planned in order of acquisition time (read by
+  :func:`dyntarget.io.acquisition.read_acquisition`: sidecar, then the tags in
+  its one order; else the file's modification time, said on stderr and in
+  ``frames.csv``'s ``acquired_from``; the name breaks ties).
 * **Output.** One plan per frame, ``OUT/<stem>.geojson``, and a line per
   frame in ``OUT/frames.csv`` (rewritten whole), each written atomically.
   Frames whose plan already exists are not planned again, so a restarted
@@ -34,6 +35,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from dyntarget import defaults
 from dyntarget.errors import DataFileError, DynTargetError, InvalidParameterError
 from dyntarget.io.atomic import write_text
 from dyntarget.perceive.base import Classifier
@@ -43,7 +45,8 @@ from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
 FRAMES = "frames.csv"
 REJECTED = "rejected.csv"
 ACQUIRED_TAG = "DYNTARGET_ACQUIRED"
-"""GeoTIFF tag holding a frame's acquisition time (ISO-8601 UTC)."""
+"""GeoTIFF tag holding a frame's acquisition time (ISO-8601 UTC); one of
+:data:`dyntarget.io.acquisition.TAGS`, read there."""
 
 
 @dataclass
@@ -79,8 +82,8 @@ class WatchConfig:
     planner: str = "lawnmower-transect"
     factor: int = 4
     agility: str | None = None
-    altitude_m: float = 500e3
-    look_ahead_m: float = 500e3
+    altitude_m: float = defaults.ALTITUDE_M
+    look_ahead_m: float = defaults.LOOK_AHEAD_M
     deadline_s: float | None = None
     poll_s: float = 0.2
     settle_s: float = 1.0
@@ -136,8 +139,12 @@ def candidates(directory: Path) -> list[Path]:
     return sorted(out)
 
 
-def acquired_time(path: Path) -> float:
-    """A frame's acquisition time as POSIX seconds: its tag, else the file's mtime.
+def acquired_time(path: Path) -> tuple[float, str]:
+    """A frame's acquisition time as POSIX seconds, and where it came from.
+
+    :func:`dyntarget.io.acquisition.read_acquisition` (sidecar, then the tags, in
+    its one order); a frame none of them dates gets its file's modification time,
+    source ``"file mtime"`` (the watcher says so).
 
     Parameters
     ----------
@@ -146,30 +153,18 @@ def acquired_time(path: Path) -> float:
 
     Returns
     -------
-    float
-        POSIX seconds (a tag without a time zone is UTC).
+    tuple
+        ``(POSIX seconds, source)``.
     """
-    import rasterio
+    from dyntarget.io.acquisition import read_acquisition
 
     try:
-        with rasterio.open(path) as src:
-            tags = src.tags()
-    except Exception:  # unreadable: the caller will not plan it anyway
-        tags = {}
-    for key in (ACQUIRED_TAG, "TIFFTAG_DATETIME"):
-        text = tags.get(key)
-        if not text:
-            continue
-        s = text.strip()
-        try:
-            if len(s) >= 19 and s[4] == ":" and s[7] == ":":
-                dt = datetime.strptime(s[:19], "%Y:%m:%d %H:%M:%S")
-            else:
-                dt = datetime.fromisoformat(s.replace("Z", "+00:00"))
-        except ValueError:
-            continue
-        return (dt if dt.tzinfo else dt.replace(tzinfo=UTC)).timestamp()
-    return path.stat().st_mtime
+        when, source = read_acquisition(path)
+    except DynTargetError:  # an unreadable time: the frame is dated by its file, and says so
+        when, source = None, None
+    if when is None or source is None:
+        return path.stat().st_mtime, "file mtime"
+    return when.timestamp(), source
 
 
 class Watcher:
@@ -231,7 +226,7 @@ class Watcher:
                 continue
             if now - seen.since >= self.config.settle_s:
                 ready.append(p)
-        return sorted(ready, key=lambda p: (acquired_time(p), p.name))
+        return sorted(ready, key=lambda p: (acquired_time(p)[0], p.name))
 
     def _read(self, path: Path):
         from dyntarget.io import read_scene
@@ -298,10 +293,16 @@ class Watcher:
         out = traj.save(self.out / f"{path.stem}.geojson", transform=scene.transform, crs=scene.crs)
         latency = time.perf_counter() - t0
         self.done.add(path.stem)
+        when, source = acquired_time(path)
+        if source == "file mtime":
+            self.log(
+                f"{path.name}: no acquisition time in its tags or sidecar; dated by its file's mtime"
+            )
         self.rows.append(
             {
                 "frame": path.name,
-                "acquired": datetime.fromtimestamp(acquired_time(path), UTC).isoformat(),
+                "acquired": datetime.fromtimestamp(when, UTC).isoformat(),
+                "acquired_from": source,
                 "planned_s": f"{latency:.4f}",
                 "deadline_met": ""
                 if result.deadline_met is None

@@ -18,9 +18,11 @@ On disk a sequence ``<id>`` is a folder::
 
 Each frame's GeoTIFF also carries its time in the tags ``DYNTARGET_TIME``
 (ISO-8601 UTC) and ``DYNTARGET_TIME_S`` (seconds after the epoch). A folder
-of GeoTIFFs **without** the sidecar is read too: the times come from
-``DYNTARGET_TIME`` or the standard TIFF ``DateTime`` tag (``TIFFTAG_DATETIME``,
-read as UTC), the earliest frame is ``t = 0``, frames are sorted by time.
+of GeoTIFFs **without** the sidecar is read too: each frame's time is read by
+:func:`dyntarget.io.acquisition.read_acquisition` (a ``.meta.json`` sidecar,
+then ``DYNTARGET_TIME``, ``DYNTARGET_ACQUIRED``, ``ACQUISITIONDATETIME``,
+``TIFFTAG_DATETIME`` read as UTC), the earliest frame is ``t = 0``, frames are
+sorted by time.
 
 ``meta.world`` is the generator spec of a synthetic sequence
 (:class:`dyntarget.synth.dynamic.WorldSpec`): the truth at any time is rebuilt
@@ -44,7 +46,7 @@ import rasterio.errors
 from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError
 from dyntarget.io.atomic import write_text
 from dyntarget.io.scenes import MASK_SUFFIX, read_scene, write_scene
-from dyntarget.sequence import FrameSequence, format_time, parse_time, seconds_between
+from dyntarget.sequence import FrameSequence, format_time, seconds_between
 
 SEQUENCE_FILE = "sequence.json"
 FORMAT = "dyntarget-sequence"
@@ -105,20 +107,23 @@ def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> lis
     return written
 
 
-def _frame_time(path: Path) -> str:
+def _frame_time(path: Path):
+    from dyntarget.io.acquisition import read_acquisition
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(path) as src:
-                tags = src.tags()
+            with rasterio.open(path):
+                pass
     except rasterio.errors.RasterioIOError as exc:
         raise DataFileError(f"{path}: cannot read ({str(exc).splitlines()[0]})") from None
-    for key in (TIME_TAG, TIFF_TIME_TAG):
-        if key in tags:
-            return tags[key]
-    raise DataFileError(
-        f"{path}: no acquisition time (tag {TIME_TAG} or TIFF DateTime) and no {SEQUENCE_FILE}"
-    )
+    when, _ = read_acquisition(path)
+    if when is None:
+        raise DataFileError(
+            f"{path}: no acquisition time (a {TIME_TAG}, ACQUISITIONDATETIME or TIFF DateTime tag, "
+            f"or a .meta.json sidecar) and no {SEQUENCE_FILE}"
+        )
+    return when
 
 
 def _load_sidecar(path: Path) -> dict[str, Any]:
@@ -200,8 +205,7 @@ def read_sequence(
         )
         if not files:
             raise DataFileError(f"{folder}: no frames (*.tif) and no {SEQUENCE_FILE}")
-        stamps = [_frame_time(p) for p in files]
-        parsed = [_parse(s, p) for s, p in zip(stamps, files, strict=True)]
+        parsed = [_frame_time(p) for p in files]  # dyntarget.io.acquisition's one order
         epoch_dt = min(parsed)
         order = sorted(range(len(files)), key=lambda i: parsed[i])
         files = [files[i] for i in order]
@@ -215,13 +219,6 @@ def read_sequence(
         return FrameSequence(frames, times, epoch=epoch, id=seq_id, meta=meta)
     except (InvalidSceneError, InvalidParameterError) as exc:
         raise InvalidSceneError(f"{folder}: {exc}") from None
-
-
-def _parse(stamp: str, where: Path):
-    try:
-        return parse_time(stamp)
-    except InvalidParameterError as exc:
-        raise DataFileError(f"{where}: {exc}") from None
 
 
 def _seconds(epoch: str, when: str, where: Path) -> float:
