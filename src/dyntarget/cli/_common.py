@@ -177,6 +177,7 @@ def writes(
                 check_output_file,
                 output_dir,
             )
+            from dyntarget.io.safeopen import writable_dir
 
             given = [
                 (kind, name, getattr(args, name, None))
@@ -197,6 +198,7 @@ def writes(
                     kind, check_model_dir
                 )
                 check(value, what=flag)
+                writable_dir(value, what=flag)  # a PermissionError now, not after the work
             with contextlib.ExitStack() as stack:
                 for kind, name, value in given:
                     if kind == "dir":
