@@ -32,11 +32,12 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
 
 def acquisition(args: argparse.Namespace, image: str | None):
     """``--acquired``, else what the image file says, else ``None``."""
+    from dyntarget.cli._common import check_acquired
     from dyntarget.io.acquisition import parse_acquired, read_acquired
 
     if args.acquired:
-        return parse_acquired(args.acquired, name="--acquired")
-    return read_acquired(image) if image else None
+        return check_acquired(parse_acquired(args.acquired, name="--acquired"), "--acquired")
+    return check_acquired(read_acquired(image) if image else None, str(image))
 
 
 def write_outputs(

@@ -57,6 +57,9 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 
 @writes(dirs=("out",))
 def cmd_fly(args: argparse.Namespace) -> int:
+    from dyntarget.cli._common import check_orbit
+
+    check_orbit(args)
     modes = [m for m in ("scene", "watch", "campaign") if getattr(args, m)]
     if len(modes) != 1:
         raise InvalidParameterError("fly: give exactly one of --scene, --watch, --campaign")

@@ -6,6 +6,7 @@ import argparse
 
 from dyntarget import defaults
 from dyntarget.cli._common import (
+    EXIT_NOTHING_FEASIBLE,
     EXIT_OK,
     add_orbit_options,
     add_plan_options,
@@ -34,11 +35,15 @@ def cmd_planners(args: argparse.Namespace) -> int:
 @writes(files=("out", "figure", "polygons", "html"))
 def cmd_plan(args: argparse.Namespace) -> int:
 
+    from dyntarget.cli._common import check_orbit
+    from dyntarget.cli._outputs import acquisition
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
+    check_orbit(args)
+    acquisition(args, args.image[0])  # a bad time is refused now, not after the work
     if args.figure:  # before anything is written
         from dyntarget.errors import require
 
@@ -121,9 +126,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     log(
         f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
     )
+    infeasible = False
     if result.schedule is not None:
         _log_schedule(result.planner, result.schedule)
         traj = result.schedule.trajectory
+        infeasible = len(traj) == 0 and result.schedule.planned > 0
     write_outputs(
         args, wfov, traj, polygons=result.polygons, probability=result.probability,
         title=f"{wfov.id}: {result.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
@@ -133,6 +140,20 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
         shown = result.mask if result.predicted_mask is None else result.predicted_mask
         print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
+    if infeasible:
+        sched = result.schedule
+        why = (
+            f"the observation window has closed {-sched.time_left_s:.1f} s before the plan "
+            "can be flown"
+            if sched.time_left_s < 0
+            else "no pointing fits the agility limits and the window"
+        )
+        log(
+            f"dyntarget: no feasible pointing: 0 of {sched.planned} planned pointings can be "
+            f"flown under '{args.agility}' agility ({why}; try a smaller --start-s or another "
+            f"preset); {args.out} holds no pointing; exit {EXIT_NOTHING_FEASIBLE}"
+        )
+        return EXIT_NOTHING_FEASIBLE
     return EXIT_OK
 
 

@@ -260,4 +260,8 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
     check_regular(path, what="--scene")
     world = StaticWorld(read_scene(path))
     world.acquired = read_acquired(path)
+    if world.acquired is not None and not 1900 <= world.acquired.year <= 2200:
+        raise DataFileError(
+            f"--scene {path}: acquired {world.acquired.isoformat()}, outside the years 1900..2200"
+        )
     return world
