@@ -52,6 +52,8 @@ VERSION = 1
 TIME_TAG = "DYNTARGET_TIME"
 TIME_S_TAG = "DYNTARGET_TIME_S"
 TIFF_TIME_TAG = "TIFFTAG_DATETIME"
+MAX_FRAMES = 10_000
+"""Most frames listed in one ``sequence.json`` (as ``dyntarget.synth.dynamic.MAX_FRAMES``)."""
 
 
 def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> list[Path]:
@@ -122,10 +124,9 @@ def _frame_time(path: Path) -> str:
 
 
 def _load_sidecar(path: Path) -> dict[str, Any]:
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path}: not a readable JSON file ({exc})") from None
+    from dyntarget.io.safeopen import read_json
+
+    doc = read_json(path)  # a regular file of bounded size and nesting
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise DataFileError(f'{path}: expected "format": "{FORMAT}"')
     if doc.get("version") != VERSION:
@@ -135,6 +136,12 @@ def _load_sidecar(path: Path) -> dict[str, Any]:
     frames = doc.get("frames")
     if not isinstance(frames, list) or not frames:
         raise DataFileError(f'{path}: "frames" must be a non-empty list')
+    if len(frames) > MAX_FRAMES:
+        raise DataFileError(f'{path}: {len(frames)} frames, more than the {MAX_FRAMES} accepted')
+    if not isinstance(doc.get("meta", {}) or {}, dict):
+        raise DataFileError(f'{path}: "meta" must be an object, got {type(doc["meta"]).__name__}')
+    if not isinstance(doc.get("id", ""), str | None):
+        raise DataFileError(f'{path}: "id" must be a string, got {doc["id"]!r:.60}')
     return doc
 
 
