@@ -112,17 +112,12 @@ def _check_previous_header(args: argparse.Namespace, wfov) -> None:
     """Size and acquisition time of ``--previous`` checked before a pixel of it is read."""
     from dyntarget.errors import InvalidParameterError, InvalidSceneError
     from dyntarget.io.acquisition import read_acquired
-    from dyntarget.io.safeopen import check_regular
+    from dyntarget.io.safeopen import check_regular, raster_size
 
     check_regular(args.previous, what="--previous")
-    if args.previous.lower().endswith((".tif", ".tiff")):
-        import rasterio
-
-        try:
-            with rasterio.open(args.previous) as src:
-                h, w = src.height // args.factor, src.width // args.factor
-        except rasterio.errors.RasterioError:
-            return  # the reader names what is wrong with it
+    size = raster_size(args.previous) if args.previous.lower().endswith((".tif", ".tiff")) else None
+    if size is not None:
+        h, w = size[0] // args.factor, size[1] // args.factor
         if (h, w) != tuple(wfov.shape):
             raise InvalidSceneError(
                 f"--previous {args.previous}: {h} x {w} px at factor {args.factor} does not "

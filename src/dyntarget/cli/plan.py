@@ -43,6 +43,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
     check_orbit(args)
+    _check_size(args)
     acquisition(args, args.image[0])  # a bad time is refused now, not after the work
     if args.figure:  # before anything is written
         from dyntarget.errors import require
@@ -155,6 +156,40 @@ def cmd_plan(args: argparse.Namespace) -> int:
         )
         return EXIT_NOTHING_FEASIBLE
     return EXIT_OK
+
+
+PLAN_BYTES_PER_PIXEL = 160
+"""Estimated peak memory of ``plan`` per WFOV pixel (image, probability, masks, polygons;
+an estimate, not a measurement), checked against the memory available before reading."""
+HTML_MAX_PIXELS = 4096 * 4096
+"""Largest WFOV image ``plan --html`` draws (the view embeds it)."""
+
+
+def _check_size(args: argparse.Namespace) -> None:
+    """Refuse, from the GeoTIFF header alone, a plan that would not fit in memory or in a view."""
+    from dyntarget.errors import InvalidParameterError
+
+    if len(args.image) != 1 or not args.image[0].lower().endswith((".tif", ".tiff")):
+        return
+    from dyntarget.io.safeopen import raster_size
+    from dyntarget.synth.volcano import available_memory
+
+    size = raster_size(args.image[0])
+    if size is None:
+        return  # the reader says what is wrong with it
+    h, w = size[0] // args.factor, size[1] // args.factor
+    if args.html and h * w > HTML_MAX_PIXELS:
+        raise InvalidParameterError(
+            f"--html {args.html}: the image is {w} x {h} px at factor {args.factor}, more than "
+            f"the {HTML_MAX_PIXELS:,} px the view draws; use a larger --factor or leave out --html"
+        )
+    need, have = h * w * PLAN_BYTES_PER_PIXEL, available_memory()
+    if need > have:
+        raise InvalidParameterError(
+            f"{args.image[0]}: {w} x {h} px at factor {args.factor} needs about "
+            f"{need / 1e9:.1f} GB, more than the {have / 1e9:.1f} GB available; "
+            "use a larger --factor, or crop or tile it"
+        )
 
 
 def _geometry(args: argparse.Namespace, wfov):

@@ -331,3 +331,38 @@ def writable_dir(path: str | os.PathLike[str], *, what: str = "") -> Path:
             f"{name}: cannot write in {folder} ({why}); nothing written (choose another path)"
         )
     return folder
+
+
+def raster_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
+    """``(height, width)`` from a raster's header (no pixel read); ``None`` if GDAL cannot open it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The raster; refused first unless a regular file (:func:`check_regular`).
+
+    Returns
+    -------
+    tuple of int or None
+        Rows and columns.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> p = Path(tempfile.mkdtemp()) / "x.tif"; _ = p.write_bytes(b"not a tiff")
+    >>> raster_size(p) is None
+    True
+    """
+    import warnings
+
+    import rasterio
+    import rasterio.errors
+
+    check_regular(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with rasterio.open(path) as src:
+                return int(src.height), int(src.width)
+    except rasterio.errors.RasterioError:
+        return None

@@ -137,7 +137,7 @@ def _load_sidecar(path: Path) -> dict[str, Any]:
     if not isinstance(frames, list) or not frames:
         raise DataFileError(f'{path}: "frames" must be a non-empty list')
     if len(frames) > MAX_FRAMES:
-        raise DataFileError(f'{path}: {len(frames)} frames, more than the {MAX_FRAMES} accepted')
+        raise DataFileError(f"{path}: {len(frames)} frames, more than the {MAX_FRAMES} accepted")
     if not isinstance(doc.get("meta", {}) or {}, dict):
         raise DataFileError(f'{path}: "meta" must be an object, got {type(doc["meta"]).__name__}')
     if not isinstance(doc.get("id", ""), str | None):
