@@ -250,7 +250,11 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
             raise DataFileError(f"{sidecar}: not a {STRIP_FORMAT} sidecar")
         try:
             spec = WorldSpec.from_dict(doc.get("world"))
-            window = check_window(doc.get("window"), spec.size)
+            if not isinstance(doc.get("window"), list):
+                raise InvalidParameterError(
+                    f"window: expected [col0, row0, width, length] integers, got {doc.get('window')!r:.60}"
+                )
+            window = check_window(doc["window"], spec.size)
         except InvalidParameterError as exc:
             raise DataFileError(f"{sidecar}: {exc}") from None
         return MovingStrip(spec, window, truth_step_s=truth_step_s)
@@ -259,7 +263,12 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
 
     check_regular(path, what="--scene")
     world = StaticWorld(read_scene(path))
-    world.acquired = read_acquired(path)
+    try:
+        world.acquired = read_acquired(path)
+    except OverflowError:
+        raise DataFileError(
+            f"--scene {path}: acquisition time outside the years 1900..2200"
+        ) from None
     if world.acquired is not None and not 1900 <= world.acquired.year <= 2200:
         raise DataFileError(
             f"--scene {path}: acquired {world.acquired.isoformat()}, outside the years 1900..2200"
