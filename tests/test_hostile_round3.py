@@ -696,3 +696,111 @@ def test_error_after_the_first_frame_leaves_no_partial_timeline(tmp_path, capsys
                            "--out", out, "--quiet")  # fmt: skip
     assert "hostile pixels" in line and "no partial timeline" in line
     assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+# --------------------------------------------------------------------------- field sweeps
+
+HOSTILE = [
+    "a",
+    None,
+    float("nan"),
+    float("inf"),
+    -1,
+    -1e300,
+    1e300,
+    1e-300,
+    [],
+    {},
+    True,
+    2**70,
+    0,
+    1.5,
+]
+"""Values tried in every field: wrong types, non-finite, huge, tiny, negative, boolean."""
+
+
+@pytest.mark.slow
+def test_every_strip_sidecar_field_refused_or_rendered(tmp_path):
+    """Each field of a strip sidecar set to each hostile value: a DynTargetError or a world
+    that renders (no other exception, no warning, none slow enough to trip the alarm)."""
+    import copy
+    import warnings
+
+    from dyntarget.errors import DynTargetError
+    from dyntarget.fly.strip import load_world
+
+    base = _spec_dict()
+    base["clouds"] = [{"x": 5.0, "y": 5.0, "radius_m": 300.0, "optical_depth": 2.0,
+                       "volcanic": True, "ash_fraction": 0.5}]  # fmt: skip
+    (tmp_path / "s.tif").write_bytes(b"")
+    docs = []
+    for key in base:
+        docs += [(f"world.{key}", {**base, key: v}, [0, 0, 64, 256]) for v in HOSTILE]
+    for sub in ("vents", "clouds", "wind"):
+        for key in base[sub] if sub == "wind" else base[sub][0]:
+            for v in HOSTILE:
+                w = copy.deepcopy(base)
+                (w["wind"] if sub == "wind" else w[sub][0])[key] = v
+                docs.append((f"{sub}.{key}", w, [0, 0, 64, 256]))
+    for i in range(4):
+        docs += [
+            (f"window[{i}]", base, [*[0, 0, 64, 256][:i], v, *[0, 0, 64, 256][i + 1 :]])
+            for v in HOSTILE
+        ]
+    failures = []
+    for label, world, window in docs:
+        doc = {"format": "dyntarget-strip", "version": 1, "world": world, "window": window}
+        (tmp_path / "s.world.json").write_text(json.dumps(doc))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                strip = load_world(tmp_path / "s.tif")
+                strip.image_at(0.0, 0, 32)
+                strip.truth_at(0.0)
+        except DynTargetError:
+            pass
+        except Exception as exc:
+            failures.append(f"{label}: {type(exc).__name__}: {exc}"[:160])
+    assert failures == []
+
+
+def test_every_sequence_sidecar_time_field_refused_or_read(tmp_path):
+    import copy
+
+    from dyntarget.errors import DynTargetError
+    from dyntarget.io import read_sequence, write_sequence
+    from dyntarget.synth.dynamic import World, sample_world, truth_provider, world_sequence
+
+    seq = world_sequence(World(sample_world(0, 0, size=32)), frames=2, interval_s=10.0)
+    write_sequence(seq, tmp_path)
+    folder = tmp_path / seq.id
+    base = json.loads((folder / "sequence.json").read_text())
+    values = [*HOSTILE, "9999-12-31T23:59:59Z", "0001-01-01T00:00:00+14:00"]
+    docs = [{**base, key: v} for key in ("epoch", "id", "meta") for v in values]
+    for v in values:
+        for entry in (
+            {"file": "f001.tif", "time_s": v},
+            {"file": "f001.tif", "time": v},
+            {"file": v, "time_s": 1},
+        ):
+            doc = copy.deepcopy(base)
+            doc["frames"][1] = entry
+            docs.append(doc)
+        for key in ("window", "world"):
+            doc = copy.deepcopy(base)
+            doc["meta"][key] = v
+            docs.append(doc)
+    failures = []
+    for doc in docs:
+        (folder / "sequence.json").write_text(json.dumps(doc))
+        try:
+            s = read_sequence(folder)
+            provider = truth_provider(s.meta)
+            if provider is not None:
+                provider(5.0)
+            [s.time_iso(i) for i in range(len(s))]
+        except DynTargetError:
+            pass
+        except Exception as exc:
+            failures.append(f"{json.dumps(doc)[:80]}: {type(exc).__name__}: {exc}"[:200])
+    assert failures == []

@@ -222,14 +222,16 @@ class VentSpec:
     def __post_init__(self) -> None:
         for name in ("x", "y"):
             _number("vent ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
-        for name, hi in (
-            ("emission_optical_depth", 100.0),
-            ("source_sigma_m", MAX_RADIUS_M),
-            ("fade_s", MAX_SECONDS),
-            ("ash_fade_s", MAX_SECONDS),
-            ("pulse_period_s", MAX_SECONDS),
+        _number(
+            "vent ", "emission_optical_depth", self.emission_optical_depth, 0.0, 100.0, lo_open=True
+        )
+        for name, lo, hi in (
+            ("source_sigma_m", 0.1, MAX_RADIUS_M),
+            ("fade_s", 0.1, MAX_SECONDS),
+            ("ash_fade_s", 0.1, MAX_SECONDS),
+            ("pulse_period_s", 0.1, MAX_SECONDS),
         ):
-            _number("vent ", name, getattr(self, name), 0.0, hi, lo_open=True)
+            _number("vent ", name, getattr(self, name), lo, hi)
         for name, hi in (
             ("eruption_age_s", MAX_SECONDS),
             ("diffusivity_m2s", 1e4),
@@ -270,7 +272,7 @@ class CloudSpec:
     def __post_init__(self) -> None:
         for name in ("x", "y"):
             _number("cloud ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
-        _number("cloud ", "radius_m", self.radius_m, 0.0, MAX_RADIUS_M, lo_open=True)
+        _number("cloud ", "radius_m", self.radius_m, 1.0, MAX_RADIUS_M)
         _number("cloud ", "optical_depth", self.optical_depth, 0.0, 100.0, lo_open=True)
         _number("cloud ", "ash_fraction", self.ash_fraction, 0.0, 1.0)
         if not isinstance(self.volcanic, bool):
@@ -368,7 +370,7 @@ class WorldSpec:
             if v == 1.0:
                 raise InvalidParameterError(f"{name}: expected 0 <= value < 1, got {v!r}")
         _number("", "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 720.0)
-        _number("", "sun_elevation_deg", self.sun_elevation_deg, 0.0, 90.0, lo_open=True)
+        _number("", "sun_elevation_deg", self.sun_elevation_deg, 1.0, 90.0)
         _number("", "noise_sigma", self.noise_sigma, 0.0, 1.0)
         _number("", "origin_easting", self.origin_easting, -1e8, 1e8)
         _number("", "origin_northing", self.origin_northing, -1e8, 1e8)
