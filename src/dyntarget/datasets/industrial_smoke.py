@@ -302,6 +302,10 @@ def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
     return name, polygons
 
 
+MAX_MEMBER_BYTES = 1 << 30
+"""Largest image or label file read from the archive or its folder (1 GiB)."""
+
+
 def _list(value: object, name: str) -> list:
     if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
         raise TypeError(f"{name}: expected a list of objects, got {value!r:.60}")
@@ -313,12 +317,19 @@ def _members(source: Path, suffixes: tuple[str, ...]) -> Iterator[tuple[str, byt
     if source.is_dir():
         for p in sorted(source.rglob("*")):
             if p.is_file() and p.suffix.lower() in suffixes:
-                yield p.relative_to(source).as_posix(), p.read_bytes()
+                from dyntarget.io.safeopen import read_bytes
+
+                yield p.relative_to(source).as_posix(), read_bytes(p, max_bytes=MAX_MEMBER_BYTES)
         return
     try:
         with tarfile.open(source, "r:*") as tar:
             for m in sorted(tar.getmembers(), key=lambda m: m.name):
                 if m.isfile() and PurePosixPath(m.name).suffix.lower() in suffixes:
+                    if m.size > MAX_MEMBER_BYTES:
+                        raise DataFileError(
+                            f"{source}: member {m.name} is {m.size:,} bytes, more than the "
+                            f"{MAX_MEMBER_BYTES:,} accepted"
+                        )
                     fh = tar.extractfile(m)
                     if fh is not None:
                         yield m.name, fh.read()
