@@ -522,9 +522,34 @@ def test_onnx_control_flow_found_without_the_onnx_package():
 # --------------------------------------------------------------------------- one line, exit 2
 
 
-def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("command", ["synth", "plan", "fly"])
+def test_unwritable_out_is_refused_before_any_work(
+    tmp_path, capsys, monkeypatch, tiny_scene, command
+):
     locked = tmp_path / "locked"
     locked.mkdir()
+    image = write_scene(tiny_scene, tmp_path / "img")[0]
+    mask = image.with_name(f"{image.stem}_mask.tif")
+    args = {
+        "synth": ["synth", "--scenes", "1", "--size", "64", "--out", locked / "x"],
+        "plan": [
+            "plan",
+            image,
+            "--mask",
+            mask,
+            "--planner",
+            "lawnmower-transect",
+            "--out",
+            locked / "t.geojson",
+        ],
+        "fly": ["fly", "--scene", image, "--truth", "--out", locked / "o"],
+    }[command]
+    import dyntarget.io.sensors
+
+    def never(*a, **k):  # proves the refusal comes before the image is read
+        raise AssertionError("the input was read")
+
+    monkeypatch.setattr(dyntarget.io.sensors, "read_any", never)
     locked.chmod(0o555)
     if os.geteuid() == 0:  # root may write anywhere: make os.access say what it says to users
         real = os.access
@@ -532,12 +557,11 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys, monkeypatch
             os, "access", lambda p, m, **k: False if str(p) == str(locked) else real(p, m, **k)
         )
     try:
-        line = _one_line_error(
-            capsys, "synth", "--scenes", "1", "--size", "64", "--out", locked / "x"
-        )
+        line = _one_line_error(capsys, *args)
     finally:
         locked.chmod(0o755)
     assert "cannot write in" in line and str(locked) in line
+    assert list(locked.iterdir()) == []
 
 
 def test_fallback_model_nested_100000_deep_is_one_line(tmp_path, capsys, tiny_scene):
