@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import sys
 from pathlib import Path
 
 from dyntarget.cli._common import (
@@ -164,9 +166,9 @@ def _campaign(args: argparse.Namespace) -> int:
         truth_step_s=args.truth_step_s,
         progress=not args.quiet,
     )
-    print(",".join(COLUMNS))
-    for r in rows:
-        print(",".join("" if r[c] is None else str(r[c]) for c in COLUMNS))
+    out = csv.writer(sys.stdout, lineterminator="\n")  # a strip name may hold a comma
+    out.writerow(COLUMNS)
+    out.writerows([["" if r[c] is None else r[c] for c in COLUMNS] for r in rows])
     log(f"wrote {Path(args.out) / 'campaign.csv'} ({len(rows)} passes)")
     return EXIT_OK
 
