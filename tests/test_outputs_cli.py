@@ -173,7 +173,7 @@ def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, me
 @pytest.mark.slow
 def test_plan_html_view_holds_the_geojson_pointings_in_chromium(tmp_path, capsys):
     pytest.importorskip("plotly")
-    from dyntarget.view.browser import find_chromium, render
+    from view_browser import find_chromium, render
 
     if find_chromium() is None:
         pytest.skip("headless Chromium not installed (apt-get install -y chromium chromium-driver)")
