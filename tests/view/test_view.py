@@ -36,8 +36,10 @@ def _traj(n=7, seed=1, times=True):
 
 
 def _text(page: str) -> str:
-    """The page with the JSON escapes plotly uses for <, > and / undone."""
-    return page.replace("\\u003c", "<").replace("\\u003e", ">").replace("\\u002f", "/")
+    """The page with the JSON escapes plotly uses for <, >, / (and, plotly 7, non-ASCII) undone."""
+    for escaped, char in (("\\u003c", "<"), ("\\u003e", ">"), ("\\u002f", "/"), ("\\u2013", "–")):
+        page = page.replace(escaped, char)
+    return page
 
 
 def test_page_is_self_contained_no_script_or_style_is_fetched():
