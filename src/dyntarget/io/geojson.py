@@ -338,6 +338,7 @@ def _split_at_antimeridian(lonlat: Any, world: Any, crs: object) -> Any:
         return lonlat
     import antimeridian
 
+    fixed: Any
     if lonlat.geom_type == "LineString":
         fixed = antimeridian.fix_line_string(lonlat, great_circle=False)
     else:
