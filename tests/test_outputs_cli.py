@@ -323,3 +323,23 @@ def test_fly_refuses_a_model_trained_four_times_finer(threshold_model, tmp_path,
         and "trained at WFOV factor 1, 2 m GSD; this run is at WFOV factor 1, 8 m GSD" in err
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_plan_on_a_scene_across_180_writes_split_polygons_and_path(tmp_path, capsys):
+    import shapely
+
+    pyproj = pytest.importorskip("pyproj")
+    # a 48 px, 30 m scene centred on 180°E at 52°N (the Aleutians), in UTM 60N
+    x, y = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32660", always_xy=True).transform(
+        180.0, 52.0
+    )
+    transform = Affine(30.0, 0.0, x - 24 * 30.0, 0.0, -30.0, y + 24 * 30.0)
+    image, mask = _scene(tmp_path, "EPSG:32660", transform)
+    out, polygons = tmp_path / "t.geojson", tmp_path / "p.geojson"
+    _plan(capsys, image, mask, out, "--polygons", polygons, "--step", "3")
+    for path, kind in ((polygons, "MultiPolygon"), (out, "MultiLineString")):
+        doc = json.loads(path.read_text())
+        west, _, east, _ = doc["bbox"]
+        assert 179.9 < west <= 180.0 and -180.0 <= east < -179.9  # west > east across 180°
+        _, _, wkb, _ = pyogrio.raw.read(path, where="kind <> 'pointing'")
+        assert shapely.from_wkb(wkb[0]).geom_type == kind
