@@ -10,6 +10,7 @@ from dyntarget.cli._common import (
     add_orbit_options,
     add_plan_options,
     log,
+    plain_text,
     plan_config,
     positive_float,
     positive_int,
@@ -24,7 +25,7 @@ def cmd_planners(args: argparse.Namespace) -> int:
     from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
 
     for name in PLANNERS.available():
-        doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
+        doc = plain_text((PLANNERS.get(name).__doc__ or "").strip().splitlines()[0])
         tag = " (baseline)" if name in BASELINES else ""
         tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
         print(f"{name:20s} {doc}{tag}")
