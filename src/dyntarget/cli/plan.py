@@ -133,7 +133,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dyntarget.evaluate.figures import trajectories_figure
 
         shown = result.mask if result.predicted_mask is None else result.predicted_mask
-        print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
+        print(
+            trajectories_figure(
+                wfov.image, [traj], args.figure, mask=shown, title=wfov.id, gsd=wfov.gsd
+            )
+        )
     return EXIT_OK
 
 
