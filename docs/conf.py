@@ -47,6 +47,8 @@ myst_heading_anchors = 3  # [text](page.md#a-heading) links resolve
 # modules added later appear without editing the docs.
 autosummary_generate = True
 autosummary_imported_members = False
+# type aliases (``Window = tuple[...]``) look like classes to autosummary: documented as data
+autosummary_context = {"type_aliases": ["Window"]}
 autodoc_default_options = {"members": True, "show-inheritance": True}
 autodoc_typehints = "none"  # numpydoc sections carry the types
 autodoc_member_order = "bysource"
