@@ -10,7 +10,6 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from dyntarget import __version__
 from dyntarget.cli import bench, datasets, demo, evaluate, fly, models, plan, sweep, synth
 from dyntarget.cli._common import EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, Parser
 from dyntarget.errors import DynTargetError, missing_extra
@@ -18,6 +17,20 @@ from dyntarget.errors import DynTargetError, missing_extra
 COMMANDS = (synth, models, evaluate, plan, fly, sweep, bench, datasets, demo)
 """The command modules, in the order ``dyntarget --help`` lists them. Each has
 ``register(sub)``; to add a command, add a module with one and list it here."""
+
+
+class _Version(argparse.Action):
+    """``--version``: the installed version, read only when asked (``dyntarget.__version__``)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs) -> None:
+        kwargs.update(nargs=0, default=argparse.SUPPRESS)
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        import dyntarget
+
+        print(f"dyntarget {dyntarget.__version__}")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="dyntarget",
         description="Dynamic targeting of plumes: classify look-ahead imagery, denoise, plan NFOV trajectories.",
     )
-    parser.add_argument("--version", action="version", version=f"dyntarget {__version__}")
+    parser.add_argument("--version", action=_Version, help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="print full tracebacks on errors")
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=Parser

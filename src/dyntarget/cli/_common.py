@@ -7,6 +7,7 @@ Exit codes: 0 success, 2 bad usage or bad input (any :class:`DynTargetError`),
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from dyntarget import defaults
@@ -65,6 +66,33 @@ def preset_names() -> list[str]:
 
 def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
+
+
+def plain_text(text: str) -> str:
+    """A docstring line as plain text for a terminal: reST markup dropped.
+
+    Parameters
+    ----------
+    text : str
+        One line of reStructuredText (a docstring's summary).
+
+    Returns
+    -------
+    str
+        The line without inline literals, roles and references to private helpers.
+
+    Examples
+    --------
+    >>> plain_text("Zig-zag every ``step`` (see :func:`_transects`).")
+    'Zig-zag every step.'
+    >>> plain_text("See :class:`~dyntarget.plan.PlanConfig` and *this*.")
+    'See PlanConfig and this.'
+    """
+    text = re.sub(r"\s*\(see :\w+:`~?_[^`]*`\)", "", text)  # a private helper means nothing here
+    text = re.sub(r":\w+:`~([^`]*\.)?([^`.]+)`", r"\2", text)  # :func:`~a.b.c` -> c
+    text = re.sub(r":\w+:`([^`]*)`", r"\1", text)
+    text = re.sub(r"``([^`]*)``", r"\1", text)
+    return re.sub(r"(?<![\w*])\*{1,2}([^*]+)\*{1,2}(?![\w*])", r"\1", text)
 
 
 def load_labelled(data: str) -> list:

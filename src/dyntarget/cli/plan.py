@@ -11,6 +11,7 @@ from dyntarget.cli._common import (
     add_orbit_options,
     add_plan_options,
     log,
+    plain_text,
     plan_config,
     positive_float,
     positive_int,
@@ -25,7 +26,7 @@ def cmd_planners(args: argparse.Namespace) -> int:
     from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
 
     for name in PLANNERS.available():
-        doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
+        doc = plain_text((PLANNERS.get(name).__doc__ or "").strip().splitlines()[0])
         tag = " (baseline)" if name in BASELINES else ""
         tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
         print(f"{name:20s} {doc}{tag}")
@@ -150,7 +151,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dyntarget.evaluate.figures import trajectories_figure
 
         shown = result.mask if result.predicted_mask is None else result.predicted_mask
-        print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
+        print(
+            trajectories_figure(
+                wfov.image, [traj], args.figure, mask=shown, title=wfov.id, gsd=wfov.gsd
+            )
+        )
     if infeasible:
         sched = result.schedule
         why = (

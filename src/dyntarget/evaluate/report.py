@@ -90,6 +90,7 @@ def make_figures(
         out / "fig3_trajectories.png",
         mask=results[0].mask,
         title=f"{scene.id}: planners on the {display(best)} mask (held-out scene)",
+        gsd=wfov.gsd,
     )
     if results and _has_plotly():  # the same plan, interactive: view.html beside report.md
         figs["view"] = _scene_view(out / "view.html", scene, wfov, results[0], lookahead[0], factor)

@@ -254,8 +254,16 @@ def read_scene(
     label_path = Path(label) if label is not None else (_find_label(path) if auto_label else None)
     with _open(path) as src:
         if src.count != 4:
+            hint = (
+                "; one file per band? give the four files in the order R G B NIR "
+                "(e.g. red.tif green.tif blue.tif nir.tif --preset landsat8)"
+                if src.count == 1
+                else "; a multi-band product? pick R, G, B, NIR with --preset or --bands"
+                if src.count > 4
+                else ""
+            )
             raise InvalidSceneError(
-                f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s)"
+                f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s){hint}"
             )
         factor = check_factor(factor, (src.height, src.width))
         out_h, out_w = src.height // factor, src.width // factor

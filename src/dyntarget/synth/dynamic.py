@@ -1218,7 +1218,7 @@ def world_sequence(
     window: Window | None = None,
     truth_step_s: float = 1.0,
 ) -> FrameSequence:
-    """Look-ahead frames at ``t = 0, S, 2S, ...`` with the world as truth provider.
+    """Look-ahead frames at ``t = 0, S, 2S`` and on, with the world as truth provider.
 
     Parameters
     ----------
@@ -1304,7 +1304,7 @@ def generate_sequences(
     wind_mps: float | None = None,
     wind_from_deg: float | None = None,
 ) -> Iterator[FrameSequence]:
-    """Yield sequences ``0 .. n-1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
+    """Yield sequences ``0`` to ``n - 1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
 
     Parameters
     ----------

@@ -314,7 +314,7 @@ def _layout(go, shape, title: str, note: str) -> Any:
             "scaleanchor": "x",
             "constrain": "domain",
         },
-        width=width,
+        autosize=True,  # the page fills the window (responsive config); height from the aspect
         height=int(min(1000, max(420, 140 + (width - 260) * aspect))),
         legend={"orientation": "h", "y": -0.12},
         margin={"l": 60, "r": 170, "t": 120, "b": 110},
@@ -341,6 +341,13 @@ def _note(traj, transform, crs, acquired) -> str:
         from rasterio.crs import CRS
 
         parts.append(f"image CRS {CRS.from_user_input(crs).to_string()}; hover gives WGS 84")
+    elif crs is not None:  # a pass: frames in their own pixels, cut from a georeferenced strip
+        from rasterio.crs import CRS
+
+        parts.append(
+            f"frame pixel coordinates of a strip in {CRS.from_user_input(crs).to_string()}; "
+            "pointings.geojson holds WGS 84 lon/lat"
+        )
     else:
         parts.append("pixel coordinates (no CRS)")
     if acquired is not None:
@@ -354,7 +361,8 @@ def _to_html(fig, title: str, *, animated: bool = False) -> str:
         full_html=True,
         div_id=DIV_ID,
         auto_play=False,
-        config={"displaylogo": False, "scrollZoom": True, "responsive": False},
+        config={"displaylogo": False, "scrollZoom": True, "responsive": True},
+        default_width="100%",
         animation_opts={"frame": {"duration": 0, "redraw": True}} if animated else None,
     )
     # The generator tag lets a rerun recognise its own file (dyntarget.io.outputs.is_ours).
