@@ -82,7 +82,8 @@ def write_outputs(
     if args.polygons:
         print(write_polygons(args.polygons, polygons, crs_mode=args.crs, **georef))
     if args.html:
-        from dyntarget.view import pointing_truth, write_scene_view
+        from dyntarget.observe import pointing_truth
+        from dyntarget.view import write_scene_view
 
         truth = None
         if getattr(args, "mask", None) and wfov.label is not None:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import sys
 from pathlib import Path
 
 from dyntarget.cli._common import (
@@ -66,6 +68,10 @@ def cmd_fly(args: argparse.Namespace) -> int:
         )
     if args.model is not None and args.truth:
         raise InvalidParameterError("fly: --model and --truth exclude each other")
+    if args.watch or args.campaign:  # the frames' GSD is not known yet: factors are compared
+        from dyntarget.cli._resolution import check_resolution
+
+        check_resolution(args.model, factor=args.factor, gsd=None, force=args.force)
     if args.watch:
         return _watch(args)
     if args.campaign:
@@ -81,6 +87,17 @@ def _fly(args: argparse.Namespace) -> int:
     if "," in args.planner or "," in args.agility:
         raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
     world = load_world(args.scene, truth_step_s=args.truth_step_s)
+    from dyntarget.cli._resolution import check_resolution
+
+    gsd = None if getattr(world, "gsd", None) is None else world.gsd * args.factor
+    for opt in ("model", "fallback_model"):
+        check_resolution(
+            getattr(args, opt),
+            factor=args.factor,
+            gsd=gsd,
+            force=args.force,
+            what=f"--{opt.replace('_', '-')}",
+        )
     config = _pass_config(args, args.planner, args.agility)
     classifier = _classifier(args)
     fallback = None
@@ -164,9 +181,9 @@ def _campaign(args: argparse.Namespace) -> int:
         truth_step_s=args.truth_step_s,
         progress=not args.quiet,
     )
-    print(",".join(COLUMNS))
-    for r in rows:
-        print(",".join("" if r[c] is None else str(r[c]) for c in COLUMNS))
+    out = csv.writer(sys.stdout, lineterminator="\n")  # a strip name may hold a comma
+    out.writerow(COLUMNS)
+    out.writerows([["" if r[c] is None else r[c] for c in COLUMNS] for r in rows])
     log(f"wrote {Path(args.out) / 'campaign.csv'} ({len(rows)} passes)")
     return EXIT_OK
 
@@ -211,6 +228,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument(
         "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="run a model at more than twice or half the resolution it was trained at",
     )
     p.add_argument(
         "--frame-px", type=positive_int, help="frame height in WFOV px (default: the strip's width)"

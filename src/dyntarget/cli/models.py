@@ -29,6 +29,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     )
     t0 = time.perf_counter()
     model.fit(scenes)
+    gsds = {s.gsd for s in scenes}  # recorded so that plan/fly notice another resolution
+    model.training |= {"factor": args.factor, "wfov_gsd_m": gsds.pop() if len(gsds) == 1 else None}
     path = model.save(args.out)
     log(f"trained {args.classifier} on {len(scenes)} scenes in {time.perf_counter() - t0:.1f} s")
     print(path)

@@ -63,6 +63,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
         offset=args.offset,
         factor=args.factor,
     )
+    from dyntarget.cli._resolution import check_resolution
+
+    check_resolution(args.model, factor=args.factor, gsd=wfov.gsd, force=args.force)
+    check_resolution(
+        args.fallback_model,
+        factor=args.factor,
+        gsd=wfov.gsd,
+        force=args.force,
+        what="--fallback-model",
+    )
     classifier = None
     if (args.onnx or args.int8) and args.model is None:
         flag = "--int8" if args.int8 else "--onnx"
@@ -230,6 +240,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_int,
         default=1,
         help="downsample the image to WFOV first (default 1)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="run a model at more than twice or half the resolution it was trained at",
     )
     p.add_argument(
         "--scale", type=positive_float, help="reflectance per digital number for integer images"

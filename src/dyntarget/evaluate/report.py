@@ -113,7 +113,8 @@ def _has_plotly() -> bool:
 
 
 def _scene_view(path: Path, scene: Scene, wfov: Scene, result, planner: str, factor: int) -> Path:
-    from dyntarget.view import pointing_truth, write_scene_view
+    from dyntarget.observe import pointing_truth
+    from dyntarget.view import write_scene_view
 
     traj = result.trajectory
     return write_scene_view(

@@ -72,11 +72,13 @@ def measured_csv(result: PassResult) -> str:
     str
         CSV text: ``frame``, one ``<stage>_s`` column per stage and ``loop_s``.
     """
-    lines = ["frame," + ",".join(f"{s}_s" for s in STAGES) + ",loop_s"]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["frame", *(f"{s}_s" for s in STAGES), "loop_s"])
     for rec in result.records:
-        stages = ",".join(f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES)
-        lines.append(f"{rec.frame},{stages},{rec.loop_s:.6f}")
-    return "\n".join(lines) + "\n"
+        stages = [f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES]
+        writer.writerow([rec.frame, *stages, f"{rec.loop_s:.6f}"])
+    return buf.getvalue()
 
 
 def pointings_geojson(
