@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 
 from dyntarget import __version__
 from dyntarget.cli import bench, datasets, demo, evaluate, fly, models, plan, sweep, synth
-from dyntarget.cli._common import EXIT_INTERNAL, EXIT_USAGE, Parser
+from dyntarget.cli._common import EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, Parser
 from dyntarget.errors import DynTargetError, missing_extra
 
 COMMANDS = (synth, models, evaluate, plan, fly, sweep, bench, datasets, demo)
@@ -75,6 +75,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("dyntarget: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `dyntarget planners | head -1`: the reader has gone
+        _silence_stdout()
+        return EXIT_OK
+    except RecursionError:  # a hostile input nested too deeply, wherever it was read
+        if args.debug:
+            raise
+        print(
+            "dyntarget: error: an input is nested too deeply to read (hostile or corrupt file?)",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
     except Exception as exc:  # an internal error: one line unless --debug
         if args.debug:
             raise
@@ -88,6 +99,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so Python's exit flush does not fail on the closed pipe again."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout is not a real file (tests): nothing to flush
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -19,7 +19,7 @@ from dyntarget.cli._common import (
     scheduler_address,
     writes,
 )
-from dyntarget.errors import InvalidParameterError
+from dyntarget.errors import DynTargetError, InvalidParameterError
 
 
 def _classifier(args: argparse.Namespace):
@@ -59,6 +59,9 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 
 @writes(dirs=("out",))
 def cmd_fly(args: argparse.Namespace) -> int:
+    from dyntarget.cli._common import check_orbit
+
+    check_orbit(args)
     modes = [m for m in ("scene", "watch", "campaign") if getattr(args, m)]
     if len(modes) != 1:
         raise InvalidParameterError("fly: give exactly one of --scene, --watch, --campaign")
@@ -110,16 +113,24 @@ def _fly(args: argparse.Namespace) -> int:
     from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
 
     with stop_on_signals() as stop:
-        result = fly_pass(
-            world,
-            classifier,
-            config,
-            fallback=fallback,
-            on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
-            should_stop=stop.is_set,
-            progress=not args.quiet,
-            frame_sink=views,
-        )
+        try:
+            result = fly_pass(
+                world,
+                classifier,
+                config,
+                fallback=fallback,
+                on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
+                should_stop=stop.is_set,
+                progress=not args.quiet,
+                frame_sink=views,
+            )
+        except Exception as exc:  # found after the first frame: no progress files without a summary
+            _remove_progress(out)
+            if isinstance(exc, DynTargetError):
+                raise type(exc)(
+                    f"{exc} (the pass stopped; no partial timeline is left in {out})"
+                ) from None
+            raise
     written = write_pass(
         result, world, out, picture=not args.no_picture, views=views, crs_mode=args.crs
     )
@@ -133,6 +144,13 @@ def _fly(args: argparse.Namespace) -> int:
     if result.stopped and stop.caught:
         return 128 + stop.caught[0]
     return EXIT_OK
+
+
+def _remove_progress(out: Path) -> None:
+    from dyntarget.fly.report import MEASURED, POINTINGS, TIMELINE
+
+    for name in (TIMELINE, MEASURED, POINTINGS):
+        (out / name).unlink(missing_ok=True)
 
 
 def _watch(args: argparse.Namespace) -> int:
@@ -155,12 +173,13 @@ def _watch(args: argparse.Namespace) -> int:
         pipeline=PipelineConfig(plan=plan_config(args)),
     )
     watcher = Watcher(args.watch, args.out, _classifier(args), config, log=log)
-    log(f"watching {args.watch} (stop with Ctrl-C or SIGTERM)")
+    how = "inotify events and polling" if watcher._events is not None else "polling"
+    log(f"watching {args.watch} with {how} (stop with Ctrl-C or SIGTERM)")
     from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
 
     with stop_on_signals() as stop:
         n = watcher.run(stop.is_set)
-    log(f"planned {n} frame(s) into {args.out}")
+    log(f"planned {n} frame(s) into {args.out}; stopped: {watcher.stop_reason or 'stop requested'}")
     return EXIT_OK
 
 

@@ -49,6 +49,8 @@ UINT8_SCALE = 1 / 255
 REFLECTANCE_RANGE = (-0.5, 2.0)
 """Values outside this range cannot be reflectance (e.g. digital numbers stored as float)."""
 MASK_SUFFIX = "_mask"
+MAX_GEOJSON_BYTES = 256 * 1024 * 1024
+"""Largest GeoJSON label read (256 MiB)."""
 
 
 @contextlib.contextmanager
@@ -75,8 +77,9 @@ def _quiet_gdal_log_errors():
 
 
 def _open(path: Path):
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(path)  # a FIFO or a device would block GDAL or be read forever
     try:
         with warnings.catch_warnings(), _quiet_gdal_log_errors():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -549,8 +552,9 @@ def read_geojson_label(
     from shapely.geometry import shape as to_shape
 
     path = Path(path)
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(path, max_bytes=MAX_GEOJSON_BYTES)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:

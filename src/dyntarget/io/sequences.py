@@ -52,6 +52,8 @@ VERSION = 1
 TIME_TAG = "DYNTARGET_TIME"
 TIME_S_TAG = "DYNTARGET_TIME_S"
 TIFF_TIME_TAG = "TIFFTAG_DATETIME"
+MAX_FRAMES = 10_000
+"""Most frames listed in one ``sequence.json`` (as ``dyntarget.synth.dynamic.MAX_FRAMES``)."""
 
 
 def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> list[Path]:
@@ -122,10 +124,9 @@ def _frame_time(path: Path) -> str:
 
 
 def _load_sidecar(path: Path) -> dict[str, Any]:
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path}: not a readable JSON file ({exc})") from None
+    from dyntarget.io.safeopen import read_json
+
+    doc = read_json(path)  # a regular file of bounded size and nesting
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise DataFileError(f'{path}: expected "format": "{FORMAT}"')
     if doc.get("version") != VERSION:
@@ -135,7 +136,53 @@ def _load_sidecar(path: Path) -> dict[str, Any]:
     frames = doc.get("frames")
     if not isinstance(frames, list) or not frames:
         raise DataFileError(f'{path}: "frames" must be a non-empty list')
+    if len(frames) > MAX_FRAMES:
+        raise DataFileError(f"{path}: {len(frames)} frames, more than the {MAX_FRAMES} accepted")
+    if not isinstance(doc.get("meta", {}) or {}, dict):
+        raise DataFileError(f'{path}: "meta" must be an object, got {type(doc["meta"]).__name__}')
+    if not isinstance(doc.get("id", ""), str | None):
+        raise DataFileError(f'{path}: "id" must be a string, got {doc["id"]!r:.60}')
+    _check_sidecar_times(doc, path)
     return doc
+
+
+MAX_TIME_S = 1e7
+"""Largest ``time_s`` of a frame in ``sequence.json``, in size (about 116 days)."""
+
+
+def _check_sidecar_times(doc: dict[str, Any], path: Path) -> None:
+    """Types and ranges of ``epoch`` and each frame's ``time``/``time_s``, before any is used."""
+    import math
+
+    def instant(value: object, what: str) -> None:
+        if not isinstance(value, str):
+            raise DataFileError(f"{path}: {what}: expected an ISO-8601 UTC time, got {value!r:.60}")
+        try:
+            when = parse_time(value)
+        except (InvalidParameterError, OverflowError) as exc:
+            raise DataFileError(f"{path}: {what}: {exc}") from None
+        if not 1900 <= when.year <= 2200:
+            raise DataFileError(f"{path}: {what}: {value!r} is outside the years 1900..2200")
+
+    if doc.get("epoch") is not None:
+        instant(doc["epoch"], "epoch")
+    for i, entry in enumerate(doc["frames"]):
+        if not isinstance(entry, dict):
+            continue  # read_sequence names it
+        if not isinstance(entry.get("file", ""), str):
+            raise DataFileError(
+                f"{path}: frame {i}: file must be a name, got {entry['file']!r:.60}"
+            )
+        if "time_s" in entry:
+            t = entry["time_s"]
+            ok = isinstance(t, int | float) and not isinstance(t, bool)
+            if not (ok and math.isfinite(t) and abs(t) <= MAX_TIME_S):
+                raise DataFileError(
+                    f"{path}: frame {i}: time_s must be finite seconds within "
+                    f"{MAX_TIME_S:g} of the epoch, got {t!r:.60}"
+                )
+        elif "time" in entry:
+            instant(entry["time"], f"frame {i}: time")
 
 
 def read_sequence(
