@@ -187,11 +187,12 @@ def _check_size(args: argparse.Namespace) -> None:
     if len(args.image) != 1 or not args.image[0].lower().endswith((".tif", ".tiff")):
         return
     from dyntarget.io.safeopen import raster_size
+    from dyntarget.io.scenes import MAX_STRIP_PIXELS
     from dyntarget.synth.volcano import available_memory
 
     size = raster_size(args.image[0])
-    if size is None:
-        return  # the reader says what is wrong with it
+    if size is None or size[0] * size[1] > MAX_STRIP_PIXELS:
+        return  # the reader says what is wrong with it (too large at any factor, say)
     h, w = size[0] // args.factor, size[1] // args.factor
     if args.html and h * w > HTML_MAX_PIXELS:
         raise InvalidParameterError(
