@@ -15,18 +15,22 @@ chromium + chromium-driver. Takes about a minute.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from dyntarget.io.geojson import write_polygons, write_trajectory
+from dyntarget.observe import pointing_truth
 from dyntarget.perceive import make_classifier
 from dyntarget.pipeline import plan_scene
 from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
 from dyntarget.synth import generate_scene
-from dyntarget.view import pointing_truth, write_scene_view
-from dyntarget.view.browser import render
+from dyntarget.view import write_scene_view
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from view_browser import render  # the Selenium harness lives with the tests
 
 ACQUIRED = "2024-05-01T10:00:00Z"
 

@@ -180,6 +180,8 @@ def test_plan_with_model(tmp_path, capsys):
         tmp_path / "dt",
         "--planner",
         "lawnmower-transect",
+        "--factor",
+        "4",  # the model's: train's default
         "--out",
         tmp_path / "t.csv",
     )

@@ -173,7 +173,7 @@ def test_bad_output_options_exit_2_and_write_nothing(tmp_path, capsys, extra, me
 @pytest.mark.slow
 def test_plan_html_view_holds_the_geojson_pointings_in_chromium(tmp_path, capsys):
     pytest.importorskip("plotly")
-    from dyntarget.view.browser import find_chromium, render
+    from view_browser import find_chromium, render
 
     if find_chromium() is None:
         pytest.skip("headless Chromium not installed (apt-get install -y chromium chromium-driver)")
@@ -231,3 +231,115 @@ def test_html_view_is_replaced_on_rerun_but_a_foreign_page_is_left_alone(tmp_pat
     assert code == 2 and "--html" in err and "not written by dyntarget" in err
     assert foreign.read_text() == "<!doctype html><html><body>my notes</body></html>"
     assert not (tmp_path / "c.geojson").exists()
+
+
+# --- the model's training resolution (metadata.json) against the run's ---------------------
+
+
+@pytest.fixture(scope="module")
+def threshold_model(tmp_path_factory):
+    """A band-threshold model directory trained by 'dyntarget train' at factor 2 on 30 m scenes."""
+    d = tmp_path_factory.mktemp("res")
+    crs, transform = GRIDS["utm32n"]
+    for k in range(2):
+        _scene(d / "scenes", crs, transform, name=f"s{k}")
+    assert main(["train", "--data", str(d / "scenes"), "--classifier", "band-threshold",
+                 "--factor", "2", "--out", str(d / "model")]) == 0  # fmt: skip
+    return d
+
+
+def _with_training(src, dst, **fields):
+    """A copy of the model directory whose metadata.json holds these training fields only."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    meta = json.loads((dst / "metadata.json").read_text())
+    meta["training"] = {k: v for k, v in fields.items() if v is not None}
+    (dst / "metadata.json").write_text(json.dumps(meta))
+    return dst
+
+
+def test_train_records_the_factor_and_wfov_gsd(threshold_model):
+    meta = json.loads((threshold_model / "model" / "metadata.json").read_text())
+    assert meta["training"]["factor"] == 2
+    assert meta["training"]["wfov_gsd_m"] == 60.0  # 30 m scenes, 2 x 2 blocks
+
+
+@pytest.mark.parametrize(
+    ("factor", "expected"),
+    [("2", "none"), ("1", "warn"), ("4", "warn"), ("8", "refuse")],
+)
+def test_plan_at_another_resolution_warns_once_and_refuses_beyond_twice(
+    threshold_model, tmp_path, capsys, factor, expected
+):
+    image = threshold_model / "scenes" / "s0.tif"
+    out = tmp_path / "p.geojson"
+    code, _, err = run(capsys, "plan", image, "--model", threshold_model / "model",
+                       "--planner", "lawnmower-transect", "--factor", factor, "--out", out)  # fmt: skip
+    gsd = 30 * int(factor)
+    said = f"trained at WFOV factor 2, 60 m GSD; this run is at WFOV factor {factor}, {gsd} m GSD"
+    if expected == "none":
+        assert code == 0 and "trained at" not in err
+    elif expected == "warn":
+        assert code == 0 and err.count(said) == 1 and "warning:" in err
+    else:  # 60 m -> 240 m: 4 times apart
+        assert code == 2 and err.count(said) == 1 and "--force" in err
+        assert not out.exists()
+        code, _, err = run(capsys, "plan", image, "--model", threshold_model / "model", "--force",
+                           "--planner", "lawnmower-transect", "--factor", factor, "--out", out)  # fmt: skip
+        assert code == 0 and err.count(said) == 1 and out.exists()
+
+
+def test_a_model_without_training_resolution_is_said_unknown_and_runs(
+    threshold_model, tmp_path, capsys
+):
+    old = _with_training(threshold_model / "model", tmp_path / "old")
+    code, _, err = run(capsys, "plan", threshold_model / "scenes" / "s0.tif", "--model", old,
+                       "--planner", "lawnmower-transect", "--factor", "8",
+                       "--out", tmp_path / "p.geojson")  # fmt: skip
+    assert code == 0 and err.count("training resolution unknown") == 1
+
+
+def test_the_factor_is_compared_when_the_gsd_is_not_recorded(threshold_model, tmp_path, capsys):
+    hand = _with_training(threshold_model / "model", tmp_path / "hand", factor=1)
+    code, _, err = run(capsys, "plan", threshold_model / "scenes" / "s0.tif", "--model", hand,
+                       "--planner", "lawnmower-transect", "--factor", "3",
+                       "--out", tmp_path / "p.geojson")  # fmt: skip
+    assert code == 2 and "trained at WFOV factor 1; this run is at WFOV factor 3, 90 m GSD" in err
+
+
+def test_fly_refuses_a_model_trained_four_times_finer(threshold_model, tmp_path, capsys):
+    strip = tmp_path / "strip"
+    assert main(["synth", "--strip", "--scenes", "1", "--size", "32", "--length", "96",
+                 "--out", str(strip), "--quiet"]) == 0  # fmt: skip
+    fine = _with_training(threshold_model / "model", tmp_path / "fine", factor=1, wfov_gsd_m=2.0)
+    scene = next(p for p in strip.glob("*.tif") if not p.stem.endswith("_mask"))
+    capsys.readouterr()
+    code, _, err = run(capsys, "fly", "--scene", scene, "--model", fine, "--factor", "1",
+                       "--out", tmp_path / "out", "--compute-budget-s", "0.5", "--quiet")  # fmt: skip
+    # the strip is 8 m per pixel: 8 m against 2 m
+    assert (
+        code == 2
+        and "trained at WFOV factor 1, 2 m GSD; this run is at WFOV factor 1, 8 m GSD" in err
+    )
+    assert not (tmp_path / "out").exists()
+
+
+def test_plan_on_a_scene_across_180_writes_split_polygons_and_path(tmp_path, capsys):
+    import shapely
+
+    pyproj = pytest.importorskip("pyproj")
+    # a 48 px, 30 m scene centred on 180°E at 52°N (the Aleutians), in UTM 60N
+    x, y = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32660", always_xy=True).transform(
+        180.0, 52.0
+    )
+    transform = Affine(30.0, 0.0, x - 24 * 30.0, 0.0, -30.0, y + 24 * 30.0)
+    image, mask = _scene(tmp_path, "EPSG:32660", transform)
+    out, polygons = tmp_path / "t.geojson", tmp_path / "p.geojson"
+    _plan(capsys, image, mask, out, "--polygons", polygons, "--step", "3")
+    for path, kind in ((polygons, "MultiPolygon"), (out, "MultiLineString")):
+        doc = json.loads(path.read_text())
+        west, _, east, _ = doc["bbox"]
+        assert 179.9 < west <= 180.0 and -180.0 <= east < -179.9  # west > east across 180°
+        _, _, wkb, _ = pyogrio.raw.read(path, where="kind <> 'pointing'")
+        assert shapely.from_wkb(wkb[0]).geom_type == kind

@@ -5,8 +5,6 @@ denoised, and a trajectory is planned for an agile narrow-field sensor
 (Zilberstein, Candela, Chien, JPL 2025).
 """
 
-__version__ = "0.1.0"
-
 from dyntarget.errors import (
     DataFileError,
     DynTargetError,
@@ -17,7 +15,20 @@ from dyntarget.errors import (
 )
 
 
+def _version() -> str:
+    """The installed distribution's version: one source, ``pyproject.toml``, via its metadata."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("dyntarget")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "0+unknown"
+
+
 def __getattr__(name: str):  # Scene and BANDS on first use: `dyntarget --help` needs no numpy
+    if name == "__version__":  # read on first use (importlib.metadata costs ~20 ms at start-up)
+        globals()["__version__"] = value = _version()
+        return value
     if name in ("BANDS", "Scene"):
         from dyntarget import scene
 

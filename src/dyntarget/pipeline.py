@@ -17,7 +17,7 @@ from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
 from dyntarget.perceive.base import Classifier
 from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
-from dyntarget.predict import Prediction
+from dyntarget.predict import Motion, Prediction
 from dyntarget.scene import check_image
 
 
@@ -628,17 +628,111 @@ def _plan_with_deadline(
     )
 
 
+def two_look_motion(
+    previous: np.ndarray,
+    current: np.ndarray,
+    interval_s: float,
+    *,
+    previous_mask: np.ndarray,
+    current_mask: np.ndarray,
+    prior: Motion | None = None,
+    offset_rows: int = 0,
+    **motion_options: Any,
+) -> Motion:
+    """The plume's motion from two looks, checked against a prior: the one place it is wired.
+
+    :func:`dyntarget.predict.estimate_motion` on the two images and their
+    (denoised) masks, then, with a ``prior`` (a wind),
+    :func:`dyntarget.predict.check_against_prior`. The CLI (``plan --previous``),
+    ``evaluate dynamic --modes predictive`` and the pass loop (``fly --predict
+    two-looks``) all call this.
+
+    Parameters
+    ----------
+    previous, current : numpy.ndarray
+        ``(4, H, W)`` looks, ``interval_s`` apart.
+    interval_s : float
+        Seconds from ``previous`` to ``current``.
+    previous_mask, current_mask : numpy.ndarray
+        Boolean ``(H, W)`` plume masks of the looks (denoised as planned on).
+    prior : dyntarget.predict.Motion or None
+        A prior (e.g. :func:`~dyntarget.predict.wind_motion`) the estimate is
+        checked against.
+    offset_rows : int
+        Consecutive frames of a pass: ``previous`` lies this many rows below
+        ``current`` (image "up" is the flight direction). Only the rows both saw
+        are compared (``previous``'s first ``H - offset_rows`` rows against
+        ``current``'s last), and the positions found there (``vent``, the attached
+        plumes) are given in ``current``'s rows.
+    **motion_options
+        Passed on to :func:`~dyntarget.predict.estimate_motion` (e.g. ``flow=``).
+
+    Returns
+    -------
+    dyntarget.predict.Motion
+        In ``current``'s pixels.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For an ``offset_rows`` that leaves no row seen twice.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> rng = np.random.default_rng(0)
+    >>> tex = cv2.GaussianBlur(rng.random((96, 96)).astype(np.float32), (0, 0), 2)
+    >>> ground = np.repeat(0.1 + 0.1 * tex[None], 4, 0)
+    >>> def frame(x0):
+    ...     img, m = ground.copy(), np.zeros((96, 96), bool)
+    ...     m[30:60, x0:x0 + 30] = True
+    ...     img[:, m] = 0.6 + 0.6 * np.roll(tex, x0 - 20, axis=1)[m]
+    ...     return img, m
+    >>> (a, ma), (b, mb) = frame(20), frame(24)     # a cloud 4 px further east 2 s later
+    >>> m = two_look_motion(a, b, 2.0, previous_mask=ma, current_mask=mb)
+    >>> m.source, m.regime, round(m.velocity[0], 1)
+    ('two-looks', 'detached', 2.0)
+    """
+    from dyntarget.predict import check_against_prior, estimate_motion
+
+    h = np.shape(current)[-2]
+    if isinstance(offset_rows, bool) or not isinstance(offset_rows, int | np.integer):
+        raise InvalidParameterError(f"offset_rows: expected an integer, got {offset_rows!r}")
+    if not 0 <= offset_rows < h:
+        raise InvalidParameterError(
+            f"offset_rows: expected 0 <= offset < {h} rows (some rows seen twice), got {offset_rows}"
+        )
+    overlap = h - offset_rows
+    est = estimate_motion(
+        np.asarray(previous)[:, :overlap],
+        np.asarray(current)[:, offset_rows:],
+        interval_s,
+        previous_mask=np.asarray(previous_mask)[:overlap],
+        current_mask=np.asarray(current_mask)[offset_rows:],
+        **motion_options,
+    )
+    if offset_rows:  # from the overlap's rows to the current frame's
+        est = replace(
+            est,
+            vent=None if est.vent is None else (est.vent[0], est.vent[1] + offset_rows),
+            attached=tuple((x, y + offset_rows, *rest) for x, y, *rest in est.attached),
+        )
+    return est if prior is None else check_against_prior(est, prior)
+
+
 def schedule_on_prediction(
     trajectory: Trajectory,
     shape: tuple[int, int],
     geometry,
     agility,
-    prediction: Prediction,
+    prediction: Prediction | None,
     *,
     budget_s: float | None = None,
     max_iterations: int = 8,
     tolerance_s: float = 0.05,
     attached: np.ndarray | None = None,
+    sensor=None,
+    keep_order: bool = False,
 ):
     """Schedule a plan drawn on a prediction, each pointing placed for its own time.
 
@@ -650,7 +744,8 @@ def schedule_on_prediction(
     ``max_iterations``). The returned schedule flies the moved pointings; its
     trajectory's ``params`` record ``prediction_iterations`` and
     ``prediction_residual_px`` (the largest gap, in pixels, between where a kept
-    pointing aims and where the plume is at its final time).
+    pointing aims and where the plume is at its final time). Without a
+    prediction: :func:`~dyntarget.schedule.make_feasible` once.
 
     Parameters
     ----------
@@ -660,8 +755,8 @@ def schedule_on_prediction(
         ``(H, W)`` of the WFOV image.
     geometry, agility
         As for :func:`dyntarget.schedule.schedule`.
-    prediction : Prediction
-        The one the plan was drawn on.
+    prediction : Prediction or None
+        The one the plan was drawn on (``None``: the plume as seen).
     budget_s : float or None
         As for :func:`~dyntarget.schedule.make_feasible`.
     max_iterations : int
@@ -672,6 +767,13 @@ def schedule_on_prediction(
         With ``mixed`` plumes, ``prediction.attached_mask(mask)`` of the
         denoised current mask: pointings there are not moved (see
         :meth:`~dyntarget.predict.Prediction.pointing_shift`).
+    sensor : dyntarget.schedule.SensorState or None
+        Where the sensor is when the plan starts (a pass: behind the pointings
+        already committed); ``None``: free at nadir at ``geometry.start_s``.
+    keep_order : bool
+        After the first round, keep the order it chose (the plan's own or
+        earliest-deadline-first) instead of choosing again each round (the pass
+        loop does: the rounds then converge on one order).
 
     Returns
     -------
@@ -688,12 +790,25 @@ def schedule_on_prediction(
     >>> s.trajectory.points[:, 0].tolist()  # flown at t = 4 s: moved 0.5 px/s x 4 s
     [12.0, 22.0]
     """
-    from dyntarget.schedule import make_feasible
+    from dyntarget.schedule import make_feasible, schedule
 
+    chosen: list[bool] = []
+
+    def fly(t: Trajectory):
+        if keep_order and chosen:
+            return schedule(
+                t, shape, geometry, agility, reorder=chosen[0], budget_s=budget_s, sensor=sensor
+            )
+        s = make_feasible(t, shape, geometry, agility, budget_s=budget_s, sensor=sensor)
+        chosen.append(s.reordered)
+        return s
+
+    if prediction is None:
+        return fly(trajectory)
     _, sched = iterate_on_prediction(
         trajectory,
         prediction,
-        lambda t: make_feasible(t, shape, geometry, agility, budget_s=budget_s),
+        fly,
         max_iterations=max_iterations,
         tolerance_s=tolerance_s,
         attached=attached,

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.trajectory import Trajectory
 
@@ -68,8 +69,8 @@ class OrbitGeometry:
         WFOV acquisition.
     """
 
-    altitude_m: float = 500e3
-    look_ahead_m: float = 500e3
+    altitude_m: float = defaults.ALTITUDE_M
+    look_ahead_m: float = defaults.LOOK_AHEAD_M
     wfov_gsd_m: float = 32.0
     start_s: float = 0.0
 
@@ -454,6 +455,12 @@ class Schedule:
         When the last visible planned point leaves the field of regard, seconds.
     agility : str
         Name of the agility preset.
+    end_target : tuple of float or None
+        ``(along, cross)`` ground point the sensor tracks after the last observation
+        (this geometry's frame, metres at ``t = 0``); ``None``: nothing taken, the
+        sensor is where it started.
+    reordered : bool
+        Whether the pointings were flown earliest-deadline-first (``reorder=True``).
     """
 
     trajectory: Trajectory
@@ -464,6 +471,8 @@ class Schedule:
     end_s: float
     window_end_s: float
     agility: str
+    end_target: tuple[float, float] | None = None
+    reordered: bool = False
 
     @property
     def fraction_feasible(self) -> float:
@@ -587,6 +596,36 @@ class Timer:
         self.target = (float(along), float(cross))
 
 
+CHUNK = 32
+"""Pointings :func:`schedule` screens at once (a speed setting; the result does not depend on it)."""
+
+
+@dataclass(frozen=True)
+class SensorState:
+    """What the NFOV is doing when a plan starts, when it is not idle at nadir.
+
+    A pass schedules frame after frame on one sensor: a new plan queues behind the
+    pointings already committed, and its first slew starts from the ground point
+    the sensor tracks then.
+
+    Parameters
+    ----------
+    free_s : float
+        When the sensor is free, seconds in the schedule's time (not before the
+        geometry's ``start_s``: the later of the two is used).
+    target : tuple of float or None
+        ``(along, cross)`` ground point it tracks, metres from nadir at ``t = 0`` in
+        the schedule's geometry; ``None``: it looks at nadir.
+    """
+
+    free_s: float
+    target: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.free_s):
+            raise InvalidParameterError(f"free_s: expected a finite number, got {self.free_s!r}")
+
+
 def schedule(
     trajectory: Trajectory,
     shape: tuple[int, int],
@@ -595,11 +634,18 @@ def schedule(
     *,
     reorder: bool = False,
     budget_s: float | None = None,
+    sensor: SensorState | None = None,
 ) -> Schedule:
     """Time every pointing in order, dropping those that cannot be taken in their window.
 
     ``reorder``: first sort by the time each point leaves the field of regard.
     ``budget_s``: also drop pointings that would end later than ``start_s + budget_s``.
+    ``sensor``: the sensor is busy until ``sensor.free_s`` and then slews from
+    ``sensor.target`` (default: free at nadir at ``start_s``).
+
+    Pointings are screened :data:`CHUNK` at a time: while pointings are skipped the
+    sensor's state does not change, so the first pointing of a chunk that can be
+    taken is the one a pointing-by-pointing walk would take (the same floats).
 
     Parameters
     ----------
@@ -615,11 +661,21 @@ def schedule(
         Sort the pointings earliest deadline first before timing them.
     budget_s : float or None
         Time budget after ``geometry.start_s``, seconds; ``None`` for none.
+    sensor : SensorState or None
+        Where the sensor is when the plan starts (a pass: the pointings committed
+        before); ``None``: free at nadir at ``geometry.start_s``.
 
     Returns
     -------
     Schedule
         The kept pointings, timed, with the trajectory's ``params`` plus ``agility``.
+
+    Examples
+    --------
+    >>> t = Trajectory(np.array([[8.0, 8.0], [8.0, 8.0]]), np.zeros(2), "demo")
+    >>> s = schedule(t, (16, 16), OrbitGeometry(), "unlimited", sensor=SensorState(3.0))
+    >>> s.times.tolist()   # unlimited agility: every pointing when the sensor is free
+    [3.0, 3.0]
     """
     agility = get_agility(agility) if isinstance(agility, str) else agility
     if budget_s is not None and not (budget_s >= 0 and math.isfinite(budget_s)):
@@ -631,17 +687,10 @@ def schedule(
     order = np.argsort(t_out, kind="stable") if reorder else np.arange(len(trajectory))
     limit = math.inf if budget_s is None else geometry.start_s + budget_s
     timer = Timer(geometry, agility)
-    kept, times = [], []
-    for j in order:
-        if t_in[j] > t_out[j]:
-            continue  # never inside the field of regard
-        start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
-        end = start + agility.dwell_s
-        if end > t_out[j] or end > limit:
-            continue
-        timer.take(along[j], cross[j], start)
-        kept.append(j)
-        times.append(start)
+    if sensor is not None:
+        timer.t = max(geometry.start_s, sensor.free_s)
+        timer.target = None if sensor.target is None else tuple(map(float, sensor.target))
+    kept, times = _walk(timer, order, along, cross, t_in, t_out, limit)
     kept_idx = np.asarray(kept, np.int64)
     keep_traj = Trajectory(
         trajectory.points[kept_idx],
@@ -660,7 +709,53 @@ def schedule(
         end_s=timer.t,
         window_end_s=float(visible.max()) if len(visible) else geometry.start_s,
         agility=agility.name,
+        end_target=timer.target,
+        reordered=bool(reorder),
     )
+
+
+def _walk(timer: Timer, order, along, cross, t_in, t_out, limit) -> tuple[list[int], list[float]]:
+    """Take the pointings of ``order`` that fit their window (and ``limit``), in order."""
+    agility = timer.agility
+    kept: list[int] = []
+    times: list[float] = []
+    floor = agility.settle_s + agility.dwell_s  # a pointing ends at least this after timer.t
+    pos = 0
+    while pos < len(order):
+        # the first pointing of the next CHUNK in order that can still be taken: the
+        # timer does not move while pointings are skipped, so screening a chunk at
+        # once (Timer.arrival is elementwise) gives exactly the one-by-one result
+        chunk = order[pos : pos + CHUNK]
+        maybe = (t_in[chunk] <= t_out[chunk]) & (timer.t + floor <= t_out[chunk])
+        first = int(np.argmax(maybe))
+        if maybe[first]:  # most often the first candidate is taken: time it alone
+            j = int(chunk[first])
+            start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
+            end = start + agility.dwell_s
+            if end <= t_out[j] and end <= limit:
+                timer.take(along[j], cross[j], start)
+                kept.append(j)
+                times.append(start)
+                pos += first + 1
+                continue
+            maybe[first] = False  # timed above: it cannot be taken
+        ok = np.zeros(len(chunk), bool)
+        begin = np.zeros(len(chunk))
+        if maybe.any():
+            c = chunk[maybe]
+            begin[maybe] = timer.arrival(along[c], cross[c], t_in[c])
+            end = begin[maybe] + agility.dwell_s
+            ok[maybe] = (end <= t_out[c]) & (end <= limit)
+        if not ok.any():
+            pos += len(chunk)
+            continue
+        i = int(np.argmax(ok))
+        j = int(chunk[i])
+        timer.take(along[j], cross[j], float(begin[i]))
+        kept.append(j)
+        times.append(float(begin[i]))
+        pos += i + 1
+    return kept, times
 
 
 def make_feasible(
@@ -671,6 +766,7 @@ def make_feasible(
     *,
     budget_s: float | None = None,
     as_planned: Schedule | None = None,
+    sensor: SensorState | None = None,
 ) -> Schedule:
     """The better of flying the plan in its own order and reordered earliest-deadline-first.
 
@@ -694,6 +790,8 @@ def make_feasible(
         Time budget after ``geometry.start_s``, seconds.
     as_planned : Schedule or None
         The schedule of the plan in its own order, if already computed.
+    sensor : SensorState or None
+        Where the sensor is when the plan starts (see :func:`schedule`).
 
     Returns
     -------
@@ -701,6 +799,10 @@ def make_feasible(
         The schedule that keeps more pointings.
     """
     if as_planned is None:
-        as_planned = schedule(trajectory, shape, geometry, agility, budget_s=budget_s)
-    reordered = schedule(trajectory, shape, geometry, agility, reorder=True, budget_s=budget_s)
+        as_planned = schedule(
+            trajectory, shape, geometry, agility, budget_s=budget_s, sensor=sensor
+        )
+    reordered = schedule(
+        trajectory, shape, geometry, agility, reorder=True, budget_s=budget_s, sensor=sensor
+    )
     return reordered if len(reordered.kept) > len(as_planned.kept) else as_planned

@@ -220,27 +220,77 @@ def test_a_wind_prediction_needs_a_wind():
         fly_pass(DriftingCloud(8.0), None, PassConfig(predict="wind", compute_budget_s=0.1))
 
 
-@pytest.mark.parametrize("agility", ["fast", "slow"])
-def test_first_frame_schedule_equals_the_kinematics_one_by_one(agility):
-    # the pass scheduler screens pointings in chunks; from a fresh sensor it must keep
-    # exactly what dyntarget.schedule.make_feasible (one pointing at a time) keeps
-    from dyntarget.fly.loop import PassState, _schedule
-    from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
-    from dyntarget.trajectory import Trajectory
+def _mixed_stub(calls):
+    """A stand-in for ``estimate_motion``: plumes west of column 15 attached, the rest detached.
 
-    rng = np.random.default_rng(4)
-    points = rng.uniform(0, 511, (300, 2))  # random order over 16 km: long slews, some dropped
-    shape = (512, 512)
-    geometry = OrbitGeometry(wfov_gsd_m=32.0)
-    state = PassState(covered=np.zeros(shape, bool))
-    kept, times, _, _ = _schedule(points, shape, geometry, get_agility(agility), 0.0, state, 0.7)
-    traj = Trajectory(points, np.zeros(len(points)), "demo")
-    ref = make_feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
-    assert kept.tolist() == ref.kept.tolist()
-    np.testing.assert_allclose(times, ref.times, rtol=0, atol=1e-9)
-    assert 0 < len(kept) < len(points)
-    from dyntarget.fly.loop import feasible
+    The vent is the attached plume's westmost column and mean row *in the rows it was
+    given* (the overlap of two frames), so the caller must move it into the frame's rows.
+    """
+    from dyntarget.predict import Motion
 
-    flown = feasible(traj, shape, OrbitGeometry(wfov_gsd_m=32.0, start_s=0.7), agility)
-    np.testing.assert_allclose(flown.points, ref.trajectory.points, rtol=0, atol=0)
-    np.testing.assert_allclose(flown.times, ref.times, rtol=0, atol=1e-9)
+    def estimate(previous, current, interval_s, *, previous_mask, current_mask, **kw):
+        calls.append(current_mask.shape)
+        rows, cols = np.nonzero(current_mask[:, :15])
+        if len(rows) == 0:
+            return Motion((-0.5, 0.0), regime="detached", source="two-looks", method="stub")
+        vent = (float(cols.min()), float(rows.mean()))
+        return Motion(
+            (-0.5, 0.0),
+            regime="mixed",
+            source="two-looks",
+            method="stub",
+            vent=vent,
+            attached=((*vent, 0.5),),
+            interval_s=interval_s,
+        )
+
+    return estimate
+
+
+def test_two_look_motion_moves_vent_and_attached_plumes_into_the_current_rows(monkeypatch):
+    import dyntarget.predict as predict
+    from dyntarget.pipeline import two_look_motion
+
+    calls = []
+    monkeypatch.setattr(predict, "estimate_motion", _mixed_stub(calls))
+    current = np.zeros((4, 32, 32), np.float32)
+    mask = np.zeros((32, 32), bool)
+    mask[18:23, 2:11] = True  # frame rows 18..22 = overlap rows 2..6 when offset is 16
+    motion = two_look_motion(
+        current, current, 0.07, previous_mask=mask, current_mask=mask, offset_rows=16
+    )
+    assert calls == [(16, 32)]  # only the 16 rows both frames saw were compared
+    # the stub found the vent at overlap (2, 4); in the frame's rows that is (2, 20)
+    assert motion.vent == (2.0, 20.0)
+    assert motion.attached == ((2.0, 20.0, 0.5),)
+
+
+def test_the_pass_loop_keeps_attached_plumes_of_a_mixed_scene_at_their_vent(monkeypatch):
+    # two plumes side by side in WFOV rows 226..229: A (cols 2..9) attached, B (cols 20..29)
+    # detached. Frame 1 (top 208) sees them at rows 18..21; its overlap with frame 0 is its
+    # rows 16..31, where the stub finds A's vent at row 3.5 -> frame row 19.5, on A.
+    import dyntarget.fly.loop as loop
+    import dyntarget.predict as predict
+
+    monkeypatch.setattr(predict, "estimate_motion", _mixed_stub([]))
+    seen = {}
+    real = loop.schedule_on_prediction
+
+    def record(todo, shape, geometry, agility, prediction, **kw):
+        if prediction is not None:
+            seen[len(seen)] = (prediction.motion, kw.get("attached"))
+        return real(todo, shape, geometry, agility, prediction, **kw)
+
+    monkeypatch.setattr(loop, "schedule_on_prediction", record)
+    world = _strip([(904, 920, 8, 40), (904, 920, 80, 120)])
+    config = PassConfig(agility="unlimited", compute_budget_s=0.01, predict="two-looks")
+    fly_pass(world, None, config)
+    mixed = [(m, a) for m, a in seen.values() if m.regime == "mixed"]
+    assert mixed, "no frame planned on the mixed motion"
+    motion, attached = mixed[0]
+    assert motion.vent == (2.0, 19.5)
+    assert attached is not None and attached.any()
+    rows, cols = np.nonzero(attached)
+    # A only (it stretches west, downwind, from its vent), never B, in A's rows
+    assert cols.max() <= 9
+    assert rows.min() >= 18 and rows.max() <= 21

@@ -313,3 +313,190 @@ def test_a_legacy_label_in_the_image_crs_without_crs_member_is_still_read_as_suc
     path.write_text(json.dumps(doc))
     label = read_label(path, shape=(32, 32), crs=crs, transform=transform)
     assert label.sum() == 15 * 15 and label[5:20, 5:20].all()
+
+
+# --- the antimeridian (RFC 7946 §3.1.9, §5.2) and the poles -------------------------------
+# A 6 km plume centred on the 180° meridian, in the CRS an image there would have:
+# the Aleutians (UTM 60N, 52°N), Tonga-Kermadec (UTM 1S, 30°S, west of 180° in its zone),
+# the UTM system's limits (84°N, 80°S) and Antarctic polar stereographic (EPSG:3031) at 80°S.
+ANTIMERIDIAN = {
+    "aleutians-utm60n": ("EPSG:32660", 52.0),
+    "kermadec-utm1s": ("EPSG:32701", -30.0),
+    "utm60n-84N": ("EPSG:32660", 83.9),
+    "utm1s-80S": ("EPSG:32701", -79.9),
+    "polar-stereo-80S": ("EPSG:3031", -80.0),
+}
+PX = 30.0  # metres per pixel; 200 px = 6 km
+
+
+def _grid_at(crs: str, lon: float, lat: float, n: int = 200) -> Affine:
+    """A north-up grid of n x n 30 m pixels centred on (lon, lat), placed with PROJ (pyproj)."""
+    pyproj = pytest.importorskip("pyproj")
+    x, y = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
+    return Affine(PX, 0.0, x - PX * n / 2, 0.0, -PX, y + PX * n / 2)
+
+
+def _centres(px: np.ndarray, transform: Affine) -> np.ndarray:
+    """Pixel (column, row) -> the CRS position of that pixel's centre (north-up grid)."""
+    px = np.asarray(px, np.float64)
+    return np.column_stack(
+        [transform.c + (px[:, 0] + 0.5) * transform.a, transform.f + (px[:, 1] + 0.5) * transform.e]
+    )
+
+
+def _lonlat_of_pixels(px: np.ndarray, crs: str, transform: Affine) -> np.ndarray:
+    """Pixel centres to lon/lat with pyproj (PROJ directly, not through GDAL as the writer)."""
+    import pyproj
+
+    world = _centres(px, transform)
+    t = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+    return np.column_stack(t.transform(world[:, 0], world[:, 1]))
+
+
+def _cut_lat(a: np.ndarray, b: np.ndarray) -> float:
+    """Latitude where the straight lon/lat line a -> b (across 180°) meets the meridian, by hand."""
+    lon_a, lon_b = a[0] % 360.0, b[0] % 360.0  # unwrap: 180° becomes a plain crossing
+    return float(a[1] + (180.0 - lon_a) / (lon_b - lon_a) * (b[1] - a[1]))
+
+
+def _back_to_crs(geom, crs: str):
+    import pyproj
+    import shapely
+
+    t = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+    return shapely.transform(geom, lambda c: np.column_stack(t.transform(c[:, 0], c[:, 1])))
+
+
+@pytest.mark.parametrize("place", list(ANTIMERIDIAN), ids=str)
+def test_a_plume_across_180_is_a_split_multipolygon_with_a_bbox_west_greater_than_east(
+    tmp_path, place
+):
+    import shapely
+
+    crs, lat = ANTIMERIDIAN[place]
+    transform = _grid_at(crs, 180.0, lat)
+    corners_px = np.array([[20.0, 20.0], [180.0, 20.0], [180.0, 180.0], [20.0, 180.0]])
+    out = write_polygons(
+        tmp_path / "p.geojson", [Polygon(corners_px)], transform=transform, crs=crs
+    )
+    doc = json.loads(out.read_text())
+    geom = doc["features"][0]["geometry"]
+    assert geom["type"] == "MultiPolygon" and len(geom["coordinates"]) == 2
+    # expected by hand: each corner where PROJ puts it; where an edge crosses 180°, a vertex at
+    # +180 and one at -180 on the straight lon/lat line between its two corners
+    corners = _lonlat_of_pixels(corners_px, crs, transform)
+    assert (corners[:, 0] > 0).sum() == 2  # two corners east of 180° in longitude, two west
+    cuts = sorted(
+        _cut_lat(corners[i], corners[(i + 1) % 4])
+        for i in range(4)
+        if (corners[i, 0] > 0) != (corners[(i + 1) % 4, 0] > 0)
+    )
+    east = np.vstack([corners[corners[:, 0] > 0], [[180.0, c] for c in cuts]])
+    west = np.vstack([corners[corners[:, 0] < 0], [[-180.0, c] for c in cuts]])
+    for part, expected in zip(
+        sorted(geom["coordinates"], key=lambda p: -p[0][0][0]), (east, west), strict=True
+    ):
+        ring = np.array(part[0][:-1])
+        assert len(ring) == 4 and len(part) == 1
+        got = ring[np.lexsort(ring.T[::-1])]
+        np.testing.assert_allclose(got, expected[np.lexsort(expected.T[::-1])], atol=1.5e-7)
+        assert Polygon(part[0]).exterior.is_ccw  # right-hand rule on each side
+    # RFC 7946 §5.2: west edge is the eastern-hemisphere side, east edge past 180°
+    lats = np.concatenate([corners[:, 1], cuts])
+    assert doc["bbox"] == pytest.approx(
+        [east[:, 0].min(), lats.min(), west[:, 0].max(), lats.max()], abs=1e-7
+    )
+    assert doc["bbox"][0] > doc["bbox"][2]
+    # GDAL reads it as one MultiPolygon whose parts, back in the image CRS, are the plume
+    meta, _, wkb, _ = pyogrio.raw.read(out)
+    back = shapely.from_wkb(wkb[0])
+    assert meta["crs"] == "EPSG:4326" and back.geom_type == "MultiPolygon"
+    dense = shapely.segmentize(Polygon(corners_px), 1.0)  # 1 px edges: straight in either CRS
+    doc = polygons_geojson([dense], transform=transform, crs=crs)
+    world = shapely.transform(dense, lambda c: _centres(c, transform))
+    parts = _back_to_crs(shapely.geometry.shape(doc["features"][0]["geometry"]), crs)
+    assert shapely.union_all(parts.geoms).symmetric_difference(world).area < 1e-5 * world.area
+
+
+@pytest.mark.parametrize("place", ["aleutians-utm60n", "kermadec-utm1s", "utm60n-84N"], ids=str)
+def test_a_path_across_180_is_a_split_multilinestring_and_its_points_and_csv_stay_put(
+    tmp_path, place
+):
+    import csv
+
+    import shapely
+
+    crs, lat = ANTIMERIDIAN[place]
+    transform = _grid_at(crs, 180.0, lat)
+    pts = np.column_stack([np.linspace(10.0, 190.0, 10), np.full(10, 100.0)])  # a transect
+    traj = Trajectory(pts, np.zeros(10, np.int64), "test")
+    out = write_trajectory(tmp_path / "t.geojson", traj, transform=transform, crs=crs)
+    doc = json.loads(out.read_text())
+    expected = _lonlat_of_pixels(pts, crs, transform)
+    k = int(np.flatnonzero(np.sign(expected[:-1, 0]) != np.sign(expected[1:, 0]))[0])
+    cut = _cut_lat(expected[k], expected[k + 1])
+    path = doc["features"][0]["geometry"]
+    assert path["type"] == "MultiLineString"
+    first, second = (np.array(p) for p in path["coordinates"])
+    np.testing.assert_allclose(first, np.vstack([expected[: k + 1], [180.0, cut]]), atol=1.5e-7)
+    np.testing.assert_allclose(second, np.vstack([[-180.0, cut], expected[k + 1 :]]), atol=1.5e-7)
+    points = np.array([f["geometry"]["coordinates"] for f in doc["features"][1:]])
+    np.testing.assert_allclose(points, expected, atol=1.5e-7)  # every point in [-180, 180]
+    lats = np.concatenate([expected[:, 1], [cut]])
+    assert doc["bbox"] == pytest.approx(
+        [expected[: k + 1, 0].min(), lats.min(), expected[k + 1 :, 0].max(), lats.max()],
+        abs=1e-7,
+    )
+    _, _, wkb, _ = pyogrio.raw.read(out, where="kind = 'path'")
+    assert shapely.from_wkb(wkb[0]).geom_type == "MultiLineString"
+    rows = list(csv.DictReader(trajectory_csv(traj, transform=transform, crs=crs).splitlines()))
+    lonlat = np.array([[float(r["lon"]), float(r["lat"])] for r in rows])
+    np.testing.assert_allclose(lonlat, expected, atol=1.5e-7)
+    assert (lonlat[: k + 1, 0] > 179.0).all() and (lonlat[k + 1 :, 0] < -179.0).all()
+
+
+@pytest.mark.parametrize(("crs", "pole"), [("EPSG:3413", 90.0), ("EPSG:3031", -90.0)])
+def test_a_plume_over_a_pole_runs_along_the_pole_and_its_bbox_spans_every_longitude(crs, pole):
+    import shapely
+
+    transform = _grid_at(crs, 0.0, pole)
+    square = shapely.segmentize(box(40.0, 40.0, 160.0, 160.0), 1.0)  # the pole at its centre
+    doc = polygons_geojson([square], transform=transform, crs=crs)
+    geom = shapely.geometry.shape(doc["features"][0]["geometry"])
+    assert geom.geom_type == "Polygon" and geom.is_valid and geom.exterior.is_ccw
+    ring = shapely.get_coordinates(geom.exterior)
+    assert [180.0, pole] in ring.tolist() and [-180.0, pole] in ring.tolist()
+    # 1.8 km from the pole to the square's nearest edge: 90° - 1.8 km / 111.7 km per degree
+    edge_lat = 90.0 - 60 * PX / 111_700.0
+    assert doc["bbox"][0::2] == [-180.0, 180.0]
+    if pole > 0:
+        assert doc["bbox"][3] == 90.0 and doc["bbox"][1] < edge_lat
+    else:
+        assert doc["bbox"][1] == -90.0 and doc["bbox"][3] > -edge_lat
+    world = shapely.transform(square, lambda c: _centres(c, transform))
+    assert _back_to_crs(geom, crs).symmetric_difference(world).area < 1e-5 * world.area
+
+
+def test_a_plume_beside_180_but_not_across_keeps_its_polygon_and_plain_bbox():
+    crs, transform = "EPSG:32660", _grid_at("EPSG:32660", 179.9, 52.0)
+    doc = polygons_geojson([box(20.0, 20.0, 180.0, 180.0)], transform=transform, crs=crs)
+    assert doc["features"][0]["geometry"]["type"] == "Polygon"
+    west, _, east, _ = doc["bbox"]
+    assert 179.8 < west < east < 180.0
+
+
+def test_a_comma_or_quote_in_a_csv_value_stays_one_field(tmp_path):
+    import csv
+
+    crs, transform, _ = ETNA
+    t = Trajectory(np.array([[0.0, 0.0], [1.0, 0.0]]), np.zeros(2, np.int64), "t")
+    notes = ["a,b", 'said "ash", then gas']
+    text = trajectory_csv(t, transform=transform, crs=crs, point_properties={"note": notes})
+    rows = list(csv.reader(text.splitlines()))
+    assert rows[0] == ["order", "x", "y", "part", "lon", "lat", "note"]
+    assert [len(r) for r in rows] == [7, 7, 7] and [r[-1] for r in rows[1:]] == notes
+    assert text.splitlines()[1].endswith(',"a,b"')  # RFC 4180 quoting
+    path = tmp_path / "t.csv"
+    write_trajectory(path, t, transform=transform, crs=crs, point_properties={"note": notes})
+    _, _, _, fields = pyogrio.raw.read(path)  # GDAL's CSV driver agrees
+    assert list(fields[-1]) == notes

@@ -9,6 +9,7 @@ import pytest
 from shapely.geometry import box
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
+from dyntarget.observe import pointing_truth
 from dyntarget.trajectory import Trajectory
 
 pytest.importorskip("plotly", reason="the view needs plotly (extra 'view', in 'test')")
@@ -16,12 +17,11 @@ pytest.importorskip("plotly", reason="the view needs plotly (extra 'view', in 't
 from dyntarget.view import (
     PassFrame,
     pass_view_html,
-    pointing_truth,
     scene_view_html,
     write_pass_view,
     write_scene_view,
 )
-from dyntarget.view.browser import find_chromium, render
+from view_browser import find_chromium, render
 
 
 def _image(h=24, w=32, seed=0):
@@ -36,8 +36,10 @@ def _traj(n=7, seed=1, times=True):
 
 
 def _text(page: str) -> str:
-    """The page with the JSON escapes plotly uses for <, > and / undone."""
-    return page.replace("\\u003c", "<").replace("\\u003e", ">").replace("\\u002f", "/")
+    """The page with the JSON escapes plotly uses for <, >, / (and, plotly 7, non-ASCII) undone."""
+    for escaped, char in (("\\u003c", "<"), ("\\u003e", ">"), ("\\u002f", "/"), ("\\u2013", "–")):
+        page = page.replace(escaped, char)
+    return page
 
 
 def test_page_is_self_contained_no_script_or_style_is_fetched():
@@ -196,7 +198,7 @@ def test_importing_the_view_and_writers_loads_neither_plotly_nor_selenium():
     import sys
 
     code = (
-        "import sys, json, dyntarget.view, dyntarget.view.browser, dyntarget.io.geojson, "
+        "import sys, json, dyntarget.view, dyntarget.io.geojson, "
         "dyntarget.cli\n"
         "print(json.dumps([m for m in ('plotly', 'selenium') if m in sys.modules]))"
     )

@@ -10,14 +10,27 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from dyntarget import __version__
 from dyntarget.cli import bench, datasets, demo, evaluate, fly, models, plan, sweep, synth
-from dyntarget.cli._common import EXIT_INTERNAL, EXIT_USAGE, Parser
+from dyntarget.cli._common import EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, Parser
 from dyntarget.errors import DynTargetError, missing_extra
 
 COMMANDS = (synth, models, evaluate, plan, fly, sweep, bench, datasets, demo)
 """The command modules, in the order ``dyntarget --help`` lists them. Each has
 ``register(sub)``; to add a command, add a module with one and list it here."""
+
+
+class _Version(argparse.Action):
+    """``--version``: the installed version, read only when asked (``dyntarget.__version__``)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs) -> None:
+        kwargs.update(nargs=0, default=argparse.SUPPRESS)
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        import dyntarget
+
+        print(f"dyntarget {dyntarget.__version__}")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="dyntarget",
         description="Dynamic targeting of plumes: classify look-ahead imagery, denoise, plan NFOV trajectories.",
     )
-    parser.add_argument("--version", action="version", version=f"dyntarget {__version__}")
+    parser.add_argument("--version", action=_Version, help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="print full tracebacks on errors")
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=Parser
@@ -75,6 +88,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("dyntarget: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `dyntarget planners | head -1`: the reader has gone
+        _silence_stdout()
+        return EXIT_OK
+    except RecursionError:  # a hostile input nested too deeply, wherever it was read
+        if args.debug:
+            raise
+        print(
+            "dyntarget: error: an input is nested too deeply to read (hostile or corrupt file?)",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
     except Exception as exc:  # an internal error: one line unless --debug
         if args.debug:
             raise
@@ -88,6 +112,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so Python's exit flush does not fail on the closed pipe again."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout is not a real file (tests): nothing to flush
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

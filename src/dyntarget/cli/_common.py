@@ -7,11 +7,15 @@ Exit codes: 0 success, 2 bad usage or bad input (any :class:`DynTargetError`),
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from dyntarget import defaults
 
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
+EXIT_NOTHING_FEASIBLE = 3
+"""``plan --agility``: a plan was made but none of its pointings can be flown (the file is
+written, with no pointing; the reason is on stderr)."""
 
 
 class Parser(argparse.ArgumentParser):
@@ -62,6 +66,33 @@ def preset_names() -> list[str]:
 
 def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
+
+
+def plain_text(text: str) -> str:
+    """A docstring line as plain text for a terminal: reST markup dropped.
+
+    Parameters
+    ----------
+    text : str
+        One line of reStructuredText (a docstring's summary).
+
+    Returns
+    -------
+    str
+        The line without inline literals, roles and references to private helpers.
+
+    Examples
+    --------
+    >>> plain_text("Zig-zag every ``step`` (see :func:`_transects`).")
+    'Zig-zag every step.'
+    >>> plain_text("See :class:`~dyntarget.plan.PlanConfig` and *this*.")
+    'See PlanConfig and this.'
+    """
+    text = re.sub(r"\s*\(see :\w+:`~?_[^`]*`\)", "", text)  # a private helper means nothing here
+    text = re.sub(r":\w+:`~([^`]*\.)?([^`.]+)`", r"\2", text)  # :func:`~a.b.c` -> c
+    text = re.sub(r":\w+:`([^`]*)`", r"\1", text)
+    text = re.sub(r"``([^`]*)``", r"\1", text)
+    return re.sub(r"(?<![\w*])\*{1,2}([^*]+)\*{1,2}(?![\w*])", r"\1", text)
 
 
 def load_labelled(data: str) -> list:
@@ -177,6 +208,7 @@ def writes(
                 check_output_file,
                 output_dir,
             )
+            from dyntarget.io.safeopen import writable_dir
 
             given = [
                 (kind, name, getattr(args, name, None))
@@ -197,6 +229,7 @@ def writes(
                     kind, check_model_dir
                 )
                 check(value, what=flag)
+                writable_dir(value, what=flag)  # a PermissionError now, not after the work
             with contextlib.ExitStack() as stack:
                 for kind, name, value in given:
                     if kind == "dir":
@@ -206,3 +239,41 @@ def writes(
         return run
 
     return decorate
+
+
+EARTH_RADIUS_M = 6_371_000.0
+YEARS = (1900, 2200)
+"""Acquisition years accepted (pointings are dated by adding seconds to the acquisition)."""
+
+
+def check_acquired(when, what: str):
+    """Refuse an acquisition instant outside :data:`YEARS`; return it (``None`` passes)."""
+    from dyntarget.errors import InvalidParameterError
+
+    if when is not None and not YEARS[0] <= when.year <= YEARS[1]:
+        raise InvalidParameterError(
+            f"{what}: acquired {when.isoformat()}, outside the years {YEARS[0]}..{YEARS[1]} "
+            "dyntarget dates pointings in"
+        )
+    return when
+
+
+def check_orbit(args: argparse.Namespace) -> None:
+    """Refuse an altitude above 100 000 km or a look-ahead beyond the horizon seen from it."""
+    import math
+
+    from dyntarget.errors import InvalidParameterError
+
+    alt = getattr(args, "altitude_km", None)
+    ahead = getattr(args, "look_ahead_km", None)
+    if alt is None or ahead is None:
+        return
+    if not 0 < alt <= 100_000:
+        raise InvalidParameterError(f"--altitude-km {alt:g}: expected 0 < km <= 100000")
+    r = EARTH_RADIUS_M / 1e3
+    horizon = r * math.acos(r / (r + alt))
+    if not math.isfinite(ahead) or abs(ahead) >= horizon:
+        raise InvalidParameterError(
+            f"--look-ahead-km {ahead:g}: beyond the horizon seen from {alt:g} km "
+            f"({horizon:.0f} km of ground); expected less"
+        )

@@ -32,11 +32,19 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
 
 def acquisition(args: argparse.Namespace, image: str | None):
     """``--acquired``, else what the image file says, else ``None``."""
+    from dyntarget.cli._common import check_acquired
+    from dyntarget.errors import InvalidParameterError
     from dyntarget.io.acquisition import parse_acquired, read_acquired
 
-    if args.acquired:
-        return parse_acquired(args.acquired, name="--acquired")
-    return read_acquired(image) if image else None
+    try:
+        if args.acquired:
+            return check_acquired(parse_acquired(args.acquired, name="--acquired"), "--acquired")
+        return check_acquired(read_acquired(image) if image else None, str(image))
+    except OverflowError:  # year 1 at +14:00 is before datetime's year 1 in UTC
+        what = f"--acquired {args.acquired}" if args.acquired else f"{image}: its acquisition time"
+        raise InvalidParameterError(
+            f"{what}: outside the years 1900..2200 dyntarget dates pointings in"
+        ) from None
 
 
 def write_outputs(
@@ -82,7 +90,8 @@ def write_outputs(
     if args.polygons:
         print(write_polygons(args.polygons, polygons, crs_mode=args.crs, **georef))
     if args.html:
-        from dyntarget.view import pointing_truth, write_scene_view
+        from dyntarget.observe import pointing_truth
+        from dyntarget.view import write_scene_view
 
         truth = None
         if getattr(args, "mask", None) and wfov.label is not None:

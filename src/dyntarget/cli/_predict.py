@@ -92,6 +92,7 @@ def _read_previous(args: argparse.Namespace, wfov):
     )  # fmt: skip
     # The frames are checked against each other before the previous mask is read onto
     # the previous frame's grid, so a mismatch is named as such.
+    _check_previous_header(args, wfov)
     prev = read_any([args.previous], **options)
     if prev.shape != wfov.shape:
         raise InvalidSceneError(
@@ -105,6 +106,37 @@ def _read_previous(args: argparse.Namespace, wfov):
     if args.previous_mask is not None:
         prev = read_any([args.previous], label=args.previous_mask, **options)
     return prev
+
+
+def _check_previous_header(args: argparse.Namespace, wfov) -> None:
+    """Size and acquisition time of ``--previous`` checked before a pixel of it is read."""
+    from dyntarget.errors import InvalidParameterError, InvalidSceneError
+    from dyntarget.io.acquisition import read_acquired
+    from dyntarget.io.safeopen import check_regular, raster_size
+
+    check_regular(args.previous, what="--previous")
+    size = raster_size(args.previous) if args.previous.lower().endswith((".tif", ".tiff")) else None
+    if size is not None:
+        h, w = size[0] // args.factor, size[1] // args.factor
+        if (h, w) != tuple(wfov.shape):
+            raise InvalidSceneError(
+                f"--previous {args.previous}: {h} x {w} px at factor {args.factor} does not "
+                f"match the image's {wfov.shape[0]} x {wfov.shape[1]} px (frames must share a grid)"
+            )
+    then, now = read_acquired(args.previous), read_acquired(args.image[0])
+    if then is None or now is None:
+        return
+    dt = (now - then).total_seconds()
+    if dt <= 0:
+        raise InvalidParameterError(
+            f"--previous {args.previous}: acquired {then.isoformat()}, {-dt:g} s after the "
+            f"image ({now.isoformat()}); expected the earlier frame"
+        )
+    if abs(dt - args.interval_s) > max(1.0, 0.1 * args.interval_s):
+        raise InvalidParameterError(
+            f"--interval-s {args.interval_s:g}: the files' times are {dt:g} s apart "
+            f"({then.isoformat()} -> {now.isoformat()}); give --interval-s {dt:g}"
+        )
 
 
 def _crs_key(crs) -> str | None:
@@ -134,7 +166,8 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
     mask returned, so the pipeline plans on it without classifying again.
     """
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.predict import Prediction, check_against_prior, estimate_motion, wind_motion
+    from dyntarget.pipeline import two_look_motion
+    from dyntarget.predict import Prediction, wind_motion
 
     _check_args(args)
     prior = None
@@ -161,12 +194,10 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
         prev = _read_previous(args, wfov)
         _, prev_mask = _mask_of(prev, classifier, threshold)
         current_raw, cur_mask = _mask_of(wfov, classifier, threshold)
-        motion = estimate_motion(
+        motion = two_look_motion(
             prev.image, wfov.image, args.interval_s, previous_mask=prev_mask,
-            current_mask=cur_mask,
+            current_mask=cur_mask, prior=prior,
         )  # fmt: skip
-        if prior is not None:
-            motion = check_against_prior(motion, prior)
     log(f"motion: {motion.summary()}")
     if not motion.reliable:
         log("motion: LOW CONFIDENCE; the prediction may be wrong (see docs/onboard.md)")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import sys
 from pathlib import Path
 
 from dyntarget.cli._common import (
@@ -17,7 +19,7 @@ from dyntarget.cli._common import (
     scheduler_address,
     writes,
 )
-from dyntarget.errors import InvalidParameterError
+from dyntarget.errors import DynTargetError, InvalidParameterError
 
 
 def _classifier(args: argparse.Namespace):
@@ -57,6 +59,9 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 
 @writes(dirs=("out",))
 def cmd_fly(args: argparse.Namespace) -> int:
+    from dyntarget.cli._common import check_orbit
+
+    check_orbit(args)
     modes = [m for m in ("scene", "watch", "campaign") if getattr(args, m)]
     if len(modes) != 1:
         raise InvalidParameterError("fly: give exactly one of --scene, --watch, --campaign")
@@ -66,6 +71,10 @@ def cmd_fly(args: argparse.Namespace) -> int:
         )
     if args.model is not None and args.truth:
         raise InvalidParameterError("fly: --model and --truth exclude each other")
+    if args.watch or args.campaign:  # the frames' GSD is not known yet: factors are compared
+        from dyntarget.cli._resolution import check_resolution
+
+        check_resolution(args.model, factor=args.factor, gsd=None, force=args.force)
     if args.watch:
         return _watch(args)
     if args.campaign:
@@ -81,6 +90,17 @@ def _fly(args: argparse.Namespace) -> int:
     if "," in args.planner or "," in args.agility:
         raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
     world = load_world(args.scene, truth_step_s=args.truth_step_s)
+    from dyntarget.cli._resolution import check_resolution
+
+    gsd = None if getattr(world, "gsd", None) is None else world.gsd * args.factor
+    for opt in ("model", "fallback_model"):
+        check_resolution(
+            getattr(args, opt),
+            factor=args.factor,
+            gsd=gsd,
+            force=args.force,
+            what=f"--{opt.replace('_', '-')}",
+        )
     config = _pass_config(args, args.planner, args.agility)
     classifier = _classifier(args)
     fallback = None
@@ -93,16 +113,24 @@ def _fly(args: argparse.Namespace) -> int:
     from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
 
     with stop_on_signals() as stop:
-        result = fly_pass(
-            world,
-            classifier,
-            config,
-            fallback=fallback,
-            on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
-            should_stop=stop.is_set,
-            progress=not args.quiet,
-            frame_sink=views,
-        )
+        try:
+            result = fly_pass(
+                world,
+                classifier,
+                config,
+                fallback=fallback,
+                on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
+                should_stop=stop.is_set,
+                progress=not args.quiet,
+                frame_sink=views,
+            )
+        except Exception as exc:  # found after the first frame: no progress files without a summary
+            _remove_progress(out)
+            if isinstance(exc, DynTargetError):
+                raise type(exc)(
+                    f"{exc} (the pass stopped; no partial timeline is left in {out})"
+                ) from None
+            raise
     written = write_pass(
         result, world, out, picture=not args.no_picture, views=views, crs_mode=args.crs
     )
@@ -116,6 +144,13 @@ def _fly(args: argparse.Namespace) -> int:
     if result.stopped and stop.caught:
         return 128 + stop.caught[0]
     return EXIT_OK
+
+
+def _remove_progress(out: Path) -> None:
+    from dyntarget.fly.report import MEASURED, POINTINGS, TIMELINE
+
+    for name in (TIMELINE, MEASURED, POINTINGS):
+        (out / name).unlink(missing_ok=True)
 
 
 def _watch(args: argparse.Namespace) -> int:
@@ -138,12 +173,13 @@ def _watch(args: argparse.Namespace) -> int:
         pipeline=PipelineConfig(plan=plan_config(args)),
     )
     watcher = Watcher(args.watch, args.out, _classifier(args), config, log=log)
-    log(f"watching {args.watch} (stop with Ctrl-C or SIGTERM)")
+    how = "inotify events and polling" if watcher._events is not None else "polling"
+    log(f"watching {args.watch} with {how} (stop with Ctrl-C or SIGTERM)")
     from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
 
     with stop_on_signals() as stop:
         n = watcher.run(stop.is_set)
-    log(f"planned {n} frame(s) into {args.out}")
+    log(f"planned {n} frame(s) into {args.out}; stopped: {watcher.stop_reason or 'stop requested'}")
     return EXIT_OK
 
 
@@ -164,9 +200,9 @@ def _campaign(args: argparse.Namespace) -> int:
         truth_step_s=args.truth_step_s,
         progress=not args.quiet,
     )
-    print(",".join(COLUMNS))
-    for r in rows:
-        print(",".join("" if r[c] is None else str(r[c]) for c in COLUMNS))
+    out = csv.writer(sys.stdout, lineterminator="\n")  # a strip name may hold a comma
+    out.writerow(COLUMNS)
+    out.writerows([["" if r[c] is None else r[c] for c in COLUMNS] for r in rows])
     log(f"wrote {Path(args.out) / 'campaign.csv'} ({len(rows)} passes)")
     return EXIT_OK
 
@@ -179,7 +215,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Fly a pass: look-ahead frames cut along a strip at the frame cadence, each "
         "classified, denoised and planned, the pointings of one shared NFOV scheduled under the "
         "agility limits and scored against the truth at their own time (docs/onboard.md). "
-        "Writes timeline.csv, pointings.geojson, summary.md and pass.png into --out.",
+        "Writes timeline.csv, pointings.geojson, summary.md, pass.png (the picture) and "
+        "pass.html (the interactive view, with a time slider) into --out.",
     )
     what = p.add_argument_group("what to fly (one of)")
     what.add_argument(
@@ -211,6 +248,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument(
         "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="run a model at more than twice or half the resolution it was trained at",
     )
     p.add_argument(
         "--frame-px", type=positive_int, help="frame height in WFOV px (default: the strip's width)"

@@ -7,15 +7,75 @@ import time
 from pathlib import Path
 
 from dyntarget import defaults
-from dyntarget.cli._common import EXIT_OK, load_labelled, log, positive_int, writes
+from dyntarget.cli._common import (
+    EXIT_OK,
+    load_labelled,
+    log,
+    plain_text,
+    positive_float,
+    positive_int,
+    preset_names,
+    writes,
+)
 
 
 def cmd_classifiers(args: argparse.Namespace) -> int:
     from dyntarget.perceive import CLASSIFIERS
 
     for name in CLASSIFIERS.available():
-        print(f"{name:20s} {CLASSIFIERS.get(name).summary}")
+        print(f"{name:20s} {plain_text(CLASSIFIERS.get(name).summary)}")
     return EXIT_OK
+
+
+def _training_scenes(args: argparse.Namespace) -> list:
+    """The labelled WFOV scenes to train on: a scene directory, or one image in plan's forms."""
+    from dyntarget.errors import InvalidParameterError, InvalidSceneError
+    from dyntarget.io.sensors import read_any
+
+    sensor = dict(bands=args.bands, preset=args.preset, scale=args.scale, offset=args.offset)
+    if args.image:
+        if args.data:
+            raise InvalidParameterError("give --data DIR or IMAGE... --mask MASK, not both")
+        if not args.mask:
+            raise InvalidParameterError(
+                "training on an image needs its label: --mask MASK (.tif, non-zero = plume, "
+                "or .geojson)"
+            )
+        return [read_any(args.image, label=args.mask, factor=args.factor, **sensor)]
+    if not args.data:
+        raise InvalidParameterError(
+            "give --data DIR (a scene directory with labels) or IMAGE... --mask MASK"
+        )
+    if args.mask:
+        raise InvalidParameterError(
+            "--mask labels an IMAGE; a scene directory's labels are <id>_mask.tif or <id>.geojson"
+        )
+    if args.bands is None and args.preset is None and args.offset is None:
+        try:
+            from dyntarget.io import read_scene_dir
+
+            scenes = read_scene_dir(args.data, scale=args.scale, require_labels=True)
+        except InvalidSceneError as exc:
+            if "got 1 band(s)" not in str(exc):
+                raise
+            first = str(exc).split("; one file per band?")[0]
+            raise InvalidSceneError(
+                f"{first}; one file per band? train on the four as one scene: dyntarget train red.tif green.tif blue.tif "
+                "nir.tif --mask LABEL.tif --preset landsat8 --classifier NAME --out MODEL"
+            ) from None
+        return [s.to_wfov(args.factor) for s in scenes]
+    from dyntarget.io.scenes import _find_label, scene_ids
+
+    scenes = []
+    for i in scene_ids(args.data):
+        path = Path(args.data) / f"{i}.tif"
+        label = _find_label(path)
+        if label is None:
+            raise InvalidSceneError(f"{path}: no label (<id>_mask.tif or <id>.geojson)")
+        scenes.append(read_any([path], label=label, factor=args.factor, **sensor))
+    if not scenes:
+        raise InvalidSceneError(f"{args.data}: no scenes (<id>.tif files) found")
+    return scenes
 
 
 @writes(model_dirs=("out",))
@@ -23,12 +83,14 @@ def cmd_train(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import classifier_kwargs
     from dyntarget.perceive import make_classifier
 
-    scenes = [s.to_wfov(args.factor) for s in load_labelled(args.data)]
+    scenes = _training_scenes(args)
     model = make_classifier(
         args.classifier, **classifier_kwargs(args.classifier, seed=args.seed, epochs=args.epochs)
     )
     t0 = time.perf_counter()
     model.fit(scenes)
+    gsds = {s.gsd for s in scenes}  # recorded so that plan/fly notice another resolution
+    model.training |= {"factor": args.factor, "wfov_gsd_m": gsds.pop() if len(gsds) == 1 else None}
     path = model.save(args.out)
     log(f"trained {args.classifier} on {len(scenes)} scenes in {time.perf_counter() - t0:.1f} s")
     print(path)
@@ -80,8 +142,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("classifiers", help="list the plume classifiers")
     p.set_defaults(func=cmd_classifiers)
 
-    p = sub.add_parser("train", help="train a classifier on a scene directory and save the model")
-    p.add_argument("--data", required=True, help="scene directory with labels")
+    p = sub.add_parser(
+        "train",
+        help="train a classifier on a scene directory, or on one labelled image, and save the model",
+        description="Train on a scene directory (--data DIR: <id>.tif with <id>_mask.tif or "
+        "<id>.geojson labels), or on one image in any form 'plan' reads (a 4-band GeoTIFF, a "
+        "multi-band product with --preset/--bands, a .npz, or four band files R G B NIR) with "
+        "its label --mask. Example: dyntarget train red.tif green.tif blue.tif nir.tif --mask "
+        "gt.tif --preset landsat8 --classifier random-forest --out models/rf",
+    )
+    p.add_argument(
+        "image",
+        nargs="*",
+        help="one labelled image instead of --data: a 4-band GeoTIFF, a multi-band product with "
+        "--preset/--bands, a .npz, or four single-band files in the order R G B NIR",
+    )
+    p.add_argument("--data", help="scene directory with labels")
+    p.add_argument(
+        "--mask", help="the image's label (.tif, non-zero = plume, or .geojson); with IMAGE"
+    )
+    p.add_argument("--preset", help="sensor preset: " + ", ".join(preset_names()))
+    p.add_argument(
+        "--bands", help="R,G,B,NIR band numbers (1-based) or names, e.g. 3,2,1,7 or B4,B3,B2,B8"
+    )
+    p.add_argument(
+        "--scale", type=positive_float, help="reflectance per digital number for integer images"
+    )
+    p.add_argument(
+        "--offset", type=float, help="reflectance offset added after scaling (e.g. -0.1)"
+    )
     p.add_argument(
         "--classifier", required=True, help="classifier name (see 'dyntarget classifiers')"
     )

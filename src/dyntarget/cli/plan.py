@@ -6,10 +6,12 @@ import argparse
 
 from dyntarget import defaults
 from dyntarget.cli._common import (
+    EXIT_NOTHING_FEASIBLE,
     EXIT_OK,
     add_orbit_options,
     add_plan_options,
     log,
+    plain_text,
     plan_config,
     positive_float,
     positive_int,
@@ -24,7 +26,7 @@ def cmd_planners(args: argparse.Namespace) -> int:
     from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS
 
     for name in PLANNERS.available():
-        doc = (PLANNERS.get(name).__doc__ or "").strip().splitlines()[0]
+        doc = plain_text((PLANNERS.get(name).__doc__ or "").strip().splitlines()[0])
         tag = " (baseline)" if name in BASELINES else ""
         tag += "" if name in PAPER_PLANNERS else " (beyond the paper)"
         print(f"{name:20s} {doc}{tag}")
@@ -34,11 +36,16 @@ def cmd_planners(args: argparse.Namespace) -> int:
 @writes(files=("out", "figure", "polygons", "html"))
 def cmd_plan(args: argparse.Namespace) -> int:
 
+    from dyntarget.cli._common import check_orbit
+    from dyntarget.cli._outputs import acquisition
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import load_classifier
     from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
+    check_orbit(args)
+    _check_size(args)
+    acquisition(args, args.image[0])  # a bad time is refused now, not after the work
     if args.figure:  # before anything is written
         from dyntarget.errors import require
 
@@ -62,6 +69,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
         scale=args.scale,
         offset=args.offset,
         factor=args.factor,
+    )
+    from dyntarget.cli._resolution import check_resolution
+
+    check_resolution(args.model, factor=args.factor, gsd=wfov.gsd, force=args.force)
+    check_resolution(
+        args.fallback_model,
+        factor=args.factor,
+        gsd=wfov.gsd,
+        force=args.force,
+        what="--fallback-model",
     )
     classifier = None
     if (args.onnx or args.int8) and args.model is None:
@@ -121,9 +138,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     log(
         f"{args.planner}: {len(traj)} pointings over {len(result.polygons)} plume polygon(s); {times}"
     )
+    infeasible = False
     if result.schedule is not None:
         _log_schedule(result.planner, result.schedule)
         traj = result.schedule.trajectory
+        infeasible = len(traj) == 0 and result.schedule.planned > 0
     write_outputs(
         args, wfov, traj, polygons=result.polygons, probability=result.probability,
         title=f"{wfov.id}: {result.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
@@ -132,8 +151,60 @@ def cmd_plan(args: argparse.Namespace) -> int:
         from dyntarget.evaluate.figures import trajectories_figure
 
         shown = result.mask if result.predicted_mask is None else result.predicted_mask
-        print(trajectories_figure(wfov.image, [traj], args.figure, mask=shown, title=wfov.id))
+        print(
+            trajectories_figure(
+                wfov.image, [traj], args.figure, mask=shown, title=wfov.id, gsd=wfov.gsd
+            )
+        )
+    if infeasible:
+        sched = result.schedule
+        why = (
+            f"the observation window has closed {-sched.time_left_s:.1f} s before the plan "
+            "can be flown"
+            if sched.time_left_s < 0
+            else "no pointing fits the agility limits and the window"
+        )
+        log(
+            f"dyntarget: no feasible pointing: 0 of {sched.planned} planned pointings can be "
+            f"flown under '{args.agility}' agility ({why}; try a smaller --start-s or another "
+            f"preset); {args.out} holds no pointing; exit {EXIT_NOTHING_FEASIBLE}"
+        )
+        return EXIT_NOTHING_FEASIBLE
     return EXIT_OK
+
+
+PLAN_BYTES_PER_PIXEL = 160
+"""Estimated peak memory of ``plan`` per WFOV pixel (image, probability, masks, polygons;
+an estimate, not a measurement), checked against the memory available before reading."""
+HTML_MAX_PIXELS = 4096 * 4096
+"""Largest WFOV image ``plan --html`` draws (the view embeds it)."""
+
+
+def _check_size(args: argparse.Namespace) -> None:
+    """Refuse, from the GeoTIFF header alone, a plan that would not fit in memory or in a view."""
+    from dyntarget.errors import InvalidParameterError
+
+    if len(args.image) != 1 or not args.image[0].lower().endswith((".tif", ".tiff")):
+        return
+    from dyntarget.io.safeopen import raster_size
+    from dyntarget.synth.volcano import available_memory
+
+    size = raster_size(args.image[0])
+    if size is None:
+        return  # the reader says what is wrong with it
+    h, w = size[0] // args.factor, size[1] // args.factor
+    if args.html and h * w > HTML_MAX_PIXELS:
+        raise InvalidParameterError(
+            f"--html {args.html}: the image is {w} x {h} px at factor {args.factor}, more than "
+            f"the {HTML_MAX_PIXELS:,} px the view draws; use a larger --factor or leave out --html"
+        )
+    need, have = h * w * PLAN_BYTES_PER_PIXEL, available_memory()
+    if need > have:
+        raise InvalidParameterError(
+            f"{args.image[0]}: {w} x {h} px at factor {args.factor} needs about "
+            f"{need / 1e9:.1f} GB, more than the {have / 1e9:.1f} GB available; "
+            "use a larger --factor, or crop or tile it"
+        )
 
 
 def _geometry(args: argparse.Namespace, wfov):
@@ -230,6 +301,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_int,
         default=1,
         help="downsample the image to WFOV first (default 1)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="run a model at more than twice or half the resolution it was trained at",
     )
     p.add_argument(
         "--scale", type=positive_float, help="reflectance per digital number for integer images"

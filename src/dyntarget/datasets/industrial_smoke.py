@@ -282,13 +282,15 @@ def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
         When the document is not a Label Studio annotation or a vertex is not finite.
     """
     try:
+        if not isinstance(doc, dict):
+            raise TypeError(f"expected a JSON object, got {type(doc).__name__}")
         name = label_image_name(doc["data"]["image"])
-        polygons = [
-            np.asarray(result["value"]["points"], dtype=np.float64)
-            for completion in doc.get("completions", [])
-            for result in completion.get("result", [])
-        ]
-    except (KeyError, TypeError, ValueError) as exc:
+        completions = doc.get("completions", [])
+        if not isinstance(completions, list) or not all(isinstance(c, dict) for c in completions):
+            raise TypeError(f"completions: expected a list of objects, got {completions!r:.60}")
+        results = [r for c in completions for r in _list(c.get("result", []), "result")]
+        polygons = [np.asarray(r["value"]["points"], dtype=np.float64) for r in results]
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise DataFileError(f"{source}: not a Label Studio annotation ({exc!r})") from None
     polygons = [p for p in polygons if p.ndim == 2 and p.shape[0] >= 3 and p.shape[1] == 2]
     for p in polygons:
@@ -300,17 +302,34 @@ def parse_label(doc: dict, source: str) -> tuple[str, list[np.ndarray]]:
     return name, polygons
 
 
+MAX_MEMBER_BYTES = 1 << 30
+"""Largest image or label file read from the archive or its folder (1 GiB)."""
+
+
+def _list(value: object, name: str) -> list:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise TypeError(f"{name}: expected a list of objects, got {value!r:.60}")
+    return value
+
+
 def _members(source: Path, suffixes: tuple[str, ...]) -> Iterator[tuple[str, bytes]]:
     """``(path, bytes)`` of the files in a .tar.gz archive or an extracted folder."""
     if source.is_dir():
         for p in sorted(source.rglob("*")):
             if p.is_file() and p.suffix.lower() in suffixes:
-                yield p.relative_to(source).as_posix(), p.read_bytes()
+                from dyntarget.io.safeopen import read_bytes
+
+                yield p.relative_to(source).as_posix(), read_bytes(p, max_bytes=MAX_MEMBER_BYTES)
         return
     try:
         with tarfile.open(source, "r:*") as tar:
             for m in sorted(tar.getmembers(), key=lambda m: m.name):
                 if m.isfile() and PurePosixPath(m.name).suffix.lower() in suffixes:
+                    if m.size > MAX_MEMBER_BYTES:
+                        raise DataFileError(
+                            f"{source}: member {m.name} is {m.size:,} bytes, more than the "
+                            f"{MAX_MEMBER_BYTES:,} accepted"
+                        )
                     fh = tar.extractfile(m)
                     if fh is not None:
                         yield m.name, fh.read()
@@ -402,10 +421,9 @@ def prepare(
     src, out = Path(src), Path(out)
     labels: dict[str, list[np.ndarray]] = {}
     for path, data in _members(_find(src, LABELS), (".json",)):
-        try:
-            doc = json.loads(data.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise DataFileError(f"{path}: not valid JSON ({exc})") from None
+        from dyntarget.io.safeopen import loads_json
+
+        doc = loads_json(data, where=path)  # bounded depth: one line for a hostile label
         name, polygons = parse_label(doc, path)
         if polygons:
             labels[name] = polygons

@@ -384,7 +384,7 @@ def _timed(fn: Callable[[], Any]) -> float:
 
 
 def unet_flops(model: Any, size: int) -> dict[str, float]:
-    """FLOPs of one U-Net pass over a ``size``² image without tile overlap, and as tiled.
+    """FLOPs of one U-Net pass over a ``size`` × ``size`` image without tile overlap, and as tiled.
 
     Counted on the network prediction runs (``inference_network()``): UNET-Xception's
     copy convolves its up stages' residuals before upsampling them, 13 % fewer FLOPs

@@ -198,7 +198,9 @@ def _load_part(path: Path, key: str) -> Any:
     unreadable, not a part, another task's, made under other settings, or does not
     match its checksum (edited, truncated, hand-made)."""
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        from dyntarget.io.safeopen import read_json
+
+        doc = read_json(path, max_bytes=1 << 30)  # a FIFO or a device is not a part
     except (OSError, ValueError, RecursionError):
         return None
     if (

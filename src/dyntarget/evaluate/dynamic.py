@@ -625,7 +625,7 @@ def latency_figure(
     from dyntarget.evaluate.figures import save, subplots
 
     sel = [r for r in records if r["mode"] == mode]
-    classifiers = [c for c in _order(sel, "classifier") if c != "N/A"]
+    classifiers = [c for c in _order(sel, "classifier") if c != "N/A"] or ["N/A"]  # baselines only
     fig, axes = subplots(
         len(winds), max(len(classifiers), 1), figsize=(5.2 * max(len(classifiers), 1), 3.6 * len(winds)),
         squeeze=False, sharey=True,
@@ -653,15 +653,16 @@ def latency_figure(
                 )  # fmt: skip
             n = len({r["scene"] for r in wsel})
             where = "all winds" if wind is None else f"wind {wind} m/s"
-            name = "true mask" if cname == TRUE_MASK else display(cname)
+            name = {TRUE_MASK: "true mask", "N/A": "baselines"}.get(cname) or display(cname)
             ax.set_title(f"{name}, {where} ({n} scenes)", fontsize=9)
             ax.set_xlabel("latency (s)", fontsize=8)
             ax.grid(alpha=0.3)
             if ci == 0:
                 ax.set_ylabel(metric.replace("_", " "), fontsize=8)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(
-        handles, labels, fontsize=8, ncol=min(len(labels), 6), loc="lower center", frameon=False
-    )
+    if labels:
+        fig.legend(
+            handles, labels, fontsize=8, ncol=min(len(labels), 6), loc="lower center", frameon=False
+        )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     return save(fig, path)

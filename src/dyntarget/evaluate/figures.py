@@ -179,9 +179,14 @@ def trajectories_figure(
     *,
     mask: np.ndarray | None = None,
     title: str | None = None,
+    gsd: float | None = None,
     dpi: int = 110,
 ) -> Path:
     """The paper's Figure 3: one panel per trajectory, drawn over the RGB image (and mask outline).
+
+    Each panel has a scale bar when ``gsd`` is known; one legend under the panels names
+    the mask outline, the observation legs, the travel hops and the start marker. A single
+    panel is drawn about 800 px wide.
 
     Parameters
     ----------
@@ -195,6 +200,8 @@ def trajectories_figure(
         Mask whose outline is drawn.
     title : str or None
         Figure title.
+    gsd : float or None
+        Metres per pixel of ``image``, for the scale bar (none drawn when ``None``).
     dpi : int
         Resolution.
 
@@ -205,7 +212,8 @@ def trajectories_figure(
     """
     trajectories = list(trajectories)
     n = max(len(trajectories), 1)
-    fig, axes = subplots(1, n, figsize=(3.6 * n, 3.8), squeeze=False)
+    panel = 7.6 if n == 1 else 3.8
+    fig, axes = subplots(1, n, figsize=(panel * n, panel + 0.9), squeeze=False)
     for ax, traj in zip(axes[0], trajectories, strict=False):
         ax.imshow(rgb(image))
         if mask is not None and mask.any():
@@ -214,11 +222,49 @@ def trajectories_figure(
         ax.set_title(f"{traj.planner} ({len(traj)} pointings)", fontsize=9)
         ax.set_xlim(-0.5, image.shape[2] - 0.5)
         ax.set_ylim(image.shape[1] - 0.5, -0.5)
+        if gsd:
+            _scale_bar(ax, image.shape[2], gsd)
         ax.set_axis_off()
     if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=11)
+    colour = PATH_COLOURS.get(trajectories[0].planner, "red") if trajectories else "red"
+    fig.legend(
+        handles=_trajectory_legend(colour, mask is not None),
+        loc="lower center",
+        ncol=4,
+        fontsize=9,
+        frameon=False,
+    )
+    fig.tight_layout(rect=(0, 0.06 if n == 1 else 0.1, 1, 1))
     return save(fig, path, dpi=dpi)
+
+
+def _trajectory_legend(colour: str, with_mask: bool) -> list:
+    from matplotlib.lines import Line2D
+
+    handles = [
+        Line2D([], [], color=colour, lw=1.0, marker=".", ms=5, label="pointings (observing)"),
+        Line2D([], [], color=colour, lw=0.8, ls="--", label="travel between legs"),
+        Line2D([], [], color=colour, lw=0, marker="o", ms=6, mec="white", label="first pointing"),
+    ]
+    if with_mask:
+        handles.insert(0, Line2D([], [], color="yellow", lw=1.2, label="plume mask outline"))
+    return handles
+
+
+def _scale_bar(ax, width_px: int, gsd: float) -> None:
+    """A white scale bar about a fifth of the image wide, at a round length (1, 2 or 5 × 10^k m)."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    target = width_px * gsd / 5
+    k = 10 ** np.floor(np.log10(target))
+    metres = max(m * k for m in (1, 2, 5) if m * k <= target)
+    text = f"{metres / 1000:g} km" if metres >= 1000 else f"{metres:g} m"
+    bar = AnchoredSizeBar(
+        ax.transData, metres / gsd, text, "lower right", pad=0.4, color="white",
+        frameon=False, size_vertical=max(width_px / 150, 0.5), fontproperties={"size": 9},
+    )  # fmt: skip
+    ax.add_artist(bar)
 
 
 def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
@@ -245,8 +291,11 @@ def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110)
     for ax_row, (title, image, proba, clean, truth) in zip(axes, rows, strict=True):
         ax_row[0].imshow(rgb(image))
         ax_row[0].set_title(title, fontsize=9)
-        ax_row[1].imshow(proba, cmap="magma", vmin=0, vmax=1)
-        ax_row[1].set_title("classifier output (plume probability)", fontsize=9)
+        shown = ax_row[1].imshow(proba, cmap="magma", vmin=0, vmax=1)
+        ax_row[1].set_title("classifier output", fontsize=9)
+        bar = fig.colorbar(shown, ax=ax_row[1], fraction=0.046, pad=0.03)
+        bar.set_label("plume probability (0–1)", fontsize=8)
+        bar.ax.tick_params(labelsize=7)
         ax_row[2].imshow(clean, cmap="gray", vmin=0, vmax=1)
         if truth is not None and truth.any():
             ax_row[2].contour(truth.astype(float), levels=[0.5], colors="cyan", linewidths=0.8)
@@ -257,8 +306,18 @@ def classification_figure(rows, path: str | os.PathLike[str], *, dpi: int = 110)
     return save(fig, path, dpi=dpi)
 
 
+UTILITY_UNITS = {
+    "Ratio Plume": "plume fraction of the observed footprints (0–1)",
+    "Intensity": "mean intensity utility (label × blue / max, 0–1)",
+    "Gradient": "mean gradient utility (Sobel / max, 0–1)",
+}
+"""The y-axis label of each panel of :func:`utilities_figure`: what is averaged, and its range."""
+
+
 def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 110) -> Path:
     """Bar chart: ratio plume, intensity and gradient per planner x classifier; baselines as lines.
+
+    The three are dimensionless, 0 to 1 (:data:`UTILITY_UNITS` labels the axes).
 
     Parameters
     ----------
@@ -281,7 +340,7 @@ def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 11
     base = [r for r in table2_rows if r["planner"] in BASELINES]
     planners = list(dict.fromkeys(r["planner"] for r in look))
     classifiers = list(dict.fromkeys(r["classifier"] for r in look))
-    fig, axes = subplots(1, 3, figsize=(15, 4.2))
+    fig, axes = subplots(1, 3, figsize=(15, 4.6))
     width = 0.8 / max(len(classifiers), 1)
     import matplotlib
 
@@ -316,6 +375,7 @@ def utilities_figure(table2_rows, path: str | os.PathLike[str], *, dpi: int = 11
             rotation=15,
         )
         ax.set_title(metric, fontsize=10)
+        ax.set_ylabel(UTILITY_UNITS[metric], fontsize=8)
         ax.grid(axis="y", alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(

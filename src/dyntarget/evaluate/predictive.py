@@ -1,7 +1,7 @@
 """Modes of ``evaluate dynamic`` that plan for the plume as it will be (issue 16).
 
 * ``predictive``: motion from the last two look-ahead frames
-  (:func:`dyntarget.predict.estimate_motion`; the previous frame is segmented by
+  (:func:`dyntarget.pipeline.two_look_motion`; the previous frame is segmented by
   the same classifier, or its true mask with ``true-mask``), the denoised mask
   advected to the start of pointing (the latency), planned on, and every pointing
   moved on to the plume at its own scheduled time
@@ -18,6 +18,7 @@ Both return the moved trajectory; the evaluator schedules and scores it.
 from __future__ import annotations
 
 import hashlib
+import weakref
 from typing import Any
 
 import numpy as np
@@ -31,7 +32,8 @@ from dyntarget.pipeline import (
     predict_segmentation,
     segment,
 )
-from dyntarget.predict import Motion, Prediction, estimate_motion, wind_motion
+from dyntarget.pipeline import two_look_motion as motion_from_two_looks
+from dyntarget.predict import Motion, Prediction, wind_motion
 from dyntarget.trajectory import Trajectory
 
 
@@ -103,15 +105,19 @@ def two_look_motion(ctx: ModeContext) -> Motion:
         prev_raw = prev.label
     else:
         prev_raw = ctx.classifier.predict_proba(prev.image) >= ctx.pipeline.threshold
-    return estimate_motion(
+    return motion_from_two_looks(
         prev.image, cur.image, interval,
         previous_mask=_clean(prev_raw, prev.valid, ctx),
         current_mask=_clean(ctx.mask, cur.valid, ctx),
     )  # fmt: skip
 
 
-_MOTIONS: dict[tuple, Motion] = {}
-"""Motions already estimated (the same for every planner and latency of a scene)."""
+_MOTIONS: weakref.WeakKeyDictionary[Any, dict[tuple, Motion]] = weakref.WeakKeyDictionary()
+"""Motions already estimated (the same for every planner and latency of a scene), per
+classifier: keyed on the classifier object itself (held weakly), never on its ``id()``,
+which a later classifier may reuse once the first is gone."""
+_TRUE_MASK_MOTIONS: dict[tuple, Motion] = {}
+"""The same for the true-mask classifier."""
 
 
 def predictive_mode(ctx: ModeContext) -> Trajectory:
@@ -130,14 +136,20 @@ def predictive_mode(ctx: ModeContext) -> Trajectory:
     key = (
         ctx.frames.id,
         tuple(np.asarray(ctx.frames.times).tolist()),
-        None if ctx.classifier is None else id(ctx.classifier),
+        ctx.pipeline,
         hashlib.sha1(np.packbits(ctx.mask).tobytes()).hexdigest(),
     )
-    motion = _MOTIONS.get(key)
+    if ctx.classifier is None:
+        cache = _TRUE_MASK_MOTIONS
+    else:
+        cache = _MOTIONS.get(ctx.classifier)
+        if cache is None:
+            cache = _MOTIONS[ctx.classifier] = {}
+    motion = cache.get(key)
     if motion is None:
-        if len(_MOTIONS) > 256:
-            _MOTIONS.clear()
-        motion = _MOTIONS[key] = two_look_motion(ctx)
+        if len(cache) > 256:
+            cache.clear()
+        motion = cache[key] = two_look_motion(ctx)
     return plan_on_motion(ctx, motion)
 
 

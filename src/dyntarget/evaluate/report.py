@@ -90,6 +90,7 @@ def make_figures(
         out / "fig3_trajectories.png",
         mask=results[0].mask,
         title=f"{scene.id}: planners on the {display(best)} mask (held-out scene)",
+        gsd=wfov.gsd,
     )
     if results and _has_plotly():  # the same plan, interactive: view.html beside report.md
         figs["view"] = _scene_view(out / "view.html", scene, wfov, results[0], lookahead[0], factor)
@@ -113,7 +114,8 @@ def _has_plotly() -> bool:
 
 
 def _scene_view(path: Path, scene: Scene, wfov: Scene, result, planner: str, factor: int) -> Path:
-    from dyntarget.view import pointing_truth, write_scene_view
+    from dyntarget.observe import pointing_truth
+    from dyntarget.view import write_scene_view
 
     traj = result.trajectory
     return write_scene_view(

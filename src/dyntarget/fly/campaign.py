@@ -52,12 +52,51 @@ def strips_in(directory: str | os.PathLike[str]) -> list[Path]:
     list of paths.
     """
     from dyntarget.io import scene_ids
+    from dyntarget.io.safeopen import check_regular
 
     directory = Path(directory)
     ids = scene_ids(directory)
     if not ids:
         raise DataFileError(f"--campaign {directory}: no strips (<id>.tif files) found")
-    return [directory / f"{i}.tif" for i in ids]
+    strips = [directory / f"{i}.tif" for i in ids]
+    for s in strips:  # a FIFO, a device link, a folder named *.tif: refused before any pass
+        for p in strip_files(s):
+            check_regular(p, what="--campaign strip file")
+    return strips
+
+
+STRIP_SUFFIXES = (".tif", "_mask.tif", ".geojson", ".world.json", ".meta.json")
+"""The files of strip ``<id>``: ``<id>`` + each suffix (others in the folder are ignored)."""
+
+
+def strip_files(strip: Path) -> list[Path]:
+    """The files of a strip that exist (or are links): image, mask or GeoJSON label, sidecars.
+
+    Names are built, never globbed, so ``strip-[0].tif`` is one strip, and other files
+    beside it (``strip-0000.notes/``, ``strip-0000.lock``, a dangling ``strip-0000.old``)
+    are not read.
+
+    Parameters
+    ----------
+    strip : pathlib.Path
+        The strip's ``<id>.tif``.
+
+    Returns
+    -------
+    list of pathlib.Path
+        In :data:`STRIP_SUFFIXES` order.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> for n in ("s[0].tif", "s[0].world.json", "s[0].lock", "s0.tif"): _ = (d / n).write_text("")
+    >>> [p.name for p in strip_files(d / "s[0].tif")]
+    ['s[0].tif', 's[0].world.json']
+    """
+    stem = strip.name[: -len(".tif")] if strip.name.endswith(".tif") else strip.stem
+    paths = [strip.with_name(stem + suffix) for suffix in STRIP_SUFFIXES]
+    return [p for p in paths if p.exists() or p.is_symlink()]
 
 
 @functools.lru_cache(maxsize=4)
@@ -75,11 +114,23 @@ def _classifier(model: str | None, onnx: bool, int8: bool = False):
 
 def _digest(path: Path) -> str:
     h = hashlib.sha1(usedforsecurity=False)
-    for p in sorted(path.parent.glob(path.stem + "*")):  # the image, its mask, its sidecar
-        with open(p, "rb") as f:
-            h.update(p.name.encode())
-            h.update(hashlib.file_digest(f, "sha1").digest())
+    for p in strip_files(path):  # the image, its label, its sidecars; nothing else
+        h.update(p.name.encode())
+        h.update(_file_digest(p))
     return h.hexdigest()[:16]
+
+
+def _file_digest(p: Path) -> bytes:
+    import stat
+
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(p, what="--campaign strip file")
+    fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise DataFileError(f"--campaign strip file {p}: not a regular file")
+        return hashlib.file_digest(f, "sha1").digest()
 
 
 def fly_one(
@@ -122,9 +173,12 @@ def fly_one(
     world = load_world(task["strip"], truth_step_s=truth_step_s)
     cfg = replace(config, planner=task["planner"], agility=task["agility"])
     result = fly_pass(world, _classifier(model, onnx, int8), cfg)
-    name = f"{world.id}-{cfg.planner}-{cfg.agility}"
-    write_pass(result, world, Path(out) / "passes" / name, picture=False)
-    return result.totals()
+    strip = Path(task["strip"])  # named after the strip file: unique in its folder, unlike world.id
+    stem = strip.name[: -len(".tif")] if strip.name.endswith(".tif") else strip.stem
+    write_pass(
+        result, world, Path(out) / "passes" / f"{stem}-{cfg.planner}-{cfg.agility}", picture=False
+    )
+    return {**result.totals(), "strip": stem}
 
 
 def run_campaign(
@@ -212,10 +266,9 @@ def run_campaign(
 def _model_digest(model: Path) -> str:
     h = hashlib.sha1(usedforsecurity=False)
     for p in sorted(model.glob("*")) if model.is_dir() else []:
-        if p.is_file():
-            with open(p, "rb") as f:
-                h.update(p.name.encode())
-                h.update(hashlib.file_digest(f, "sha1").digest())
+        if p.is_file() and not p.is_symlink():  # is_file: no FIFO, no device
+            h.update(p.name.encode())
+            h.update(_file_digest(p))
     return h.hexdigest()[:16]
 
 

@@ -18,11 +18,14 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   With ``deadline_s``, the time left after the wait is the deadline of
   :func:`dyntarget.pipeline.plan_scene` (its fallbacks apply); a frame whose
   wait alone exceeds the deadline is dropped.
-* **One NFOV.** Pointings are timed with the kinematics' :class:`Timer`, whose
-  state (when the sensor is free, what it tracks) carries over from frame to
-  frame: a new frame's pointings queue behind those already committed. Of the
-  plan in its own order and earliest-deadline-first, the order keeping more
-  pointings is flown (as :func:`~dyntarget.schedule.make_feasible`).
+* **One NFOV.** Pointings are timed by the kinematics
+  (:func:`dyntarget.pipeline.schedule_on_prediction`, i.e.
+  :func:`~dyntarget.schedule.make_feasible`, moving pointings with a predicted
+  plume) from the sensor's state (:class:`~dyntarget.schedule.SensorState`:
+  when it is free, what it tracks), which carries over from frame to frame: a
+  new frame's pointings queue behind those already committed. Of the plan in
+  its own order and earliest-deadline-first, the order keeping more pointings
+  is flown.
 * **Never twice.** The pass keeps the strip's covered WFOV pixels: a
   pointing on a covered pixel is dropped before scheduling, and a plume
   (connected component of the frame's denoised mask) at least half of whose
@@ -44,13 +47,27 @@ from typing import Any
 import cv2
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.fly.world import WfovTruth, World, wfov_truth
 from dyntarget.perceive.base import Classifier
-from dyntarget.pipeline import LAST_RESORT, PipelineConfig, plan_scene
-from dyntarget.predict import Prediction, check_against_prior, estimate_motion, wind_motion
+from dyntarget.pipeline import (
+    LAST_RESORT,
+    PipelineConfig,
+    plan_scene,
+    schedule_on_prediction,
+    two_look_motion,
+)
+from dyntarget.predict import Prediction, wind_motion
 from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
-from dyntarget.schedule import Agility, OrbitGeometry, Timer, get_agility, visibility_windows
+from dyntarget.schedule import (
+    Agility,
+    OrbitGeometry,
+    Schedule,
+    SensorState,
+    get_agility,
+    visibility_windows,
+)
 from dyntarget.trajectory import Trajectory
 
 STAGES = ("classify", "denoise", "predict", "plan", "schedule")
@@ -59,8 +76,8 @@ STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 PREDICT_MODES = ("none", "wind", "two-looks")
 """How a pass plans: on the look as it is, or on the plume as predicted."""
 
-CHUNK = 32
-"""Pointings screened at once by the scheduler (a speed setting; the result does not depend on it)."""
+MIN_OVERLAP_ROWS = 8
+"""Two-look motion needs at least this many rows seen by both frames."""
 
 COVERED_PLUME_FRACTION = 0.5
 """A plume at least this fraction of whose planned pointings were flown counts as covered."""
@@ -98,8 +115,8 @@ class PassConfig:
     factor: int = 4
     frame_px: int | None = None
     overlap: float = 0.5
-    altitude_m: float = 500e3
-    look_ahead_m: float = 500e3
+    altitude_m: float = defaults.ALTITUDE_M
+    look_ahead_m: float = defaults.LOOK_AHEAD_M
     compute_budget_s: float | None = None
     deadline_s: float | None = None
     footprint: int = 1
@@ -722,18 +739,28 @@ def _fly_frame(
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
-    base = traj.points[keep]
+    todo = Trajectory(traj.points[keep], np.zeros(len(keep)), traj.planner)
+    attached = None
+    if prediction is not None and prediction.motion.regime == "mixed":
+        attached = prediction.attached_mask(result.mask)
 
-    def fly_from(ready: float):
-        return _schedule_predicted(
-            base, shape, frames.geometry, agility, t_k, state, ready, prediction
+    def fly_from(ready: float) -> Schedule:  # the kinematics, behind the committed pointings
+        return schedule_on_prediction(
+            todo,
+            shape,
+            replace(frames.geometry, start_s=ready - t_k),
+            agility,
+            prediction,
+            attached=attached,
+            sensor=_sensor(state, frames.geometry, t_k, ready),
+            keep_order=True,
         )
 
     # schedule what is left behind what the NFOV has already committed to
     budget = config.compute_budget_s
     if budget is not None:
         ready = start + budget
-        sched_idx, sched_t, timer, points = fly_from(ready)
+        flown = fly_from(ready)
         stage["schedule"] = time.perf_counter() - t0
         loop_s = time.perf_counter() - t_loop
     else:  # timed once to measure it, then re-timed from when the plan is really ready
@@ -741,13 +768,14 @@ def _fly_frame(
         stage["schedule"] = time.perf_counter() - t0
         loop_s = time.perf_counter() - t_loop
         ready = start + sum(stage.values())
-        sched_idx, sched_t, timer, points = fly_from(ready)
+        flown = fly_from(ready)
+    sched_t, points = flown.times, flown.trajectory.points
     met = None if deadline is None else (ready - t_k) <= deadline
-    flown_local = keep[sched_idx]
+    flown_local = keep[flown.kept]
     state.busy_until = ready
     if len(flown_local):
-        state.timer_t = timer.t + t_k
-        along, cross = timer.target
+        state.timer_t = flown.end_s + t_k
+        along, cross = flown.end_target
         state.target = (along + frames.geometry.ground_speed * t_k, cross)
     # score each flown pointing against the truth at its own time
     plume_sum = inten_sum = grad_sum = 0.0
@@ -836,19 +864,17 @@ def _motion(k, image, clean, config: PassConfig, frames: FramePlan, world: World
         return prior
     k0, prev_image, prev_mask = state.previous
     offset = (k - k0) * frames.step  # rows frame k0 lies below frame k
-    overlap = frames.frame_px - offset
-    if overlap < 8:
+    if frames.frame_px - offset < MIN_OVERLAP_ROWS:
         return prior
-    est = estimate_motion(
-        prev_image[:, :overlap],
-        image[:, offset:],
+    return two_look_motion(
+        prev_image,
+        image,
         (k - k0) * frames.cadence_s,
-        previous_mask=prev_mask[:overlap],
-        current_mask=clean[offset:],
+        previous_mask=prev_mask,
+        current_mask=clean,
+        prior=prior,
+        offset_rows=offset,
     )
-    if est.vent is not None:  # from the overlap's rows to the frame's
-        est = replace(est, vent=(est.vent[0], est.vent[1] + offset))
-    return est if prior is None else check_against_prior(est, prior)
 
 
 def _lead_s(frames: FramePlan, agility: Agility, state: PassState, t_k: float, start: float):
@@ -859,32 +885,12 @@ def _lead_s(frames: FramePlan, agility: Agility, state: PassState, t_k: float, s
     return max(enter, max(start, state.timer_t) - t_k, 0.0)
 
 
-def _schedule_predicted(base, shape, geometry, agility, t_k, state, ready, prediction):
-    """:func:`_schedule`, each pointing moved on to its own time when the plume drifts.
-
-    As :func:`dyntarget.pipeline.schedule_on_prediction`: schedule, move every
-    pointing by ``prediction.pointing_shift(t - lead_s)``, schedule again, until
-    no kept pointing's time changes by more than 0.05 s (8 rounds at most).
-    Returns kept indices, their times, the timer, and the points flown.
-    """
-    if prediction is None or prediction.motion.regime != "detached" or len(base) == 0:
-        idx, times, timer, _ = _schedule(base, shape, geometry, agility, t_k, state, ready)
-        return idx, times, timer, base[idx]
-    lead = prediction.lead_s
-    when = np.full(len(base), lead)
-    orders = ("planned", "deadline")
-    for _ in range(8):  # after the first round, keep the order it chose
-        moved = base + prediction.pointing_shift(when - lead)
-        idx, times, timer, used = _schedule(
-            moved, shape, geometry, agility, t_k, state, ready, orders
-        )
-        orders = (used,)
-        change = float(np.max(np.abs(times - when[idx]), initial=0.0))
-        when = when.copy()
-        when[idx] = times
-        if change <= 0.05:
-            break
-    return idx, times, timer, moved[idx]
+def _sensor(state: PassState, geometry: OrbitGeometry, t_k: float, ready: float) -> SensorState:
+    """The shared NFOV's state for frame ``k`` (acquired ``t_k``), in the frame's time and ground."""
+    target = state.target
+    if target is not None:  # pass ground coordinates -> the frame's (nadir at t_k)
+        target = (target[0] - geometry.ground_speed * t_k, target[1])
+    return SensorState(max(ready, state.timer_t) - t_k, target)
 
 
 def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> None:
@@ -899,115 +905,3 @@ def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> No
     for i in range(1, n):
         if planned_per[i] and flown_per[i] >= COVERED_PLUME_FRACTION * planned_per[i]:
             state.covered[top : top + h][comp == i] = True
-
-
-def feasible(
-    trajectory: Trajectory,
-    shape: tuple[int, int],
-    geometry: OrbitGeometry,
-    agility: Agility | str,
-) -> Trajectory:
-    """What :func:`dyntarget.schedule.make_feasible` flies, computed a chunk at a time.
-
-    Same pointings, same order, same times (tested), for a sensor starting at
-    nadir at ``geometry.start_s``; faster when many pointings are dropped.
-
-    Parameters
-    ----------
-    trajectory : the plan.
-    shape : (H, W) of its WFOV image.
-    geometry : orbit geometry; ``start_s`` is when the plan is ready.
-    agility : agility preset or name.
-
-    Returns
-    -------
-    Trajectory: the kept pointings in flight order, with ``times``.
-
-    Examples
-    --------
-    >>> from dyntarget.schedule import OrbitGeometry
-    >>> t = Trajectory(np.array([[5.0, 5.0], [6.0, 5.0]]), np.zeros(2), "demo")
-    >>> len(feasible(t, (16, 16), OrbitGeometry(), "fast"))
-    2
-    """
-    agility = get_agility(agility) if isinstance(agility, str) else agility
-    state = PassState(covered=np.zeros((1, 1), bool))
-    idx, times, _, _ = _schedule(
-        trajectory.points, shape, geometry, agility, 0.0, state, geometry.start_s
-    )
-    return Trajectory(
-        trajectory.points[idx],
-        trajectory.part[idx],
-        trajectory.planner,
-        {**trajectory.params, "agility": agility.name},
-        times,
-    )
-
-
-def _schedule(
-    points: np.ndarray,
-    shape: tuple[int, int],
-    base: OrbitGeometry,
-    agility: Agility,
-    t_k: float,
-    state: PassState,
-    ready: float,
-    orders: tuple[str, ...] = ("planned", "deadline"),
-) -> tuple[np.ndarray, np.ndarray, Timer, str]:
-    """Time pointings of frame ``k`` behind the committed ones; the better of two orders.
-
-    ``orders``: the plan's own order (``"planned"``) and earliest deadline first
-    (``"deadline"``); the one keeping more pointings wins (the first on ties).
-    Returns the kept indices (into ``points``, in flight order), their start
-    times (seconds after the frame's acquisition), the timer after them and the order used.
-    """
-    v = base.ground_speed
-    geometry = OrbitGeometry(base.altitude_m, base.look_ahead_m, base.wfov_gsd_m, ready - t_k)
-    along, cross = geometry.ground(points, shape)
-    t_in, t_out = visibility_windows(geometry, agility, along, cross)
-    best: tuple[np.ndarray, np.ndarray, Timer, str] | None = None
-    for name in orders:
-        order = np.arange(len(points)) if name == "planned" else np.argsort(t_out, kind="stable")
-        timer = Timer(geometry, agility)
-        timer.t = max(ready, state.timer_t) - t_k
-        if state.target is not None:
-            timer.target = (state.target[0] - v * t_k, state.target[1])
-        kept, times = [], []
-        floor = agility.settle_s + agility.dwell_s  # a pointing ends at least this after timer.t
-        pos = 0
-        while pos < len(order):
-            # the first pointing of the next CHUNK in order that can still be taken: the
-            # timer does not move while pointings are skipped, so screening a chunk at
-            # once (Timer.arrival is elementwise) gives exactly the one-by-one result
-            chunk = order[pos : pos + CHUNK]
-            maybe = (t_in[chunk] <= t_out[chunk]) & (timer.t + floor <= t_out[chunk])
-            first = int(np.argmax(maybe))
-            if maybe[first]:  # most often the first candidate is taken: time it alone
-                j = int(chunk[first])
-                start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
-                if start + agility.dwell_s <= t_out[j]:
-                    timer.take(along[j], cross[j], start)
-                    kept.append(j)
-                    times.append(start)
-                    pos += first + 1
-                    continue
-                maybe[first] = False  # timed above: it cannot be taken
-            ok = np.zeros(len(chunk), bool)
-            begin = np.zeros(len(chunk))
-            if maybe.any():
-                c = chunk[maybe]
-                begin[maybe] = timer.arrival(along[c], cross[c], t_in[c])
-                ok[maybe] = begin[maybe] + agility.dwell_s <= t_out[c]
-            if not ok.any():
-                pos += len(chunk)
-                continue
-            i = int(np.argmax(ok))
-            j = int(chunk[i])
-            timer.take(along[j], cross[j], float(begin[i]))
-            kept.append(j)
-            times.append(float(begin[i]))
-            pos += i + 1
-        if best is None or len(kept) > len(best[0]):
-            best = (np.asarray(kept, np.int64), np.asarray(times, np.float64), timer, name)
-    assert best is not None
-    return best

@@ -72,11 +72,13 @@ def measured_csv(result: PassResult) -> str:
     str
         CSV text: ``frame``, one ``<stage>_s`` column per stage and ``loop_s``.
     """
-    lines = ["frame," + ",".join(f"{s}_s" for s in STAGES) + ",loop_s"]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["frame", *(f"{s}_s" for s in STAGES), "loop_s"])
     for rec in result.records:
-        stages = ",".join(f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES)
-        lines.append(f"{rec.frame},{stages},{rec.loop_s:.6f}")
-    return "\n".join(lines) + "\n"
+        stages = [f"{rec.stage_s.get(s, 0.0):.6f}" for s in STAGES]
+        writer.writerow([rec.frame, *stages, f"{rec.loop_s:.6f}"])
+    return buf.getvalue()
 
 
 def pointings_geojson(
@@ -250,26 +252,26 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
     label = world.truth_at(0.0).maps.label[: hw * f, : ww * f]
     lab = block_mean(label[None].astype(np.float32), f)[0]
     # the strip lies on its side: flight direction to the right
-    fig, ax = plt.subplots(figsize=(min(16.0, 2.0 + hw / ww * 2.4), 3.4), dpi=110)
+    fig, ax = plt.subplots(figsize=(min(16.0, 2.0 + hw / ww * 2.4), 4.6), dpi=110)
     ax.imshow(np.rot90(rgb, -1), origin="upper", interpolation="nearest")
     ax.contour(np.rot90(lab, -1), levels=[0.5], colors="orange", linewidths=0.8)
     for k, top in enumerate(fp.tops[: len(result.records)]):
         # rotated: strip row r -> x = hw - 1 - r; frames as bars under the strip, two lanes
         colour = "red" if result.records[k].dropped else "tab:blue"
-        lane = ww + 1.0 + (k % 2) * 2.5
+        lane = ww + 1.0 + (k % 2) * 0.11 * ww
         ax.add_patch(
             Rectangle(
                 (hw - (top + fp.frame_px) - 0.5, lane),
                 fp.frame_px,
-                2.0,
+                0.1 * ww,
                 facecolor=colour,
                 edgecolor="white",
                 linewidth=0.6,
             )
         )
-        ax.text(hw - top - fp.frame_px / 2 - 0.5, lane + 1.0, str(k), fontsize=5, color="w",
-                ha="center", va="center")  # fmt: skip
-    ax.set_ylim(ww + 6.5, -0.5)
+        ax.text(hw - top - fp.frame_px / 2 - 0.5, lane + 0.05 * ww, str(k), fontsize=8,
+                color="w", fontweight="bold", ha="center", va="center")  # fmt: skip
+    ax.set_ylim(ww + 1.5 + 0.22 * ww, -0.5)
     fl = result.flown
     if fl.x:
         sc = ax.scatter(
@@ -280,8 +282,31 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
     ax.set_title(
         f"{result.world_id}: {result.config.planner}, {result.config.agility} agility — "
         f"{t['pointings_flown']} pointings, {t['plumes_observed']} of {t['plumes_total']} plumes "
-        f"observed (orange: plumes at t=0; bars: frames; flight →)",
+        "observed; flight →",
+        fontsize=9,
+    )
+    from matplotlib.lines import Line2D
+
+    ax.legend(
+        handles=[
+            Line2D([], [], color="orange", lw=1.2, label="true plumes at t = 0"),
+            Rectangle((0, 0), 1, 1, facecolor="tab:blue", label="frame k (planned)"),
+            Rectangle((0, 0), 1, 1, facecolor="red", label="frame k (dropped: late)"),
+            Line2D(
+                [],
+                [],
+                color="tab:green",
+                lw=0,
+                marker="o",
+                ms=4,
+                label="pointing flown (colour: time)",
+            ),
+        ],
+        loc="upper left",
+        bbox_to_anchor=(0, -0.22),
+        ncol=4,
         fontsize=8,
+        frameon=False,
     )
     ax.set_xlabel("along track (WFOV px)")
     ax.set_ylabel("across (px)")
@@ -318,7 +343,11 @@ class ViewCollector:
 
 
 def write_view(
-    result: PassResult, views: list[FrameView], path: str | os.PathLike[str]
+    result: PassResult,
+    views: list[FrameView],
+    path: str | os.PathLike[str],
+    *,
+    crs: object | None = None,
 ) -> Path | None:
     """The interactive HTML view of the pass: one slider step per frame (plotly, inline).
 
@@ -335,6 +364,8 @@ def write_view(
         The frames to show.
     path : str or os.PathLike
         The HTML file to write.
+    crs : object or None
+        The strip's CRS, named on the page (the frames are drawn in their own pixels).
 
     Returns
     -------
@@ -373,7 +404,7 @@ def write_view(
     if not steps:
         return None
     title = f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
-    return write_pass_view(path, steps, title=title)
+    return write_pass_view(path, steps, title=title, crs=crs)
 
 
 def write_pass(
@@ -419,7 +450,9 @@ def write_pass(
     if pic is not None:
         written.append(pic)
     if views is not None:
-        page = None if views.overflow else write_view(result, views.views, out / VIEW)
+        page = (
+            None if views.overflow else write_view(result, views.views, out / VIEW, crs=world.crs)
+        )
         if page is not None:
             written.append(page)
             notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")

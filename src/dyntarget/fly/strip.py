@@ -124,7 +124,9 @@ class MovingStrip:
             raise InvalidParameterError(
                 f"truth_step_s: expected seconds >= 0, got {truth_step_s!r}"
             )
-        self.spec, self.window = spec, tuple(int(v) for v in window)
+        from dyntarget.synth.dynamic import check_window
+
+        self.spec, self.window = spec, check_window(window, spec.size)
         self.world = MovingWorld(spec)
         _, _, w, h = self.window
         self.shape = (h, w)
@@ -237,25 +239,38 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
     -------
     World
     """
+    from dyntarget.io.safeopen import check_regular, read_json
+    from dyntarget.synth.dynamic import check_window
+
     path = Path(path)
     sidecar = path.with_name(path.stem + SIDECAR)
-    if sidecar.exists():
-        try:
-            doc = json.loads(sidecar.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise DataFileError(f"{sidecar}: unreadable strip sidecar ({exc})") from None
+    if sidecar.exists() or sidecar.is_symlink():
+        doc = read_json(sidecar, what="strip sidecar")
         if not isinstance(doc, dict) or doc.get("format") != STRIP_FORMAT:
             raise DataFileError(f"{sidecar}: not a {STRIP_FORMAT} sidecar")
-        window = doc.get("window")
-        if not (isinstance(window, list) and len(window) == 4):
-            raise DataFileError(f"{sidecar}: window: expected [col0, row0, width, length]")
-        spec = WorldSpec.from_dict(doc.get("world"))
-        return MovingStrip(spec, tuple(int(v) for v in window), truth_step_s=truth_step_s)
+        try:
+            spec = WorldSpec.from_dict(doc.get("world"))
+            if not isinstance(doc.get("window"), list):
+                raise InvalidParameterError(
+                    f"window: expected [col0, row0, width, length] integers, got {doc.get('window')!r:.60}"
+                )
+            window = check_window(doc["window"], spec.size)
+        except InvalidParameterError as exc:
+            raise DataFileError(f"{sidecar}: {exc}") from None
+        return MovingStrip(spec, window, truth_step_s=truth_step_s)
     from dyntarget.io import read_scene
     from dyntarget.io.acquisition import read_acquired
 
-    if not path.exists():
-        raise DataFileError(f"--scene {path}: no such file")
+    check_regular(path, what="--scene")
     world = StaticWorld(read_scene(path))
-    world.acquired = read_acquired(path)
+    try:
+        world.acquired = read_acquired(path)
+    except OverflowError:
+        raise DataFileError(
+            f"--scene {path}: acquisition time outside the years 1900..2200"
+        ) from None
+    if world.acquired is not None and not 1900 <= world.acquired.year <= 2200:
+        raise DataFileError(
+            f"--scene {path}: acquired {world.acquired.isoformat()}, outside the years 1900..2200"
+        )
     return world

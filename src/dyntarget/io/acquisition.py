@@ -2,15 +2,21 @@
 
 Inside the library time is seconds from the look-ahead acquisition; at the
 edges (files, GeoJSON, HTML) it becomes an ISO-8601 UTC instant, e.g.
-``2024-05-01T10:00:03.250Z``. The acquisition instant comes from, in order:
+``2024-05-01T10:00:03.250Z``. The acquisition instant comes from, in this one order (``plan``, ``fly --watch``
+and sequence folders without ``sequence.json`` all read it here, :func:`read_acquisition`):
 
 1. the user (``--acquired 2024-05-01T10:00:00Z``);
 2. a sidecar ``<image stem>.meta.json`` beside the image holding
    ``{"acquired": "2024-05-01T10:00:00Z"}``;
-3. the image's tags: ``ACQUISITIONDATETIME`` (GDAL's ``IMAGERY`` metadata
-   domain, e.g. Sentinel-2 and DIMAP products) or ``TIFFTAG_DATETIME``
-   (``YYYY:MM:DD HH:MM:SS``; TIFF gives no zone, taken as UTC as satellite
-   products write it).
+3. the image's tags, first found wins: ``DYNTARGET_TIME`` (what dyntarget writes
+   on sequence frames, ``synth --frames``), ``DYNTARGET_ACQUIRED`` (older live-mode
+   frames), ``ACQUISITIONDATETIME`` (GDAL's ``IMAGERY`` metadata domain, e.g.
+   Sentinel-2 and DIMAP products), ``TIFFTAG_DATETIME`` (``YYYY:MM:DD
+   HH:MM:SS``; TIFF gives no zone, taken as UTC as satellite products write it;
+   last, since TIFF defines it as the file's creation time).
+
+Nothing else: a file's modification time is never taken silently (the live mode
+says so on stderr and in ``frames.csv`` when it falls back on it).
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ from pathlib import Path
 
 from dyntarget.errors import DataFileError, InvalidParameterError
 
+TAGS = ("DYNTARGET_TIME", "DYNTARGET_ACQUIRED", "ACQUISITIONDATETIME", "TIFFTAG_DATETIME")
+"""Image tags holding the acquisition time, in the order they are read."""
 SIDECAR_SUFFIX = ".meta.json"
 """Suffix of the sidecar file that may hold ``{"acquired": ISO-8601}`` beside an image."""
 
@@ -131,6 +139,27 @@ def read_acquired(path: str | os.PathLike[str]) -> datetime | None:
     >>> read_acquired(d / "s.tif").isoformat()
     '2024-05-01T10:00:00+00:00'
     """
+    return read_acquisition(path)[0]
+
+
+def read_acquisition(path: str | os.PathLike[str]) -> tuple[datetime | None, str | None]:
+    """:func:`read_acquired` and where the time came from (the sidecar's name or the tag).
+
+    Parameters
+    ----------
+    path : path-like
+        The image.
+
+    Returns
+    -------
+    tuple
+        ``(instant or None, source or None)``, e.g. ``(datetime, "DYNTARGET_TIME")``.
+
+    Examples
+    --------
+    >>> read_acquisition("no-such-image.tif")
+    (None, None)
+    """
     path = Path(path)
     sidecar = path.with_name(path.stem + SIDECAR_SUFFIX)
     if sidecar.is_file():
@@ -145,15 +174,15 @@ def read_acquired(path: str | os.PathLike[str]) -> datetime | None:
                 f"{sidecar}: expected a JSON object with an 'acquired' ISO-8601 time, got {doc!r:.80}"
             )
         try:
-            return parse_acquired(doc["acquired"], name=f"{sidecar}: acquired")
+            return parse_acquired(doc["acquired"], name=f"{sidecar}: acquired"), sidecar.name
         except InvalidParameterError as exc:
             raise DataFileError(str(exc)) from None
     if not path.is_file():
-        return None
+        return None, None
     return _tag_time(path)
 
 
-def _tag_time(path: Path) -> datetime | None:
+def _tag_time(path: Path) -> tuple[datetime | None, str | None]:
     import warnings
 
     import rasterio
@@ -166,20 +195,22 @@ def _tag_time(path: Path) -> datetime | None:
                 imagery = src.tags(ns="IMAGERY")
                 default = src.tags()
     except RasterioError:
-        return None  # not a raster GDAL reads (e.g. .npz): no tags to look at
-    value = imagery.get("ACQUISITIONDATETIME") or default.get("ACQUISITIONDATETIME")
-    if value:
+        return None, None  # not a raster GDAL reads (e.g. .npz): no tags to look at
+    for key in TAGS:
+        value = imagery.get(key) or default.get(key)
+        if not value:
+            continue
+        value = value.strip()
+        if key == "TIFFTAG_DATETIME" or _TIFF_DATETIME.match(value):
+            m = _TIFF_DATETIME.match(value)
+            if m is None:
+                raise DataFileError(f"{path}: {key} {value!r} is not 'YYYY:MM:DD HH:MM:SS'")
+            try:
+                return datetime(*(int(g) for g in m.groups()), tzinfo=UTC), key
+            except ValueError:
+                raise DataFileError(f"{path}: {key} {value!r} is not a valid date") from None
         try:
-            return parse_acquired(value.strip(), name=f"{path}: ACQUISITIONDATETIME")
+            return parse_acquired(value, name=f"{path}: {key}"), key
         except InvalidParameterError as exc:
             raise DataFileError(str(exc)) from None
-    value = default.get("TIFFTAG_DATETIME")
-    if value:
-        m = _TIFF_DATETIME.match(value.strip())
-        if m is None:
-            raise DataFileError(f"{path}: TIFFTAG_DATETIME {value!r} is not 'YYYY:MM:DD HH:MM:SS'")
-        try:
-            return datetime(*(int(g) for g in m.groups()), tzinfo=UTC)
-        except ValueError:
-            raise DataFileError(f"{path}: TIFFTAG_DATETIME {value!r} is not a valid date") from None
-    return None
+    return None, None

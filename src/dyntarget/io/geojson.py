@@ -6,7 +6,11 @@ Three coordinate forms, chosen by the scene's georeferencing and ``crs_mode``:
     WGS 84 longitude, latitude in degrees (RFC 7946), reprojected from the
     image's CRS with PROJ (``rasterio.warp.transform``); no ``crs`` member;
     polygons follow the right-hand rule (exterior counter-clockwise); a
-    ``bbox``. Coordinates are rounded to :data:`LONLAT_DECIMALS` = 7 decimals:
+    ``bbox``. A polygon or path that crosses the antimeridian is split there
+    (RFC 7946 §3.1.9: a MultiPolygon or MultiLineString with parts on either
+    side of 180°, by the ``antimeridian`` package) and the ``bbox`` then runs
+    from its western edge east across 180°, west > east (§5.2); one that
+    encloses a pole runs its ring along the pole's parallel. Coordinates are rounded to :data:`LONLAT_DECIMALS` = 7 decimals:
     1e-7 degree is 1.1 cm of latitude (less of longitude), so rounding moves a
     point by at most about 6 mm per axis, 1/80 of the 0.5 m NFOV pixel the paper
     simulates and far below a tenth of any WFOV pixel. (RFC 7946's suggested 6
@@ -26,6 +30,8 @@ grid position survives any reprojection. Fields and units: ``docs/outputs.md``.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
 from collections.abc import Mapping, Sequence
@@ -244,13 +250,108 @@ def _collection_properties(transform, crs, form: str, acquired) -> dict[str, Any
     return props
 
 
+def lonlat_bbox(coords: np.ndarray) -> list[float]:
+    """RFC 7946 ``bbox`` of longitude/latitude positions, west > east across the antimeridian.
+
+    Positions that span more than 180° of longitude are taken to straddle 180°
+    when the widest empty stretch of longitude lies between them (no scene is
+    half the globe wide): the box then runs from the east side of that stretch
+    eastward across 180° to its west side (RFC 7946 §5.2). Positions on a pole
+    (latitude ±90, a polygon enclosing it) span every longitude: -180 to 180 (§5.3).
+
+    Parameters
+    ----------
+    coords : array (N, 2)
+        Longitude, latitude in degrees, longitudes in [-180, 180]; N >= 1.
+
+    Returns
+    -------
+    list of float
+        ``[west, south, east, north]``.
+
+    Examples
+    --------
+    >>> lonlat_bbox(np.array([[9.0, 45.0], [9.5, 45.2]]))
+    [9.0, 45.0, 9.5, 45.2]
+    >>> lonlat_bbox(np.array([[179.9, -30.1], [180.0, -30.0], [-180.0, -30.0], [-179.8, -29.9]]))
+    [179.9, -30.1, -179.8, -29.9]
+    """
+    lo, hi = coords.min(axis=0), coords.max(axis=0)
+    west, east = float(lo[0]), float(hi[0])
+    if east - west > 180.0 and not (np.abs(coords[:, 1]) == 90.0).any():
+        lons = np.unique(np.where(coords[:, 0] == 180.0, -180.0, coords[:, 0]))  # one meridian
+        gaps = np.diff(lons)
+        i = int(np.argmax(gaps))
+        if gaps[i] > lons[0] + 360.0 - lons[-1]:  # the widest gap is not the one across 180°
+            west, east = float(lons[i + 1]), float(lons[i])
+            east = 180.0 if east == -180.0 else east
+    return [west, float(lo[1]), east, float(hi[1])]
+
+
 def _finish(doc: dict[str, Any], coords: np.ndarray, form: str, crs) -> dict[str, Any]:
     if form == "native":
         doc["crs"] = {"type": "name", "properties": {"name": _crs_name(crs)}}
     if form == "lonlat" and len(coords):
-        lo, hi = coords.min(axis=0), coords.max(axis=0)
-        doc["bbox"] = [float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])]
+        doc["bbox"] = lonlat_bbox(coords)
     return doc
+
+
+def _crosses_antimeridian(geom: Any) -> bool:
+    """Whether a lon/lat line or polygon has an edge that jumps more than 180° of longitude."""
+    import shapely
+
+    parts = getattr(geom, "geoms", [geom])
+    rings = [
+        r for p in parts for r in ([p.exterior, *p.interiors] if hasattr(p, "exterior") else [p])
+    ]
+    return any(
+        bool((np.abs(np.diff(shapely.get_coordinates(r)[:, 0])) > 180.0).any()) for r in rings
+    )
+
+
+def _poles_inside(world: Any, crs: object) -> tuple[bool, bool]:
+    """Whether the geometry, in the image's CRS, encloses the north and the south pole."""
+    import shapely
+    from rasterio.crs import CRS
+    from rasterio.warp import transform as warp
+
+    xs, ys = warp(CRS.from_user_input(WGS84), CRS.from_user_input(crs), [0.0, 0.0], [90.0, -90.0])
+    inside = []
+    for x, y in zip(xs, ys, strict=True):
+        pole = shapely.Point(x, y)
+        inside.append(bool(np.isfinite([x, y]).all() and world.contains(pole)))
+    return inside[0], inside[1]
+
+
+def _split_at_antimeridian(lonlat: Any, world: Any, crs: object) -> Any:
+    """Split a lon/lat polygon or line crossing 180° into parts on either side (RFC 7946 §3.1.9).
+
+    ``lonlat`` (rounded to :data:`LONLAT_DECIMALS`) is returned as it is when no
+    edge crosses; else the ``antimeridian`` package cuts it at ±180° (straight
+    lines in lon/lat, as RFC 7946 reads them), a polygon enclosing a pole (found
+    in the image CRS, ``world``) closed along the pole's parallel. New vertices
+    are rounded like the others.
+    """
+    import shapely
+
+    if not _crosses_antimeridian(lonlat):
+        return lonlat
+    import antimeridian
+
+    fixed: Any
+    if lonlat.geom_type == "LineString":
+        fixed = antimeridian.fix_line_string(lonlat, great_circle=False)
+    else:
+        north, south = _poles_inside(world, crs)
+        fixed = antimeridian.fix_polygon(
+            lonlat,
+            force_north_pole=north,
+            force_south_pole=south,
+            fix_winding=False,
+            great_circle=False,
+        )
+    fixed = shapely.transform(fixed, lambda c: c.round(LONLAT_DECIMALS))
+    return shapely.remove_repeated_points(fixed)
 
 
 def _point_extras(point_properties: Mapping[str, Sequence[Any]] | None, n: int) -> dict:
@@ -336,7 +437,7 @@ def trajectory_geojson(
         feats.append(
             {
                 "type": "Feature",
-                "geometry": {"type": "LineString", "coordinates": coords.tolist()},
+                "geometry": _path_geometry(traj.points, coords, transform, crs, form),
                 "properties": path_props,
             }
         )
@@ -363,6 +464,8 @@ def trajectory_geojson(
             }
         )
     doc = {"type": "FeatureCollection", "features": feats, "properties": props}
+    if n >= 2 and feats[0]["geometry"]["type"] == "MultiLineString":  # split at 180°
+        coords = np.concatenate([coords, *map(np.asarray, feats[0]["geometry"]["coordinates"])])
     return _finish(doc, coords, form, crs)
 
 
@@ -417,6 +520,12 @@ def polygons_geojson(
     def project(coords: np.ndarray) -> np.ndarray:
         return _project(coords, transform, crs, form)
 
+    def to_world(coords: np.ndarray) -> np.ndarray:
+        return pixels_to_crs(coords, transform)
+
+    def to_lonlat(coords: np.ndarray) -> np.ndarray:
+        return crs_to_lonlat(coords, crs).round(LONLAT_DECIMALS)
+
     feats: list[dict[str, Any]] = []
     everything: list[np.ndarray] = []
     for i, poly in enumerate(polygons):
@@ -431,6 +540,14 @@ def polygons_geojson(
             raise InvalidParameterError(f"polygons[{i}]: the polygon is empty")
         out = shapely.transform(poly, project)
         parts = list(out.geoms) if out.geom_type == "MultiPolygon" else [out]
+        if form == "lonlat" and _crosses_antimeridian(out):
+            # orientation is taken in the image CRS (x east, y north), where it is well defined
+            world = shapely.transform(poly, to_world)
+            split = [
+                _split_at_antimeridian(shapely.transform(g, to_lonlat), g, crs)
+                for g in (orient(g, sign=1.0) for g in getattr(world, "geoms", [world]))
+            ]
+            parts = [q for p in split for q in getattr(p, "geoms", [p])]
         parts = [orient(p, sign=1.0) for p in parts]
         out = parts[0] if len(parts) == 1 else shapely.MultiPolygon(parts)
         everything.append(shapely.get_coordinates(out))
@@ -443,6 +560,18 @@ def polygons_geojson(
     doc = {"type": "FeatureCollection", "features": feats, "properties": props}
     coords = np.concatenate(everything) if everything else np.zeros((0, 2))
     return _finish(doc, coords, form, crs)
+
+
+def _path_geometry(points_px, coords: np.ndarray, transform, crs, form: str) -> dict[str, Any]:
+    """The path's GeoJSON geometry: a LineString, or a MultiLineString split at 180°."""
+    if form != "lonlat" or not (np.abs(np.diff(coords[:, 0])) > 180.0).any():
+        return {"type": "LineString", "coordinates": coords.tolist()}
+    import shapely
+    from shapely.geometry import mapping
+
+    world = shapely.LineString(pixels_to_crs(points_px, transform))
+    line = _split_at_antimeridian(shapely.LineString(coords), world, crs)
+    return _lists(mapping(line))
 
 
 def _lists(obj: Any) -> Any:
@@ -468,6 +597,8 @@ def trajectory_csv(
     Columns: ``order,x,y,part`` (pixels), then ``lon,lat`` (RFC 7946 form) or
     ``X,Y`` (native form) when georeferenced, ``time_s`` when timed, ``time``
     when the acquisition instant is known too, then any ``point_properties``.
+    Written by the :mod:`csv` module (RFC 4180 quoting: a value holding a
+    comma, a quote or a line break is quoted, so it stays one field).
 
     Parameters
     ----------
@@ -485,6 +616,9 @@ def trajectory_csv(
     >>> print(trajectory_csv(t, acquired="2024-05-01T10:00:00Z"), end="")
     order,x,y,part,time_s,time
     0,1.000,2.000,0,2.000,2024-05-01T10:00:02.000Z
+    >>> print(trajectory_csv(t, point_properties={"note": ["ash, then gas"]}), end="")
+    order,x,y,part,time_s,note
+    0,1.000,2.000,0,2.000,"ash, then gas"
     """
     form = coordinate_form(transform, crs, crs_mode)
     when = None if acquired is None else parse_acquired(acquired)
@@ -503,7 +637,9 @@ def trajectory_csv(
     header += list(extras)
     world = _project(traj.points, transform, crs, form) if form != "pixels" else None
     fmt = "{:.7f}" if form == "lonlat" else "{:.3f}"
-    lines = [",".join(header)]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")  # quotes a field holding a comma or quote
+    writer.writerow(header)
     for i, (x, y) in enumerate(np.asarray(traj.points, np.float64).reshape(-1, 2)):
         row = [str(i), f"{x:.3f}", f"{y:.3f}", str(int(traj.part[i]))]
         if world is not None:
@@ -515,8 +651,8 @@ def trajectory_csv(
         for values in extras.values():
             v = _json_value(values[i])
             row.append("" if v is None else str(v))
-        lines.append(",".join(row))
-    return "\n".join(lines) + "\n"
+        writer.writerow(row)
+    return buf.getvalue()
 
 
 def write_geojson(path: str | os.PathLike[str], doc: Mapping[str, Any]) -> Path:

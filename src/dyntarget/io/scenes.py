@@ -49,6 +49,8 @@ UINT8_SCALE = 1 / 255
 REFLECTANCE_RANGE = (-0.5, 2.0)
 """Values outside this range cannot be reflectance (e.g. digital numbers stored as float)."""
 MASK_SUFFIX = "_mask"
+MAX_GEOJSON_BYTES = 256 * 1024 * 1024
+"""Largest GeoJSON label read (256 MiB)."""
 
 
 @contextlib.contextmanager
@@ -75,8 +77,9 @@ def _quiet_gdal_log_errors():
 
 
 def _open(path: Path):
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(path)  # a FIFO or a device would block GDAL or be read forever
     try:
         with warnings.catch_warnings(), _quiet_gdal_log_errors():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -251,8 +254,16 @@ def read_scene(
     label_path = Path(label) if label is not None else (_find_label(path) if auto_label else None)
     with _open(path) as src:
         if src.count != 4:
+            hint = (
+                "; one file per band? give the four files in the order R G B NIR "
+                "(e.g. red.tif green.tif blue.tif nir.tif --preset landsat8)"
+                if src.count == 1
+                else "; a multi-band product? pick R, G, B, NIR with --preset or --bands"
+                if src.count > 4
+                else ""
+            )
             raise InvalidSceneError(
-                f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s)"
+                f"{path}: expected 4 bands (R, G, B, NIR), got {src.count} band(s){hint}"
             )
         factor = check_factor(factor, (src.height, src.width))
         out_h, out_w = src.height // factor, src.width // factor
@@ -549,8 +560,9 @@ def read_geojson_label(
     from shapely.geometry import shape as to_shape
 
     path = Path(path)
-    if not path.exists():
-        raise DataFileError(f"{path}: no such file")
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(path, max_bytes=MAX_GEOJSON_BYTES)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:

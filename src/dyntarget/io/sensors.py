@@ -260,8 +260,9 @@ def read_npz(
         The scene, labelled when the file has a ``label``.
     """
     path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"{path}: no such file")
+    from dyntarget.io.safeopen import check_regular
+
+    check_regular(path)  # a FIFO would block np.load
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}

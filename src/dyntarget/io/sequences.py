@@ -18,9 +18,11 @@ On disk a sequence ``<id>`` is a folder::
 
 Each frame's GeoTIFF also carries its time in the tags ``DYNTARGET_TIME``
 (ISO-8601 UTC) and ``DYNTARGET_TIME_S`` (seconds after the epoch). A folder
-of GeoTIFFs **without** the sidecar is read too: the times come from
-``DYNTARGET_TIME`` or the standard TIFF ``DateTime`` tag (``TIFFTAG_DATETIME``,
-read as UTC), the earliest frame is ``t = 0``, frames are sorted by time.
+of GeoTIFFs **without** the sidecar is read too: each frame's time is read by
+:func:`dyntarget.io.acquisition.read_acquisition` (a ``.meta.json`` sidecar,
+then ``DYNTARGET_TIME``, ``DYNTARGET_ACQUIRED``, ``ACQUISITIONDATETIME``,
+``TIFFTAG_DATETIME`` read as UTC), the earliest frame is ``t = 0``, frames are
+sorted by time.
 
 ``meta.world`` is the generator spec of a synthetic sequence
 (:class:`dyntarget.synth.dynamic.WorldSpec`): the truth at any time is rebuilt
@@ -52,6 +54,8 @@ VERSION = 1
 TIME_TAG = "DYNTARGET_TIME"
 TIME_S_TAG = "DYNTARGET_TIME_S"
 TIFF_TIME_TAG = "TIFFTAG_DATETIME"
+MAX_FRAMES = 10_000
+"""Most frames listed in one ``sequence.json`` (as ``dyntarget.synth.dynamic.MAX_FRAMES``)."""
 
 
 def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> list[Path]:
@@ -105,27 +109,29 @@ def write_sequence(seq: FrameSequence, directory: str | os.PathLike[str]) -> lis
     return written
 
 
-def _frame_time(path: Path) -> str:
+def _frame_time(path: Path):
+    from dyntarget.io.acquisition import read_acquisition
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(path) as src:
-                tags = src.tags()
+            with rasterio.open(path):
+                pass
     except rasterio.errors.RasterioIOError as exc:
         raise DataFileError(f"{path}: cannot read ({str(exc).splitlines()[0]})") from None
-    for key in (TIME_TAG, TIFF_TIME_TAG):
-        if key in tags:
-            return tags[key]
-    raise DataFileError(
-        f"{path}: no acquisition time (tag {TIME_TAG} or TIFF DateTime) and no {SEQUENCE_FILE}"
-    )
+    when, _ = read_acquisition(path)
+    if when is None:
+        raise DataFileError(
+            f"{path}: no acquisition time (a {TIME_TAG}, ACQUISITIONDATETIME or TIFF DateTime tag, "
+            f"or a .meta.json sidecar) and no {SEQUENCE_FILE}"
+        )
+    return when
 
 
 def _load_sidecar(path: Path) -> dict[str, Any]:
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path}: not a readable JSON file ({exc})") from None
+    from dyntarget.io.safeopen import read_json
+
+    doc = read_json(path)  # a regular file of bounded size and nesting
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise DataFileError(f'{path}: expected "format": "{FORMAT}"')
     if doc.get("version") != VERSION:
@@ -135,7 +141,53 @@ def _load_sidecar(path: Path) -> dict[str, Any]:
     frames = doc.get("frames")
     if not isinstance(frames, list) or not frames:
         raise DataFileError(f'{path}: "frames" must be a non-empty list')
+    if len(frames) > MAX_FRAMES:
+        raise DataFileError(f"{path}: {len(frames)} frames, more than the {MAX_FRAMES} accepted")
+    if not isinstance(doc.get("meta", {}) or {}, dict):
+        raise DataFileError(f'{path}: "meta" must be an object, got {type(doc["meta"]).__name__}')
+    if not isinstance(doc.get("id", ""), str | None):
+        raise DataFileError(f'{path}: "id" must be a string, got {doc["id"]!r:.60}')
+    _check_sidecar_times(doc, path)
     return doc
+
+
+MAX_TIME_S = 1e7
+"""Largest ``time_s`` of a frame in ``sequence.json``, in size (about 116 days)."""
+
+
+def _check_sidecar_times(doc: dict[str, Any], path: Path) -> None:
+    """Types and ranges of ``epoch`` and each frame's ``time``/``time_s``, before any is used."""
+    import math
+
+    def instant(value: object, what: str) -> None:
+        if not isinstance(value, str):
+            raise DataFileError(f"{path}: {what}: expected an ISO-8601 UTC time, got {value!r:.60}")
+        try:
+            when = parse_time(value)
+        except (InvalidParameterError, OverflowError) as exc:
+            raise DataFileError(f"{path}: {what}: {exc}") from None
+        if not 1900 <= when.year <= 2200:
+            raise DataFileError(f"{path}: {what}: {value!r} is outside the years 1900..2200")
+
+    if doc.get("epoch") is not None:
+        instant(doc["epoch"], "epoch")
+    for i, entry in enumerate(doc["frames"]):
+        if not isinstance(entry, dict):
+            continue  # read_sequence names it
+        if not isinstance(entry.get("file", ""), str):
+            raise DataFileError(
+                f"{path}: frame {i}: file must be a name, got {entry['file']!r:.60}"
+            )
+        if "time_s" in entry:
+            t = entry["time_s"]
+            ok = isinstance(t, int | float) and not isinstance(t, bool)
+            if not (ok and math.isfinite(t) and abs(t) <= MAX_TIME_S):
+                raise DataFileError(
+                    f"{path}: frame {i}: time_s must be finite seconds within "
+                    f"{MAX_TIME_S:g} of the epoch, got {t!r:.60}"
+                )
+        elif "time" in entry:
+            instant(entry["time"], f"frame {i}: time")
 
 
 def read_sequence(
@@ -200,8 +252,7 @@ def read_sequence(
         )
         if not files:
             raise DataFileError(f"{folder}: no frames (*.tif) and no {SEQUENCE_FILE}")
-        stamps = [_frame_time(p) for p in files]
-        parsed = [_parse(s, p) for s, p in zip(stamps, files, strict=True)]
+        parsed = [_frame_time(p) for p in files]  # dyntarget.io.acquisition's one order
         epoch_dt = min(parsed)
         order = sorted(range(len(files)), key=lambda i: parsed[i])
         files = [files[i] for i in order]
@@ -215,13 +266,6 @@ def read_sequence(
         return FrameSequence(frames, times, epoch=epoch, id=seq_id, meta=meta)
     except (InvalidSceneError, InvalidParameterError) as exc:
         raise InvalidSceneError(f"{folder}: {exc}") from None
-
-
-def _parse(stamp: str, where: Path):
-    try:
-        return parse_time(stamp)
-    except InvalidParameterError as exc:
-        raise DataFileError(f"{where}: {exc}") from None
 
 
 def _seconds(epoch: str, when: str, where: Path) -> float:

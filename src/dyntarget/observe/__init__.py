@@ -6,6 +6,14 @@ from dyntarget.observe.nfov import (
     observe,
     observe_at,
     observed_pixels,
+    pointing_truth,
 )
 
-__all__ = ["ObservationMetrics", "UtilityMaps", "observe", "observe_at", "observed_pixels"]
+__all__ = [
+    "ObservationMetrics",
+    "UtilityMaps",
+    "observe",
+    "observe_at",
+    "observed_pixels",
+    "pointing_truth",
+]

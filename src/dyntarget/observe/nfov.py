@@ -339,3 +339,50 @@ def observe_at(
         intensity=float(vals[1].mean()),
         gradient=float(vals[2].mean()),
     )
+
+
+def pointing_truth(
+    trajectory: Trajectory, image: np.ndarray, label: np.ndarray, *, factor: int = 1
+) -> dict[str, np.ndarray]:
+    """What each pointing observed of the truth: plume fraction, intensity, gradient.
+
+    The values of the utility maps (:class:`UtilityMaps`) averaged over the
+    ``factor x factor`` high-resolution block under each pointing's WFOV pixel
+    (NaN for a pointing outside the image).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        Pointings in WFOV pixels.
+    image : array (4, H, W)
+        The high-resolution image (``H, W`` = WFOV shape times ``factor``).
+    label : bool array (H, W)
+        The true plume mask at that resolution.
+    factor : int
+        High-resolution pixels per WFOV pixel.
+
+    Returns
+    -------
+    dict
+        ``{"plume": ..., "intensity": ..., "gradient": ...}``, one float per pointing.
+
+    Examples
+    --------
+    >>> from dyntarget.trajectory import Trajectory
+    >>> img = np.full((4, 4, 4), 0.5, np.float32)
+    >>> lab = np.zeros((4, 4), bool); lab[:, :2] = True
+    >>> t = Trajectory(np.array([[0.0, 0.0], [3.0, 0.0], [9.0, 0.0]]), np.zeros(3, int), "d")
+    >>> pointing_truth(t, img, lab)["plume"].tolist()
+    [1.0, 0.0, nan]
+    """
+    maps = UtilityMaps.from_scene(Scene(image, label=label))
+    stack = np.stack([maps.label.astype(np.float32), maps.intensity, maps.gradient])
+    per_wfov = block_mean(stack, factor)
+    h, w = per_wfov.shape[1:]
+    pts = np.asarray(trajectory.points, np.float64).reshape(-1, 2)
+    cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
+    rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    out = np.full((3, len(pts)), np.nan)
+    out[:, inside] = per_wfov[:, rows[inside], cols[inside]]
+    return {"plume": out[0], "intensity": out[1], "gradient": out[2]}

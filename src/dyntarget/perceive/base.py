@@ -296,6 +296,12 @@ for _name, _target in (  # lazy: the module is imported when the classifier is f
     CLASSIFIERS.register_lazy(_name, _target)
 
 
+def _read_json(path: Path) -> Any:
+    from dyntarget.io.safeopen import read_json
+
+    return read_json(path, max_bytes=1 << 20)
+
+
 def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read and check a model directory's ``metadata.json``.
 
@@ -323,7 +329,7 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     if not meta_path.is_file():
         raise ModelFileError(f"{path}: no {METADATA}; not a dyntarget model")
     try:
-        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        meta = _read_json(meta_path)  # a regular file of bounded size and depth
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ModelFileError(f"{meta_path}: not valid JSON ({exc})") from None
     if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:

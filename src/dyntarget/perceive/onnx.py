@@ -41,7 +41,7 @@ from dyntarget.perceive.base import (
     pixels,
     read_metadata,
 )
-from dyntarget.perceive.validate import check_onnx_session
+from dyntarget.perceive.validate import check_onnx_file, check_onnx_session, run_onnx
 from dyntarget.scene import BANDS, check_image
 
 ONNX_FILE = "model.onnx"
@@ -270,7 +270,7 @@ class OnnxClassifier:
         if self.kind == "unet":
 
             def forward(batch: np.ndarray) -> np.ndarray:
-                logits = self.session.run(None, {self.input: batch})[0]
+                logits = run_onnx(self.session, {self.input: batch}, "unet", where=self.path)[0]
                 z = logits - logits.max(axis=1, keepdims=True)
                 e = np.exp(z)
                 return (e[:, 1] / e.sum(axis=1)).astype(np.float32)
@@ -288,7 +288,7 @@ class OnnxClassifier:
             proba = np.empty(h * w, np.float32)
             for start in range(0, h * w, PREDICT_CHUNK):  # bounded memory, as the native path
                 part = np.ascontiguousarray(x[start : start + PREDICT_CHUNK], dtype=np.float32)
-                out = self.session.run(None, {self.input: part})
+                out = run_onnx(self.session, {self.input: part}, "pixel", where=self.path)
                 probs = next(o for o in out if getattr(o, "ndim", 0) == 2)
                 proba[start : start + len(part)] = probs[:, 1]
             proba = proba.reshape(h, w)
@@ -365,6 +365,7 @@ def load_onnx(
         raise ModelFileError(
             f"{model_dir}: no {path.name}; run 'dyntarget export-onnx{flag}' first"
         )
+    check_onnx_file(path)  # size and graph (no Loop/Scan/If) before anything reads it whole
     tile = meta["config"].get("tile", 64)
     if kind == "unet" and (isinstance(tile, bool) or not isinstance(tile, int) or tile < 1):
         raise ModelFileError(f"{model_dir}: metadata config tile {tile!r} is not a tile size")

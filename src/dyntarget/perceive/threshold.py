@@ -125,7 +125,9 @@ class BandThreshold(Classifier):
 
     def _load_weights(self, directory: Path) -> None:
         try:
-            params = json.loads((directory / "params.json").read_text(encoding="utf-8"))
+            from dyntarget.io.safeopen import read_json
+
+            params = read_json(directory / "params.json", max_bytes=1 << 16)
             self.hot_threshold = float(params["hot_threshold"])
             self.ratio_threshold = float(params["ratio_threshold"])
         except (OSError, ValueError, KeyError, TypeError) as exc:

@@ -414,7 +414,7 @@ class Stitching:
         )
 
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles.
+        """Input pixels the network runs over for an image of ``shape``, in ``tile`` × ``tile`` tiles.
 
         Parameters
         ----------
@@ -704,7 +704,7 @@ class _UNetClassifier(Classifier):
         )
 
     def work_units(self, shape: tuple[int, int]) -> float:
-        """Input pixels the network runs over for an image of ``shape``, in ``tile``² tiles.
+        """Input pixels the network runs over for an image of ``shape``, in ``tile`` × ``tile`` tiles.
 
         Parameters
         ----------

@@ -488,3 +488,221 @@ def check_onnx_session(
 def _short_list(items: list) -> str:
     text = repr(items)
     return text if len(text) <= 200 else text[:197] + "..."
+
+
+MAX_ONNX_BYTES = 512 * 1024 * 1024
+"""Largest ``model.onnx`` loaded (512 MiB), checked before a byte of it is read."""
+
+MAX_ONNX_NODES = 200_000
+"""Most nodes in an ONNX graph (subgraphs included)."""
+
+ONNX_RUN_LIMIT_S = 300.0
+"""Longest one ONNX Runtime call may take (one chunk of pixels or one batch of tiles)
+before it is stopped and the model refused."""
+
+CONTROL_FLOW_OPS = ("Loop", "Scan", "If")
+"""ONNX operators refused: dyntarget's exports never hold them, and a ``Loop`` can run
+for 2**62 iterations."""
+
+
+def check_onnx_file(path: Any) -> int:
+    """Refuse an ONNX file before ONNX Runtime loads it: size, then its graph.
+
+    The file must be a regular file of at most :data:`MAX_ONNX_BYTES`; its graph may
+    hold at most :data:`MAX_ONNX_NODES` nodes and none of :data:`CONTROL_FLOW_OPS`
+    (parsed with ``onnx`` when it is installed; on the lean onboard install the
+    operator names are looked for in the protobuf's ``op_type`` fields).
+
+    Parameters
+    ----------
+    path : str or path
+        The ``model.onnx``.
+
+    Returns
+    -------
+    int
+        The file's size in bytes.
+
+    Raises
+    ------
+    ModelFileError
+        Too large, not a regular file, too many nodes, or a control-flow operator.
+
+    Examples
+    --------
+    >>> import os, tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "model.onnx"
+    >>> os.mkfifo(p)  # would block a reader forever
+    >>> check_onnx_file(p)
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: ...model.onnx: a FIFO (named pipe), not a regular file
+    """
+    from dyntarget.errors import DataFileError
+    from dyntarget.io.safeopen import read_bytes
+
+    try:
+        data = read_bytes(path, max_bytes=MAX_ONNX_BYTES)
+    except DataFileError as exc:
+        raise ModelFileError(str(exc)) from None
+    ops = _onnx_ops(data, path)
+    if len(ops) > MAX_ONNX_NODES:
+        raise _fail(path, f"the ONNX graph has {len(ops):,} nodes, more than {MAX_ONNX_NODES:,}")
+    for op in CONTROL_FLOW_OPS:
+        if op in ops:
+            raise _fail(
+                path,
+                f"the ONNX graph holds a {op} node; dyntarget's models never do "
+                "(refused: it could run without end)",
+            )
+    return len(data)
+
+
+def _onnx_ops(data: bytes, where: Any) -> list[str]:
+    """The ``op_type`` of every node, subgraphs and functions included."""
+    try:
+        import onnx
+    except ImportError:
+        return _scan_ops(data)
+    model = onnx.ModelProto()
+    try:
+        model.ParseFromString(data)
+    except Exception as exc:  # protobuf's DecodeError
+        raise _fail(where, f"not a readable ONNX model ({type(exc).__name__})") from None
+    ops: list[str] = []
+    graphs = [model.graph] + [f for f in model.functions]
+    while graphs:
+        g = graphs.pop()
+        for node in g.node:
+            ops.append(node.op_type)
+            if len(ops) > MAX_ONNX_NODES:
+                return ops
+            for a in node.attribute:
+                if a.HasField("g"):
+                    graphs.append(a.g)
+                graphs.extend(a.graphs)
+    return ops
+
+
+def _scan_ops(data: bytes) -> list[str]:
+    """Operator names found as ``op_type`` fields (tag 0x22) in the raw protobuf."""
+    found = []
+    for op in CONTROL_FLOW_OPS:
+        if b"\x22" + bytes([len(op)]) + op.encode() in data:
+            found.append(op)
+    return found
+
+
+def check_onnx_output(outputs: Any, kind: str, rows: int, where: Any = "model.onnx") -> None:
+    """Refuse an ONNX run's outputs unless they have one finite row per input row.
+
+    Parameters
+    ----------
+    outputs : list of numpy.ndarray
+        What ``session.run`` returned.
+    kind : {"pixel", "unet"}
+        ``pixel``: ``label (rows,)`` and ``probabilities (rows, 2)`` in 0..1;
+        ``unet``: ``logits (rows, 2, h, w)``.
+    rows : int
+        Rows (pixels or tiles) fed in.
+    where : str or path
+        Named in the error.
+
+    Raises
+    ------
+    ModelFileError
+        A row count other than ``rows`` (one row broadcast over every pixel), a wrong
+        shape, or NaN/infinite values.
+
+    Examples
+    --------
+    >>> check_onnx_output([np.zeros(3, np.int64), np.full((1, 2), 0.5, np.float32)], "pixel", 3)
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: model.onnx: ONNX output probabilities has shape (1, 2) for 3 input rows, expected (3, 2)
+    """
+    arrays = [np.asarray(o) for o in outputs]
+    if kind == "unet":
+        names, shapes = ["logits"], [(rows, 2)]
+    else:
+        names, shapes = ["label", "probabilities"], [(rows,), (rows, 2)]
+    if len(arrays) != len(names):
+        raise _fail(where, f"ONNX run returned {len(arrays)} outputs, expected {len(names)}")
+    for name, want, a in zip(names, shapes, arrays, strict=True):
+        if a.shape[: len(want)] != want or (kind != "unet" and a.ndim != len(want)):
+            shown = (*want, "h", "w") if kind == "unet" else want
+            raise _fail(
+                where,
+                f"ONNX output {name} has shape {a.shape} for {rows} input rows, "
+                f"expected {tuple(shown)}".replace("'", ""),
+            )
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            bad = int(a.size - np.count_nonzero(np.isfinite(a)))
+            raise _fail(where, f"ONNX output {name} holds {bad:,} NaN or infinite value(s)")
+    if kind != "unet":
+        p = arrays[1]
+        if p.size and (p.min() < -1e-4 or p.max() > 1 + 1e-4):
+            raise _fail(
+                where,
+                f"ONNX output probabilities outside 0..1 ({float(p.min()):.3g} .. {float(p.max()):.3g})",
+            )
+
+
+def run_onnx(
+    session: Any,
+    feeds: Mapping[str, np.ndarray],
+    kind: str,
+    *,
+    where: Any = "model.onnx",
+    limit_s: float | None = None,
+) -> list:
+    """``session.run`` stopped after ``limit_s`` seconds, its outputs checked (:func:`check_onnx_output`).
+
+    Parameters
+    ----------
+    session : onnxruntime.InferenceSession
+        The loaded graph.
+    feeds : mapping of str to numpy.ndarray
+        Its one input.
+    kind : {"pixel", "unet"}
+        Which outputs are expected.
+    where : str or path
+        Named in the error.
+    limit_s : float or None
+        Run-time limit (default :data:`ONNX_RUN_LIMIT_S`).
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The outputs.
+
+    Raises
+    ------
+    ModelFileError
+        The run took longer than the limit, failed, or returned bad outputs.
+    """
+    import threading
+
+    import onnxruntime as ort
+
+    limit = ONNX_RUN_LIMIT_S if limit_s is None else float(limit_s)
+    options = ort.RunOptions()
+    timer = threading.Timer(limit, lambda: setattr(options, "terminate", True))
+    timer.daemon = True
+    timer.start()
+    try:
+        outputs = session.run(None, dict(feeds), options)
+    except Exception as exc:  # onnxruntime's own error types
+        if options.terminate:
+            raise _fail(
+                where, f"the ONNX run took longer than {limit:g} s and was stopped"
+            ) from None
+        text = str(exc).strip().splitlines()
+        raise _fail(
+            where, f"the ONNX run failed ({text[0][:200] if text else type(exc).__name__})"
+        ) from None
+    finally:
+        timer.cancel()
+    rows = len(next(iter(feeds.values())))
+    check_onnx_output(outputs, kind, rows, where)
+    return outputs

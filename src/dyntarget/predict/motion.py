@@ -25,7 +25,7 @@ Method (documented in ``docs/onboard.md``, "Predictive targeting"):
    *detached* cloud moves as a whole (its upwind edge moves like the flow), an
    *attached* plume keeps its vent end (upwind edge still) while puffs move.
 6. Confidence in [0, 1]: the share of plume pixels that carry trackable texture
-   (saturating at 30 %), times the agreement of the votes (1 - spread/|median|),
+   (saturating at 30 %), times the agreement of the votes (1 - spread / abs(median)),
    times a count term (saturating at 200 votes). Below ``LOW_CONFIDENCE`` the
    flow is not trusted: the velocity falls back on the masks' centroid shift
    and ``Motion.method`` says so.

@@ -38,6 +38,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections import OrderedDict
@@ -49,7 +50,7 @@ import cv2
 import numpy as np
 from affine import Affine
 
-from dyntarget.errors import InvalidParameterError
+from dyntarget.errors import DataFileError, InvalidParameterError
 from dyntarget.scene import Scene
 from dyntarget.sequence import FrameSequence
 from dyntarget.synth.noise import fractal_noise
@@ -73,6 +74,53 @@ EPOCH = "2026-01-01T00:00:00Z"
 PAD = 8
 """Pixels rendered around a window and cropped, so neighbourhood operations
 (blur, gradients) give the same values whatever the window."""
+
+MAX_VENTS = 64
+"""Most vents in one world (a strip of ``synth --strip --plumes`` has one per plume)."""
+MAX_CLOUDS = 256
+"""Most drifting clouds in one world."""
+MAX_TILE = 2048
+"""Largest period of the ground's noise tiles, pixels (7 float32 tiles: 117 MB at 2048)."""
+MAX_SIZE = 8192
+"""Largest side of a world's own tile, pixels."""
+MAX_WINDOW_PIXELS = 1 << 23
+"""Most pixels rendered in one window (8.4 Mpx, e.g. 2048 x 4096). Measured: a 2048 x 2048
+window of a 4-vent strip renders in 2.8 s with a peak RSS of 706 MB (``docs/reliability.md``)."""
+MAX_WINDOW_SIDE = 1 << 16
+"""Longest side of a window, pixels."""
+MAX_FRAMES = 10_000
+"""Most frames of one synthetic sequence."""
+MAX_SECONDS = 86_400.0
+"""Longest time scale of a world (eruption age, fade times, periods): one day."""
+MAX_COORD_PX = 1e7
+"""Largest vent/cloud/window coordinate, pixels, in size."""
+MAX_RADIUS_M = 100_000.0
+"""Largest puff/cloud radius, metres (100 km)."""
+MIN_GSD, MAX_GSD = 0.01, 10_000.0
+"""Ground sampling distances accepted, metres per pixel."""
+
+
+def _number(
+    where: str, name: str, v: object, lo: float, hi: float, *, lo_open: bool = False
+) -> float:
+    """``v`` as a float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or a one-line refusal."""
+    ok = isinstance(v, int | float | np.integer | np.floating) and not isinstance(
+        v, bool | np.bool_
+    )
+    f = float(v) if ok else math.nan  # type: ignore[arg-type]
+    if ok and math.isfinite(f) and (f > lo if lo_open else f >= lo) and f <= hi:
+        return f
+    bound = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+    raise InvalidParameterError(f"{where}{name}: expected a number in {bound}, got {v!r}")
+
+
+def _integer(where: str, name: str, v: object, lo: int, hi: int) -> int:
+    if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
+        raise InvalidParameterError(
+            f"{where}{name}: expected an integer in [{lo}, {hi}], got {v!r}"
+        )
+    return int(v)
+
 
 Window = tuple[int, int, int, int]
 """``(col0, row0, width, height)`` on the world grid, integers."""
@@ -99,12 +147,8 @@ class Wind:
     from_deg: float
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.speed_mps) and 0.0 <= self.speed_mps <= 60.0):
-            raise InvalidParameterError(f"wind speed: expected 0..60 m/s, got {self.speed_mps!r}")
-        if not math.isfinite(self.from_deg):
-            raise InvalidParameterError(
-                f"wind direction: expected degrees from north, got {self.from_deg!r}"
-            )
+        _number("wind ", "speed", self.speed_mps, 0.0, 60.0)
+        _number("wind ", "direction", self.from_deg, -3600.0, 3600.0)
 
     def velocity_px(self, gsd: float) -> tuple[float, float]:
         """``(dx/dt, dy/dt)`` in pixels per second on a north-up grid of ``gsd`` m.
@@ -177,33 +221,27 @@ class VentSpec:
 
     def __post_init__(self) -> None:
         for name in ("x", "y"):
-            if not math.isfinite(getattr(self, name)):
-                raise InvalidParameterError(f"vent {name}: expected a finite pixel coordinate")
-        for name in (
-            "emission_optical_depth",
-            "source_sigma_m",
-            "fade_s",
-            "ash_fade_s",
-            "pulse_period_s",
+            _number("vent ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
+        _number(
+            "vent ", "emission_optical_depth", self.emission_optical_depth, 0.0, 100.0, lo_open=True
+        )
+        for name, lo, hi in (
+            ("source_sigma_m", 0.1, MAX_RADIUS_M),
+            ("fade_s", 0.1, MAX_SECONDS),
+            ("ash_fade_s", 0.1, MAX_SECONDS),
+            ("pulse_period_s", 0.1, MAX_SECONDS),
         ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"vent {name}: expected a positive number, got {v!r}")
-        for name in (
-            "eruption_age_s",
-            "diffusivity_m2s",
-            "turbulence",
-            "gustiness",
-            "meander",
-            "pulsation",
+            _number("vent ", name, getattr(self, name), lo, hi)
+        for name, hi in (
+            ("eruption_age_s", MAX_SECONDS),
+            ("diffusivity_m2s", 1e4),
+            ("turbulence", 10.0),
+            ("gustiness", 5.0),
+            ("meander", 5.0),
+            ("pulsation", 5.0),
+            ("ash_fraction", 1.0),
         ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise InvalidParameterError(f"vent {name}: expected a number >= 0, got {v!r}")
-        if not 0.0 <= self.ash_fraction <= 1.0:
-            raise InvalidParameterError(
-                f"vent ash_fraction: expected 0..1, got {self.ash_fraction!r}"
-            )
+            _number("vent ", name, getattr(self, name), 0.0, hi)
 
 
 @dataclass(frozen=True)
@@ -232,12 +270,15 @@ class CloudSpec:
     ash_fraction: float = 0.5
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.x) and math.isfinite(self.y)):
-            raise InvalidParameterError("cloud x, y: expected finite pixel coordinates")
-        for name in ("radius_m", "optical_depth"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"cloud {name}: expected a positive number, got {v!r}")
+        for name in ("x", "y"):
+            _number("cloud ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
+        _number("cloud ", "radius_m", self.radius_m, 1.0, MAX_RADIUS_M)
+        _number("cloud ", "optical_depth", self.optical_depth, 0.0, 100.0, lo_open=True)
+        _number("cloud ", "ash_fraction", self.ash_fraction, 0.0, 1.0)
+        if not isinstance(self.volcanic, bool):
+            raise InvalidParameterError(
+                f"cloud volcanic: expected true or false, got {self.volcanic!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -308,18 +349,15 @@ class WorldSpec:
     version: int = SPEC_VERSION
 
     def __post_init__(self) -> None:
-        if isinstance(self.size, bool) or not isinstance(self.size, int) or self.size < 16:
-            raise InvalidParameterError(f"size: expected an integer >= 16, got {self.size!r}")
-        if not (math.isfinite(self.gsd) and self.gsd > 0):
+        _integer("", "seed", self.seed, 0, 2**63 - 1)
+        _integer("", "size", self.size, 16, MAX_SIZE)
+        _number("", "gsd", self.gsd, MIN_GSD, MAX_GSD)
+        _integer("", "tile", self.tile, 64, MAX_TILE)
+        if self.tile & (self.tile - 1):
             raise InvalidParameterError(
-                f"gsd: expected a positive number of metres, got {self.gsd!r}"
+                f"tile: expected a power of two in [64, {MAX_TILE}], got {self.tile!r}"
             )
-        if not isinstance(self.tile, int) or self.tile < 64 or self.tile & (self.tile - 1):
-            raise InvalidParameterError(f"tile: expected a power of two >= 64, got {self.tile!r}")
-        if not (math.isfinite(self.label_optical_depth) and self.label_optical_depth > 0):
-            raise InvalidParameterError(
-                f"label_optical_depth: expected a positive number, got {self.label_optical_depth!r}"
-            )
+        _number("", "label_optical_depth", self.label_optical_depth, 0.0, 100.0, lo_open=True)
         for name in (
             "water_fraction",
             "lava_fraction",
@@ -328,14 +366,39 @@ class WorldSpec:
             "plume_texture",
         ):
             v = getattr(self, name)
-            if not (math.isfinite(v) and 0.0 <= v < 1.0):
+            _number("", name, v, 0.0, 1.0)
+            if v == 1.0:
                 raise InvalidParameterError(f"{name}: expected 0 <= value < 1, got {v!r}")
+        _number("", "sun_azimuth_deg", self.sun_azimuth_deg, -360.0, 720.0)
+        _number("", "sun_elevation_deg", self.sun_elevation_deg, 1.0, 90.0)
+        _number("", "noise_sigma", self.noise_sigma, 0.0, 1.0)
+        _number("", "origin_easting", self.origin_easting, -1e8, 1e8)
+        _number("", "origin_northing", self.origin_northing, -1e8, 1e8)
         if self.version != SPEC_VERSION:
             raise InvalidParameterError(
                 f"world spec version: expected {SPEC_VERSION}, got {self.version!r}"
             )
-        object.__setattr__(self, "vents", tuple(self.vents))
-        object.__setattr__(self, "clouds", tuple(self.clouds))
+        if not isinstance(self.id, str) or not self.id or len(self.id) > 200:
+            raise InvalidParameterError(
+                f"id: expected a name of 1 to 200 characters, got {self.id!r}"
+            )
+        if not isinstance(self.wind, Wind):
+            raise InvalidParameterError(f"wind: expected a Wind, got {type(self.wind).__name__}")
+        for name, items, kind, most in (
+            ("vents", self.vents, VentSpec, MAX_VENTS),
+            ("clouds", self.clouds, CloudSpec, MAX_CLOUDS),
+        ):
+            if isinstance(items, str | bytes | dict) or not hasattr(items, "__len__"):
+                raise InvalidParameterError(f"{name}: expected a list, got {type(items).__name__}")
+            if len(items) > most:
+                raise InvalidParameterError(
+                    f"{name}: {len(items)} of them, more than the {most} a world may have"
+                )
+            if not all(isinstance(v, kind) for v in items):
+                raise InvalidParameterError(f"{name}: expected {kind.__name__} entries")
+            object.__setattr__(self, name, tuple(items))
+        _check_crs(self.crs)
+        _check_epoch(self.epoch)
 
     def to_dict(self) -> dict[str, Any]:
         """The spec as nested plain dicts and lists (``dataclasses.asdict``).
@@ -386,6 +449,20 @@ class WorldSpec:
             raise InvalidParameterError(f"world spec: unknown field(s) {', '.join(unknown)}")
         try:
             d = dict(d)
+            for name, most in (("vents", MAX_VENTS), ("clouds", MAX_CLOUDS)):
+                items = d.get(name, ())
+                if not isinstance(items, list | tuple):
+                    raise InvalidParameterError(
+                        f"world spec: {name}: expected a list, got {type(items).__name__}"
+                    )
+                if len(items) > most:  # before building thousands of entries
+                    raise InvalidParameterError(
+                        f"world spec: {name}: {len(items)} of them, more than the {most} a world may have"
+                    )
+                if not all(isinstance(v, dict) for v in items):
+                    raise InvalidParameterError(f"world spec: {name}: expected a list of objects")
+            if not isinstance(d.get("wind"), dict):
+                raise InvalidParameterError("world spec: wind: expected an object")
             d["wind"] = Wind(**d["wind"])
             d["vents"] = tuple(VentSpec(**v) for v in d["vents"])
             d["clouds"] = tuple(CloudSpec(**c) for c in d.get("clouds", ()))
@@ -412,10 +489,12 @@ class WorldSpec:
         dyntarget.errors.InvalidParameterError
             For text that is not JSON or not a spec (:meth:`from_dict`).
         """
+        from dyntarget.io.safeopen import loads_json
+
         try:
-            d = json.loads(text)
-        except ValueError as exc:
-            raise InvalidParameterError(f"world spec: not JSON ({exc})") from None
+            d = loads_json(text, where="world spec")
+        except DataFileError as exc:
+            raise InvalidParameterError(str(exc)) from None
         return cls.from_dict(d)
 
 
@@ -461,6 +540,8 @@ def sample_world(
     """
     if isinstance(size, bool) or not isinstance(size, int) or size < 16:
         raise InvalidParameterError(f"size: expected an integer >= 16, got {size!r}")
+    _integer("", "size", size, 16, MAX_SIZE)
+    _integer("", "seed", seed, 0, 2**63 - 1)
     rng = np.random.default_rng([int(seed), int(index), 0xD1])
     u = rng.uniform
     speed = float(u(0.0, 16.0)) if wind_mps is None else float(wind_mps)
@@ -522,7 +603,7 @@ def sample_world(
                 ash_fraction=0.0,
             )
         )
-    tile = 1 << max(9, (size - 1).bit_length())
+    tile = min(1 << max(9, (size - 1).bit_length()), MAX_TILE)
     tile_m = size * gsd * 1.5
     return WorldSpec(
         seed=int(seed),
@@ -604,9 +685,49 @@ def check_window(window: object, size: int) -> Window:
             f"window: expected (col0, row0, width, height) integers, got {window!r}"
         )
     c0, r0, w, h = (int(v) for v in vals)
-    if w < 1 or h < 1 or w * h > 16384 * 16384:
+    if w < 1 or h < 1:
         raise InvalidParameterError(f"window: expected a positive size, got {w} x {h}")
+    if max(w, h) > MAX_WINDOW_SIDE or w * h > MAX_WINDOW_PIXELS:
+        raise InvalidParameterError(
+            f"window: {w} x {h} px, more than the {MAX_WINDOW_PIXELS:,} px "
+            f"(sides up to {MAX_WINDOW_SIDE}) rendered at once"
+        )
+    if max(abs(c0), abs(r0)) > MAX_COORD_PX:
+        raise InvalidParameterError(
+            f"window: origin ({c0}, {r0}) farther than {MAX_COORD_PX:g} px from the world's"
+        )
     return (c0, r0, w, h)
+
+
+def _check_crs(crs: object) -> None:
+    if not isinstance(crs, str) or not crs or len(crs) > 10_000:
+        raise InvalidParameterError(
+            f"crs: expected a CRS name such as 'EPSG:32605', got {crs!r:.80}"
+        )
+    _crs_known(crs)
+
+
+@functools.lru_cache(maxsize=64)
+def _crs_known(crs: str) -> None:
+    import rasterio.crs
+    import rasterio.errors
+
+    try:
+        rasterio.crs.CRS.from_user_input(crs)
+    except (rasterio.errors.CRSError, ValueError, TypeError) as exc:
+        raise InvalidParameterError(
+            f"crs: {crs!r:.80} is not a known CRS ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+        ) from None
+
+
+def _check_epoch(epoch: object) -> None:
+    from dyntarget.sequence import parse_time
+
+    if not isinstance(epoch, str):
+        raise InvalidParameterError(f"epoch: expected an ISO-8601 UTC time, got {epoch!r:.80}")
+    dt = parse_time(epoch)
+    if not 1900 <= dt.year <= 2200:
+        raise InvalidParameterError(f"epoch: expected a year in 1900..2200, got {epoch!r}")
 
 
 def _check_time(t: object) -> float:
@@ -1097,7 +1218,7 @@ def world_sequence(
     window: Window | None = None,
     truth_step_s: float = 1.0,
 ) -> FrameSequence:
-    """Look-ahead frames at ``t = 0, S, 2S, ...`` with the world as truth provider.
+    """Look-ahead frames at ``t = 0, S, 2S`` and on, with the world as truth provider.
 
     Parameters
     ----------
@@ -1124,6 +1245,8 @@ def world_sequence(
     """
     if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 1:
         raise InvalidParameterError(f"frames: expected an integer >= 1, got {frames!r}")
+    if frames > MAX_FRAMES:
+        raise InvalidParameterError(f"frames: {frames}, more than the {MAX_FRAMES} of one sequence")
     if not (isinstance(interval_s, int | float) and math.isfinite(interval_s) and interval_s > 0):
         raise InvalidParameterError(f"frame interval: expected seconds > 0, got {interval_s!r}")
     window = check_window(window, world.spec.size)
@@ -1164,12 +1287,10 @@ def truth_provider(meta: dict[str, Any], *, step_s: float = 1.0) -> TruthCache |
     spec = meta.get("world") if isinstance(meta, dict) else None
     if spec is None:
         return None
+    spec = WorldSpec.from_dict(spec)
     window = meta.get("window")
-    return TruthCache(
-        World(WorldSpec.from_dict(spec)),
-        step_s=step_s,
-        window=tuple(int(v) for v in window) if window is not None else None,
-    )
+    window = None if window is None else check_window(window, spec.size)
+    return TruthCache(World(spec), step_s=step_s, window=window)
 
 
 def generate_sequences(
@@ -1183,7 +1304,7 @@ def generate_sequences(
     wind_mps: float | None = None,
     wind_from_deg: float | None = None,
 ) -> Iterator[FrameSequence]:
-    """Yield sequences ``0 .. n-1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
+    """Yield sequences ``0`` to ``n - 1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
 
     Parameters
     ----------
@@ -1272,6 +1393,11 @@ def sample_strip(
     """
     if isinstance(plumes, bool) or not isinstance(plumes, int) or plumes < 1:
         raise InvalidParameterError(f"plumes: expected an integer >= 1, got {plumes!r}")
+    if plumes > MAX_VENTS:
+        raise InvalidParameterError(
+            f"plumes: {plumes}, more than the {MAX_VENTS} vents a world may have"
+        )
+    check_window((0, 0, width, length), width)
     if isinstance(length, bool) or not isinstance(length, int) or length < width:
         raise InvalidParameterError(
             f"length: expected an integer >= width ({width}), got {length!r}"

@@ -420,7 +420,7 @@ def generate_scene(
 
 
 def generate_scenes(n: int, *, size: int = 512, seed: int = 0, gsd: float = 8.0):
-    """Yield ``(scene, params)`` for scenes ``0 .. n-1`` of the set with ``seed``.
+    """Yield ``(scene, params)`` for scenes ``0`` to ``n - 1`` of the set with ``seed``.
 
     Parameters
     ----------

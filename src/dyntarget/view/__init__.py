@@ -14,7 +14,6 @@ imported inside the functions.
 from dyntarget.view.html import (
     PassFrame,
     pass_view_html,
-    pointing_truth,
     require_plotly,
     scene_view_html,
     write_pass_view,
@@ -24,7 +23,6 @@ from dyntarget.view.html import (
 __all__ = [
     "PassFrame",
     "pass_view_html",
-    "pointing_truth",
     "require_plotly",
     "scene_view_html",
     "write_pass_view",
