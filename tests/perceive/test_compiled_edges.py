@@ -118,7 +118,7 @@ def test_a_compiler_that_refuses_native_code_gets_the_portable_build(tmp_path, m
     )
     monkeypatch.setenv("CC", cc)
     lib = build_library(tmp_path / "cache")
-    assert compiled._load(lib).dt_forest_avx512() == 0  # the portable build
+    assert compiled._load(lib).dt_forest_isa() in (0, 1, 2)  # the baseline build
     monkeypatch.setattr(compiled, "compiler", lambda: None)  # and then it serves alone
     assert build_library(tmp_path / "cache") == lib
 

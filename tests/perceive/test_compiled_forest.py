@@ -391,3 +391,17 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     args = ["plan", str(scene), "--model", str(model_dir), "--onnx", "--planner", "track-center"]
     assert main([*args, "--out", str(tmp_path / "t.csv")]) == 2
     assert not (tmp_path / "t.csv").exists()
+
+
+@pytest.mark.parametrize("isa", list(compiled.ISA_FLAGS))
+def test_every_forced_path_equals_scikit_learn_bit_for_bit(
+    project_forest, tiny_scenes, isa, tmp_path
+):
+    """Each code path of the kernel, forced by name; bit-identical where the CPU runs it."""
+    if not compiled.cpu_runs(isa):
+        pytest.skip(f"this CPU does not run the {isa} path")
+    est = project_forest.estimator
+    x = np.concatenate([s.image.reshape(4, -1).T for s in tiny_scenes]).astype(np.float32)
+    predict = compile_forest(est, directory=tmp_path, isa=isa)
+    assert predict.isa == ("sse2" if isa == "sse2" else isa)
+    np.testing.assert_array_equal(predict(x), _reference(est, x))

@@ -1,8 +1,10 @@
 /* dyntarget's random-forest kernel: predict_proba of a packed scikit-learn forest.
  *
- * Built at run time by dyntarget.perceive.compiled (cc -O2 -march=native), which also
- * packs the forest; the layout is described there. In short, per tree, nodes are in
- * breadth-first order with the two children of a node next to each other, so
+ * Built ahead of time by dyntarget.perceive.forest_build (at 'dyntarget export-onnx' /
+ * 'train' / 'build-forest', for named targets), never on the flight computer; the forest
+ * is packed by dyntarget.perceive.compiled, where the layout is described. In short, per
+ * tree, nodes are in breadth-first order with the two children of a node next to each
+ * other, so
  *
  *     next = child(k) + (x[feature(k)] > threshold(k))
  *
@@ -11,38 +13,53 @@
  * A leaf points to itself with threshold +inf, so walking past it changes nothing.
  * value[k] is the leaf's plume fraction (tree_.value[k, 0, 1]); each pixel's fractions
  * are summed in float64 in tree order and divided by the number of trees, exactly as
- * scikit-learn's ForestClassifier.predict_proba does, so the result is bit-identical.
+ * scikit-learn's ForestClassifier.predict_proba does, so the result is bit-identical on
+ * every path.
  *
- * With AVX-512, 16 pixels move down a tree at once. The first TOP levels read the
- * tree's first 32 nodes from registers (breadth-first, the nodes of depth <= 4 are
- * among them); deeper levels load each lane's node with scalar loads (on the CPUs
- * measured, faster than the gather instruction), and a group of 16 pixels stops as
- * soon as all of them sit on leaves (half the pixels of a typical scene do by depth 6).
- * Without AVX-512 the same level-by-level walk runs in plain C (the compiler may
- * vectorise it).
+ * One source, one path per instruction set, chosen by the compiler's target macros:
+ *
+ *   avx512   (-march=x86-64-v4)  16 pixels per step; the first 5 levels from a 32-node
+ *                                register table (vpermt2ps), deeper levels scalar loads;
+ *   avx2     (-march=x86-64-v3)  8 pixels per step; the first 4 levels from a 16-node
+ *                                register table (two vpermps and a blend);
+ *   neon     (aarch64) / sse2 (x86-64 baseline): 4 pixels per step with GCC vector
+ *                                extensions (the same C for both), scalar node loads;
+ *   portable (-DDT_FOREST_SCALAR) plain C, one pixel at a time.
+ *
+ * Every path moves a group of pixels one level at a time and stops the group as soon as
+ * all its pixels sit on leaves (half the pixels of a typical scene do by depth 6).
  */
 #include <stdint.h>
 #include <string.h>
-#if defined(__AVX512F__)
+#if !defined(DT_FOREST_SCALAR) && (defined(__AVX512F__) || defined(__AVX2__))
 #include <immintrin.h>
 #endif
 
 #define BLOCK 1024 /* pixels per block: their features, nodes and sums stay in cache */
 #define MAXF 8     /* features per pixel at most */
-#define TOP 5      /* levels read from the 32-node register table */
 
-int dt_forest_abi(void) { return 1; }
-
-int dt_forest_avx512(void)
-{
-#if defined(__AVX512F__)
-    return 1;
+#if defined(DT_FOREST_SCALAR)
+#define DT_ISA 0
+#elif defined(__AVX512F__)
+#define DT_ISA 4
+#elif defined(__AVX2__)
+#define DT_ISA 3
+#elif defined(__ARM_NEON) || defined(__aarch64__)
+#define DT_ISA 2
+#elif defined(__SSE2__)
+#define DT_ISA 1
 #else
-    return 0;
+#define DT_ISA 0
 #endif
-}
 
-#if defined(__AVX512F__)
+/* 2: the ABI of dt_forest_predict below (1 had dt_forest_avx512 instead of dt_forest_isa) */
+int dt_forest_abi(void) { return 2; }
+
+/* 0 portable, 1 sse2, 2 neon, 3 avx2, 4 avx512: the path this build runs */
+int dt_forest_isa(void) { return DT_ISA; }
+
+#if DT_ISA == 4
+#define TOP 5 /* levels read from the 32-node register table */
 /* One level for 16 pixels: their nodes' thresholds and codes in, their next nodes out. */
 static inline __m512i step(__m512 th, __m512i c, float xs[][BLOCK], int g, int nfeat,
                            int fshift)
@@ -90,6 +107,104 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
                                       fshift);
             _mm512_store_si512(idx + g, next);
             if (_mm512_cmpneq_epi32_mask(next, k)) active[keep++] = g; /* not all on leaves */
+        }
+        na = keep;
+    }
+}
+#elif DT_ISA == 3
+#define TOP 4 /* levels read from the 16-node register table */
+/* One level for 8 pixels: their nodes' thresholds and codes in, their next nodes out. */
+static inline __m256i step(__m256 th, __m256i c, float xs[][BLOCK], int g, int nfeat,
+                           int fshift)
+{
+    const __m256i f = _mm256_and_si256(c, _mm256_set1_epi32((1 << fshift) - 1));
+    __m256 v = _mm256_load_ps(xs[0] + g);
+    for (int j = 1; j < nfeat; j++)
+        v = _mm256_blendv_ps(v, _mm256_load_ps(xs[j] + g),
+                             _mm256_castsi256_ps(_mm256_cmpeq_epi32(f, _mm256_set1_epi32(j))));
+    const __m256i right = _mm256_castps_si256(_mm256_cmp_ps(v, th, _CMP_GT_OQ)); /* -1 or 0 */
+    return _mm256_sub_epi32(_mm256_srai_epi32(c, fshift), right);
+}
+
+static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int fshift,
+                 int depth, const int64_t *node, const float *thr, const int32_t *code)
+{
+    const __m256i base = _mm256_set1_epi32(root), seven = _mm256_set1_epi32(7);
+    const __m256 t0 = _mm256_loadu_ps(thr + root), t1 = _mm256_loadu_ps(thr + root + 8);
+    const __m256i c0 = _mm256_loadu_si256((const __m256i *)(code + root));
+    const __m256i c1 = _mm256_loadu_si256((const __m256i *)(code + root + 8));
+    const int top = depth < TOP ? depth : TOP;
+    for (int d = 0; d < top; d++) /* breadth-first, the nodes of depth < TOP are the first 15 */
+        for (int g = 0; g < BLOCK; g += 8) {
+            const __m256i rel = _mm256_sub_epi32(_mm256_load_si256((const __m256i *)(idx + g)), base);
+            const __m256i high = _mm256_cmpgt_epi32(rel, seven);
+            const __m256 th = _mm256_blendv_ps(_mm256_permutevar8x32_ps(t0, rel),
+                                               _mm256_permutevar8x32_ps(t1, rel),
+                                               _mm256_castsi256_ps(high));
+            const __m256i c = _mm256_blendv_epi8(_mm256_permutevar8x32_epi32(c0, rel),
+                                                 _mm256_permutevar8x32_epi32(c1, rel), high);
+            _mm256_store_si256((__m256i *)(idx + g), step(th, c, xs, g, nfeat, fshift));
+        }
+    const __m256i split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+    int active[BLOCK / 8], na = BLOCK / 8;
+    for (int q = 0; q < na; q++) active[q] = 8 * q;
+    for (int d = top; d < depth && na > 0; d++) {
+        int keep = 0;
+        for (int a = 0; a < na; a++) {
+            const int g = active[a];
+            int64_t w[8] __attribute__((aligned(32)));
+            for (int i = 0; i < 8; i++) w[i] = node[idx[g + i]]; /* scalar loads */
+            /* (t0 c0 t1 c1 ...) -> (t0 t1 t2 t3 c0 c1 c2 c3) per half, then the halves joined */
+            const __m256i lo = _mm256_permutevar8x32_epi32(_mm256_load_si256((const __m256i *)w), split);
+            const __m256i hi = _mm256_permutevar8x32_epi32(_mm256_load_si256((const __m256i *)(w + 4)), split);
+            const __m256i th = _mm256_permute2x128_si256(lo, hi, 0x20);
+            const __m256i c = _mm256_permute2x128_si256(lo, hi, 0x31);
+            const __m256i k = _mm256_load_si256((const __m256i *)(idx + g));
+            const __m256i next = step(_mm256_castsi256_ps(th), c, xs, g, nfeat, fshift);
+            _mm256_store_si256((__m256i *)(idx + g), next);
+            if (_mm256_movemask_epi8(_mm256_cmpeq_epi32(next, k)) != -1) active[keep++] = g;
+        }
+        na = keep;
+    }
+}
+#elif DT_ISA == 1 || DT_ISA == 2
+/* GCC / Clang vector extensions: NEON on aarch64, SSE2 on x86-64, the same C. */
+typedef float vf4 __attribute__((vector_size(16)));
+typedef int32_t vi4 __attribute__((vector_size(16)));
+
+static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int fshift,
+                 int depth, const int64_t *node, const float *thr, const int32_t *code)
+{
+    (void)root, (void)thr, (void)code;
+    const vi4 fmask = {(1 << fshift) - 1, (1 << fshift) - 1, (1 << fshift) - 1, (1 << fshift) - 1};
+    int active[BLOCK / 4], na = BLOCK / 4;
+    for (int q = 0; q < na; q++) active[q] = 4 * q;
+    for (int d = 0; d < depth && na > 0; d++) {
+        int keep = 0;
+        for (int a = 0; a < na; a++) {
+            const int g = active[a];
+            vi4 k, c, tb;
+            memcpy(&k, idx + g, sizeof k);
+            for (int i = 0; i < 4; i++) { /* scalar loads of each lane's node */
+                const int64_t w = node[k[i]];
+                tb[i] = (int32_t)(uint32_t)(uint64_t)w;
+                c[i] = (int32_t)(w >> 32);
+            }
+            const vi4 f = c & fmask;
+            vf4 v;
+            memcpy(&v, xs[0] + g, sizeof v);
+            for (int j = 1; j < nfeat; j++) {
+                vf4 xj;
+                memcpy(&xj, xs[j] + g, sizeof xj);
+                const vi4 m = f == (vi4){j, j, j, j};
+                v = (vf4)(((vi4)v & ~m) | ((vi4)xj & m));
+            }
+            vf4 th;
+            memcpy(&th, &tb, sizeof th);
+            const vi4 next = (c >> fshift) - (vi4)(v > th); /* a true lane compares as -1 */
+            memcpy(idx + g, &next, sizeof next);
+            const vi4 moved = next != k;
+            if (moved[0] | moved[1] | moved[2] | moved[3]) active[keep++] = g;
         }
         na = keep;
     }

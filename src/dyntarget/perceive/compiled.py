@@ -69,6 +69,50 @@ stays a positive int32)."""
 FLAGS = ("-O2", "-march=native", "-std=c11", "-shared", "-fPIC")
 """Compiler flags of the kernel; without ``-march=native`` when the compiler refuses it."""
 
+ISAS = ("portable", "sse2", "neon", "avx2", "avx512")
+"""The kernel's code paths, by the number its ``dt_forest_isa()`` returns (``_forest.c``)."""
+
+FAST_ISAS = ("avx2", "avx512")
+"""Paths measured faster than scikit-learn (docs/performance.md); ``"auto"`` runs these."""
+
+ISA_ENV = "DYNTARGET_FOREST_ISA"
+"""Environment variable forcing the kernel's path: ``avx512``, ``avx2``, ``sse2``,
+``neon``, ``portable`` or ``off`` (no kernel: scikit-learn / ONNX Runtime); unset or
+``auto``: the compiler's ``-march=native``."""
+
+ISA_FLAGS = {
+    "avx512": ("-march=x86-64-v4",),
+    "avx2": ("-march=x86-64-v3",),
+    "sse2": ("-march=x86-64",),
+    "neon": ("-march=armv8-a",),
+    "portable": ("-DDT_FOREST_SCALAR",),
+}
+"""Compiler flags that select each forced path (they replace ``-march=native``)."""
+
+
+def forced_isa() -> str | None:
+    """The path :data:`ISA_ENV` forces (``None``: not forced).
+
+    Returns
+    -------
+    str or None
+        One of :data:`ISA_FLAGS` or ``"off"``.
+
+    Examples
+    --------
+    >>> import os
+    >>> forced_isa() if ISA_ENV not in os.environ else None
+    """
+    value = os.environ.get(ISA_ENV, "").strip().lower()
+    if value in ("", "auto"):
+        return None
+    if value != "off" and value not in ISA_FLAGS:
+        raise InvalidParameterError(
+            f"{ISA_ENV}={value!r}: expected auto, off or one of {', '.join(ISA_FLAGS)}"
+        )
+    return value
+
+
 _LOCK = threading.Lock()
 _LOADED: dict[str, ctypes.CDLL] = {}
 
@@ -417,6 +461,41 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
     )
 
 
+_NEEDS = {
+    "avx512": ("avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl", "avx2", "fma", "bmi2"),
+    "avx2": ("avx2", "fma", "bmi1", "bmi2", "f16c", "movbe", "abm"),
+}
+
+
+def cpu_runs(isa: str) -> bool:
+    """Whether this CPU runs the kernel's path ``isa`` (a key of :data:`ISA_FLAGS`).
+
+    Parameters
+    ----------
+    isa : str
+        The path.
+
+    Returns
+    -------
+    bool
+        From the machine's architecture and ``/proc/cpuinfo``'s flags.
+
+    Examples
+    --------
+    >>> cpu_runs("portable")
+    True
+    """
+    machine = platform.machine().lower()
+    if isa == "portable":
+        return True
+    if isa == "neon":
+        return machine in ("aarch64", "arm64")
+    if machine not in ("x86_64", "amd64"):
+        return False
+    flags = set(_cpu().replace(":", " ").split())
+    return all(f in flags for f in _NEEDS.get(isa, ()))
+
+
 def _cpu() -> str:
     """The CPU's model and feature flags (part of the cache key: ``-march=native``)."""
     try:
@@ -428,7 +507,10 @@ def _cpu() -> str:
 
 
 def build_library(
-    directory: str | os.PathLike[str] | None = None, *, portable: bool = False
+    directory: str | os.PathLike[str] | None = None,
+    *,
+    portable: bool = False,
+    isa: str | None = None,
 ) -> Path:
     """Compile the kernel for this machine (once; later calls find it in the cache).
 
@@ -437,7 +519,9 @@ def build_library(
     directory : path, optional
         Cache directory (default :func:`cache_dir`).
     portable : bool
-        Compile without ``-march=native`` (no AVX-512: the portable loop; for tests).
+        Compile without ``-march=native`` (the baseline of the machine: SSE2 or NEON).
+    isa : str, optional
+        Force a path (a key of :data:`ISA_FLAGS`); default :func:`forced_isa`, else native.
 
     Returns
     -------
@@ -451,7 +535,13 @@ def build_library(
     """
     source = files("dyntarget.perceive").joinpath("_forest.c").read_bytes()
     where = Path(directory) if directory is not None else cache_dir()
-    first = [f for f in FLAGS if f != "-march=native"] if portable else list(FLAGS)
+    isa = isa or forced_isa()
+    if isa == "off":
+        raise MissingExtraError(f"the forest kernel is off ({ISA_ENV}=off)")
+    first = [f for f in FLAGS if f != "-march=native"] if portable or isa else list(FLAGS)
+    if isa:
+        first = [*first, *ISA_FLAGS[isa]]
+        portable = True  # a forced path has no fallback build
     builds = []  # (flags, library), the preferred first; without -march=native as a fallback
     for flags in (first, [f for f in first if f != "-march=native"])[: 2 if not portable else 1]:
         key = b"\0".join([source, " ".join(flags).encode(), _cpu().encode()])
@@ -492,13 +582,18 @@ def _load(lib: Path) -> ctypes.CDLL:
             dll.dt_forest_predict.argtypes = [ptr, i64, i32, i32, i32, ptr, ptr, ptr, ptr, ptr]
             dll.dt_forest_predict.argtypes += [i32, ptr]
             dll.dt_forest_predict.restype = ctypes.c_int
-            dll.dt_forest_avx512.restype = ctypes.c_int
+            if dll.dt_forest_abi() != 2:
+                raise MissingExtraError(f"{lib}: a forest kernel of another ABI")
             _LOADED[str(lib)] = dll
         return _LOADED[str(lib)]
 
 
 def compile_forest(
-    estimator, *, directory: str | os.PathLike[str] | None = None, portable: bool = False
+    estimator,
+    *,
+    directory: str | os.PathLike[str] | None = None,
+    portable: bool = False,
+    isa: str | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
     """The predictor of a fitted two-class ``RandomForestClassifier`` on the kernel.
 
@@ -510,6 +605,8 @@ def compile_forest(
         Cache directory of the kernel (default :func:`cache_dir`).
     portable : bool
         Use the kernel built without ``-march=native`` (see :func:`build_library`).
+    isa : str, optional
+        Force a code path (a key of :data:`ISA_FLAGS`; default :func:`forced_isa`).
 
     Returns
     -------
@@ -517,7 +614,8 @@ def compile_forest(
         ``(n, features) float32 -> (n,) float32`` plume probability, bit-identical to
         ``estimator.predict_proba(x)[:, 1].astype(numpy.float32)``; single-threaded and
         free of the GIL (the pixel classifiers' chunk pool runs chunks in parallel). Its
-        attribute ``vectorised`` says whether the kernel was built with AVX-512.
+        attribute ``isa`` names the kernel's code path (:data:`ISAS`) and ``vectorised``
+        says whether it is one of :data:`FAST_ISAS` (AVX2 or AVX-512).
 
     Examples
     --------
@@ -528,13 +626,13 @@ def compile_forest(
     >>> bool((predict(x) == est.predict_proba(x)[:, 1].astype(np.float32)).all())
     True
     """
-    return forest_predictor(pack_forest(estimator), directory=directory, portable=portable)
+    return forest_predictor(pack_forest(estimator), directory=directory, portable=portable, isa=isa)
 
 
 def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] | None:
     """The kernel's predictor where it is the faster path, else ``None``.
 
-    That is where the kernel builds (or is cached) with AVX-512; without a compiler and
+    That is where the kernel builds (or is cached) with AVX2 or AVX-512; without a compiler and
     cache, or on another CPU (whose portable build is not faster than scikit-learn or
     ONNX Runtime), ``None`` says to use those. The policy of ``RandomForest``'s ``"auto"``
     backend and of a forest's ONNX twin.
@@ -549,6 +647,11 @@ def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] |
     callable or None
         As :func:`forest_predictor`'s, or ``None``.
     """
+    forced = forced_isa()
+    if forced == "off":
+        return None
+    if forced is not None:  # the user asked for this path: no silent fallback
+        return forest_predictor(packed, isa=forced)
     try:
         predictor = forest_predictor(packed)
     except (MissingExtraError, OSError):  # no compiler, or an unwritable cache
@@ -561,6 +664,7 @@ def forest_predictor(
     *,
     directory: str | os.PathLike[str] | None = None,
     portable: bool = False,
+    isa: str | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
     """The kernel's predictor for a packed forest (:func:`pack_forest` or :func:`load_forest`).
 
@@ -572,13 +676,18 @@ def forest_predictor(
         Cache directory of the kernel (default :func:`cache_dir`).
     portable : bool
         Use the kernel built without ``-march=native``.
+    isa : str, optional
+        Force a code path (a key of :data:`ISA_FLAGS`; default :func:`forced_isa`).
 
     Returns
     -------
     callable
         As :func:`compile_forest`'s.
     """
-    dll = _load(build_library(directory, portable=portable))
+    isa = isa or forced_isa()
+    if isa not in (None, "off") and not cpu_runs(isa):
+        raise MissingExtraError(f"the forest kernel's {isa} path does not run on this CPU")
+    dll = _load(build_library(directory, portable=portable, isa=isa))
 
     def predict(part: np.ndarray) -> np.ndarray:
         x = np.ascontiguousarray(part, dtype=np.float32)
@@ -599,5 +708,7 @@ def forest_predictor(
             raise InvalidParameterError(f"the forest kernel refused the forest (code {rc})")
         return out.astype(np.float32)
 
-    predict.vectorised = bool(dll.dt_forest_avx512())  # type: ignore[attr-defined]
+    isa = ISAS[dll.dt_forest_isa()]
+    predict.isa = isa  # type: ignore[attr-defined]
+    predict.vectorised = isa in FAST_ISAS  # type: ignore[attr-defined]
     return predict
