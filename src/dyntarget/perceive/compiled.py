@@ -36,7 +36,9 @@ import os
 import platform
 import shlex
 import shutil
+import stat
 import subprocess
+import sys
 import tempfile
 import threading
 from collections.abc import Callable
@@ -506,6 +508,70 @@ def _cpu() -> str:
         return f"{platform.machine()} {platform.processor()}"
 
 
+_SAID: set[str] = set()
+
+
+def _say_once(line: str) -> None:
+    """Print ``line`` on stderr once per process (a fallback the user should know about)."""
+    with _LOCK:
+        if line not in _SAID:
+            _SAID.add(line)
+            print(line, file=sys.stderr)
+
+
+def _digest_path(lib: Path) -> Path:
+    return lib.with_name(lib.name + ".sha256")
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _private(path: Path) -> str | None:
+    """Why ``path`` is not ours alone (``None`` when it is): owner, mode, kind."""
+    try:
+        st = os.lstat(path)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror})"
+    if stat.S_ISLNK(st.st_mode):
+        return "is a symbolic link"
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return f"is owned by another user (uid {st.st_uid})"
+    if st.st_mode & 0o022:
+        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def _check_private(where: Path) -> None:
+    why = _private(where)
+    if why is None and not where.is_dir():
+        why = "is not a folder"
+    if why is not None:
+        raise MissingExtraError(f"the forest-kernel cache {where} {why}: not used")
+
+
+def _trusted(lib: Path) -> bool:
+    """Whether ``lib`` is a kernel this user's dyntarget built: ours alone, and its hash recorded.
+
+    A library that is there but fails a check is never loaded (it is rebuilt where a
+    compiler is, else the kernel is not used).
+    """
+    if not os.path.lexists(lib):
+        return False
+    digest = _digest_path(lib)
+    if _private(lib) is not None or not stat.S_ISREG(os.lstat(lib).st_mode):
+        return False
+    if _private(digest) is not None or not stat.S_ISREG(os.lstat(digest).st_mode):
+        return False
+    if os.lstat(digest).st_size > 128:
+        return False
+    return digest.read_text(errors="replace").strip() == _sha256(lib)
+
+
 def build_library(
     directory: str | os.PathLike[str] | None = None,
     *,
@@ -547,15 +613,18 @@ def build_library(
         key = b"\0".join([source, " ".join(flags).encode(), _cpu().encode()])
         builds.append((flags, where / f"forest-kernel-{hashlib.sha256(key).hexdigest()[:24]}.so"))
     cc = compiler()
+    if where.exists() or os.path.lexists(where):
+        _check_private(where)  # nothing is loaded from, or built into, a folder others can write
     for flags, lib in builds:  # a cached build serves without a compiler (e.g. shipped)
-        if lib.is_file() and (cc is None or flags is builds[0][0]):
+        if (cc is None or flags is builds[0][0]) and _trusted(lib):
             return lib
     if cc is None:
         raise MissingExtraError("the compiled forest needs a C compiler (cc or gcc) on the PATH")
     for flags, lib in builds:
-        if lib.is_file():
+        if _trusted(lib):
             return lib
-        where.mkdir(parents=True, exist_ok=True)
+        where.mkdir(mode=0o700, parents=True, exist_ok=True)
+        _check_private(where)
         with tempfile.TemporaryDirectory(dir=where) as tmp:
             src, part = Path(tmp) / "_forest.c", Path(tmp) / lib.name
             src.write_bytes(source)
@@ -568,7 +637,12 @@ def build_library(
             except (OSError, subprocess.SubprocessError) as exc:
                 raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
             if done.returncode == 0:
+                os.chmod(part, 0o755)
+                digest = Path(tmp) / "digest"
+                digest.write_text(_sha256(part) + "\n")
+                os.chmod(digest, 0o644)
                 os.replace(part, lib)  # atomic: a reader never sees half a library
+                os.replace(digest, _digest_path(lib))  # the hash of what we built
                 return lib
         error = done.stderr.decode(errors="replace").strip().splitlines()
     raise MissingExtraError(f"the forest kernel does not compile with {cc}: {error[-1:]}")
@@ -579,10 +653,13 @@ def _load(lib: Path) -> ctypes.CDLL:
         if str(lib) not in _LOADED:
             dll = ctypes.CDLL(str(lib))
             i32, i64, ptr = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
-            dll.dt_forest_predict.argtypes = [ptr, i64, i32, i32, i32, ptr, ptr, ptr, ptr, ptr]
-            dll.dt_forest_predict.argtypes += [i32, ptr]
-            dll.dt_forest_predict.restype = ctypes.c_int
-            if dll.dt_forest_abi() != 2:
+            try:
+                predict, abi = dll.dt_forest_predict, dll.dt_forest_abi
+            except AttributeError:
+                raise MissingExtraError(f"{lib}: not a forest kernel (symbols missing)") from None
+            predict.argtypes = [ptr, i64, i32, i32, i32, ptr, ptr, ptr, ptr, ptr, i32, ptr]
+            predict.restype = ctypes.c_int
+            if abi() != 2:
                 raise MissingExtraError(f"{lib}: a forest kernel of another ABI")
             _LOADED[str(lib)] = dll
         return _LOADED[str(lib)]
@@ -654,7 +731,8 @@ def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] |
         return forest_predictor(packed, isa=forced)
     try:
         predictor = forest_predictor(packed)
-    except (MissingExtraError, OSError):  # no compiler, or an unwritable cache
+    except (MissingExtraError, OSError) as exc:  # no compiler, an unwritable or unsafe cache
+        _say_once(f"dyntarget: the forest kernel is not used ({exc}); a slower backend predicts")
         return None
     return predictor if predictor.vectorised else None
 
