@@ -125,14 +125,31 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
         else:
             images = [generate_scene(args.seed + 1, i, size=256)[0].image for i in range(4)]
             where = "4 synthetic 256 px scenes (give --calibration for the training scenes)"
+        from dyntarget.errors import ExportError
+        from dyntarget.perceive import onnx as onnx_module
+
         path = quantize_int8(args.model, images, seed=args.seed)
-        diff8 = float(
-            np.abs(
-                load_onnx(args.model, int8=True).predict_proba(check)
-                - load_onnx(args.model).predict_proba(check)
-            ).max()
-        )
+        try:
+            diff8 = float(
+                np.abs(
+                    load_onnx(args.model, int8=True).predict_proba(check)
+                    - load_onnx(args.model).predict_proba(check)
+                ).max()
+            )
+        except BaseException:
+            path.unlink(missing_ok=True)
+            raise
+        tolerance = onnx_module.INT8_TOLERANCE
+        if not diff8 <= tolerance and not args.force:
+            path.unlink(missing_ok=True)
+            raise ExportError(
+                f"{native.name}: INT8 differs from FP32 by {diff8:.1e} on the check scene, more "
+                f"than the tolerance {tolerance:g}; {path.name} not kept (--force keeps it; "
+                "CPUs without VNNI quantize less precisely)"
+            )
         log(f"{native.name}: INT8 calibrated on {where}; differs from FP32 by {diff8:.1e} at most")
+        if not diff8 <= tolerance:
+            log(f"warning: above the tolerance {tolerance:g}, kept because of --force")
         print(path)
     return EXIT_OK
 
@@ -199,6 +216,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--int8",
         action="store_true",
         help="also write model.int8.onnx: static INT8 quantization (U-Nets and MLP)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="keep model.int8.onnx even when it differs from FP32 by more than the tolerance",
     )
     p.add_argument(
         "--calibration",
