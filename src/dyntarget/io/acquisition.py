@@ -21,7 +21,6 @@ says so on stderr and in ``frames.csv`` when it falls back on it).
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from datetime import UTC, datetime, timedelta
@@ -163,12 +162,9 @@ def read_acquisition(path: str | os.PathLike[str]) -> tuple[datetime | None, str
     path = Path(path)
     sidecar = path.with_name(path.stem + SIDECAR_SUFFIX)
     if sidecar.is_file():
-        try:
-            doc = json.loads(sidecar.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise DataFileError(
-                f"{sidecar}: expected JSON with an 'acquired' time ({exc})"
-            ) from None
+        from dyntarget.io.safeopen import read_json  # bounded size and depth, never a FIFO
+
+        doc = read_json(sidecar, what="acquisition sidecar")
         if not isinstance(doc, dict) or "acquired" not in doc:
             raise DataFileError(
                 f"{sidecar}: expected a JSON object with an 'acquired' ISO-8601 time, got {doc!r:.80}"
