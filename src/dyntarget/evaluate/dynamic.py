@@ -270,8 +270,8 @@ class DynamicConfig:
     modes: tuple[str, ...] = ("static",)
     latencies: tuple[float, ...] = DEFAULT_LATENCIES
     agility: str = "unlimited"
-    altitude_m: float = 500e3
-    look_ahead_m: float = 500e3
+    altitude_m: float = defaults.ALTITUDE_M
+    look_ahead_m: float = defaults.LOOK_AHEAD_M
     truth_step_s: float = 1.0
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
