@@ -71,7 +71,10 @@ def cmd_fly(args: argparse.Namespace) -> int:
         )
     if args.model is not None and args.truth:
         raise InvalidParameterError("fly: --model and --truth exclude each other")
-    if args.watch or args.campaign:  # the frames' GSD is not known yet: factors are compared
+    # campaigns: the strips' GSD is not known yet, so factors are compared. Not for --watch:
+    # live look-ahead frames come at their own resolution (often already the WFOV grid, flown
+    # at --factor 1), so a factor says nothing about the resolution there.
+    if args.campaign:
         from dyntarget.cli._resolution import check_resolution
 
         check_resolution(args.model, factor=args.factor, gsd=None, force=args.force)
