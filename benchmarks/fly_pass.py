@@ -32,6 +32,7 @@ Commands the lead re-runs on a quiet machine (see docs/onboard.md, "Flying a pas
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import platform
@@ -192,8 +193,8 @@ def memory(args) -> None:
     res = json.loads(probe.stdout.strip().splitlines()[-1])
     if res["rc"] != 0:
         raise SystemExit(f"fly --watch failed: {res['err']}")
-    rows = (tmp / "plans" / "frames.csv").read_text().splitlines()[1:]
-    per = np.array([float(r.split(",")[2]) for r in rows])
+    with open(tmp / "plans" / "frames.csv", newline="") as f:
+        per = np.array([float(r["planned_s"]) for r in csv.DictReader(f)])
     data = {
         "python": args.python,
         "frame_px": size,
