@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget.denoise import denoise
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.crossval import kfold_indices
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene_dir
@@ -86,7 +87,9 @@ def main() -> None:
                         },
                     }
                 )
-    Path(args.out).write_text(json.dumps({"rows": rows, "records": records}, indent=1) + "\n")
+    Path(args.out).write_text(
+        json.dumps({"machine": machine(), "rows": rows, "records": records}, indent=1) + "\n"
+    )
     print(markdown_table(rows, list(rows[0])))
 
 

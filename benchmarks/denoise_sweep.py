@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget.denoise import denoise
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.crossval import (
     DEFAULT_FACTOR,
     kfold_indices,
@@ -64,7 +65,11 @@ def main() -> None:
         iou[name] = {f"{i}/{f}": float(np.mean(v)) for (i, f), v in per_setting.items()}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(
-        json.dumps({"iterations": ITERATIONS, "fractions": FRACTIONS, "iou": iou}, indent=1) + "\n"
+        json.dumps(
+            {"machine": machine(), "iterations": ITERATIONS, "fractions": FRACTIONS, "iou": iou},
+            indent=1,
+        )
+        + "\n"
     )
     head = " | ".join(f"{i} it, {100 * f:g} %" for i in ITERATIONS for f in FRACTIONS)
     print(f"| classifier | {head} |")

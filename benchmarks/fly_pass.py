@@ -34,8 +34,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -45,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.fly.strip import MovingStrip, strip_spec
 from dyntarget.io.atomic import write_text
@@ -63,7 +62,7 @@ def _classifier(model: str | None, onnx: bool):
 
 
 def _save(out: Path, name: str, data: dict, table: str) -> None:
-    data = {**data, "machine": platform.platform(), "cpus": os.cpu_count()}
+    data = {**data, "machine": machine()}
     write_text(out / f"{name}.json", json.dumps(data, indent=1) + "\n")
     write_text(out / f"{name}.md", table)
     print(table)

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dyntarget.evaluate.bench import machine_rates
+from dyntarget.evaluate.bench import machine, machine_rates
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene
 from dyntarget.io.atomic import write_text
@@ -345,7 +345,10 @@ def main() -> None:
     rows = run(args)
     print(markdown_table(rows, list(rows[0]), digits=3))
     if args.out:
-        write_text(args.out, json.dumps({"what": args.what, "rows": rows}, indent=1) + "\n")
+        write_text(
+            args.out,
+            json.dumps({"machine": machine(), "what": args.what, "rows": rows}, indent=1) + "\n",
+        )
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.predict import Motion, brightness, estimate_motion, predict_mask
 from motion_worlds import AttachedPlume, RigidCloud
@@ -196,7 +197,7 @@ def main() -> None:
         print(timing[-1], flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    doc = {"interval_s": INTERVAL, "accuracy": rows, "timing": timing}
+    doc = {"machine": machine(), "interval_s": INTERVAL, "accuracy": rows, "timing": timing}
     out.write_text(json.dumps(doc, indent=1) + "\n")
     md = (
         "## Accuracy (velocity error, px/s and % of the true speed)\n\n"

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
 
 from dyntarget.denoise import denoise
+from dyntarget.evaluate.bench import machine
 from dyntarget.masks import mask_to_polygons
 from dyntarget.perceive import make_classifier
 from dyntarget.plan import geometric_planners, plan
@@ -110,11 +110,7 @@ def main() -> None:
             }
     results["specks-2000"] = speck_case()
     record = {
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor(),
-            "python": platform.python_version(),
-        },
+        "machine": machine(),
         "size_px": 512,
         "scenes": args.scenes,
         "results": results,

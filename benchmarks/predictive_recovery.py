@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.tables import markdown_table
 
 MODES = ("static", "predictive", "wind-prior")
@@ -110,7 +111,9 @@ def main() -> None:
     rows = recovery(records, args.latency)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"latency_s": args.latency, "rows": rows}, indent=1) + "\n")
+    out.write_text(
+        json.dumps({"machine": machine(), "latency_s": args.latency, "rows": rows}, indent=1) + "\n"
+    )
     cols = [
         "classifier",
         "planner",

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 from dyntarget.datasets.cloud38 import read_patch
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.crossval import TABLE1_COLUMNS
 from dyntarget.evaluate.realpixels import real_pixel_check
 from dyntarget.evaluate.tables import markdown_table
@@ -39,7 +40,7 @@ def main() -> None:
     scene = read_patch(args.data)
     result = real_pixel_check(scene, epochs=args.epochs)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+    Path(args.out).write_text(json.dumps({"machine": machine(), **result}, indent=1) + "\n")
     print(f"split: {result['split']}; cloud fraction: {result['plume_fraction']}\n")
     print(markdown_table(result["segmentation"], TABLE1_COLUMNS))
     print(markdown_table(result["planning"], PLAN_COLUMNS))

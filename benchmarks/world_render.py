@@ -16,6 +16,7 @@ import statistics
 import time
 from pathlib import Path
 
+from dyntarget.evaluate.bench import machine
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import write_text
 from dyntarget.synth.dynamic import World, sample_world
@@ -58,7 +59,9 @@ def main() -> None:
             )
             print(rows[-1], flush=True)
     out = Path(args.out)
-    write_text(out, json.dumps({"columns": COLUMNS, "rows": rows}, indent=1) + "\n")
+    write_text(
+        out, json.dumps({"machine": machine(), "columns": COLUMNS, "rows": rows}, indent=1) + "\n"
+    )
     write_text(out.with_suffix(".md"), markdown_table(rows, COLUMNS))
     print(markdown_table(rows, COLUMNS))
 

@@ -100,3 +100,26 @@ def test_bounds_table_in_bench_output(tmp_path, capsys):
     rates = json.loads((tmp_path / "b.json").read_text())["bounds"]["rates"]
     assert rates["copy_bytes_per_s"] > 0 and rates["matmul_flop_per_s"] > 0
     assert "read the image once" in (tmp_path / "b.md").read_text()
+
+
+def test_machine_records_the_commit_and_the_cpu_flags_that_pick_a_code_path():
+    import re
+    import subprocess
+    from pathlib import Path
+
+    from dyntarget.evaluate.bench import MACHINE_FLAGS, machine
+
+    m = machine()
+    text = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
+    found = set()
+    for line in re.findall(r"^(?:flags|Features)\s*:(.*)$", text, flags=re.M):
+        found.update(line.split())
+    assert m["cpu_flags"] == [f for f in MACHINE_FLAGS if f in found]
+    head = subprocess.run(
+        ["git", "-C", str(Path(__file__).parent), "rev-parse", "HEAD"],
+        capture_output=True,
+        text=True,
+    )
+    if head.returncode == 0 and m["commit"] is not None:  # a checkout: the same commit
+        assert m["commit"].removesuffix("+dirty") == head.stdout.strip()
+    assert m["cpus"] >= 1 and m["load_1min"] >= 0

@@ -111,15 +111,72 @@ def _torch_threads() -> int | None:
     return torch.get_num_threads()
 
 
+MACHINE_FLAGS = (
+    "sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_vnni", "avx_vnni",
+    "amx_tile", "asimd", "sve",
+)  # fmt: skip
+"""CPU flags recorded with a benchmark: the ones that decide a code path (the forest kernel's
+SIMD path, INT8 with or without VNNI, ONNX Runtime's kernels; ``asimd`` is NEON on aarch64)."""
+
+MACHINE_LIBRARIES = (
+    "numpy", "scipy", "torch", "scikit-learn", "onnxruntime", "onnx", "opencv-python-headless",
+    "rasterio", "shapely", "dask", "pysteps", "tl2cgen", "treelite",
+)  # fmt: skip
+"""Libraries whose versions a benchmark records (those installed)."""
+
+
+def _cpu_model_and_flags() -> tuple[str, list[str]]:
+    model, flags = platform.processor() or platform.machine(), set()
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                key = key.strip()
+                if key in ("model name", "Model") and value.strip():
+                    model = value.strip()
+                elif key in ("flags", "Features"):
+                    flags.update(value.split())
+    except OSError:
+        pass
+    return model, [f for f in MACHINE_FLAGS if f in flags]
+
+
+def _commit() -> str | None:
+    """The git commit of the checkout dyntarget runs from (``+dirty`` with local changes)."""
+    import subprocess
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        head = subprocess.run(
+            ["git", "-C", here, "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10
+        )
+        dirty = subprocess.run(
+            ["git", "-C", here, "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True, text=True, timeout=10,
+        )  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if head.returncode != 0:
+        return None  # an installed package, not a checkout
+    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
 def machine() -> dict[str, Any]:
-    """The machine a benchmark ran on.
+    """The machine and code a benchmark ran on, as asv records them.
 
     Returns
     -------
     dict
-        Platform, CPU model, CPU count, torch threads, Python version and the
-        versions of dyntarget, numpy, torch, scikit-learn and OpenCV (``None``
-        for one not installed).
+        ``commit`` (``None`` outside a git checkout), ``platform``, ``cpu`` (model name),
+        ``cpu_flags`` (those of :data:`MACHINE_FLAGS` present), ``cpus`` (cores this process
+        may use), ``load_1min``, ``torch_threads``, ``python`` and ``versions`` (dyntarget,
+        OpenCV and each installed one of :data:`MACHINE_LIBRARIES`).
+
+    Examples
+    --------
+    >>> m = machine()
+    >>> m["cpus"] >= 1 and "numpy" in m["versions"]
+    True
     """
     import importlib.metadata
 
@@ -127,33 +184,27 @@ def machine() -> dict[str, Any]:
 
     import dyntarget
 
-    def version(dist: str) -> str | None:  # optional dependencies may be absent
+    versions: dict[str, str | None] = {
+        "dyntarget": dyntarget.__version__,
+        "opencv": cv2.__version__,
+    }
+    for dist in MACHINE_LIBRARIES:  # optional dependencies may be absent
         try:
-            return importlib.metadata.version(dist)
+            versions[dist] = importlib.metadata.version(dist)
         except importlib.metadata.PackageNotFoundError:
-            return None
-
-    cpu = platform.processor() or ""
-    try:
-        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
-            cpu = next(
-                (ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")), cpu
-            )
-    except OSError:
-        pass
+            continue
+    cpu, flags = _cpu_model_and_flags()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {
+        "commit": _commit(),
         "platform": platform.platform(),
         "cpu": cpu,
-        "cpus": os.cpu_count(),
+        "cpu_flags": flags,
+        "cpus": cores,
+        "load_1min": round(os.getloadavg()[0], 2),
         "torch_threads": _torch_threads(),
         "python": platform.python_version(),
-        "versions": {
-            "dyntarget": dyntarget.__version__,
-            "numpy": np.__version__,
-            "torch": version("torch"),
-            "scikit-learn": version("scikit-learn"),
-            "opencv": cv2.__version__,
-        },
+        "versions": versions,
     }
 
 
