@@ -61,7 +61,7 @@ def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
     from dyntarget.cli import main
     from dyntarget.io import write_scene
     from dyntarget.perceive import make_classifier
-    from dyntarget.perceive.onnx import export_onnx
+    from dyntarget.perceive.onnx_export import export_onnx
 
     model_dir = tmp_path / "rf"
     model = make_classifier("decision-tree").fit(tiny_scenes[:3])
@@ -94,7 +94,7 @@ def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_m
     from dyntarget.cli import main
     from dyntarget.io import write_scene
     from dyntarget.perceive import compiled, make_classifier
-    from dyntarget.perceive.onnx import export_onnx
+    from dyntarget.perceive.onnx_export import export_onnx
 
     model_dir = tmp_path / "rf"
     model = make_classifier("random-forest", max_pixels_per_class=2000).fit(tiny_scenes[:3])

@@ -16,7 +16,7 @@ import pytest
 SCRIPT = """
 import ctypes, sys
 import numpy as np
-from dyntarget.perceive.base import keep_freed_memory
+from dyntarget.perceive.resources import keep_freed_memory
 
 class Info(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in

@@ -100,7 +100,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 def cmd_export_onnx(args: argparse.Namespace) -> int:
     from dyntarget.io.outputs import OutputPathError
     from dyntarget.perceive import load_classifier
-    from dyntarget.perceive.onnx import export_checked
+    from dyntarget.perceive.onnx_export import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
@@ -117,7 +117,8 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     if args.int8:
         import numpy as np
 
-        from dyntarget.perceive.onnx import load_onnx, quantize_int8
+        from dyntarget.perceive.int8 import quantize_int8
+        from dyntarget.perceive.onnx import load_onnx
 
         if args.calibration:
             images = [s.to_wfov(args.factor).image for s in load_labelled(args.calibration)]
@@ -126,7 +127,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
             images = [generate_scene(args.seed + 1, i, size=256)[0].image for i in range(4)]
             where = "4 synthetic 256 px scenes (give --calibration for the training scenes)"
         from dyntarget.errors import ExportError
-        from dyntarget.perceive import onnx as onnx_module
+        from dyntarget.perceive import int8 as int8_module
 
         path = quantize_int8(args.model, images, seed=args.seed)
         try:
@@ -139,7 +140,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
         except BaseException:
             path.unlink(missing_ok=True)
             raise
-        tolerance = onnx_module.INT8_TOLERANCE
+        tolerance = int8_module.INT8_TOLERANCE
         if not diff8 <= tolerance and not args.force:
             path.unlink(missing_ok=True)
             raise ExportError(

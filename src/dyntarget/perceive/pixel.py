@@ -36,10 +36,10 @@ from dyntarget.perceive.base import (
     CLASSIFIERS,
     DEFAULT_MAX_PIXELS_PER_CLASS,
     Classifier,
-    available_cores,
     pixels,
     sample_pixels,
 )
+from dyntarget.perceive.resources import available_cores
 from dyntarget.perceive.validate import check_estimator
 
 if TYPE_CHECKING:
