@@ -7,7 +7,7 @@ import pytest
 
 from dyntarget import InvalidParameterError, ModelFileError
 from dyntarget.cli import main
-from dyntarget.perceive import CLASSIFIERS, make_classifier
+from dyntarget.perceive import CLASSIFIERS, Predictor, make_classifier
 from dyntarget.perceive.onnx import load_onnx
 from dyntarget.perceive.onnx_export import TOLERANCE, export_onnx
 from helpers import FAST_KWARGS
@@ -36,6 +36,11 @@ def test_onnx_matches_native(name, tiny_scenes, tmp_path):
         np.testing.assert_allclose(
             twin.predict_proba(crop), model.predict_proba(crop), atol=TOLERANCE, rtol=0
         )
+    # the deadline logic scales a timed crop by work units: the twin counts as the native
+    assert isinstance(twin, Predictor) and isinstance(model, Predictor)
+    assert twin.work_units((40, 23)) == model.work_units((40, 23))
+    if model.kind == "pixel":
+        assert twin.work_units((40, 23)) == 40 * 23  # one row per pixel
 
 
 def test_band_threshold_is_not_exported(tiny_scenes, tmp_path):

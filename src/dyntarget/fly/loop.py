@@ -655,7 +655,7 @@ def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float)
     return image, valid
 
 
-def _fly_frame(
+def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
     k: int,
     world: World,
     classifier: Classifier | None,

@@ -48,15 +48,62 @@ class Predictor(Protocol):
     True
     """
 
-    name: str
-    kind: str
+    @property
+    def name(self) -> str:
+        """The classifier's registered name."""
+        ...
+
+    @property
+    def kind(self) -> str:
+        """``"threshold"``, ``"pixel"`` or ``"unet"``."""
+        ...
 
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        """Plume probability ``float32 (H, W)`` in 0..1 of a ``(4, H, W)`` image."""
+        """Plume probability of each pixel.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance (R, G, B, NIR).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W)`` in 0..1.
+        """
         ...
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
-        """Plume mask ``predict_proba(image) >= threshold``."""
+        """Plume mask ``predict_proba(image) >= threshold``.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance.
+        threshold : float
+            Probability at or above which a pixel is plume, 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(H, W)`` mask.
+        """
+        ...
+
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Work of classifying an image of ``shape``, in the classifier's own units.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            Pixels (pixel classifiers) or pixels run over in tiles (U-Nets): the deadline
+            logic times a crop once and scales by this.
+        """
         ...
 
 
@@ -340,7 +387,7 @@ def sample_pixels(
         ``(n,)`` int64 class, 1 = plume.
     """
     feats = np.concatenate([pixels(s.image) for s in scenes])
-    labels = np.concatenate([s.label.ravel() for s in scenes])
+    labels = np.concatenate([s.truth.ravel() for s in scenes])
     valid = np.concatenate([s.valid_mask.ravel() for s in scenes])
     pos = np.flatnonzero(labels & valid)
     neg = np.flatnonzero(~labels & valid)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from dyntarget.perceive.modelfile import read_metadata
 from dyntarget.perceive.resources import available_cores
 from dyntarget.perceive.validate import check_onnx_file, check_onnx_session, run_onnx
 from dyntarget.scene import BANDS, check_image
+
+if TYPE_CHECKING:
+    from dyntarget.perceive.unet import _UNetClassifier
 
 ONNX_FILE = "model.onnx"
 INT8_FILE = "model.int8.onnx"
@@ -103,7 +107,7 @@ class OnnxClassifier:
         if kind == "unet":
             from dyntarget.perceive.unet import Stitching
 
-            cls = CLASSIFIERS.get(name)
+            cls = cast("type[_UNetClassifier]", CLASSIFIERS.get(name))
             dims = self.session.get_inputs()[0].shape[2:]
             if all(isinstance(d, int) for d in dims):
                 stitch = "blend"
@@ -133,6 +137,7 @@ class OnnxClassifier:
                 e = np.exp(z)
                 return (e[:, 1] / e.sum(axis=1)).astype(np.float32)
 
+            assert self.stitching is not None  # set for every U-Net in __init__
             proba = self.stitching.run(image, forward)
         elif self._forest_kernel() is not None:
             from dyntarget.perceive.pixel import predict_in_chunks
@@ -164,6 +169,23 @@ class OnnxClassifier:
             else:
                 self.backend = "forest kernel"
         return self._kernel
+
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Work of classifying an image of ``shape``, as the native classifier counts it.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            Pixels for a pixel classifier; for a U-Net, the pixels its tiles run over.
+        """
+        if self.stitching is not None:
+            return float(self.stitching.work_units(shape))
+        return float(shape[0] * shape[1])
 
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
         """Plume mask ``predict_proba(image) >= threshold``.

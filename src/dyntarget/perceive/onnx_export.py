@@ -25,12 +25,16 @@ import logging
 import os
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.base import Classifier
 from dyntarget.perceive.onnx import ONNX_FILE, _require, load_onnx
+
+if TYPE_CHECKING:
+    from dyntarget.perceive.pixel import RandomForest
 
 TOLERANCE = 1e-4
 """Largest absolute difference in plume probability between ONNX and native outputs."""
@@ -96,7 +100,7 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
 
         forest = Path(model_dir) / FOREST_FILE
         try:
-            packed = pack_forest(classifier.estimator)
+            packed = pack_forest(cast("RandomForest", classifier).estimator)
         except InvalidParameterError:  # beyond the kernel (e.g. deeper than it takes)
             forest.unlink(missing_ok=True)  # model.onnx alone, run by ONNX Runtime
         else:
@@ -140,8 +144,10 @@ def _export_unet(classifier) -> bytes:
             )
     finally:
         exporter_log.setLevel(level)
+    if program is None:  # dynamo=True always returns one
+        raise RuntimeError("torch.onnx.export returned no program")
     buf = io.BytesIO()
-    program.save(buf)
+    program.save(buf)  # type: ignore[arg-type]  # a file object is taken as well
     return buf.getvalue()
 
 
@@ -197,7 +203,8 @@ def export_checked(
         if twin.forest is not None:
             got = twin.predict_proba(check_image)
             if twin.backend == "forest kernel":  # bit-identical to scikit-learn, or refused
-                reference = copy.copy(native).set_backend("sklearn").predict_proba(check_image)
+                forest = cast("RandomForest", copy.copy(native))
+                reference = forest.set_backend("sklearn").predict_proba(check_image)
                 if not np.array_equal(got, reference):
                     diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
     except BaseException:

@@ -389,7 +389,7 @@ def _vent(mask: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     return float(xs[near].mean()), float(ys[near].mean())
 
 
-def estimate_motion(
+def estimate_motion(  # noqa: PLR0915  (next to split: flow, ground, regimes, confidence)
     previous: np.ndarray,
     current: np.ndarray,
     interval_s: float,
