@@ -19,7 +19,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 project = "dyntarget"
 author = "dyntarget developers"
-copyright = "dyntarget developers, Apache-2.0"  # noqa: A001
+copyright = "dyntarget developers, Apache-2.0"
 release = _dist_version("dyntarget")  # one source: the installed package's metadata
 version = release
 
@@ -36,8 +36,15 @@ extensions = [
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 templates_path = ["_templates"]
-exclude_patterns = ["_build", "benchmarks/*.md", "**.ipynb_checkpoints", "auto_examples/*.ipynb",
-                    "auto_examples/*.py", "auto_examples/*.zip", "auto_examples/*.json"]
+exclude_patterns = [
+    "_build",
+    "benchmarks/*.md",
+    "**.ipynb_checkpoints",
+    "auto_examples/*.ipynb",
+    "auto_examples/*.py",
+    "auto_examples/*.zip",
+    "auto_examples/*.json",
+]
 
 # MyST: the Markdown pages (README-style) are part of the site.
 myst_enable_extensions = ["colon_fence", "deflist"]
