@@ -100,7 +100,7 @@ def _extrapolate(steps, field, v, timesteps):
 # ---------------------------------------------------------------- radar
 def radar_cases(n: int) -> list[int]:
     last = 40 - 1 - max(RADAR_LEADS)
-    return sorted({int(round(k)) for k in np.linspace(1, last, n)})
+    return sorted({round(k) for k in np.linspace(1, last, n)})
 
 
 def _dbz(code: np.ndarray) -> np.ndarray:
@@ -194,9 +194,13 @@ def cloud_frames(image, gt, ground, kind, v, p, t):
     layer = np.stack([cv2.remap(b, mx, my, cv2.INTER_LINEAR) for b in image])
     mask = (
         cv2.remap(
-            gt.astype(np.uint8), mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+            gt.astype(np.uint8),
+            mx,
+            my,
+            cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
             borderValue=0,
-        )  # fmt: skip
+        )
         > 0
     )
     return np.where(mask[None], layer, ground).astype(np.float32), mask
@@ -211,9 +215,7 @@ def run_clouds(steps, dyn_options: dict) -> list[dict]:
         _, truth = cloud_frames(image, gt, ground, kind, v, p, CLOUD_INTERVAL + CLOUD_LEAD)
         row: dict = {"case": name, "group": "clouds", "persistence 90 s": iou(cm, truth)}
         t0 = time.perf_counter()
-        m = estimate_motion(
-            a, b, CLOUD_INTERVAL, previous_mask=pm, current_mask=cm, **dyn_options
-        )
+        m = estimate_motion(a, b, CLOUD_INTERVAL, previous_mask=pm, current_mask=cm, **dyn_options)
         pred = predict_mask(cm, m, CLOUD_LEAD)
         row["dyntarget s"] = time.perf_counter() - t0
         row["dyntarget 90 s"] = iou(pred, truth)
@@ -224,9 +226,7 @@ def run_clouds(steps, dyn_options: dict) -> list[dict]:
             stack = np.clip((np.stack([ba, bb]) - lo) / (hi - lo), 0, 1).astype(np.float64)
             t0 = time.perf_counter()
             vel = _lk(steps, stack)
-            ext = _extrapolate(
-                steps, cm.astype(np.float64), vel, [CLOUD_LEAD / CLOUD_INTERVAL]
-            )
+            ext = _extrapolate(steps, cm.astype(np.float64), vel, [CLOUD_LEAD / CLOUD_INTERVAL])
             row["pysteps LK s"] = time.perf_counter() - t0
             row["pysteps LK 90 s"] = iou(np.nan_to_num(ext[0], nan=0.0) >= 0.5, truth)
         rows.append(row)
