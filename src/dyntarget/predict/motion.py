@@ -511,6 +511,48 @@ def _normalized(weights: np.ndarray, values: np.ndarray, prior: np.ndarray, sigm
     return out
 
 
+def _robust_field(votes: np.ndarray, rel: np.ndarray, mode: tuple[float, float]) -> np.ndarray:
+    """The dense displacement field (cells of the flow grid, full-grid px) from the votes.
+
+    A base motion, then local departures from it. The base is a robust affine fit of
+    the votes (least squares on the 60 % closest, four rounds) when it explains them
+    clearly better than the one mode (median residual below 0.7 of the mode's:
+    rotation, shear, convergence), else the mode. The departures: the votes' residuals
+    from the base, outliers dropped (over twice the median residual and 0.5 px: mixed
+    semi-transparent edges), averaged over :data:`FIELD_SIGMA` cells (normalised
+    convolution), fading to the base where no vote is near.
+    """
+    h, w = votes.shape
+    ys, xs = np.nonzero(votes)
+    vx, vy = rel[..., 0][votes].astype(np.float64), rel[..., 1][votes].astype(np.float64)
+    cx, cy = w / 2.0, h / 2.0
+    step = max(1, len(xs) // 20000)
+    X = np.stack([xs[::step] - cx, ys[::step] - cy, np.ones(len(xs[::step]))], axis=1)
+    tx, ty = vx[::step], vy[::step]
+    res_mode = np.hypot(tx - mode[0], ty - mode[1])
+    res = res_mode
+    keep = res_mode <= np.percentile(res_mode, 60)
+    ax, ay = np.zeros(3), np.zeros(3)
+    for _ in range(4):
+        if keep.sum() < 10:
+            break
+        ax = np.linalg.lstsq(X[keep], tx[keep], rcond=None)[0]
+        ay = np.linalg.lstsq(X[keep], ty[keep], rcond=None)[0]
+        res = np.hypot(tx - X @ ax, ty - X @ ay)
+        keep = res <= np.percentile(res, 60)
+    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+    base = np.empty((h, w, 2), np.float32)
+    if keep.sum() >= 10 and np.median(res) < 0.7 * np.median(res_mode):
+        base[..., 0] = (gx - cx) * ax[0] + (gy - cy) * ax[1] + ax[2]
+        base[..., 1] = (gx - cx) * ay[0] + (gy - cy) * ay[1] + ay[2]
+    else:
+        base[..., 0], base[..., 1] = mode
+    resid = rel - base
+    rmag = np.hypot(resid[..., 0], resid[..., 1])
+    good = votes & (rmag <= max(0.5, 2.0 * float(np.median(rmag[votes]))))
+    return base + _normalized(good.astype(np.float32), resid, np.zeros(2, np.float32), FIELD_SIGMA)
+
+
 def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     try:
         import warnings
@@ -640,7 +682,6 @@ def estimate_motion(
         f, pmf, cmf = 1, pm_c, cm_c  # plumes too small to see on the coarse grid
     p8 = _to_u8(_downsample(bp, f), lo, hi)
     c8 = _to_u8(_downsample(bc, f), lo, hi)
-    near_plume = cv2.dilate((pmf | cmf).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
     if flow == "lk":
         fwd = _pysteps_lk(p8, c8)
         bwd = -fwd
@@ -658,15 +699,25 @@ def estimate_motion(
     # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
     textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, 3) > MIN_EIGEN
     fwd_px = fwd * f  # full-grid pixels
+    inner = cv2.erode(pmf.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    if not inner.any():
+        inner = pmf
+    votes = inner & textured & consistent
+    # the plumes' raw displacement (ground not removed) sets how far from the masks the
+    # background is safe from the plumes' own flow (occluded and uncovered ground)
+    raw = _mode(fwd_px[..., 0][votes], fwd_px[..., 1][votes]) if votes.any() else (0.0, 0.0)
+    r = 4 + math.ceil(math.hypot(*raw) / f)
+    near_plume = cv2.dilate((pmf | cmf).astype(np.uint8), np.ones((2 * r + 1,) * 2, np.uint8)) > 0
 
     # the background's apparent motion: over textured ground around the plumes; where
     # the margin has too little, phase correlation of the frames
     ground_votes = ~near_plume & textured & consistent
-    spread_g = 0.0
+    rigid = True
     if ground_votes.sum() >= 50:
         gx_all, gy_all = fwd_px[..., 0][ground_votes], fwd_px[..., 1][ground_votes]
-        gdx, gdy = _snap_still(float(np.median(gx_all))), _snap_still(float(np.median(gy_all)))
-        spread_g = float(np.median(np.hypot(gx_all - gdx, gy_all - gdy)))
+        gdx, gdy = (_snap_still(v) for v in _mode(gx_all, gy_all))
+        near_g = np.hypot(gx_all - gdx, gy_all - gdy) <= max(1.0, 0.2 * math.hypot(gdx, gdy))
+        rigid = float(near_g.mean()) >= 0.5
         ground_ok = True
     else:
         near_full = np.zeros(shape, bool)
@@ -681,15 +732,19 @@ def estimate_motion(
     g_mag = math.hypot(gdx, gdy)
     decided = ground
     if ground == "auto":
-        rigid = spread_g <= max(1.0, 0.25 * g_mag)
+        like_plume = g_mag > 2.0 and math.hypot(raw[0] - gdx, raw[1] - gdy) < 0.25 * g_mag
         decided = (
-            "moving" if ground_ok and (g_mag > MAX_MISREGISTRATION_PX or not rigid) else "fixed"
+            "moving"
+            if ground_ok and (g_mag > MAX_MISREGISTRATION_PX or not rigid or like_plume)
+            else "fixed"
         )
         if g_mag > STILL_PX or decided == "moving":
             why = (
                 f"more than {MAX_MISREGISTRATION_PX:g} px"
                 if g_mag > MAX_MISREGISTRATION_PX
-                else f"not one rigid shift (spread {spread_g:.1f} px)"
+                else "not one rigid shift"
+                if not rigid
+                else "as the plumes do"
             )
             notes.append(
                 f"ground auto -> {decided}: the background moved by ({gdx:+.2f}, {gdy:+.2f}) px"
@@ -712,10 +767,8 @@ def estimate_motion(
         gdx = gdy = 0.0
     rel = fwd_px - np.float32([gdx, gdy])
 
-    inner = cv2.erode(pmf.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    if not inner.any():
-        inner = pmf
-    votes = inner & textured & consistent
+    if decided == "moving" and int(votes.sum()) * f * f < 200:
+        votes = votes | ground_votes  # few plume votes: the moving background is the same weather
     n_votes = int(votes.sum())
     rel_x, rel_y = rel[..., 0][votes], rel[..., 1][votes]
     mag = np.hypot(rel_x, rel_y)
@@ -735,7 +788,7 @@ def estimate_motion(
         # the dense field: the votes averaged over FIELD_SIGMA cells (a moving background
         # votes too: it is the same weather), tending to the mode far from any vote
         weights = votes | (ground_votes if decided == "moving" else False)
-        vfield = _normalized(weights.astype(np.float32), rel, np.float32([mx, my]), FIELD_SIGMA)
+        vfield = _robust_field(weights, rel, (mx, my))
         # agreement: how well the votes follow the field (rotation and shear are not
         # disagreement), relative to the displacement
         res = np.hypot(rel_x - vfield[..., 0][votes], rel_y - vfield[..., 1][votes])
@@ -745,7 +798,9 @@ def estimate_motion(
             dense = MotionField(vfield / np.float32(dt), (x0, y0), f, (h, w))
     vx, vy = mx / dt, my / dt
     confidence = (
-        min(1.0, texture_share / TEXTURE_SATURATION) * agreement * min(1.0, n_votes / 200.0)
+        min(1.0, texture_share / TEXTURE_SATURATION)
+        * agreement
+        * min(1.0, n_votes * f * f / 200.0)  # a coarse vote stands for f x f pixels
     )
     confidence = float(np.clip(confidence, 0.0, 1.0))
     method = f"{FLOWS[flow]} flow" + (f", dense field (1/{f} grid)" if dense is not None else "")
