@@ -26,6 +26,7 @@ Pixels entering from beyond the border are background (0).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -81,7 +82,8 @@ def _carry(field: np.ndarray, motion: Motion, lead: float) -> np.ndarray:
 
     With ``motion.dense`` the field at ``x`` is the current field at the departure
     point ``x0 = x - t v((x + x0) / 2)`` (midpoint rule, three fixed-point
-    iterations; ``cv2.remap``, bilinear), so a rotating or shearing cloud turns and
+    iterations on a :data:`DEPARTURE_STEP_PX` grid, then interpolated to every
+    pixel; ``cv2.remap``, bilinear), so a rotating or shearing cloud turns and
     each plume moves by its own motion.
     """
     dense = motion.dense
@@ -89,17 +91,36 @@ def _carry(field: np.ndarray, motion: Motion, lead: float) -> np.ndarray:
         dx, dy = motion.displacement(lead)
         return _shift(field, dx, dy)
     h, w = field.shape
-    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
-    v = dense.full()
-    vx = np.ascontiguousarray(v[..., 0])
-    vy = np.ascontiguousarray(v[..., 1])
+    # departure points on a grid of STEP px (the field is smooth over FIELD_SIGMA cells),
+    # then interpolated to every pixel: one full-size remap of the field itself
+    step = max(int(dense.scale), DEPARTURE_STEP_PX)
+    hc, wc = -(-h // step), -(-w // step)
+    gy, gx = np.mgrid[0:hc, 0:wc].astype(np.float32) * step + (step - 1) / 2
     t = np.float32(lead)
-    x0, y0 = gx - t * vx, gy - t * vy
+    v = dense.sample(gx, gy)
+    x0, y0 = gx - t * v[..., 0], gy - t * v[..., 1]
     for _ in range(3):
-        mx, my = (gx + x0) * 0.5, (gy + y0) * 0.5
-        x0 = gx - t * cv2.remap(vx, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        y0 = gy - t * cv2.remap(vy, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return cv2.remap(field, x0, y0, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        v = dense.sample((gx + x0) * 0.5, (gy + y0) * 0.5)
+        x0, y0 = gx - t * v[..., 0], gy - t * v[..., 1]
+    disp = np.stack([gx - x0, gy - y0], axis=-1)
+    disp = cv2.resize(disp, (wc * step, hc * step), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    fy, fx = _grid(h, w)
+    return cv2.remap(
+        field, fx - disp[..., 0], fy - disp[..., 1], cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=0,
+    )  # fmt: skip
+
+
+@functools.lru_cache(maxsize=4)
+def _grid(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column coordinates ``float32 (H, W)`` (cached: the same grid every look)."""
+    fy, fx = np.mgrid[0:h, 0:w].astype(np.float32)
+    fy.flags.writeable = fx.flags.writeable = False
+    return fy, fx
+
+
+DEPARTURE_STEP_PX = 4
+"""Grid (px) on which the semi-Lagrangian departure points are traced before interpolation."""
 
 
 def _sweep(field: np.ndarray, dx: float, dy: float) -> np.ndarray:

@@ -69,7 +69,7 @@ ATTACHED_UPWIND = 0.5
 
 GROUNDS = ("auto", "fixed", "moving")
 MOTION_FIELDS = ("dense", "uniform")
-FLOW_MAX_PX = 384
+FLOW_MAX_PX = 256
 """The flow is computed on the plumes' window downsampled (area mean, by a whole factor) to
 at most this many pixels a side; the displacements are scaled back. Cost then stays near
 constant with the image size; the velocity resolution stays well under a pixel of the
@@ -388,6 +388,17 @@ def _to_u8(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip((a - lo) * scale, 0, 255).astype(np.uint8)
 
 
+AFFINE_GAIN_PX = 0.1
+"""The affine base must lower the votes' median residual by more than this (full-grid px)."""
+RESIDUAL_MIN_PX = 0.75
+"""Votes departing from the base motion (mode or affine) by less than this (median, full-grid
+px) are the flow's noise: the field is the base alone (a rigid drift stays rigid)."""
+MOVING_GROUND_WEIGHT = 1.0
+"""Moving ground: weight of a background vote in the dense field (a plume vote weighs 1)."""
+MOVING_ALL_VOTES = 200
+"""Moving ground: with fewer plume votes (full-grid px) than this the background votes too."""
+FARNEBACK_WINDOW = 9
+"""Farneback's Gaussian averaging window (px of the flow grid)."""
 FLOWS = {"dis": "DIS", "farneback": "Farneback", "lk": "pysteps Lucas-Kanade"}
 
 
@@ -421,7 +432,7 @@ def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndar
         return dis.calc(a, b, None)
     if flow == "farneback":  # Gaussian 9 px window, 5 iterations: the most accurate we measured
         return cv2.calcOpticalFlowFarneback(
-            a, b, None, 0.5, 4, 9, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
+            a, b, None, 0.5, 4, FARNEBACK_WINDOW, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
         )
     raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
 
@@ -511,17 +522,20 @@ def _normalized(weights: np.ndarray, values: np.ndarray, prior: np.ndarray, sigm
     return out
 
 
-def _robust_field(votes: np.ndarray, rel: np.ndarray, mode: tuple[float, float]) -> np.ndarray:
+def _robust_field(weights: np.ndarray, rel: np.ndarray, mode: tuple[float, float]) -> np.ndarray:
     """The dense displacement field (cells of the flow grid, full-grid px) from the votes.
 
     A base motion, then local departures from it. The base is a robust affine fit of
     the votes (least squares on the 60 % closest, four rounds) when it explains them
-    clearly better than the one mode (median residual below 0.7 of the mode's:
-    rotation, shear, convergence), else the mode. The departures: the votes' residuals
+    clearly better than the one mode (median residual below 0.7 of the mode's, and
+    smaller by more than :data:`AFFINE_GAIN_PX`: rotation, shear, convergence), else
+    the mode. The departures: the votes' residuals
     from the base, outliers dropped (over twice the median residual and 0.5 px: mixed
     semi-transparent edges), averaged over :data:`FIELD_SIGMA` cells (normalised
-    convolution), fading to the base where no vote is near.
+    convolution), fading to the base where no vote is near; none when their median is
+    under :data:`RESIDUAL_MIN_PX` (noise).
     """
+    votes = weights > 0
     h, w = votes.shape
     ys, xs = np.nonzero(votes)
     vx, vy = rel[..., 0][votes].astype(np.float64), rel[..., 1][votes].astype(np.float64)
@@ -542,15 +556,21 @@ def _robust_field(votes: np.ndarray, rel: np.ndarray, mode: tuple[float, float])
         keep = res <= np.percentile(res, 60)
     gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
     base = np.empty((h, w, 2), np.float32)
-    if keep.sum() >= 10 and np.median(res) < 0.7 * np.median(res_mode):
+    gain = float(np.median(res_mode) - np.median(res))
+    if keep.sum() >= 10 and np.median(res) < 0.7 * np.median(res_mode) and gain > AFFINE_GAIN_PX:
         base[..., 0] = (gx - cx) * ax[0] + (gy - cy) * ax[1] + ax[2]
         base[..., 1] = (gx - cx) * ay[0] + (gy - cy) * ay[1] + ay[2]
     else:
         base[..., 0], base[..., 1] = mode
     resid = rel - base
     rmag = np.hypot(resid[..., 0], resid[..., 1])
-    good = votes & (rmag <= max(0.5, 2.0 * float(np.median(rmag[votes]))))
-    return base + _normalized(good.astype(np.float32), resid, np.zeros(2, np.float32), FIELD_SIGMA)
+    typical = float(np.median(rmag[votes]))
+    if typical < RESIDUAL_MIN_PX:
+        return base  # the base explains the votes to within the flow's noise: keep it exact
+    good = votes & (rmag <= max(0.5, 2.0 * typical))
+    return base + _normalized(
+        np.where(good, weights, 0.0).astype(np.float32), resid, np.zeros(2, np.float32), FIELD_SIGMA
+    )
 
 
 def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -767,7 +787,7 @@ def estimate_motion(
         gdx = gdy = 0.0
     rel = fwd_px - np.float32([gdx, gdy])
 
-    if decided == "moving" and int(votes.sum()) * f * f < 200:
+    if decided == "moving" and int(votes.sum()) * f * f < MOVING_ALL_VOTES:
         votes = votes | ground_votes  # few plume votes: the moving background is the same weather
     n_votes = int(votes.sum())
     rel_x, rel_y = rel[..., 0][votes], rel[..., 1][votes]
@@ -787,7 +807,10 @@ def estimate_motion(
         mx, my = _mode(rel_x[moving], rel_y[moving])
         # the dense field: the votes averaged over FIELD_SIGMA cells (a moving background
         # votes too: it is the same weather), tending to the mode far from any vote
-        weights = votes | (ground_votes if decided == "moving" else False)
+        weights = votes.astype(np.float32)
+        if decided == "moving":
+            # the background is the same weather: every trackable pixel around votes too
+            weights[textured & consistent & ~votes] = MOVING_GROUND_WEIGHT
         vfield = _robust_field(weights, rel, (mx, my))
         # agreement: how well the votes follow the field (rotation and shear are not
         # disagreement), relative to the displacement
@@ -830,7 +853,13 @@ def estimate_motion(
     up_shift, down_shift = up1 - up0, down1 - down0
     if along < 1.0:
         notes.append(f"the plume moved only {along:.2f} px between the looks: regime uncertain")
-    parts = _component_regimes(pm, cm, (vx * dt, vy * dt), dense, dt)
+    if ground == "auto" and decided == "moving":
+        # a vent is held by the ground: over a background found moving (weather) a plume's
+        # still upwind end is growth, not a vent; every plume is carried (ground="moving"
+        # given explicitly keeps the regimes: a plume over moving cloud)
+        parts: list = [None]
+    else:
+        parts = _component_regimes(pm, cm, (vx * dt, vy * dt), dense, dt)
     attached = tuple(a for a in parts if a is not None)
     n_detached = sum(a is None for a in parts)
     if attached and n_detached:
