@@ -234,6 +234,46 @@ def run_clouds(steps, dyn_options: dict) -> list[dict]:
     return rows
 
 
+# ---------------------------------------------------------------- timing
+def run_timing(repeats: int = 5) -> list[dict]:
+    """Whole call (estimate_motion + predict_mask 90 s ahead) at 1024 px, 10 s looks:
+    the test worlds' rigid cloud (``tests/motion_worlds.py``, radius 150 px) and a
+    1024-px radar window (5-min looks, the whole field moving); median of ``repeats``."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from motion_worlds import RigidCloud
+
+    world = RigidCloud(size=1024, velocity=(0.3, -0.16), centre=(400, 500), radius=150)
+    a, b = world.frame(0.0), world.frame(10.0)
+    pm, cm = world.mask(0.0), world.mask(10.0)
+    data = np.load(DATA / RADAR)
+    code = data["dbz_code"]
+    ra, rb = _radar_image(_dbz(code[10])), _radar_image(_dbz(code[11]))
+    rpm, rcm = code[10] > THRESHOLD_CODE, code[11] > THRESHOLD_CODE
+    cases = [
+        ("rigid cloud 1024 px, 10 s looks", (a, b, pm, cm, 10.0)),
+        ("radar 1024 px, 5 min looks", (ra, rb, rpm, rcm, 300.0)),
+    ]
+    variants = {"default (dense Farneback)": {}, "field=uniform": {"field": "uniform"}}
+    if _steps() is not None:
+        variants["flow=lk (pysteps, nowcast extra)"] = {"flow": "lk"}
+    rows = []
+    for case, (p, c, m0, m1, dt) in cases:
+        for name, opts in variants.items():
+            times = []
+            for _ in range(repeats if "lk" not in name else 1):
+                t0 = time.perf_counter()
+                mo = estimate_motion(p, c, dt, previous_mask=m0, current_mask=m1, **opts)
+                predict_mask(m1, mo, 9 * dt)
+                times.append(time.perf_counter() - t0)
+            rows.append(
+                {"case": case, "variant": name, "s per call": round(float(np.median(times)), 3)}
+            )
+            print(rows[-1], flush=True)
+    return rows
+
+
 # ---------------------------------------------------------------- tables
 def _mean(rows, key):
     vals = [r[key] for r in rows if key in r]
@@ -276,6 +316,7 @@ def main() -> None:
     ap.add_argument("--no-radar", action="store_true")
     ap.add_argument("--no-clouds", action="store_true")
     ap.add_argument("--no-pysteps", action="store_true")
+    ap.add_argument("--no-timing", action="store_true")
     ap.add_argument(
         "--option",
         action="append",
@@ -290,6 +331,7 @@ def main() -> None:
     cv2.setNumThreads(2)
     radar = [] if args.no_radar else run_radar(args.radar_cases, steps, dyn_options)
     clouds = [] if args.no_clouds else run_clouds(steps, dyn_options)
+    timing = [] if args.no_timing else run_timing()
     summary = summarise(radar, clouds)
     doc = {
         "machine": machine(),
@@ -301,6 +343,7 @@ def main() -> None:
         "summary": summary,
         "radar": radar,
         "clouds": clouds,
+        "timing": timing,
         "pysteps": steps is not None,
     }
     out = Path(args.out)
@@ -314,6 +357,9 @@ def main() -> None:
             summary["clouds"], ["case", "persistence", "dyntarget", "pysteps LK", "dyntarget / LK"]
         )
         + f"\n\nseconds per call (median): {summary['clouds s per call']}\n"
+        + "\n## Whole call (estimate + predict 90 s / 9 intervals ahead), median of 5\n\n"
+        + markdown_table(timing, ["case", "variant", "s per call"])
+        + "\n"
     )
     out.with_suffix(".md").write_text(md)
     print(md)

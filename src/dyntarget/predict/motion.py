@@ -540,7 +540,7 @@ def _robust_field(weights: np.ndarray, rel: np.ndarray, mode: tuple[float, float
     ys, xs = np.nonzero(votes)
     vx, vy = rel[..., 0][votes].astype(np.float64), rel[..., 1][votes].astype(np.float64)
     cx, cy = w / 2.0, h / 2.0
-    step = max(1, len(xs) // 20000)
+    step = max(1, len(xs) // 5000)
     X = np.stack([xs[::step] - cx, ys[::step] - cy, np.ones(len(xs[::step]))], axis=1)
     tx, ty = vx[::step], vy[::step]
     res_mode = np.hypot(tx - mode[0], ty - mode[1])
@@ -847,8 +847,8 @@ def estimate_motion(
             interval_s=dt, notes=tuple(notes), ground=decided,
         )  # fmt: skip
     u = np.array([vx, vy]) / math.hypot(vx, vy)
-    up0, down0 = _edges(pm, u)
-    up1, down1 = _edges(cm, u)
+    up0, down0 = _edges(pm_c, u)  # on the window: the shifts are differences
+    up1, down1 = _edges(cm_c, u)
     along = math.hypot(vx, vy) * dt
     up_shift, down_shift = up1 - up0, down1 - down0
     if along < 1.0:
@@ -859,7 +859,7 @@ def estimate_motion(
         # given explicitly keeps the regimes: a plume over moving cloud)
         parts: list = [None]
     else:
-        parts = _component_regimes(pm, cm, (vx * dt, vy * dt), dense, dt)
+        parts = _component_regimes(pm_c, cm_c, (vx * dt, vy * dt), dense, dt, (x0, y0), (h, w))
     attached = tuple(a for a in parts if a is not None)
     n_detached = sum(a is None for a in parts)
     if attached and n_detached:
@@ -890,7 +890,9 @@ def _on_border(xs: np.ndarray, ys: np.ndarray, w: int, h: int) -> bool:
     return bool((xs == 0).any() or (ys == 0).any() or (xs == w - 1).any() or (ys == h - 1).any())
 
 
-def _component_regimes(pm, cm, d, dense, dt) -> list[tuple[float, float, float] | None]:
+def _component_regimes(
+    pm, cm, d, dense, dt, origin=(0, 0), full=None
+) -> list[tuple[float, float, float] | None]:
     """Per plume of the current mask (largest first): ``None`` if it moved as a whole,
     else ``(vent x, vent y, front speed px/s)`` of an attached plume.
 
@@ -904,16 +906,20 @@ def _component_regimes(pm, cm, d, dense, dt) -> list[tuple[float, float, float] 
     (area / length), per second; 0 for a mature plume whose far end fades as fast as it
     is fed, or lies beyond the image border; at most the flow speed. Work is done on
     each plume's bounding box (plus the displacement), so many fragments stay cheap.
+    ``pm`` and ``cm`` may be a window of the image at ``origin`` ``(x0, y0)`` of an
+    image of shape ``full``; positions returned are the image's.
     """
     n, labels, stats, cents = cv2.connectedComponentsWithStats(cm.astype(np.uint8), connectivity=8)
-    h, w = cm.shape
+    ch, cw = cm.shape
+    ox, oy = origin
+    h, w = full if full is not None else cm.shape
     order = sorted(range(1, n), key=lambda i: -stats[i, cv2.CC_STAT_AREA])
     out: list[tuple[float, float, float] | None] = []
     for i in order:
         if stats[i, cv2.CC_STAT_AREA] < MIN_COMPONENT_PX:
             continue
         if dense is not None:
-            v = dense.sample(np.float32([cents[i][0]]), np.float32([cents[i][1]]))[0]
+            v = dense.sample(np.float32([cents[i][0] + ox]), np.float32([cents[i][1] + oy]))[0]
             di = (float(v[0]) * dt, float(v[1]) * dt)
         else:
             di = d
@@ -925,7 +931,7 @@ def _component_regimes(pm, cm, d, dense, dt) -> list[tuple[float, float, float] 
         bx, by, bw, bh = (int(stats[i, k]) for k in range(4))
         pad = math.ceil(along) + 3
         wx0, wy0 = max(bx - pad, 0), max(by - pad, 0)
-        wx1, wy1 = min(bx + bw + pad, w), min(by + bh + pad, h)
+        wx1, wy1 = min(bx + bw + pad, cw), min(by + bh + pad, ch)
         comp = labels[wy0:wy1, wx0:wx1] == i
         back = np.float32([[1, 0, -di[0]], [0, 1, -di[1]]])
         carried = cv2.warpAffine(
@@ -941,20 +947,20 @@ def _component_regimes(pm, cm, d, dense, dt) -> list[tuple[float, float, float] 
         cys, cxs = np.nonzero(comp)
         s = cxs * u[0] + cys * u[1]
         upwind = s <= up1 + 1.5
-        if _on_border(cxs[upwind] + wx0, cys[upwind] + wy0, w, h):
+        if _on_border(cxs[upwind] + wx0 + ox, cys[upwind] + wy0 + oy, w, h):
             out.append(None)  # its upwind end is cut by the image border: no vent seen
             continue
         if up1 - up0 < ATTACHED_UPWIND * along:
             downwind = s >= down1 - 1.5
             # a far end beyond the image is not seen to advance: the part inside stays
-            at_border = _on_border(cxs[downwind] + wx0, cys[downwind] + wy0, w, h)
+            at_border = _on_border(cxs[downwind] + wx0 + ox, cys[downwind] + wy0 + oy, w, h)
             # the front's advance from the plume's growth: area gained / mean width (the
             # area over the length), steadier than the far end's flickering tip
             length = max(down1 - up1, 1.0)
             growth = (comp.sum() - prev.sum()) * length / comp.sum()
             front = 0.0 if at_border else float(np.clip(growth / dt, 0.0, along / dt))
             vx, vy = _vent(comp, u)
-            out.append((vx + wx0, vy + wy0, front))
+            out.append((vx + wx0 + ox, vy + wy0 + oy, front))
         else:
             out.append(None)
     return out
