@@ -1,34 +1,48 @@
 """Plume motion from two looks (dense optical flow) or from a wind prior (one look).
 
-Method (documented in ``docs/onboard.md``, "Predictive targeting"):
+Method of :func:`estimate_motion` (documented in ``docs/onboard.md``, "Predictive
+targeting"; measured on real evolving fields by ``benchmarks/motion_real.py``):
 
 1. Both frames are reduced to one *brightness* band, the mean of R, G, B and
-   NIR: plumes and clouds are bright in all four, averaging four bands halves
-   the sensor noise, and no band is needed that a sensor preset may lack.
-   Both are scaled to 8 bits with the *same* percentiles (1 and 99 % of the two
-   frames together), so brightness constancy between looks survives.
-2. OpenCV's DIS optical flow (``DISOpticalFlow``, preset MEDIUM) gives a dense
-   flow previous -> current and current -> previous.
-3. The fixed ground: the median forward flow over textured ground pixels (away
-   from both plume masks) is the frames' misregistration; it is subtracted from
-   the plume's flow (so frames need not be co-registered, only share a grid).
-4. Plume pixels of the previous mask whose flow is forward-backward consistent
-   (within 1 px) and which carry texture that pins the flow in both directions
-   (Shi-Tomasi: smaller structure-tensor eigenvalue above ``MIN_EIGEN``) vote.
-   Over semi-transparent plume edges the flow is a mixture of the ground (still)
-   and the plume (moving), so the moving votes are separated from the still ones:
-   if fewer than ``CALM_FRACTION`` of the votes move by more than ``STILL_PX``,
-   the air is calm; otherwise the velocity is the median of the moving votes.
-5. Upwind and downwind edges: the masks' pixels are projected on the flow
-   direction; the 1st and 99th percentiles are the upwind and downwind edges,
-   and their displacement between the looks tells the regimes apart: a
-   *detached* cloud moves as a whole (its upwind edge moves like the flow), an
-   *attached* plume keeps its vent end (upwind edge still) while puffs move.
-6. Confidence in [0, 1]: the share of plume pixels that carry trackable texture
-   (saturating at 30 %), times the agreement of the votes (1 - spread / abs(median)),
-   times a count term (saturating at 200 votes). Below ``LOW_CONFIDENCE`` the
-   flow is not trusted: the velocity falls back on the masks' centroid shift
-   and ``Motion.method`` says so.
+   NIR, over the plumes' bounding box plus a margin (:data:`CROP_MARGIN`, at
+   least :data:`MIN_CROP` px). Both are scaled to 8 bits with the *same* range
+   (1 % of the two frames together to the larger of their 99 % and the plumes'
+   own 99.5 %, so a few bright cells in a dark frame keep their texture) and
+   downsampled by a whole factor to at most :data:`FLOW_MAX_PX` a side.
+2. OpenCV's Farneback optical flow (default; ``flow="dis"``: DIS; ``flow="lk"``:
+   pysteps' Lucas-Kanade, the ``nowcast`` extra) gives a dense flow previous ->
+   current and current -> previous; a pixel is consistent when the round trip
+   returns within 1 px (or 10 % of its displacement), textured when the smaller
+   structure-tensor eigenvalue exceeds :data:`MIN_EIGEN` (Shi-Tomasi).
+3. The background: the histogram mode of the flow over textured, consistent
+   pixels away from the plumes (farther than the plumes' own displacement), or
+   phase correlation where there are too few. ``ground="fixed"`` removes it as
+   misregistration; ``"moving"`` keeps it (weather, radar: the background is
+   the same moving field and votes too); ``"auto"`` (default) calls it moving
+   when it exceeds :data:`MAX_MISREGISTRATION_PX`, is not one rigid shift, or
+   moves as the plumes do, and writes its decision in ``Motion.ground`` and the notes.
+4. The consistent, textured pixels of the previous mask's interior vote. If fewer
+   than :data:`CALM_FRACTION` move by more than :data:`STILL_PX`, the air is calm;
+   otherwise ``Motion.velocity`` is the *mode* of the moving votes (smoothed 2-D
+   histogram peak: over semi-transparent edges the flow mixes in the still ground,
+   which pulls a median towards zero).
+5. The dense field (``Motion.dense``, :class:`MotionField`): a base motion (a robust
+   affine fit when it clearly explains the votes better than the mode: rotation,
+   shear; else the mode) plus the votes' local departures from it when they exceed
+   the flow's noise (:data:`RESIDUAL_MIN_PX`), averaged by Gaussian normalised
+   convolution (:data:`FIELD_SIGMA`). :mod:`dyntarget.predict.advect` carries each
+   detached plume along it (semi-Lagrangian).
+6. Regimes per plume: each current plume is carried back by its own displacement
+   and compared with the previous mask inside that footprint; an upwind edge that
+   stayed makes it *attached* (vent held), otherwise *detached*. Over a background
+   ``"auto"`` found moving no vent is sought (growth upwind is not a vent).
+7. Confidence in [0, 1]: the share of plume pixels with trackable texture
+   (saturating at :data:`TEXTURE_SATURATION`), times the agreement of the votes
+   with the dense field (1 - median residual / median displacement: rotation and
+   shear are not disagreement), times a count term (saturating at 200 full-grid
+   px of votes). Below :data:`LOW_CONFIDENCE` the estimate is not used: the Motion
+   is calm with ``fallback="persistence"`` (the mask is not moved, never worse
+   than not predicting) and its notes say so and why.
 """
 
 from __future__ import annotations
@@ -47,6 +61,9 @@ STILL_PX = 0.5
 """A vote moving by less than this many pixels between the looks counts as still."""
 CALM_FRACTION = 0.25
 """Fewer moving votes than this share of all votes: calm air (no motion)."""
+MAX_LEAD_INTERVALS = 30
+"""Longest lead two looks support, in intervals between the looks: the motion is
+extrapolated, and growth, decay and turning are not modelled (``plan --lead-s`` says so)."""
 LOW_CONFIDENCE = 0.3
 """Below this confidence the flow is not trusted (``Motion.reliable`` is False)."""
 MIN_EIGEN = 25.0
@@ -167,7 +184,7 @@ class Motion:
     source : str
         ``"two-looks"`` or ``"wind-prior"``.
     method : str
-        How the velocity was obtained (e.g. ``"DIS flow"``).
+        How the velocity was obtained (e.g. ``"Farneback flow, dense field (1/2 grid)"``).
     vent : tuple of float or None
         ``(x, y)`` of the attached plume's upwind end in the current frame, else ``None``.
     ground_shift : tuple of float
