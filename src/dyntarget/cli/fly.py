@@ -218,7 +218,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Fly a pass: look-ahead frames cut along a strip at the frame cadence, each "
         "classified, denoised and planned, the pointings of one shared NFOV scheduled under the "
         "agility limits and scored against the truth at their own time (docs/onboard.md). "
-        "Writes timeline.csv, pointings.geojson, summary.md, pass.png (the picture) and "
+        "Writes timeline.csv, pointings.geojson, summary.md, summary.json (the totals), pass.png (the picture) and "
         "pass.html (the interactive view, with a time slider) into --out.",
     )
     what = p.add_argument_group("what to fly (one of)")

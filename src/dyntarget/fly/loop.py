@@ -471,6 +471,8 @@ class PassResult:
         Plume ids in the strip's truth at t = 0.
     stopped : bool
         The pass was stopped before its last frame.
+    geo : dict or None
+        Settings and outcome of the GEO blueprint (``None``: look-ahead only).
     """
 
     world_id: str
@@ -481,6 +483,8 @@ class PassResult:
     plumes_at_start: frozenset[int]
     """Plume ids in the strip's truth at t = 0."""
     stopped: bool = False
+    geo: dict[str, Any] | None = None
+    """GEO foresight: its settings and what the blueprint did (``None``: look-ahead only)."""
 
     @property
     def measured(self) -> bool:
