@@ -287,6 +287,8 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
         from matplotlib.patches import Rectangle
     except ImportError:
         return None
+    if not hasattr(world, "truth_at") or getattr(world, "truth_rows", None) is not None:
+        return None  # a long strip: no whole-strip picture (it is never rendered whole)
     f = result.config.factor
     fp = result.frames
     hw, ww = fp.wfov_shape
@@ -491,7 +493,10 @@ def write_pass(
     notes = []
     pic = draw_pass(result, world, out / PICTURE) if picture else None
     if picture and pic is None:
-        notes.append("No picture: matplotlib is not installed (the lean onboard install).")
+        if getattr(world, "truth_rows", None) is not None:
+            notes.append("No picture: a long strip is never rendered whole.")
+        else:
+            notes.append("No picture: matplotlib is not installed (the lean onboard install).")
     if pic is not None:
         written.append(pic)
     if views is not None:
