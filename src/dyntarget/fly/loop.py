@@ -619,6 +619,7 @@ def fly_pass(
     should_stop: Callable[[], bool] | None = None,
     progress: bool = False,
     frame_sink: Callable[[FrameView], None] | None = None,
+    geo: Any = None,
 ) -> PassResult:
     """Fly a pass over ``world`` (see the module docstring for the model).
 
@@ -633,6 +634,9 @@ def fly_pass(
     should_stop : polled after every frame; true ends the pass early (``stopped``).
     progress : show a progress bar (tqdm) over the frames.
     frame_sink : called with every frame's :class:`FrameView` (e.g. to draw the pass).
+    geo : :class:`dyntarget.fly.geo.GeoSettings`: plan a blueprint over the pass from
+        the GEO stream of the strip's world and refine every frame within it
+        (:mod:`dyntarget.fly.geo`); ``None``: look-ahead only.
 
     Returns
     -------
@@ -662,10 +666,25 @@ def fly_pass(
     state = PassState(covered=np.zeros(frames.wfov_shape, bool))
     plumes_at_start = _plumes_at_start(world)
     stopped = False
+    gate, geo_info = None, None
+    if geo is not None:
+        from dyntarget.fly.geo import prepare
+
+        gate, geo_info = prepare(world, frames, config, geo)
+        if gate is None:
+            geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
 
     def result() -> PassResult:
+        info = None if geo_info is None else {**geo_info, **(gate.report() if gate else {})}
         return PassResult(
-            world.id, config, frames, list(state.records), state.flown, plumes_at_start, stopped
+            world.id,
+            config,
+            frames,
+            list(state.records),
+            state.flown,
+            plumes_at_start,
+            stopped,
+            info,
         )
 
     bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
@@ -673,7 +692,7 @@ def fly_pass(
         for k in range(frames.n_frames):
             before = len(state.flown.x)
             record, image, planned = _fly_frame(
-                k, world, classifier, fallback, config, frames, agility, truth, state
+                k, world, classifier, fallback, config, frames, agility, truth, state, gate
             )
             state.records.append(record)
             if frame_sink is not None and image is not None:
@@ -715,6 +734,7 @@ def _fly_frame(
     agility: Agility,
     truth: _TruthCache,
     state: PassState,
+    gate: Any = None,
 ) -> tuple[FrameRecord, np.ndarray | None, Any]:
     t_k = frames.acquired_s(k)
     top = frames.tops[k]
@@ -789,6 +809,8 @@ def _fly_frame(
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
+    if gate is not None and len(keep):  # refine within the blueprint: budgets, reserve
+        keep = keep[gate.filter(rows[keep] + top)]
     todo = Trajectory(traj.points[keep], np.zeros(len(keep)), traj.planner)
     attached = None
     if prediction is not None and prediction.motion.regime == "mixed":
@@ -822,6 +844,8 @@ def _fly_frame(
     sched_t, points = flown.times, flown.trajectory.points
     met = None if deadline is None else (ready - t_k) <= deadline
     flown_local = keep[flown.kept]
+    if gate is not None and len(flown_local):
+        gate.spend(rows[flown_local] + top)
     state.busy_until = ready
     if len(flown_local):
         state.timer_t = flown.end_s + t_k

@@ -161,7 +161,11 @@ def long_strip_spec(
         raise InvalidParameterError(
             f"length_km: {length_km:g} km is {rows} px at {gsd:g} m, shorter than 4 x the width"
         )
-    n = plumes if plumes is not None else round(length_km / 100.0 * (plumes_per_100km or 1.0))
+    n = (
+        plumes
+        if plumes is not None
+        else max(1, round(length_km / 100.0 * (plumes_per_100km or 1.0)))
+    )
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_VENTS:
         raise InvalidParameterError(
             f"plumes: expected 1 to {MAX_VENTS} vents along the strip, got {n!r}"
@@ -333,6 +337,8 @@ class LongStrip(MovingStrip):
     spec, window : from :func:`long_strip_spec`.
     truth_step_s : time grid of the truth, s.
     capacity : most truth bands kept.
+    frame_capacity : most renderings kept (a benchmark flying one strip many ways
+        keeps them all; a pass needs 4).
 
     Examples
     --------
@@ -349,6 +355,7 @@ class LongStrip(MovingStrip):
         *,
         truth_step_s: float = 1.0,
         capacity: int = 48,
+        frame_capacity: int = 4,
     ) -> None:
         from dyntarget.synth.dynamic import MAX_COORD_PX
 
@@ -373,6 +380,7 @@ class LongStrip(MovingStrip):
         self._cache: OrderedDict[tuple[float, int, int], Truth] = OrderedDict()
         self._capacity = capacity
         self._frames: OrderedDict[tuple[float, int, int], Any] = OrderedDict()
+        self._frame_capacity = frame_capacity
 
     def _render(self, t: float, top: int, bottom: int):
         """The world's rendering of rows ``top:bottom`` at ``t`` (the last few kept)."""
@@ -381,7 +389,7 @@ class LongStrip(MovingStrip):
         if hit is None:
             c0, r0, w, _ = self.window
             hit = self._frames[key] = self.world.render(t, (c0, r0 + top, w, bottom - top))
-            if len(self._frames) > 4:
+            if len(self._frames) > self._frame_capacity:
                 self._frames.popitem(last=False)
         return hit
 
