@@ -294,6 +294,11 @@ def pack_forest(estimator) -> PackedForest:
         pos[order] = np.arange(t.node_count)
         here = base + np.arange(t.node_count)  # the new index of order[i] is base + i
         leaf = t.children_left[order] == -1
+        split_on = t.feature[order][~leaf]
+        if ((split_on < 0) | (split_on >= nfeat)).any():  # would spill into the child bits
+            raise InvalidParameterError(
+                f"estimator: a tree splits on a feature outside 0..{nfeat - 1}"
+            )
         child = np.where(leaf, here, base + pos[np.where(leaf, 0, t.children_left[order])])
         code[here] = (child << fshift) | np.where(leaf, 0, t.feature[order])
         t64 = t.threshold[order]
