@@ -99,12 +99,28 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_export_onnx(args: argparse.Namespace) -> int:
     from dyntarget.io.outputs import OutputPathError
-    from dyntarget.perceive import load_classifier
+    from dyntarget.perceive import compiled, load_classifier
     from dyntarget.perceive.onnx_export import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
-    for name in ("model.onnx", "forest.npz"):  # forest.npz: a random forest's packed arrays
+    targets = compiled.parse_targets(args.targets or "")
+    if targets and native.name != "random-forest":
+        from dyntarget.errors import InvalidParameterError
+
+        raise InvalidParameterError(
+            f"--targets builds the random-forest kernel; {args.model} holds a {native.name}"
+        )
+    for target in targets:  # every compiler before anything is written
+        if compiled.target_compiler(target) is None:
+            compiled.build_target(target, Path(args.model) / "unused")  # raises, one line
+    if native.name == "random-forest":
+        native.estimator  # noqa: B018 (read model.skops now: the export replaces forest.npz)
+        for old in compiled.kernel_files(args.model):  # built for the forest.npz replaced now
+            old.unlink()
+        if (Path(args.model) / compiled.FOREST_FILE).is_file():
+            compiled.write_manifest(args.model, kernels=[])
+    for name in ("model.onnx", "forest.npz", "forest.json"):  # a forest's packed arrays
         out = Path(args.model) / name
         if out.is_symlink() or (out.exists() and not out.is_file()):
             raise OutputPathError(f"{out}: not a regular file; it is left as it is")
@@ -114,6 +130,17 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     print(path)
     if (Path(args.model) / "forest.npz").is_file() and native.name == "random-forest":
         print(Path(args.model) / "forest.npz")  # the packed forest, for the forest kernel
+        kernels = compiled.build_kernels(args.model, targets)
+        print(compiled.write_manifest(args.model, kernels=kernels))
+        for k in kernels:
+            log(f"{native.name}: forest kernel for {k['target']} ({k['isa']}): {k['file']}")
+            print(Path(args.model) / k["file"])
+    elif targets:
+        from dyntarget.errors import InvalidParameterError
+
+        raise InvalidParameterError(
+            "--targets: this forest has no packed form (beyond the kernel), nothing to build"
+        )
     if args.int8:
         import numpy as np
 
@@ -230,5 +257,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument(
+        "--targets",
+        default="",
+        help="random forest: also build the forest kernel ahead of time for these CPUs, "
+        "comma-separated: x86-64-v4 (AVX-512), x86-64-v3 (AVX2), x86-64, aarch64 (NEON), "
+        "host (this machine's best); e.g. --targets x86-64-v3,x86-64-v4,aarch64 (default: "
+        "none). aarch64 on x86 needs aarch64-linux-gnu-gcc (Debian gcc-aarch64-linux-gnu). "
+        "The libraries go into the model directory, bound by SHA-256 in forest.json",
     )
     p.set_defaults(func=cmd_export_onnx)

@@ -5,12 +5,17 @@ fitted forest is *packed* into a few flat arrays (:func:`pack_forest`) and walke
 small C kernel (``_forest.c``, shipped with the package) that moves 16 pixels down a tree
 at once with AVX-512 where the CPU has it, reads the first five levels of every tree from
 registers and stops a group of pixels as soon as all of them sit on leaves. The kernel is
-compiled once per machine with the C compiler found on the PATH (``cc -O2 -march=native``,
+built ahead of time for named targets by ``dyntarget export-onnx --targets
+x86-64-v3,x86-64-v4,aarch64`` (:func:`build_kernels`: ``cc -march=x86-64-v3`` etc., the
+Debian cross compiler for aarch64) into the model directory, where ``forest.json``
+(:func:`write_manifest`) records each library's SHA-256 and that of the ``forest.npz`` it
+is for; :func:`fast_predictor` loads the best one this CPU runs only if both hashes match
+(:func:`artefact_predictor`), so nothing compiles on a flight computer. Where none fits,
+the kernel is compiled with the C compiler found on the PATH (``cc -O2 -march=native``,
 about a second) and cached under :func:`cache_dir`, keyed by a SHA-256 of its source, the
-flags and the CPU's model and feature flags; a cached build serves without a compiler (a
-flight computer can get the cache directory built on the ground on the same CPU). The
-forest itself is data, so one library serves every forest, and nothing compiled is ever
-read from a model directory.
+flags and the CPU's model and feature flags; a cached build serves without a compiler.
+Either fallback is said once on stderr. The forest itself is data, so one library serves
+every forest.
 
 Layout (per tree, trees one after another): nodes in breadth-first order with the two
 children of a node next to each other, so a pixel goes from node ``k`` to
@@ -301,6 +306,9 @@ def pack_forest(estimator) -> PackedForest:
             )
         child = np.where(leaf, here, base + pos[np.where(leaf, 0, t.children_left[order])])
         code[here] = (child << fshift) | np.where(leaf, 0, t.feature[order])
+        feat = t.feature[order]
+        if ((feat < 0) | (feat >= nfeat))[~leaf].any():
+            raise InvalidParameterError(f"estimator: a split on a feature outside 0..{nfeat - 1}")
         t64 = t.threshold[order]
         if np.isnan(t64)[~leaf].any():
             raise InvalidParameterError("estimator: a split threshold is NaN")
@@ -361,8 +369,16 @@ def save_forest(
     arrays = {n: getattr(packed, n) for n in ("threshold", "code", "value", "roots")}
     scalars = {n: np.int64(getattr(packed, n)) for n in ("depth", "features", "fshift")}
     bound = np.frombuffer(bytes.fromhex(model_sha256), np.uint8)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays, **scalars, model_sha256=bound)
+    import zipfile
+
+    members = {**arrays, **scalars, "model_sha256": bound}
+    # np.savez's layout (one .npy per member, stored), dated 1980: the same forest gives the
+    # same bytes (np.savez dates each member now, so its bytes change from run to run)
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as archive:
+        for name, value in members.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            with archive.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
     return path
 
 
@@ -1082,7 +1098,8 @@ def artefact_predictor(
         return None, ""
     entries = [k for k in manifest["kernels"] if isinstance(k, dict) and k.get("isa") in ISAS]
     entries.sort(key=lambda k: _PREFERENCE.index(k["isa"]))
-    missing = []
+    missing: list[str] = []
+    refused: list[str] = []  # said even when a lesser kernel runs
     for entry in entries:
         name, target = str(entry.get("file", "")), entry.get("target")
         if isa is not None and entry["isa"] != isa:
@@ -1102,6 +1119,7 @@ def artefact_predictor(
             why = "its SHA-256 is not the manifest's (changed since export)"
         if why is not None:
             missing.append(f"{target} ({name}): {why}")
+            refused.append(f"dyntarget: {lib} is not loaded: {why}")
             continue
         try:
             predictor = forest_predictor(packed, library=lib)
@@ -1111,6 +1129,8 @@ def artefact_predictor(
         if predictor.isa != entry["isa"]:  # type: ignore[attr-defined]
             missing.append(f"{target}: runs the {predictor.isa} path")  # type: ignore[attr-defined]
             continue
+        for line in refused:
+            _say_once(f"{line}; the {target} kernel runs instead")
         return predictor, ""
     listed = ", ".join(str(k.get("target")) for k in entries) or "none"
     return None, f"exported kernels ({listed}) none usable: {'; '.join(missing)}"

@@ -543,7 +543,6 @@ def _write_packed(model: RandomForest, directory: Path) -> None:
     """
     import hashlib
 
-    from dyntarget.errors import ModelFileError
     from dyntarget.perceive.compiled import (
         FOREST_FILE,
         load_forest,
@@ -552,6 +551,10 @@ def _write_packed(model: RandomForest, directory: Path) -> None:
         write_manifest,
     )
 
+    try:  # only a forest that loads from model.skops gets a packed form
+        check_estimator(model.estimator, directory / MODEL_FILE)
+    except ModelFileError:
+        raise InvalidParameterError("the forest does not pass the model checks") from None
     packed = model.packed()
     path = directory / FOREST_FILE
     try:
