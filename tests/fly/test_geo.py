@@ -113,7 +113,9 @@ def test_blueprint_dp_matches_brute_force(seed):
     bp = plan_blueprint(targets, g, agility, horizon_s=60.0, reserve=0.1)
     assert bp.value == pytest.approx(_brute_force(targets, g, agility, 60.0, 0.1))
     # its budgets add up to its value
-    assert bp.value == pytest.approx(sum(t.value * k for t, k in zip(bp.targets, bp.budget)))
+    assert bp.value == pytest.approx(
+        sum(t.value * k for t, k in zip(bp.targets, bp.budget, strict=True))
+    )
 
 
 def test_gate_budgets_reserve_and_given_up_by_hand():

@@ -207,17 +207,21 @@ def plan_blueprint(
             cand[ok] = P[j, src[ok]]
             better = cand > A
             A[better], J[better] = cand[better], j
+        # F[e] = u e + max_{a in [e - K, e - 1], a0 <= a <= a1} (A[a] - u a): a sliding
+        # maximum over the last K arrivals (K = need), in one vectorised pass
+        u, K = ts[i].value, ts[i].need
+        B = A - u * arr
+        pad = np.concatenate([np.full(K - 1, neg), B])
+        win = np.lib.stride_tricks.sliding_window_view(pad, K)  # win[m]: B[m-K+1 .. m]
+        best = win.max(axis=1)
+        kk = 1 + np.argmax(win[:, ::-1] == best[:, None], axis=1)  # ties: the fewest pointings
         F = np.full(T, neg)
-        K = np.zeros(T, np.int64)
-        for k in range(1, ts[i].need + 1):
-            e = arr + k
-            ok = (e < T) & (arr + k - 1 <= a1)
-            if not ok.any():
-                break
-            v = A[ok] + ts[i].value * k
-            better = v > F[e[ok]]
-            F[e[ok][better]] = v[better]
-            K[e[ok][better]] = k
+        Kfull = np.zeros(T, np.int64)
+        e = arr + 1  # e - 1 = m, the last arrival slot in the window
+        ok = e < T
+        F[e[ok]] = best[ok] + u * e[ok]
+        Kfull[e[ok]] = kk[ok]
+        K = Kfull
         Jfull = np.full(T, -1, np.int64)
         Jfull[arr] = J
         Kbest[i], Jbest[i] = K, Jfull
