@@ -73,8 +73,8 @@ def _row(result, **kw):
 
 def run(args) -> dict:
     rows = []
-    for density, per100 in DENSITIES.items():
-        for p in range(args.passes):
+    for p in range(args.passes):  # sparse and dense alternate: a stopped run has both
+        for density, per100 in DENSITIES.items():
             seed = 100 * (1 + list(DENSITIES).index(density)) + p
             spec, window = long_strip_spec(
                 seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
@@ -160,9 +160,21 @@ def main() -> None:
     ap.add_argument("--presets", default="slow,fast")
     ap.add_argument("--latencies", default="0,300,900")
     ap.add_argument("--budget-s", type=float, default=0.05)
-    ap.add_argument("--blueprint-km", type=float, default=3000.0)
+    ap.add_argument("--blueprint-km", type=float, default=3000.0, help="0: skip the timing")
     ap.add_argument("--out", default="docs/benchmarks")
+    ap.add_argument(
+        "--from-partial",
+        action="store_true",
+        help="write the JSON and figure from --out's partial rows (a run stopped early)",
+    )
     args = ap.parse_args()
+    if args.from_partial:
+        doc = json.loads((Path(args.out) / "geo_foresight.json.head").read_text())
+        doc["rows"] = json.loads((Path(args.out) / "geo_foresight.partial.json").read_text())
+        doc["stopped_early"] = True
+        write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))
+        figure(doc["rows"], Path(args.out) / "geo_foresight.png")
+        return
     args.presets = args.presets.split(",")
     args.latencies = [float(v) for v in args.latencies.split(",")]
     Path(args.out).mkdir(parents=True, exist_ok=True)
@@ -171,9 +183,12 @@ def main() -> None:
         + f"--passes {args.passes} --length-km {args.length_km:g} --width {args.width} "
         + f"--gsd {args.gsd:g} --presets {','.join(args.presets)}",
         "machine": machine(),
-        "blueprint_timing": time_blueprint(args.blueprint_km, args.width, args.gsd),
+        "blueprint_timing": time_blueprint(args.blueprint_km, args.width, args.gsd)
+        if args.blueprint_km
+        else None,
     }
     print(json.dumps(doc["blueprint_timing"]), flush=True)
+    write_text(Path(args.out) / "geo_foresight.json.head", json.dumps(doc))
     doc |= run(args)
     doc["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))
