@@ -73,8 +73,8 @@ def _row(result, **kw):
 
 def run(args) -> dict:
     rows = []
-    for density, per100 in DENSITIES.items():
-        for p in range(args.passes):
+    for p in range(args.passes):  # sparse and dense alternate: a stopped run has both
+        for density, per100 in DENSITIES.items():
             seed = 100 * (1 + list(DENSITIES).index(density)) + p
             spec, window = long_strip_spec(
                 seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
@@ -120,6 +120,37 @@ def time_blueprint(km: float, width: int, gsd: float) -> dict:
     return out
 
 
+def time_blueprint_synthetic(km: float, n: int, seed: int = 0) -> dict:
+    """The DP alone on ``n`` targets spread over ``km`` (its cost depends on n and T only)."""
+    from dyntarget.geo import Target
+    from dyntarget.schedule import OrbitGeometry
+
+    g = OrbitGeometry(wfov_gsd_m=64.0)
+    rng = np.random.default_rng(seed)
+    v = g.ground_speed
+    horizon = km * 1e3 / v + g.look_ahead_m / v
+    along = np.sort(rng.uniform(g.look_ahead_m, g.look_ahead_m + km * 1e3, n))
+    ts = [
+        Target(float(a), float(rng.uniform(-900, 900)), float(rng.uniform(0.02, 0.2)),
+               int(rng.integers(50, 400)))
+        for a in along
+    ]  # fmt: skip
+    out = {"length_km": km, "targets": n, "horizon_s": round(horizon, 1)}
+    for preset in ("slow", "fast"):
+        tt = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            bp = plan_blueprint(ts, g, get_agility(preset), horizon_s=horizon)
+            tt.append(time.perf_counter() - t0)
+        out[preset] = {
+            "blueprint_s_min": round(min(tt), 4),
+            "blueprint_s_median": round(float(np.median(tt)), 4),
+            "slots": bp.info["slots"],
+            "chosen": len(bp.chosen),
+        }
+    return out
+
+
 def figure(rows, path: Path) -> None:
     import matplotlib
 
@@ -160,9 +191,37 @@ def main() -> None:
     ap.add_argument("--presets", default="slow,fast")
     ap.add_argument("--latencies", default="0,300,900")
     ap.add_argument("--budget-s", type=float, default=0.05)
-    ap.add_argument("--blueprint-km", type=float, default=3000.0)
+    ap.add_argument("--blueprint-km", type=float, default=3000.0, help="0: skip the timing")
     ap.add_argument("--out", default="docs/benchmarks")
+    ap.add_argument(
+        "--from-partial",
+        action="store_true",
+        help="write the JSON and figure from --out's partial rows (a run stopped early)",
+    )
+    ap.add_argument(
+        "--timing-only",
+        action="store_true",
+        help="only time the blueprint DP on 31 targets over --blueprint-km (dense: 1 / 100 km)",
+    )
     args = ap.parse_args()
+    if args.timing_only:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        doc = {
+            "command": f"python benchmarks/geo_foresight.py --timing-only --blueprint-km "
+            f"{args.blueprint_km:g}",
+            "machine": machine(),
+            "timing": time_blueprint_synthetic(args.blueprint_km, round(args.blueprint_km / 100)),
+        }
+        print(json.dumps(doc["timing"]))
+        write_text(Path(args.out) / "geo_blueprint_timing.json", json.dumps(doc, indent=1))
+        return
+    if args.from_partial:
+        doc = json.loads((Path(args.out) / "geo_foresight.json.head").read_text())
+        doc["rows"] = json.loads((Path(args.out) / "geo_foresight.partial.json").read_text())
+        doc["stopped_early"] = True
+        write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))
+        figure(doc["rows"], Path(args.out) / "geo_foresight.png")
+        return
     args.presets = args.presets.split(",")
     args.latencies = [float(v) for v in args.latencies.split(",")]
     Path(args.out).mkdir(parents=True, exist_ok=True)
@@ -171,9 +230,12 @@ def main() -> None:
         + f"--passes {args.passes} --length-km {args.length_km:g} --width {args.width} "
         + f"--gsd {args.gsd:g} --presets {','.join(args.presets)}",
         "machine": machine(),
-        "blueprint_timing": time_blueprint(args.blueprint_km, args.width, args.gsd),
+        "blueprint_timing": time_blueprint(args.blueprint_km, args.width, args.gsd)
+        if args.blueprint_km
+        else None,
     }
     print(json.dumps(doc["blueprint_timing"]), flush=True)
+    write_text(Path(args.out) / "geo_foresight.json.head", json.dumps(doc))
     doc |= run(args)
     doc["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))

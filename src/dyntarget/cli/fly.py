@@ -113,6 +113,7 @@ def _fly(args: argparse.Namespace) -> int:
 
     if "," in args.planner or "," in args.agility:
         raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
+    geo = _geo(args)  # bad GEO settings: one line before anything is read
     world = load_world(args.scene, truth_step_s=args.truth_step_s)
     from dyntarget.cli._resolution import check_resolution
 
@@ -126,7 +127,6 @@ def _fly(args: argparse.Namespace) -> int:
             what=f"--{opt.replace('_', '-')}",
         )
     config = _pass_config(args, args.planner, args.agility)
-    geo = _geo(args)
     if geo is not None:
         geo.check_against(world.gsd * args.factor)
         if getattr(world, "spec", None) is None:

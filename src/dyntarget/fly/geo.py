@@ -1,8 +1,9 @@
 """Geostationary foresight for a pass: the GEO stream of the strip's world, its blueprint, the gate.
 
 * **GEO stream.** The same world (:class:`~dyntarget.synth.dynamic.WorldSpec`)
-  seen by a geostationary imager: rendered at ``gsd_m / 8`` over the strip and
-  a 16 km margin around it, averaged onto ``gsd_m`` cells (brightness: the mean
+  seen by a geostationary imager: rendered at ``gsd_m / 8`` (area-averaged: narrow plumes count by the fraction
+  of the cell they cover) over the strip and
+  an 8 km margin around it, averaged onto ``gsd_m`` cells (brightness: the mean
   of the four bands), plus the imager's own Gaussian noise (``noise``,
   reflectance). Images are taken every ``cadence_s`` (at multiples of it, pass
   time 0 being one) and an image taken at ``t`` is usable from ``t + latency_s``.
@@ -41,9 +42,9 @@ from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint
 from dyntarget.scene import block_mean
 from dyntarget.schedule import get_agility
 
-MARGIN_M = 16_000.0
+MARGIN_M = 8_000.0
 """GEO coverage beyond the strip on every side, metres (context for the motion)."""
-SUBSAMPLE = 2
+SUBSAMPLE = 8
 """Render pixels per GEO cell side."""
 NEED_FILL = 2.0
 """Pointings a plume is worth per WFOV pixel of its area (about what the look-ahead's
@@ -341,18 +342,28 @@ def geo_targets(
     last = np.maximum(fields[-1], 1e-6)
     steady = np.clip(np.minimum.reduce(fields) / last, 0.0, 1.0) if len(fields) > 1 else 1.0
     a, b = stream.strip_cols()
-    sub = composite[:, a:b]
-    weight = (np.ones_like(composite) * steady)[:, a:b]
-    mask = sub * weight > s.threshold
+    weight = np.ones_like(composite) * steady
+    full = composite * weight > s.threshold
+    # components on the whole GEO grid (a plume blown across the track spreads beside
+    # the strip), kept where they reach the strip's columns or the next ones
+    a1, b1 = max(0, a - 1), min(composite.shape[1], b + 1)
+    _, comp = cv2.connectedComponents(full.astype(np.uint8), connectivity=8)
+    near = np.zeros_like(full)
+    near[:, a1:b1] = True
+    keep_ids = np.unique(comp[near & full])
+    mask = np.isin(comp, keep_ids[keep_ids > 0])[:, a1:b1]
+    sub = composite[:, a1:b1]
     # cross-track: centre of each GEO column's overlap with the strip, metres from its centre
     spec, (c0, _, w, _) = stream.strip.spec, stream.strip.window
-    cx = (stream.cell0[0] + np.arange(a, b) + 0.5) * s.gsd_m
+    cx = (stream.cell0[0] + np.arange(a1, b1) + 0.5) * s.gsd_m
     lo_x, hi_x = c0 * spec.gsd, (c0 + w) * spec.gsd
     cross = np.clip(cx, lo_x, hi_x) - (lo_x + hi_x) / 2.0
-    # the row range of a target, widened by one GEO cell (its position is that coarse)
+    # the row range of a target, widened (its position is that coarse)
     margin = SPAN_CELLS * s.gsd_m / (spec.gsd * factor)
     frac = np.clip(sub / CONTRAST, 0.0, 1.0)
-    targets = _targets_from_mask(mask, sub * weight, row_w, frames, s.gsd_m, cross, margin, frac)
+    targets = _targets_from_mask(
+        mask, sub * weight[:, a1:b1], row_w, frames, s.gsd_m, cross, margin, frac
+    )
     speed = float(np.hypot(*np.median(vel.reshape(2, -1), axis=1)) * s.gsd_m)
     return targets, {**info, "motion_mps": round(speed, 3)}
 

@@ -58,7 +58,9 @@ class Blueprint:
     start_s, end_s : numpy.ndarray
         When the blueprint's sensor timeline starts and ends each chosen target (nan: not chosen).
     reserve : int
-        Pointings kept for plumes the look-ahead finds that the blueprint does not hold.
+        Pointings kept for plumes the look-ahead finds that the blueprint does not hold:
+        ``reserve`` of the pass's capacity, or all the capacity its budgets leave unused
+        if that is more (every pointing when there is no target at all).
     value : float
         The blueprint's expected utility.
     slot_s : float
@@ -163,11 +165,12 @@ def plan_blueprint(
     n = len(ts)
     budget = np.zeros(n, np.int64)
     start, end = np.full(n, np.nan), np.full(n, np.nan)
+    c = pointing_s(agility, geometry)
+    capacity = int(horizon_s / c) if c > 0 else 10**9  # pointings the whole pass could take
     if agility.unlimited or n == 0:
         budget[:] = [t.need for t in ts]
         value = float(sum(t.value * t.need for t in ts))
-        return Blueprint(ts, budget, start, end, 0, value, 0.0, {"slots": 0})
-    c = pointing_s(agility, geometry)
+        return Blueprint(ts, budget, start, end, capacity, value, 0.0, {"slots": 0})
     slot = c / (1.0 - reserve)
     T = math.ceil(horizon_s / slot) + 1
     along = np.array([t.along_m for t in ts])
@@ -207,17 +210,21 @@ def plan_blueprint(
             cand[ok] = P[j, src[ok]]
             better = cand > A
             A[better], J[better] = cand[better], j
+        # F[e] = u e + max_{a in [e - K, e - 1], a0 <= a <= a1} (A[a] - u a): a sliding
+        # maximum over the last K arrivals (K = need), in one vectorised pass
+        u, K = ts[i].value, ts[i].need
+        B = A - u * arr
+        pad = np.concatenate([np.full(K - 1, neg), B])
+        win = np.lib.stride_tricks.sliding_window_view(pad, K)  # win[m]: B[m-K+1 .. m]
+        best = win.max(axis=1)
+        kk = 1 + np.argmax(win[:, ::-1] == best[:, None], axis=1)  # ties: the fewest pointings
         F = np.full(T, neg)
-        K = np.zeros(T, np.int64)
-        for k in range(1, ts[i].need + 1):
-            e = arr + k
-            ok = (e < T) & (arr + k - 1 <= a1)
-            if not ok.any():
-                break
-            v = A[ok] + ts[i].value * k
-            better = v > F[e[ok]]
-            F[e[ok][better]] = v[better]
-            K[e[ok][better]] = k
+        Kfull = np.zeros(T, np.int64)
+        e = arr + 1  # e - 1 = m, the last arrival slot in the window
+        ok = e < T
+        F[e[ok]] = best[ok] + u * e[ok]
+        Kfull[e[ok]] = kk[ok]
+        K = Kfull
         Jfull = np.full(T, -1, np.int64)
         Jfull[arr] = J
         Kbest[i], Jbest[i] = K, Jfull
@@ -240,5 +247,6 @@ def plan_blueprint(
             s = a - tr(j, i)
             e = int(Parg[j, s])
             i = j
-    reserve_n = int(reserve * horizon_s / c)
+    # the reserve: the stated fraction, or all the time the blueprint leaves unused if more
+    reserve_n = max(int(reserve * capacity), capacity - int(budget.sum()))
     return Blueprint(ts, budget, start, end, reserve_n, value, slot, {"slots": T})
