@@ -31,7 +31,9 @@ from dyntarget.evaluate.crossval import CVConfig, kfold_indices, train_or_load
 from dyntarget.evaluate.metrics import Confusion
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene_dir
-from dyntarget.perceive.onnx import export_onnx, load_onnx, quantize_int8
+from dyntarget.perceive.int8 import quantize_int8
+from dyntarget.perceive.onnx import load_onnx
+from dyntarget.perceive.onnx_export import export_onnx
 
 PATHS = ("blend", "halo", "onnx-fp32", "onnx-int8")
 

@@ -51,7 +51,7 @@ from dyntarget.evaluate.bench import machine, machine_rates
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.io import read_scene
 from dyntarget.io.atomic import write_text
-from dyntarget.perceive.base import available_cores, keep_freed_memory
+from dyntarget.perceive.resources import available_cores, keep_freed_memory
 
 
 def _median_s(fn, repeats: int = 3) -> float:

@@ -2,7 +2,7 @@
 
 Every classifier that exports to ONNX is trained on four 256 px synthetic scenes
 (U-Nets for 2 epochs: latency does not depend on how well a model is trained),
-saved, exported with ``dyntarget.perceive.onnx.export_onnx`` and timed on one
+saved, exported with ``dyntarget.perceive.onnx_export.export_onnx`` and timed on one
 synthetic scene per WFOV size: median of the repeats after a warm-up, and the
 peak resident memory above the start (see ``dyntarget.evaluate.bench.measure``).
 The largest difference between the two outputs is reported too. A second table puts
@@ -26,8 +26,10 @@ import numpy as np
 from dyntarget.evaluate.bench import machine, measure
 from dyntarget.evaluate.tables import markdown_table
 from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.perceive.base import keep_freed_memory
-from dyntarget.perceive.onnx import INT8_SUPPORTED, export_onnx, load_onnx, quantize_int8
+from dyntarget.perceive.int8 import INT8_SUPPORTED, quantize_int8
+from dyntarget.perceive.onnx import load_onnx
+from dyntarget.perceive.onnx_export import export_onnx
+from dyntarget.perceive.resources import keep_freed_memory
 from dyntarget.synth import generate_scene
 
 

@@ -61,7 +61,7 @@ def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
     from dyntarget.cli import main
     from dyntarget.io import write_scene
     from dyntarget.perceive import make_classifier
-    from dyntarget.perceive.onnx import export_onnx
+    from dyntarget.perceive.onnx_export import export_onnx
 
     model_dir = tmp_path / "rf"
     model = make_classifier("decision-tree").fit(tiny_scenes[:3])
@@ -94,7 +94,7 @@ def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_m
     from dyntarget.cli import main
     from dyntarget.io import write_scene
     from dyntarget.perceive import compiled, make_classifier
-    from dyntarget.perceive.onnx import export_onnx
+    from dyntarget.perceive.onnx_export import export_onnx
 
     model_dir = tmp_path / "rf"
     model = make_classifier("random-forest", max_pixels_per_class=2000).fit(tiny_scenes[:3])
@@ -118,6 +118,93 @@ def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_m
     )
     assert out.strip().splitlines()[-1] == str(fast)  # the kernel ran where it can
     assert onnx_out.read_text() == native_out.read_text()
+
+
+def _plan_args(model_dir, image, out):
+    return ["plan", str(image), "--model", str(model_dir), "--planner", "track-center",
+            "--out", str(out)]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_native_random_forest_plans_from_its_packed_forest_without_native_ml(tiny_scenes, tmp_path):
+    """``train`` writes forest.npz bound to model.skops (forest.json); ``plan --model RF``
+    (native, not --onnx) predicts from it and imports neither torch nor scikit-learn nor
+    skops, and plans what scikit-learn's probabilities plan. An older model directory
+    (model.skops alone) is planned with scikit-learn once, gets its packed forest written,
+    and the next run is lean again."""
+    from dyntarget.cli import main
+    from dyntarget.io import write_scene
+    from dyntarget.perceive import make_classifier
+
+    model_dir = tmp_path / "rf"
+    model = make_classifier("random-forest", max_pixels_per_class=2000).fit(tiny_scenes[:3])
+    model.save(model_dir)
+    assert {p.name for p in model_dir.iterdir()} >= {"model.skops", "forest.npz", "forest.json"}
+    image = write_scene(tiny_scenes[3], tmp_path / "scene")[0]
+    reference = tmp_path / "sklearn.csv"
+    model.set_backend("sklearn")
+    from dyntarget.perceive import pixel
+
+    # the reference plan: scikit-learn's own probabilities (a different implementation)
+    original = pixel.RandomForest.chunk_predictor
+    try:
+        pixel.RandomForest.chunk_predictor = pixel.PixelClassifier.chunk_predictor
+        assert main(_plan_args(model_dir, image, reference)) == 0
+    finally:
+        pixel.RandomForest.chunk_predictor = original
+
+    out = tmp_path / "lean.csv"
+    loaded, _ = _loaded_after(
+        f"from dyntarget.cli import main\nassert main({_plan_args(model_dir, image, out)!r}) == 0"
+    )
+    assert not set(loaded) & set(NATIVE_ML), loaded
+    assert out.read_text() == reference.read_text()
+
+    for name in ("forest.npz", "forest.json"):  # as trained before the packed forest
+        (model_dir / name).unlink()
+    again = tmp_path / "again.csv"
+    probe = (
+        f"from dyntarget.cli import main\nassert main({_plan_args(model_dir, image, again)!r}) == 0"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("bound the packed forest to model.skops") == 1
+    assert (model_dir / "forest.npz").is_file() and (model_dir / "forest.json").is_file()
+    loaded, _ = _loaded_after(probe)
+    assert not set(loaded) & set(NATIVE_ML), loaded
+    assert again.read_text() == reference.read_text()
+
+    (model_dir / "model.skops").write_bytes(  # another model's file: the forest is not its own
+        _retrained(tiny_scenes, tmp_path).joinpath("model.skops").read_bytes()
+    )
+    loaded, _ = _loaded_after(probe)
+    assert "sklearn" in loaded  # not the forest of this model.skops: scikit-learn predicts
+
+
+def _retrained(tiny_scenes, tmp_path):
+    from dyntarget.perceive import make_classifier
+
+    other = tmp_path / "other"
+    make_classifier("random-forest", seed=1, max_pixels_per_class=500).fit(tiny_scenes[:2]).save(
+        other
+    )
+    return other
+
+
+@pytest.mark.slow
+def test_a_unet_loads_its_safetensors_without_scikit_learn(tiny_scenes, tmp_path):
+    pytest.importorskip("torch")
+    from dyntarget.perceive import make_classifier
+
+    model_dir = tmp_path / "unet"
+    make_classifier("unet-uavsar", epochs=1, width=4).fit(tiny_scenes[:2]).save(model_dir)
+    loaded, _ = _loaded_after(
+        "import numpy as np\nfrom dyntarget.perceive import load_classifier\n"
+        f"load_classifier({str(model_dir)!r}).predict_proba(np.zeros((4, 32, 32), np.float32))"
+    )
+    assert "torch" in loaded and not {"sklearn", "skops"} & set(loaded), loaded
 
 
 def test_a_missing_optional_dependency_names_its_extra(tiny_scenes, tmp_path, monkeypatch, capsys):

@@ -15,7 +15,7 @@ from dyntarget import defaults
 from dyntarget import denoise as denoising
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.masks import check_mask, mask_to_polygons
-from dyntarget.perceive.base import Classifier
+from dyntarget.perceive.base import Predictor
 from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
 from dyntarget.predict import Motion, Prediction
 from dyntarget.scene import check_image
@@ -177,14 +177,14 @@ class Segmentation:
     timings: dict[str, float]
 
 
-def classify(image: np.ndarray, classifier: Classifier) -> np.ndarray:
+def classify(image: np.ndarray, classifier: Predictor) -> np.ndarray:
     """Plume probability of ``image`` (the classify stage, timed by the callers).
 
     Parameters
     ----------
     image : numpy.ndarray
         ``(4, H, W)`` WFOV image.
-    classifier : Classifier
+    classifier : dyntarget.perceive.Predictor
         Fitted (native or ONNX).
 
     Returns
@@ -223,7 +223,7 @@ def clean(raw: np.ndarray, config: PipelineConfig, *, denoise: bool = True):
 
 def segment(
     image: np.ndarray,
-    classifier: Classifier | None = None,
+    classifier: Predictor | None = None,
     *,
     mask: np.ndarray | None = None,
     probability: np.ndarray | None = None,
@@ -238,7 +238,7 @@ def segment(
     ----------
     image : numpy.ndarray
         ``(4, H, W)`` WFOV image.
-    classifier : Classifier or None
+    classifier : dyntarget.perceive.Predictor or None
         Fitted classifier; not needed with ``mask`` or ``probability``.
     mask : numpy.ndarray or None
         A plume mask to plan on instead of classifying.
@@ -385,7 +385,7 @@ def schedule_plan(
 
 def plan_scene(
     image: np.ndarray,
-    classifier: Classifier | None,
+    classifier: Predictor | None,
     planner: str,
     *,
     mask: np.ndarray | None = None,
@@ -393,7 +393,7 @@ def plan_scene(
     denoise: bool = True,
     config: PipelineConfig | None = None,
     deadline_s: float | None = None,
-    fallback: Classifier | None = None,
+    fallback: Predictor | None = None,
     kinematics: Kinematics | None = None,
     prediction: Prediction | None = None,
 ) -> PlanResult:
@@ -537,7 +537,7 @@ LAST_RESORT = "straight-nadir"
 _COST_PER_UNIT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[float, float]:
+def estimate_classify_s(classifier: Predictor, image: np.ndarray) -> tuple[float, float]:
     """``(estimate, probe seconds)`` for classifying ``image``.
 
     The first time a classifier is seen, a crop of at most 128 x 128 px is timed
@@ -548,7 +548,7 @@ def estimate_classify_s(classifier: Classifier, image: np.ndarray) -> tuple[floa
 
     Parameters
     ----------
-    classifier : dyntarget.perceive.Classifier
+    classifier : dyntarget.perceive.Predictor
         The classifier to time.
     image : numpy.ndarray
         The ``(4, H, W)`` image it will classify.
@@ -715,7 +715,7 @@ def two_look_motion(
         est = replace(
             est,
             vent=None if est.vent is None else (est.vent[0], est.vent[1] + offset_rows),
-            attached=tuple((x, y + offset_rows, *rest) for x, y, *rest in est.attached),
+            attached=tuple((x, y + offset_rows, r) for x, y, r in est.attached),
         )
     return est if prior is None else check_against_prior(est, prior)
 

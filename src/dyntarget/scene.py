@@ -180,6 +180,24 @@ class Scene:
         return (int(self.image.shape[1]), int(self.image.shape[2]))
 
     @property
+    def truth(self) -> np.ndarray:
+        """The plume label, for training and scoring: ``bool (H, W)``.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidSceneError
+            When the scene has no label.
+
+        Examples
+        --------
+        >>> Scene(np.ones((4, 2, 2), np.float32), label=np.eye(2, dtype=bool)).truth.sum()
+        np.int64(2)
+        """
+        if self.label is None:
+            raise InvalidSceneError(f"scene {self.id!r}: no plume label (needed to train or score)")
+        return self.label
+
+    @property
     def valid_mask(self) -> np.ndarray:
         """``bool (H, W)``: ``True`` where there is data (all ``True`` without nodata)."""
         return self.valid if self.valid is not None else np.ones(self.shape, bool)

@@ -513,7 +513,8 @@ class Timer:
     def _from(self, t: np.ndarray) -> np.ndarray:
         if self.target is None:
             return np.array([0.0, 0.0, -1.0])
-        return look_vectors(self.geometry, self.target[0], self.target[1], t)
+        along, cross = np.asarray(self.target[0]), np.asarray(self.target[1])
+        return look_vectors(self.geometry, along, cross, t)
 
     def arrival(self, along: np.ndarray, cross: np.ndarray, t_in: np.ndarray) -> np.ndarray:
         """When observations of the given targets could start if taken next (vectorised).
@@ -689,7 +690,10 @@ def schedule(
     timer = Timer(geometry, agility)
     if sensor is not None:
         timer.t = max(geometry.start_s, sensor.free_s)
-        timer.target = None if sensor.target is None else tuple(map(float, sensor.target))
+        if sensor.target is not None:
+            timer.target = (float(sensor.target[0]), float(sensor.target[1]))
+        else:
+            timer.target = None
     kept, times = _walk(timer, order, along, cross, t_in, t_out, limit)
     kept_idx = np.asarray(kept, np.int64)
     keep_traj = Trajectory(

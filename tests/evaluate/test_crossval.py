@@ -7,6 +7,7 @@ import pytest
 
 from dyntarget import InvalidParameterError, UnknownNameError
 from dyntarget.evaluate.crossval import CVConfig, cross_validate, kfold_indices
+from dyntarget.evaluate.options import RunOptions
 
 
 def test_kfold_partitions_scenes():
@@ -32,7 +33,9 @@ def test_config_validation():
 @pytest.mark.slow
 def test_small_cross_validation_and_model_reuse(tiny_scenes, tmp_path):
     config = CVConfig(folds=2, factor=2, classifiers=("band-threshold", "decision-tree"))
-    first = cross_validate(tiny_scenes, config, models_dir=tmp_path, progress=False)
+    first = cross_validate(
+        tiny_scenes, config, options=RunOptions(models_dir=tmp_path, progress=False)
+    )
     rows = first["rows"]
     assert [r["Classifier"] for r in rows] == [
         "Band Threshold",
@@ -54,7 +57,9 @@ def test_small_cross_validation_and_model_reuse(tiny_scenes, tmp_path):
     meta = json.loads((tmp_path / "fold-0/decision-tree/metadata.json").read_text())
     assert set(meta["training"]["scenes"]).isdisjoint(first["folds"][0])
     mtime = (tmp_path / "fold-0/decision-tree/model.skops").stat().st_mtime_ns
-    second = cross_validate(tiny_scenes, config, models_dir=tmp_path, progress=False)
+    second = cross_validate(
+        tiny_scenes, config, options=RunOptions(models_dir=tmp_path, progress=False)
+    )
     assert (
         tmp_path / "fold-0/decision-tree/model.skops"
     ).stat().st_mtime_ns == mtime  # reused, not retrained

@@ -12,6 +12,7 @@ from dyntarget.cli import main
 from dyntarget.denoise import denoise
 from dyntarget.evaluate import dynamic as dyn
 from dyntarget.evaluate.dynamic import DynamicConfig, ModeContext, evaluate_dynamic
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.io import read_sequence_dir
 from dyntarget.observe import observe
 from dyntarget.plan import PlanConfig, Trajectory, plan
@@ -132,7 +133,7 @@ def test_zero_latency_static_plume_equals_todays_observe():
     config = DynamicConfig(
         folds=2, classifiers=(), latencies=(0.0, 90.0), planners=("track-center", "straight-nadir")
     )
-    result = evaluate_dynamic(seqs, config, progress=False)
+    result = evaluate_dynamic(seqs, config, options=RunOptions(progress=False))
     for seq in seqs:
         wf = seq.frames[-1].to_wfov(config.factor)
         cleaned = denoise(wf.label)
@@ -164,7 +165,7 @@ def test_a_new_mode_is_one_dict_entry(monkeypatch):
         folds=2, classifiers=(), latencies=(30.0,), planners=("trace-outline",),
         modes=("corner", "lazy-static"),
     )  # fmt: skip
-    result = evaluate_dynamic(_static_sequences(), config, progress=False)
+    result = evaluate_dynamic(_static_sequences(), config, options=RunOptions(progress=False))
     assert {r["mode"] for r in result["rows"]} == {"corner", "lazy-static"}
     assert seen and all(s[0] == "trace-outline" and s[1] == 30.0 for s in seen)
     corner = [r for r in result["records"] if r["mode"] == "corner"]
@@ -189,8 +190,8 @@ def test_on_a_dask_cluster_the_records_equal_the_serial_run(cluster):
     config = DynamicConfig(
         folds=2, classifiers=(), latencies=(0.0, 60.0), planners=("track-center", "naive-transect")
     )
-    serial = evaluate_dynamic(seqs, config, progress=False)
-    remote = evaluate_dynamic(seqs, config, progress=False, scheduler=cluster)
+    serial = evaluate_dynamic(seqs, config, options=RunOptions(progress=False))
+    remote = evaluate_dynamic(seqs, config, options=RunOptions(progress=False, scheduler=cluster))
     assert remote["records"] == serial["records"]
 
 

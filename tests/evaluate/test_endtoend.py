@@ -10,6 +10,7 @@ import pytest
 from dyntarget import InvalidParameterError, InvalidSceneError
 from dyntarget.evaluate.claims import check_claims, paper_results
 from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.perceive import make_classifier
 from dyntarget.pipeline import plan_scene
 from dyntarget.plan import PAPER_PLANNERS
@@ -50,7 +51,9 @@ def test_plan_scene_with_mask_and_errors(tiny_scenes):
 @pytest.mark.slow
 def test_end_to_end_rows_and_model_sharing(tiny_scenes, tmp_path):
     config = E2EConfig(folds=2, factor=2, classifiers=("band-threshold", "decision-tree"))
-    result = evaluate_end_to_end(tiny_scenes, config, models_dir=tmp_path, progress=False)
+    result = evaluate_end_to_end(
+        tiny_scenes, config, options=RunOptions(models_dir=tmp_path, progress=False)
+    )
     rows = result["rows"]
     assert [(r["planner"], r["classifier"]) for r in rows[:2]] == [
         ("straight-nadir", "N/A"),

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.evaluate.planning import evaluate_planners_on_truth
 from dyntarget.observe import observe
 from dyntarget.perceive import make_classifier
@@ -42,7 +43,9 @@ def _margins(scores: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def test_lookahead_beats_baselines_on_true_masks(scenes):
-    rows = evaluate_planners_on_truth(scenes, factor=FACTOR, progress=False)["rows"]
+    rows = evaluate_planners_on_truth(scenes, factor=FACTOR, options=RunOptions(progress=False))[
+        "rows"
+    ]
     scores = {
         r["planner"]: np.array([r["Ratio Plume"], r["Intensity"], r["Gradient"]]) for r in rows
     }

@@ -353,7 +353,8 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     pytest.importorskip("onnxruntime")
     from dyntarget.cli import main
     from dyntarget.io import write_scene
-    from dyntarget.perceive.onnx import export_checked, load_onnx
+    from dyntarget.perceive.onnx import load_onnx
+    from dyntarget.perceive.onnx_export import export_checked
 
     model_dir = tmp_path / "rf"
     project_forest.save(model_dir)
@@ -376,7 +377,7 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
         other
     )
     from dyntarget.errors import ModelFileError
-    from dyntarget.perceive.onnx import export_onnx
+    from dyntarget.perceive.onnx_export import export_onnx
 
     export_onnx(load_classifier(other), other)
     saved = (model_dir / "model.onnx").read_bytes()

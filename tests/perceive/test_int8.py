@@ -8,13 +8,9 @@ import pytest
 from dyntarget import InvalidParameterError, ModelFileError
 from dyntarget.cli import main
 from dyntarget.perceive import make_classifier
-from dyntarget.perceive.onnx import (
-    INT8_TOLERANCE,
-    calibration_batches,
-    export_onnx,
-    load_onnx,
-    quantize_int8,
-)
+from dyntarget.perceive.int8 import INT8_TOLERANCE, calibration_batches, quantize_int8
+from dyntarget.perceive.onnx import load_onnx
+from dyntarget.perceive.onnx_export import export_onnx
 from helpers import FAST_KWARGS
 
 pytest.importorskip("onnxruntime")
@@ -84,13 +80,13 @@ def test_int8_refusals(tiny_scenes, tmp_path):
 
 
 def test_export_onnx_int8_cli(tiny_scenes, tmp_path, capsys, monkeypatch):
-    import dyntarget.perceive.onnx as onnx_module
+    import dyntarget.perceive.int8 as int8_module
 
     model = make_classifier("mlp").fit(tiny_scenes[:3])
     model.save(tmp_path / "m")
     export = ["export-onnx", str(tmp_path / "m"), "--check-size", "64", "--int8"]
     # a tolerance no quantized model meets: refused, exit 2, the file not kept
-    monkeypatch.setattr(onnx_module, "INT8_TOLERANCE", 0.0)
+    monkeypatch.setattr(int8_module, "INT8_TOLERANCE", 0.0)
     assert main(export) == 2
     err = capsys.readouterr().err
     assert "more than the tolerance 0" in err and "not kept" in err
@@ -99,7 +95,7 @@ def test_export_onnx_int8_cli(tiny_scenes, tmp_path, capsys, monkeypatch):
     assert (tmp_path / "m" / "model.int8.onnx").is_file()
     assert "kept because of --force" in capsys.readouterr().err
     (tmp_path / "m" / "model.int8.onnx").unlink()
-    monkeypatch.setattr(onnx_module, "INT8_TOLERANCE", 1.0)  # any difference is within
+    monkeypatch.setattr(int8_module, "INT8_TOLERANCE", 1.0)  # any difference is within
     assert main(export) == 0
     out, err = capsys.readouterr()
     assert out.splitlines()[-1].endswith("model.int8.onnx")

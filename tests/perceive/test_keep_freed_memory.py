@@ -16,7 +16,7 @@ import pytest
 SCRIPT = """
 import ctypes, sys
 import numpy as np
-from dyntarget.perceive.base import keep_freed_memory
+from dyntarget.perceive.resources import keep_freed_memory
 
 class Info(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in
@@ -51,10 +51,10 @@ def test_a_freed_large_block_stays_in_the_heap_only_when_asked():
 
 def test_the_command_sets_it_before_running(monkeypatch, capsys):
     from dyntarget import cli
-    from dyntarget.perceive import base
+    from dyntarget.perceive import resources
 
     calls = []
-    monkeypatch.setattr(base, "keep_freed_memory", lambda: calls.append(True) or True)
+    monkeypatch.setattr(resources, "keep_freed_memory", lambda: calls.append(True) or True)
     assert cli.main(["planners"]) == 0
     assert calls == [True]
     assert cli.main(["--help"]) == 0  # argparse exits first: nothing set

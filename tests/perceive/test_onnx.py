@@ -7,8 +7,9 @@ import pytest
 
 from dyntarget import InvalidParameterError, ModelFileError
 from dyntarget.cli import main
-from dyntarget.perceive import CLASSIFIERS, make_classifier
-from dyntarget.perceive.onnx import TOLERANCE, export_onnx, load_onnx
+from dyntarget.perceive import CLASSIFIERS, Predictor, make_classifier
+from dyntarget.perceive.onnx import load_onnx
+from dyntarget.perceive.onnx_export import TOLERANCE, export_onnx
 from helpers import FAST_KWARGS
 
 EXPORTED = [
@@ -35,6 +36,11 @@ def test_onnx_matches_native(name, tiny_scenes, tmp_path):
         np.testing.assert_allclose(
             twin.predict_proba(crop), model.predict_proba(crop), atol=TOLERANCE, rtol=0
         )
+    # the deadline logic scales a timed crop by work units: the twin counts as the native
+    assert isinstance(twin, Predictor) and isinstance(model, Predictor)
+    assert twin.work_units((40, 23)) == model.work_units((40, 23))
+    if model.kind == "pixel":
+        assert twin.work_units((40, 23)) == 40 * 23  # one row per pixel
 
 
 def test_band_threshold_is_not_exported(tiny_scenes, tmp_path):
@@ -82,11 +88,11 @@ def test_export_is_byte_identical(name, tiny_scenes, tmp_path):
 def test_export_failing_the_parity_check_is_bad_input_and_removed(
     tiny_scenes, tmp_path, capsys, monkeypatch
 ):
-    from dyntarget.perceive import onnx
+    from dyntarget.perceive import onnx_export
 
     model = make_classifier("decision-tree").fit(tiny_scenes[:3])
     model.save(tmp_path / "m")
-    monkeypatch.setattr(onnx, "TOLERANCE", -1.0)  # no difference can pass
+    monkeypatch.setattr(onnx_export, "TOLERANCE", -1.0)  # no difference can pass
     assert main(["export-onnx", str(tmp_path / "m"), "--check-size", "64"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "export removed" in err[0] and "internal" not in err[0]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,7 +145,24 @@ def bad_looks(tmp_path_factory, looks):
         "small": _write(d / "small.tif", world.frame(0.0)[:, :100, :120]),
         "small_mask": _write(d / "small_mask.tif", world.mask(0.0)[:100, :120]),
         "geo4326": _write(d / "geo4326.tif", world.frame(0.0), crs="EPSG:32606"),
+        "nodata": _write_nodata(d / "nodata.tif", world.frame(0.0).shape),
+        "late": _with_time(_write(d / "late.tif", world.frame(0.0)), "2024-05-01T10:00:09Z"),
     }
+
+
+def _write_nodata(path, shape):
+    """A frame of the right grid in which every pixel is the nodata value."""
+    with rasterio.open(
+        path, "w", driver="GTiff", height=shape[1], width=shape[2], count=shape[0],
+        dtype="float32", crs="EPSG:32605", transform=TRANSFORM, nodata=-9999.0,
+    ) as dst:  # fmt: skip
+        dst.write(np.full(shape, -9999.0, np.float32))
+    return path
+
+
+def _with_time(path, when):
+    path.with_name(path.stem + ".meta.json").write_text(json.dumps({"acquired": when}))
+    return path
 
 
 @pytest.mark.parametrize(
@@ -163,6 +181,9 @@ def bad_looks(tmp_path_factory, looks):
         (["--wind-mps", "5", "--lead-s", "5"], "--wind-from-deg"),
         (["--wind-mps", "-5", "--wind-from-deg", "90", "--lead-s", "5"], "wind_mps"),
         (["--lead-s", "5"], "a prediction needs"),
+        # issue 28: a lead beyond what two looks support names the limit (30 intervals)
+        (["--previous", "prev", "--previous-mask", "prev_mask", "--interval-s", "2", "--lead-s", "61"], "at most 30 intervals (60 s)"),
+        (["--previous", "nodata", "--previous-mask", "prev_mask", "--interval-s", "2", "--lead-s", "5"], "nodata"),
     ],
 )  # fmt: skip
 def test_bad_prediction_inputs_exit_2_with_one_line(
@@ -176,6 +197,36 @@ def test_bad_prediction_inputs_exit_2_with_one_line(
     assert message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "t.geojson").exists()
+
+
+def test_frames_at_other_times_than_the_interval_exit_2(tmp_path, capsys, looks, bad_looks):
+    """--previous acquired 1 s before the image, --interval-s 4: one line naming both."""
+    import shutil
+
+    cur = _with_time(Path(shutil.copy(looks["cur"], tmp_path / "cur.tif")), "2024-05-01T10:00:10Z")
+    code, _, err = run(
+        capsys, "plan", cur, "--mask", looks["cur_mask"], "--planner", "lawnmower-transect",
+        "--previous", bad_looks["late"],
+        "--previous-mask", looks["prev_mask"], "--interval-s", 4, "--lead-s", 10,
+        "--out", tmp_path / "t.csv",
+    )  # fmt: skip
+    assert code == 2, err
+    assert "times are 1 s apart" in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("ground", ["fixed", "moving", "auto"])
+def test_ground_option_reaches_the_estimate(tmp_path, capsys, looks, ground):
+    """A rigid cloud over a still ground: every --ground gives its velocity; the log says
+    which ground was used."""
+    code, err = _plan(
+        capsys, looks, tmp_path / "g.csv", "--previous", looks["prev"],
+        "--previous-mask", looks["prev_mask"], "--interval-s", 4, "--lead-s", 8,
+        "--ground", ground,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "motion: detached plume, velocity (+1.5" in err, err
+    if ground == "auto":
+        assert "ground auto -> fixed" in err, err
 
 
 def test_utility_max_plans_on_the_prediction(tmp_path, capsys, looks):

@@ -92,8 +92,12 @@ def test_texture_poor_plume_reports_a_clear_low_confidence():
     m = _two_looks(world)
     assert m.confidence < LOW_CONFIDENCE and not m.reliable, m.summary()
     assert "unreliable" in m.method
-    # not a wild estimate: the fallback (masks' shift) stays near the truth
-    assert math.hypot(m.velocity[0] - 1.5, m.velocity[1] + 0.8) < 0.5
+    # issue 28: an unsure estimate does not move the mask (persistence), and says so
+    # (it used to fall back on the masks' centroid shift, which a border cut corrupts)
+    assert m.fallback == "persistence" and m.velocity == (0.0, 0.0), m.summary()
+    assert any("fallback to persistence" in n for n in m.notes), m.notes
+    mask = world.mask(INTERVAL)
+    assert np.array_equal(predict_mask(mask, m, 90.0), mask)
 
 
 def test_real_texture_38cloud_patch_shifted():

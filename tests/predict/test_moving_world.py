@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from dyntarget.evaluate.dynamic import DynamicConfig, evaluate_dynamic
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.predict import estimate_motion, predict_mask
 from dyntarget.synth.dynamic import CloudSpec, VentSpec, Wind, World, WorldSpec, world_sequence
 
@@ -62,7 +63,7 @@ def test_predictive_mode_recovers_a_drifting_cloud_where_static_loses_it(tmp_pat
         folds=3, classifiers=(), true_mask=True, planners=("lawnmower-transect", "track-center"),
         modes=("static", "predictive", "wind-prior"), latencies=(0.0, 90.0), factor=2,
     )  # fmt: skip
-    rows = evaluate_dynamic(seqs, config, progress=False)["rows"]
+    rows = evaluate_dynamic(seqs, config, options=RunOptions(progress=False))["rows"]
     ratio = {(r["mode"], r["planner"], r["latency_s"]): r["ratio_plume"] for r in rows}
     for planner in ("lawnmower-transect", "track-center"):
         zero = ratio[("static", planner, 0.0)]

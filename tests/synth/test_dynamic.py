@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
 import pytest
 
@@ -34,18 +32,53 @@ def _centroid(mask: np.ndarray) -> np.ndarray:
     return np.array([cols.mean(), rows.mean()])
 
 
-# the static generator's bytes, recorded before the moving world existed
-STATIC_SHA256 = {
-    (0, 0, 64): "21111fe0697a9727555b52ff08c6005f7eef29c52adf69df7f18858425b9ca56",
-    (7, 3, 96): "089bbb61fdb2e3870f0433e9b1f3a4d5432efec29577e4c86a087404a4aeab85",
+# The static generator as recorded before the moving world existed: per-band mean and
+# standard deviation of the image and the label's plume pixels and centroid. Not the bytes:
+# OpenCV's SIMD paths (SSE/AVX2/AVX-512) round the blurs differently in the last bits, so
+# the bytes differ between CPUs (see the forced-path test below); the statistics do not.
+STATIC_SCENES = {
+    (0, 0, 64): (
+        (0.141909586, 0.148151461, 0.11771168, 0.324567537),
+        (0.153082068, 0.145981306, 0.154720439, 0.173924956),
+        148,
+    ),
+    (7, 3, 96): (
+        (0.175244376, 0.169914938, 0.154762598, 0.232872362),
+        (0.157617428, 0.150748211, 0.153895553, 0.1669035),
+        1118,
+    ),
 }
 
 
-@pytest.mark.parametrize(("seed", "index", "size"), list(STATIC_SHA256))
-def test_static_scenes_are_byte_identical_to_before(seed, index, size):
+@pytest.mark.parametrize(("seed", "index", "size"), list(STATIC_SCENES))
+def test_static_scenes_are_unchanged(seed, index, size):
     scene, _ = generate_scene(seed, index, size=size)
-    digest = hashlib.sha256(scene.image.tobytes() + scene.label.tobytes()).hexdigest()
-    assert digest == STATIC_SHA256[(seed, index, size)]
+    mean, std, plume = STATIC_SCENES[(seed, index, size)]
+    image = scene.image.astype(np.float64)
+    np.testing.assert_allclose(image.mean(axis=(1, 2)), mean, atol=2e-8)
+    np.testing.assert_allclose(image.std(axis=(1, 2)), std, atol=2e-8)
+    assert abs(int(scene.label.sum()) - plume) <= 2  # a threshold pixel may flip on another CPU
+
+
+def test_static_scenes_differ_between_opencv_simd_paths_only_in_the_last_bits():
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import json; from dyntarget.synth import generate_scene; "
+        "s, _ = generate_scene(7, 3, size=96); "
+        "print(json.dumps([s.image.ravel().tolist(), s.label.ravel().tolist()]))"
+    )
+    env = dict(os.environ, OPENCV_CPU_DISABLE="AVX512_SKX,AVX2,FMA3,AVX,SSE4_2,SSE4_1,POPCNT")
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout
+    image, label = json.loads(out)
+    scene, _ = generate_scene(7, 3, size=96)
+    assert np.abs(np.asarray(image, np.float32) - scene.image.ravel()).max() <= 1e-6
+    assert abs(int(np.sum(label)) - int(scene.label.sum())) <= 2
 
 
 def test_wind_convention_from_north_blows_south_from_east_blows_west():

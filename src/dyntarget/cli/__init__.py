@@ -75,7 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version and usage errors
         return int(exc.code or 0)
     func: Callable[[argparse.Namespace], int] = args.func
-    from dyntarget.perceive.base import keep_freed_memory
+    from dyntarget.perceive.resources import keep_freed_memory
 
     keep_freed_memory()  # large arrays are reused, not page-faulted in on every pass
     try:

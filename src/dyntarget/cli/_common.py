@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from typing import Any, NoReturn
 
 from dyntarget import defaults
 
@@ -19,7 +20,7 @@ written, with no pointing; the reason is on stderr)."""
 
 
 class Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # argparse exits 2 as well; keep its one line
+    def error(self, message: str) -> NoReturn:  # argparse exits 2 as well; keep its one line
         self.print_usage(sys.stderr)
         self.exit(EXIT_USAGE, f"dyntarget: error: {message}\n")
 
@@ -145,7 +146,7 @@ def add_evaluation_options(q: argparse.ArgumentParser, *, trains: bool = True) -
         q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-def name_lists(**lists: str | None) -> dict[str, tuple[str, ...]]:
+def name_lists(**lists: str | None) -> dict[str, Any]:
     """Comma-separated CLI lists that were given, as keyword arguments of a config."""
     return {key: tuple(text.split(",")) for key, text in lists.items() if text}
 
@@ -210,12 +211,12 @@ def writes(
             )
             from dyntarget.io.safeopen import writable_dir
 
-            given = [
-                (kind, name, getattr(args, name, None))
+            given: list[tuple[str, str, str]] = [
+                (kind, name, str(value))
                 for kind, names in (("dir", dirs), ("file", files), ("model", model_dirs))
                 for name in names
+                if (value := getattr(args, name, None)) is not None
             ]
-            given = [(kind, name, value) for kind, name, value in given if value is not None]
             seen: dict[Path, str] = {}
             for kind, name, value in given:
                 flag = "--" + name.replace("_", "-")

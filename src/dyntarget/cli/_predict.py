@@ -34,6 +34,14 @@ def add_predict_options(p: argparse.ArgumentParser) -> None:
         help="direction the wind blows FROM, degrees clockwise from north (meteorological)",
     )
     g.add_argument(
+        "--ground",
+        choices=["auto", "fixed", "moving"],
+        default="auto",
+        help="with --previous: is the background a fixed ground (its shift is misregistration, "
+        "removed) or moving itself (weather, radar, a plume over moving cloud)? auto "
+        "(default) decides from the frames and says so",
+    )
+    g.add_argument(
         "--regime",
         choices=["detached", "attached"],
         default="detached",
@@ -49,7 +57,7 @@ def wants_prediction(args: argparse.Namespace) -> bool:
 
 def _check_args(args: argparse.Namespace) -> None:
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.predict import check_interval, check_lead
+    from dyntarget.predict import MAX_LEAD_INTERVALS, check_interval, check_lead
 
     two_looks = args.previous is not None
     wind = args.wind_mps is not None or args.wind_from_deg is not None
@@ -75,6 +83,12 @@ def _check_args(args: argparse.Namespace) -> None:
                 f"--interval-s: missing; seconds from {args.previous} to the image"
             )
         check_interval(args.interval_s)
+        limit = MAX_LEAD_INTERVALS * args.interval_s
+        if args.lead_s > limit:
+            raise InvalidParameterError(
+                f"--lead-s {args.lead_s:g}: two looks {args.interval_s:g} s apart support a lead "
+                f"of at most {MAX_LEAD_INTERVALS} intervals ({limit:g} s)"
+            )
         if args.mask is not None and args.previous_mask is None:
             raise InvalidParameterError(
                 "--previous-mask: missing; with --mask give the previous frame's mask too "
@@ -167,7 +181,7 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
     """
     from dyntarget.errors import InvalidParameterError
     from dyntarget.pipeline import two_look_motion
-    from dyntarget.predict import Prediction, wind_motion
+    from dyntarget.predict import LOW_CONFIDENCE, Prediction, wind_motion
 
     _check_args(args)
     prior = None
@@ -196,10 +210,15 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
         current_raw, cur_mask = _mask_of(wfov, classifier, threshold)
         motion = two_look_motion(
             prev.image, wfov.image, args.interval_s, previous_mask=prev_mask,
-            current_mask=cur_mask, prior=prior,
+            current_mask=cur_mask, prior=prior, ground=getattr(args, "ground", "auto"),
         )  # fmt: skip
     log(f"motion: {motion.summary()}")
-    if not motion.reliable:
+    if motion.fallback:
+        log(
+            f"motion: FALLBACK to {motion.fallback} (confidence {motion.confidence:.2f} < "
+            f"{LOW_CONFIDENCE}): the plan is drawn on the plume where it is now"
+        )
+    elif not motion.reliable:
         log("motion: LOW CONFIDENCE; the prediction may be wrong (see docs/onboard.md)")
     if wfov.label is not None:
         current_raw = None  # the pipeline reads the given mask itself

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from dyntarget.cli._common import EXIT_OK, log, positive_int, writes
 
@@ -14,9 +15,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.bench import parse_sizes, run_bench, summary_tables
     from dyntarget.io.atomic import write_text
 
-    sizes = parse_sizes(args.sizes) if args.sizes is not None else None
+    sizes: dict[str, Any] = {"sizes": parse_sizes(args.sizes)} if args.sizes is not None else {}
     result = run_bench(
-        **({"sizes": sizes} if sizes else {}),
+        **sizes,
         classifiers=args.classifiers.split(",") if args.classifiers else None,
         planners=args.planners.split(",") if args.planners else None,
         repeats=args.repeats,

@@ -22,6 +22,7 @@ from dyntarget.cli.synth import cmd_synth
 @writes(dirs=("out",))
 def cmd_demo(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.figures import scenes_figure
+    from dyntarget.evaluate.options import RunOptions, TrainingConfig
     from dyntarget.evaluate.report import evaluate_all, write_report
     from dyntarget.io import read_scene_dir
     from dyntarget.perceive import CLASSIFIERS
@@ -43,13 +44,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     table1, table2, figures = evaluate_all(
         scenes,
         out,
-        models_dir=out / "models",
         classifiers=names,
-        folds=folds,
-        epochs=args.epochs,
-        factor=args.factor,
-        seed=args.seed,
-        progress=not args.quiet,
+        training=TrainingConfig(
+            folds=folds, seed=args.seed, factor=args.factor, epochs=args.epochs
+        ),
+        options=RunOptions(models_dir=out / "models", progress=not args.quiet),
     )
     figures["scenes"] = scenes_fig
     unet_note = (
@@ -80,6 +79,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 @writes(dirs=("out", "models"))
 def cmd_reproduce(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.options import RunOptions, TrainingConfig
     from dyntarget.evaluate.report import evaluate_all, write_report
     from dyntarget.perceive import CLASSIFIERS
 
@@ -89,14 +89,15 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     table1, table2, figures = evaluate_all(
         scenes,
         out,
-        models_dir=Path(args.models) if args.models else out / "models",
         classifiers=tuple(CLASSIFIERS.available()),
-        folds=args.folds,
-        epochs=args.epochs,
-        factor=args.factor,
-        seed=args.seed,
-        progress=not args.quiet,
-        scheduler=args.scheduler,
+        training=TrainingConfig(
+            folds=args.folds, seed=args.seed, factor=args.factor, epochs=args.epochs
+        ),
+        options=RunOptions(
+            models_dir=Path(args.models) if args.models else out / "models",
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+        ),
     )
     report = write_report(
         out,

@@ -42,6 +42,7 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
         latency_figure,
         latency_table,
     )
+    from dyntarget.evaluate.options import RunOptions
     from dyntarget.evaluate.tables import csv_text, markdown_table
     from dyntarget.io import read_sequence_dir, write_text
     from dyntarget.pipeline import PipelineConfig
@@ -66,10 +67,12 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
     result = evaluate_dynamic(
         sequences,
         config,
-        models_dir=args.models,
-        progress=not args.quiet,
-        scheduler=args.scheduler,
-        parts=Path(args.out) / "parts" / "dynamic",
+        options=RunOptions(
+            models_dir=args.models,
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+            parts=Path(args.out) / "parts" / "dynamic",
+        ),
     )
     seconds = time.perf_counter() - t0
     out = Path(args.out)

@@ -30,6 +30,7 @@ EVALUATIONS: tuple = (dynamic,)
 @writes(dirs=("out", "models"))
 def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
+    from dyntarget.evaluate.options import RunOptions
     from dyntarget.evaluate.tables import markdown_table, write_result
 
     config = CVConfig(
@@ -44,10 +45,12 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     result = cross_validate(
         scenes,
         config,
-        models_dir=args.models,
-        progress=not args.quiet,
-        scheduler=args.scheduler,
-        parts=Path(args.out) / "parts" / "classification",
+        options=RunOptions(
+            models_dir=args.models,
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+            parts=Path(args.out) / "parts" / "classification",
+        ),
     )
     seconds = time.perf_counter() - t0
     result["timing"]["seconds"] = seconds
@@ -62,6 +65,7 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
 
 @writes(dirs=("out",))
 def cmd_evaluate_planning(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.options import RunOptions
     from dyntarget.evaluate.planning import PLANNING_COLUMNS, evaluate_planners_on_truth
 
     scenes = load_labelled(args.data)
@@ -69,9 +73,11 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
         scenes,
         factor=args.factor,
         config=plan_config(args),
-        progress=not args.quiet,
-        scheduler=args.scheduler,
-        parts=Path(args.out) / "parts" / "planning",
+        options=RunOptions(
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+            parts=Path(args.out) / "parts" / "planning",
+        ),
     )
     show_result(args.out, "planning_true_masks", result, PLANNING_COLUMNS)
     return EXIT_OK
@@ -80,6 +86,7 @@ def cmd_evaluate_planning(args: argparse.Namespace) -> int:
 @writes(dirs=("out", "models"))
 def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.agility import AGILITY_COLUMNS, AgilityConfig, evaluate_agility
+    from dyntarget.evaluate.options import RunOptions
 
     config = AgilityConfig(
         folds=args.folds,
@@ -97,10 +104,12 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
     result = evaluate_agility(
         scenes,
         config,
-        models_dir=args.models,
-        progress=not args.quiet,
-        scheduler=args.scheduler,
-        parts=Path(args.out) / "parts" / "agility",
+        options=RunOptions(
+            models_dir=args.models,
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+            parts=Path(args.out) / "parts" / "agility",
+        ),
     )
     show_result(args.out, "agility", result, AGILITY_COLUMNS)
     return EXIT_OK
@@ -109,6 +118,7 @@ def cmd_evaluate_agility(args: argparse.Namespace) -> int:
 @writes(dirs=("out", "models"))
 def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.endtoend import TABLE2_COLUMNS, E2EConfig, evaluate_end_to_end
+    from dyntarget.evaluate.options import RunOptions
     from dyntarget.pipeline import PipelineConfig
 
     config = E2EConfig(
@@ -124,10 +134,12 @@ def cmd_evaluate_end_to_end(args: argparse.Namespace) -> int:
     result = evaluate_end_to_end(
         scenes,
         config,
-        models_dir=args.models,
-        progress=not args.quiet,
-        scheduler=args.scheduler,
-        parts=Path(args.out) / "parts" / "end-to-end",
+        options=RunOptions(
+            models_dir=args.models,
+            progress=not args.quiet,
+            scheduler=args.scheduler,
+            parts=Path(args.out) / "parts" / "end-to-end",
+        ),
     )
     result["timing"] = {"seconds": time.perf_counter() - t0}
     show_result(args.out, "table2_end_to_end", result, TABLE2_COLUMNS)

@@ -34,6 +34,27 @@ def _classifier(args: argparse.Namespace):
     return load_classifier(args.model)
 
 
+def _geo(args: argparse.Namespace):
+    """The GEO settings of ``--geo`` (``None`` without it); bad values: one line, exit 2."""
+    given = [
+        o
+        for o in ("geo_gsd_m", "geo_cadence_s", "geo_latency_s", "geo_reserve")
+        if getattr(args, o) is not None
+    ]
+    if not (args.geo or args.geo_omniscient):
+        if given:
+            raise InvalidParameterError(f"--{given[0].replace('_', '-')}: give --geo too")
+        return None
+    from dyntarget.fly.geo import GeoSettings
+
+    kw = {
+        k: getattr(args, f"geo_{k}")
+        for k in ("gsd_m", "cadence_s", "latency_s", "reserve")
+        if getattr(args, f"geo_{k}") is not None
+    }
+    return GeoSettings(**kw, omniscient=bool(args.geo_omniscient))
+
+
 def _pass_config(args: argparse.Namespace, planner: str, agility: str):
     from dyntarget.fly import PassConfig
     from dyntarget.pipeline import PipelineConfig
@@ -92,6 +113,7 @@ def _fly(args: argparse.Namespace) -> int:
 
     if "," in args.planner or "," in args.agility:
         raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
+    geo = _geo(args)  # bad GEO settings: one line before anything is read
     world = load_world(args.scene, truth_step_s=args.truth_step_s)
     from dyntarget.cli._resolution import check_resolution
 
@@ -105,6 +127,13 @@ def _fly(args: argparse.Namespace) -> int:
             what=f"--{opt.replace('_', '-')}",
         )
     config = _pass_config(args, args.planner, args.agility)
+    if geo is not None:
+        geo.check_against(world.gsd * args.factor)
+        if getattr(world, "spec", None) is None:
+            raise InvalidParameterError(
+                f"--geo: {args.scene} has no world to render the GEO stream from "
+                "(a 'dyntarget synth --strip' strip is needed)"
+            )
     classifier = _classifier(args)
     fallback = None
     if args.fallback_model:
@@ -126,6 +155,7 @@ def _fly(args: argparse.Namespace) -> int:
                 should_stop=stop.is_set,
                 progress=not args.quiet,
                 frame_sink=views,
+                geo=geo,
             )
         except Exception as exc:  # found after the first frame: no progress files without a summary
             _remove_progress(out)
@@ -190,6 +220,7 @@ def _campaign(args: argparse.Namespace) -> int:
     from dyntarget.fly.campaign import COLUMNS, run_campaign, strips_in
 
     config = _pass_config(args, "lawnmower-transect", "fast")
+    geo = _geo(args)  # checked against each strip's look-ahead GSD per pass
     rows = run_campaign(
         strips_in(args.campaign),
         tuple(args.planner.split(",")),
@@ -202,6 +233,7 @@ def _campaign(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         truth_step_s=args.truth_step_s,
         progress=not args.quiet,
+        geo=geo,
     )
     out = csv.writer(sys.stdout, lineterminator="\n")  # a strip name may hold a comma
     out.writerow(COLUMNS)
@@ -218,7 +250,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Fly a pass: look-ahead frames cut along a strip at the frame cadence, each "
         "classified, denoised and planned, the pointings of one shared NFOV scheduled under the "
         "agility limits and scored against the truth at their own time (docs/onboard.md). "
-        "Writes timeline.csv, pointings.geojson, summary.md, pass.png (the picture) and "
+        "Writes timeline.csv, pointings.geojson, summary.md, summary.json (the totals), pass.png (the picture) and "
         "pass.html (the interactive view, with a time slider) into --out.",
     )
     what = p.add_argument_group("what to fly (one of)")
@@ -310,6 +342,32 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--wind-from-deg",
         type=float,
         help="direction the wind blows from, degrees clockwise from north",
+    )
+    geo = p.add_argument_group(
+        "geostationary foresight (plan the whole pass from GEO images, refine with the look-ahead)"
+    )
+    geo.add_argument(
+        "--geo",
+        action="store_true",
+        help="plan a blueprint over the pass from the GEO stream of the strip's world "
+        "(computed on the ground before the pass; needs pysteps: the [geo] extra)",
+    )
+    geo.add_argument(
+        "--geo-omniscient",
+        action="store_true",
+        help="the bound: the blueprint planned on the true plumes (no latency, no noise)",
+    )
+    geo.add_argument("--geo-gsd-m", type=float, help="GEO cell size, m (default 2000)")
+    geo.add_argument("--geo-cadence-s", type=float, help="seconds between GEO images (default 600)")
+    geo.add_argument(
+        "--geo-latency-s",
+        type=float,
+        help="an image taken at t is usable from t + latency (default 300)",
+    )
+    geo.add_argument(
+        "--geo-reserve",
+        type=float,
+        help="fraction of sensor time kept for plumes the look-ahead finds (default 0.1)",
     )
     p.add_argument("--no-picture", action="store_true", help="skip pass.png")
     p.add_argument("--no-html", action="store_true", help="skip pass.html (interactive view)")

@@ -99,12 +99,28 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_export_onnx(args: argparse.Namespace) -> int:
     from dyntarget.io.outputs import OutputPathError
-    from dyntarget.perceive import load_classifier
-    from dyntarget.perceive.onnx import export_checked
+    from dyntarget.perceive import compiled, load_classifier
+    from dyntarget.perceive.onnx_export import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
-    for name in ("model.onnx", "forest.npz"):  # forest.npz: a random forest's packed arrays
+    targets = compiled.parse_targets(args.targets or "")
+    if targets and native.name != "random-forest":
+        from dyntarget.errors import InvalidParameterError
+
+        raise InvalidParameterError(
+            f"--targets builds the random-forest kernel; {args.model} holds a {native.name}"
+        )
+    for target in targets:  # every compiler before anything is written
+        if compiled.target_compiler(target) is None:
+            compiled.build_target(target, Path(args.model) / "unused")  # raises, one line
+    if native.name == "random-forest":
+        native.estimator  # noqa: B018 (read model.skops now: the export replaces forest.npz)
+        for old in compiled.kernel_files(args.model):  # built for the forest.npz replaced now
+            old.unlink()
+        if (Path(args.model) / compiled.FOREST_FILE).is_file():
+            compiled.write_manifest(args.model, kernels=[])
+    for name in ("model.onnx", "forest.npz", "forest.json"):  # a forest's packed arrays
         out = Path(args.model) / name
         if out.is_symlink() or (out.exists() and not out.is_file()):
             raise OutputPathError(f"{out}: not a regular file; it is left as it is")
@@ -114,10 +130,22 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     print(path)
     if (Path(args.model) / "forest.npz").is_file() and native.name == "random-forest":
         print(Path(args.model) / "forest.npz")  # the packed forest, for the forest kernel
+        kernels = compiled.build_kernels(args.model, targets)
+        print(compiled.write_manifest(args.model, kernels=kernels))
+        for k in kernels:
+            log(f"{native.name}: forest kernel for {k['target']} ({k['isa']}): {k['file']}")
+            print(Path(args.model) / k["file"])
+    elif targets:
+        from dyntarget.errors import InvalidParameterError
+
+        raise InvalidParameterError(
+            "--targets: this forest has no packed form (beyond the kernel), nothing to build"
+        )
     if args.int8:
         import numpy as np
 
-        from dyntarget.perceive.onnx import load_onnx, quantize_int8
+        from dyntarget.perceive.int8 import quantize_int8
+        from dyntarget.perceive.onnx import load_onnx
 
         if args.calibration:
             images = [s.to_wfov(args.factor).image for s in load_labelled(args.calibration)]
@@ -126,7 +154,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
             images = [generate_scene(args.seed + 1, i, size=256)[0].image for i in range(4)]
             where = "4 synthetic 256 px scenes (give --calibration for the training scenes)"
         from dyntarget.errors import ExportError
-        from dyntarget.perceive import onnx as onnx_module
+        from dyntarget.perceive import int8 as int8_module
 
         path = quantize_int8(args.model, images, seed=args.seed)
         try:
@@ -139,7 +167,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
         except BaseException:
             path.unlink(missing_ok=True)
             raise
-        tolerance = onnx_module.INT8_TOLERANCE
+        tolerance = int8_module.INT8_TOLERANCE
         if not diff8 <= tolerance and not args.force:
             path.unlink(missing_ok=True)
             raise ExportError(
@@ -229,5 +257,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
+    )
+    p.add_argument(
+        "--targets",
+        default="",
+        help="random forest: also build the forest kernel ahead of time for these CPUs, "
+        "comma-separated: x86-64-v4 (AVX-512), x86-64-v3 (AVX2), x86-64, aarch64 (NEON), "
+        "host (this machine's best); e.g. --targets x86-64-v3,x86-64-v4,aarch64 (default: "
+        "none). aarch64 on x86 needs aarch64-linux-gnu-gcc (Debian gcc-aarch64-linux-gnu). "
+        "The libraries go into the model directory, bound by SHA-256 in forest.json",
     )
     p.set_defaults(func=cmd_export_onnx)

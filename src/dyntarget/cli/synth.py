@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int, writes
+from dyntarget.errors import InvalidParameterError
 
 
 @writes(dirs=("out",))
@@ -41,10 +42,34 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
 def _synth_strips(args: argparse.Namespace) -> int:
     """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
-    from dyntarget.fly.strip import strip_spec, write_strip
+    from dyntarget.fly.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
 
     out = Path(args.out)
     t0 = time.perf_counter()
+    if args.length_km is not None or args.plumes_per_100km is not None:
+        if args.length_km is None:
+            raise InvalidParameterError("--plumes-per-100km: give --length-km too")
+        if args.length is not None:
+            raise InvalidParameterError("--length (px) and --length-km exclude each other")
+        width = args.size if args.size_given else 256
+        for i in range(args.scenes):
+            spec, window = long_strip_spec(
+                args.seed + i,
+                args.length_km,
+                width=width,
+                gsd=args.gsd,
+                plumes=args.plumes if args.plumes_given else None,
+                plumes_per_100km=args.plumes_per_100km,
+                clouds_per_100km=args.clouds_per_100km,
+                wind_mps=getattr(args, "wind_mps", None),
+                wind_from_deg=getattr(args, "wind_from_deg", None),
+            )
+            write_long_strip(spec, window, out)
+        log(
+            f"wrote {args.scenes} strip(s) of {args.length_km:g} km to {out} "
+            f"in {time.perf_counter() - t0:.1f} s"
+        )
+        return EXIT_OK
     for i in range(args.scenes):
         spec, window = strip_spec(
             args.seed + i,
@@ -86,6 +111,14 @@ def _synth_sequences(args: argparse.Namespace, out: Path, t0: float) -> int:
     return EXIT_OK
 
 
+class _Given(argparse.Action):
+    """Store the value and remember that it was given (``<dest>_given``)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_given", True)
+
+
 def _wind_speed(text: str) -> float:
     try:
         value = float(text)
@@ -111,7 +144,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("synth", help="generate synthetic volcanic scenes (GeoTIFF + mask)")
     p.add_argument("--scenes", type=positive_int, default=38, help="number of scenes (default 38)")
     p.add_argument(
-        "--size", type=positive_int, default=512, help="scene size in pixels (default 512)"
+        "--size",
+        type=positive_int,
+        action=_Given,
+        default=512,
+        help="scene size in pixels (default 512)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--gsd", type=positive_float, default=8.0, help="metres per pixel (default 8)")
@@ -148,8 +185,31 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="write long moving strips (seed, seed+1, ...) with several plumes instead of scenes",
     )
-    s.add_argument("--plumes", type=positive_int, default=4, help="vents per strip (default 4)")
+    s.add_argument(
+        "--plumes",
+        type=positive_int,
+        action=_Given,
+        default=4,
+        help="vents per strip (default 4; with --length-km, default 1 per 100 km)",
+    )
     s.add_argument(
         "--length", type=positive_int, help="strip length in px (default 4.5 x --size: 8 frames)"
     )
-    p.set_defaults(func=cmd_synth)
+    s.add_argument(
+        "--length-km",
+        type=positive_float,
+        help="a pass-length strip (10-10000 km, e.g. 3000), rendered lazily when flown; "
+        "--size defaults to 256 px across",
+    )
+    s.add_argument(
+        "--plumes-per-100km",
+        type=positive_float,
+        help="vent density along a --length-km strip (default 1; or give --plumes)",
+    )
+    s.add_argument(
+        "--clouds-per-100km",
+        type=float,
+        default=2.0,
+        help="meteorological clouds per 100 km of a --length-km strip (default 2)",
+    )
+    p.set_defaults(func=cmd_synth, size_given=False, plumes_given=False)

@@ -28,8 +28,9 @@ import numpy as np
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
-from dyntarget.evaluate.crossval import DEFAULT_FACTOR, data_signature, kfold_indices, train_or_load
+from dyntarget.evaluate.crossval import data_signature, kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
+from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
@@ -53,7 +54,7 @@ AGILITY_COLUMNS = [
 
 
 @dataclass(frozen=True)
-class AgilityConfig:
+class AgilityConfig(TrainingConfig):
     """Settings of the agility evaluation (see the module docstring).
 
     Parameters
@@ -80,10 +81,6 @@ class AgilityConfig:
         Planner settings.
     """
 
-    folds: int = defaults.FOLDS
-    seed: int = defaults.SEED
-    factor: int = DEFAULT_FACTOR
-    epochs: int = defaults.EPOCHS
     classifier: str = defaults.AGILITY_CLASSIFIER
     presets: tuple[str, ...] = tuple(AGILITY)
     planners: tuple[str, ...] = field(
@@ -95,8 +92,7 @@ class AgilityConfig:
     plan: PlanConfig = field(default_factory=PlanConfig)
 
     def __post_init__(self) -> None:
-        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
-            raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
+        super().__post_init__()  # folds, seed, factor, epochs
         CLASSIFIERS.get(self.classifier)
         check_unique("planners", self.planners)
         for name in self.planners:
@@ -124,6 +120,10 @@ def _agility_task(
 ) -> list[dict[str, Any]]:
     k, i = task
     scene, w = scenes[i], wfov[i]
+    if scene.gsd is None:
+        raise InvalidParameterError(
+            f"scene {scene.id!r}: no ground sampling distance; the orbit geometry needs one"
+        )
     maps = UtilityMaps.from_scene(scene)
     pipeline = PipelineConfig(plan=config.plan)
     seg = segment(
@@ -177,10 +177,7 @@ def evaluate_agility(
     scenes: Sequence[Scene],
     config: AgilityConfig = AgilityConfig(),
     *,
-    models_dir: str | Path | None = None,
-    progress: bool = True,
-    scheduler: str | None = None,
-    parts: str | Path | None = None,
+    options: RunOptions = RunOptions(),
 ) -> dict[str, Any]:
     """Feasibility and utility of every planner under every agility preset (see module docstring).
 
@@ -190,14 +187,9 @@ def evaluate_agility(
         Labelled high-resolution scenes.
     config : AgilityConfig
         Settings.
-    models_dir : str or pathlib.Path or None
-        Where the fold models are loaded from or saved to (``fold-K/NAME``).
-    progress : bool
-        Show progress bars.
-    scheduler : str or None
-        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
-    parts : str or pathlib.Path or None
-        Folder where finished tasks are kept, so that a rerun resumes.
+    options : RunOptions
+        Models kept, progress bar, scheduler and finished parts
+        (:class:`~dyntarget.evaluate.options.RunOptions`).
 
     Returns
     -------
@@ -205,6 +197,12 @@ def evaluate_agility(
         ``rows`` (:func:`agility_rows`), ``records`` (per scene, planner and
         preset), ``config`` and ``ground_speed_m_s``.
     """
+    models_dir, progress, scheduler, parts = (
+        options.models_dir,
+        options.progress,
+        options.scheduler,
+        options.parts,
+    )
     check_scheduler(scheduler)
     scenes = list(scenes)
     folds = [sorted(f.tolist()) for f in kfold_indices(len(scenes), config.folds, config.seed)]

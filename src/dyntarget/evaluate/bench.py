@@ -26,6 +26,7 @@ import os
 import platform
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -352,14 +353,12 @@ def run_bench(
         for name, model in models.items():
             bar.set_postfix_str(f"{size} px: {name}")
             rec = {"size": size, "stage": "classify", "classifier": name, "planner": None}
-            records.append(
-                rec | measure(lambda m=model, img=scene.image: classify(img, m), repeats=repeats)
-            )
+            records.append(rec | measure(partial(classify, scene.image, model), repeats=repeats))
             # the pipeline's own stages, timed one by one (Algorithm 1 as plan_scene runs it)
             seg = segment(scene.image, probability=classify(scene.image, model), config=config)
             records.append(
                 {"size": size, "stage": "denoise", "classifier": name, "planner": None}
-                | measure(lambda mk=seg.raw_mask: clean(mk, config), repeats=repeats)
+                | measure(partial(clean, seg.raw_mask, config), repeats=repeats)
             )
             for pname in planners:
                 traj = plan_segmentation(seg, pname, config)
@@ -367,14 +366,12 @@ def run_bench(
                 records.append(
                     base
                     | {"stage": "plan"}
-                    | measure(
-                        lambda p=pname, s=seg: plan_segmentation(s, p, config), repeats=repeats
-                    )
+                    | measure(partial(plan_segmentation, seg, pname, config), repeats=repeats)
                 )
                 records.append(
                     base
                     | {"stage": "observe"}
-                    | measure(lambda t=traj, mp=maps: observe(t, mp, factor=1), repeats=repeats)
+                    | measure(partial(observe, traj, maps, factor=1), repeats=repeats)
                 )
             bar.update()
     bar.close()

@@ -64,7 +64,7 @@ def claim_unets_best(table1: list[dict]) -> dict[str, Any]:
             "verdict": "not tested",
             "detail": "needs U-Nets and others",
         }
-    best_other = max(others, key=best.get)
+    best_other = max(others, key=lambda n: best[n])
     holds = min(best[u] for u in unets) > best[best_other]
     detail = (
         ", ".join(f"{n} {best[n]:.3f}" for n in unets)

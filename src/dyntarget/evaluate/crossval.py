@@ -28,6 +28,7 @@ from dyntarget.denoise import DEFAULT_ITERATIONS, DEFAULT_MIN_AREA_FRACTION, den
 from dyntarget.errors import InvalidParameterError, ModelFileError
 from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
 from dyntarget.evaluate.metrics import Confusion
+from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display
 from dyntarget.perceive import (
     CLASSIFIERS,
@@ -45,7 +46,7 @@ TABLE1_COLUMNS = ["Classifier", "Accuracy", "Precision", "Recall", "IoU"]
 
 
 @dataclass(frozen=True)
-class CVConfig:
+class CVConfig(TrainingConfig):
     """Settings of the classification cross-validation.
 
     Parameters
@@ -66,19 +67,12 @@ class CVConfig:
         Smallest kept polygon of the denoised rows, as a fraction of the image area.
     """
 
-    folds: int = defaults.FOLDS
-    seed: int = defaults.SEED
-    factor: int = DEFAULT_FACTOR
-    epochs: int = defaults.EPOCHS
     classifiers: tuple[str, ...] = field(default_factory=lambda: tuple(CLASSIFIERS.available()))
     denoise_iterations: int = DEFAULT_ITERATIONS
     min_area_fraction: float = DEFAULT_MIN_AREA_FRACTION
 
     def __post_init__(self) -> None:
-        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
-            raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
-        if isinstance(self.epochs, bool) or not isinstance(self.epochs, int) or self.epochs < 1:
-            raise InvalidParameterError(f"epochs: expected a positive integer, got {self.epochs!r}")
+        super().__post_init__()  # folds, seed, factor, epochs
         if not self.classifiers:
             raise InvalidParameterError("classifiers: expected at least one classifier name")
         check_unique("classifiers", self.classifiers)
@@ -233,11 +227,11 @@ def _cv_task(
         pred = model.predict(s.image)
         seconds.append(time.perf_counter() - t0)
         pred &= s.valid_mask
-        raw = raw + Confusion.from_masks(pred, s.label, s.valid)
+        raw = raw + Confusion.from_masks(pred, s.truth, s.valid)
         cleaned = denoise(
             pred, iterations=config.denoise_iterations, min_area_fraction=config.min_area_fraction
         ).mask
-        den = den + Confusion.from_masks(cleaned, s.label, s.valid)
+        den = den + Confusion.from_masks(cleaned, s.truth, s.valid)
     return {"raw": asdict(raw), "denoised": asdict(den), "predict_seconds": seconds}
 
 
@@ -245,10 +239,7 @@ def cross_validate(
     scenes: Sequence[Scene],
     config: CVConfig = CVConfig(),
     *,
-    models_dir: str | Path | None = None,
-    progress: bool = True,
-    scheduler: str | None = None,
-    parts: str | Path | None = None,
+    options: RunOptions = RunOptions(),
 ) -> dict[str, Any]:
     """Run the cross-validation; returns rows for Table 1 plus per-fold details.
 
@@ -262,14 +253,9 @@ def cross_validate(
         Labelled high-resolution scenes.
     config : CVConfig
         Settings.
-    models_dir : str or pathlib.Path or None
-        Where the fold models are loaded from or saved to.
-    progress : bool
-        Show progress bars.
-    scheduler : str or None
-        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
-    parts : str or pathlib.Path or None
-        Folder where finished tasks are kept.
+    options : RunOptions
+        Models kept, progress bar, scheduler and finished parts
+        (:class:`~dyntarget.evaluate.options.RunOptions`).
 
     Returns
     -------
@@ -277,6 +263,12 @@ def cross_validate(
         ``rows`` (Table 1), ``config``, ``folds`` (scene ids per fold),
         ``wfov_shape`` and ``timing`` (median prediction seconds per scene).
     """
+    models_dir, progress, scheduler, parts = (
+        options.models_dir,
+        options.progress,
+        options.scheduler,
+        options.parts,
+    )
     check_scheduler(scheduler)  # before any training
     scenes = list(scenes)
     wfov = [s.to_wfov(config.factor) for s in scenes]

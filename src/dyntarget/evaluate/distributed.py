@@ -306,7 +306,7 @@ def run_tasks(
         if todo and scheduler is None:
             for k, t in todo:
                 finish(k, fn(t, **shared))
-        elif todo:
+        elif todo and scheduler is not None:
             from distributed import as_completed
 
             with dask_client(scheduler) as client:

@@ -43,12 +43,13 @@ import numpy as np
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError, UnknownNameError
-from dyntarget.evaluate.crossval import DEFAULT_FACTOR, kfold_indices, train_or_load
+from dyntarget.evaluate.crossval import kfold_indices, train_or_load
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import observe_at
 from dyntarget.perceive import CLASSIFIERS
-from dyntarget.perceive.base import Classifier
+from dyntarget.perceive.base import Classifier, Predictor
 from dyntarget.pipeline import PipelineConfig, classify, plan_segmentation, segment
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory
 from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule, make_feasible
@@ -145,7 +146,7 @@ class ModeContext:
     schedule : callable
         Times a trajectory as it will be flown (the evaluator does this again on
         whatever the mode returns).
-    classifier : dyntarget.perceive.Classifier or None
+    classifier : dyntarget.perceive.Predictor or None
         The fitted classifier (``None`` for the true mask), e.g. to segment
         earlier frames.
     meta : dict
@@ -158,7 +159,7 @@ class ModeContext:
     latency_s: float
     pipeline: PipelineConfig
     schedule: Callable[[Trajectory], Schedule]
-    classifier: Classifier | None = None
+    classifier: Predictor | None = None
     meta: dict[str, Any] = field(default_factory=dict)
 
 
@@ -227,7 +228,7 @@ def get_mode(name: str) -> Mode:
 
 
 @dataclass(frozen=True)
-class DynamicConfig:
+class DynamicConfig(TrainingConfig):
     """Settings of the dynamic evaluation (see the module docstring).
 
     Parameters
@@ -260,10 +261,6 @@ class DynamicConfig:
         Settings of the pipeline.
     """
 
-    folds: int = 5
-    seed: int = 0
-    factor: int = DEFAULT_FACTOR
-    epochs: int = 50
     classifiers: tuple[str, ...] = ("mlp",)
     true_mask: bool = True
     planners: tuple[str, ...] = PAPER_PLANNERS
@@ -276,8 +273,7 @@ class DynamicConfig:
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:
-        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
-            raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
+        super().__post_init__()  # folds, seed, factor, epochs
         for name in self.classifiers:
             CLASSIFIERS.get(name)
         for name in self.planners:
@@ -355,7 +351,7 @@ def _dynamic_task(
     lookahead = [p for p in config.planners if p not in BASELINES]
     for mode in config.modes:
         fn = get_mode(mode)
-        for cname, (mask, model) in masks.items():
+        for cname, (mask, mask_model) in masks.items():
             for pname in lookahead:
                 for latency in config.latencies:
                     ctx = ModeContext(
@@ -365,7 +361,7 @@ def _dynamic_task(
                         latency_s=float(latency),
                         pipeline=config.pipeline,
                         schedule=scheduler(latency),
-                        classifier=model,
+                        classifier=mask_model,
                         meta=seq.meta,
                     )
                     traj = fn(ctx)
@@ -394,10 +390,7 @@ def evaluate_dynamic(
     sequences: Sequence[FrameSequence],
     config: DynamicConfig = DynamicConfig(),
     *,
-    models_dir: str | Path | None = None,
-    progress: bool = True,
-    scheduler: str | None = None,
-    parts: str | Path | None = None,
+    options: RunOptions = RunOptions(),
 ) -> dict[str, Any]:
     """Run the dynamic evaluation; returns tidy ``rows``, per-scene ``records`` and the config.
 
@@ -407,16 +400,21 @@ def evaluate_dynamic(
         High-resolution look-ahead sequences (labelled decision frames); their
         truth comes from ``truth``, else the stored world spec, else their frames.
     config : DynamicConfig
-    models_dir : path or None
-        Where fold models are saved and reused (``fold-K/<classifier>``).
-    progress, scheduler, parts
-        As for :func:`~dyntarget.evaluate.distributed.run_tasks` (resumable, Dask).
+    options : RunOptions
+        Models kept, progress bar, scheduler and finished parts
+        (:class:`~dyntarget.evaluate.options.RunOptions`; resumable, Dask).
 
     Returns
     -------
     dict
         ``rows`` (see :data:`DYNAMIC_COLUMNS`), ``records``, ``config``, ``folds``.
     """
+    models_dir, progress, scheduler, parts = (
+        options.models_dir,
+        options.progress,
+        options.scheduler,
+        options.parts,
+    )
     check_scheduler(scheduler)
     sequences = list(sequences)
     if len(sequences) < config.folds:

@@ -22,15 +22,13 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from dyntarget import defaults
-from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.crossval import (
-    DEFAULT_FACTOR,
     data_signature,
     kfold_indices,
     train_or_load,
 )
 from dyntarget.evaluate.distributed import check_scheduler, check_unique, run_tasks, task_key
+from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
@@ -50,7 +48,7 @@ TABLE2_COLUMNS = [
 
 
 @dataclass(frozen=True)
-class E2EConfig:
+class E2EConfig(TrainingConfig):
     """Settings of the end-to-end evaluation.
 
     Parameters
@@ -71,17 +69,12 @@ class E2EConfig:
         Settings of the pipeline.
     """
 
-    folds: int = defaults.FOLDS
-    seed: int = defaults.SEED
-    factor: int = DEFAULT_FACTOR
-    epochs: int = defaults.EPOCHS
     classifiers: tuple[str, ...] = field(default_factory=lambda: tuple(CLASSIFIERS.available()))
     planners: tuple[str, ...] = PAPER_PLANNERS
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:
-        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
-            raise InvalidParameterError(f"folds: expected an integer >= 2, got {self.folds!r}")
+        super().__post_init__()  # folds, seed, factor, epochs
         check_unique("classifiers", self.classifiers)
         for name in self.classifiers:
             CLASSIFIERS.get(name)
@@ -94,10 +87,7 @@ def evaluate_end_to_end(
     scenes: Sequence[Scene],
     config: E2EConfig = E2EConfig(),
     *,
-    models_dir: str | Path | None = None,
-    progress: bool = True,
-    scheduler: str | None = None,
-    parts: str | Path | None = None,
+    options: RunOptions = RunOptions(),
 ) -> dict[str, Any]:
     """Run the end-to-end evaluation; returns Table 2 rows and per-scene records.
 
@@ -113,14 +103,9 @@ def evaluate_end_to_end(
         Labelled high-resolution scenes.
     config : E2EConfig
         Settings.
-    models_dir : str or pathlib.Path or None
-        Where the fold models are loaded from or saved to.
-    progress : bool
-        Show progress bars.
-    scheduler : str or None
-        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
-    parts : str or pathlib.Path or None
-        Folder where finished tasks are kept.
+    options : RunOptions
+        Models kept, progress bar, scheduler and finished parts
+        (:class:`~dyntarget.evaluate.options.RunOptions`).
 
     Returns
     -------
@@ -128,6 +113,12 @@ def evaluate_end_to_end(
         ``rows`` (Table 2, :func:`table2_rows`), ``records`` (per scene),
         ``config``, ``folds`` (scene ids per fold) and ``wfov_shape``.
     """
+    models_dir, progress, scheduler, parts = (
+        options.models_dir,
+        options.progress,
+        options.scheduler,
+        options.parts,
+    )
     check_scheduler(scheduler)  # before any training
     scenes = list(scenes)
     baselines = [p for p in config.planners if p in BASELINES]

@@ -18,6 +18,7 @@ import numpy as np
 
 from dyntarget.evaluate.crossval import data_signature
 from dyntarget.evaluate.distributed import check_scheduler, run_tasks, task_key
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.pipeline import PipelineConfig, plan_segmentation, segment
@@ -60,9 +61,7 @@ def evaluate_planners_on_truth(
     factor: int = 4,
     config: PlanConfig | None = None,
     planners: Sequence[str] | None = None,
-    progress: bool = True,
-    scheduler: str | None = None,
-    parts: str | Path | None = None,
+    options: RunOptions = RunOptions(),
 ) -> dict[str, Any]:
     """Every planner on every scene's true mask; one task per scene (see ``run_tasks``).
 
@@ -76,12 +75,9 @@ def evaluate_planners_on_truth(
         Planner settings.
     planners : sequence of str or None
         Planners (default: the paper's).
-    progress : bool
-        Show a progress bar.
-    scheduler : str or None
-        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
-    parts : str or pathlib.Path or None
-        Folder where finished tasks are kept.
+    options : RunOptions
+        Models kept, progress bar, scheduler and finished parts
+        (:class:`~dyntarget.evaluate.options.RunOptions`).
 
     Returns
     -------
@@ -89,6 +85,7 @@ def evaluate_planners_on_truth(
         ``rows`` (mean metrics and median planning time per planner), ``factor``
         and ``scenes`` (ids).
     """
+    progress, scheduler, parts = options.progress, options.scheduler, options.parts
     check_scheduler(scheduler)  # before any training
     config = config or PlanConfig()
     planners = list(planners or PAPER_PLANNERS)

@@ -142,9 +142,7 @@ def predictive_mode(ctx: ModeContext) -> Trajectory:
     if ctx.classifier is None:
         cache = _TRUE_MASK_MOTIONS
     else:
-        cache = _MOTIONS.get(ctx.classifier)
-        if cache is None:
-            cache = _MOTIONS[ctx.classifier] = {}
+        cache = _MOTIONS.setdefault(ctx.classifier, {})
     motion = cache.get(key)
     if motion is None:
         if len(cache) > 256:

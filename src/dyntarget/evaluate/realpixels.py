@@ -65,7 +65,7 @@ def split_columns(
         return replace(
             scene,
             image=scene.image[:, :, c0:c1],
-            label=scene.label[:, c0:c1],
+            label=scene.truth[:, c0:c1],
             transform=t,
             id=f"{scene.id}-{suffix}",
         )
@@ -120,16 +120,16 @@ def real_pixel_check(
         )
         seg = segment(test.image, model, valid=test.valid)  # Algorithm 1, as plan_scene runs it
         for denoised, mask in ((False, seg.raw_mask), (True, seg.mask)):
-            m = Confusion.from_masks(mask, test.label).metrics()
+            seg_metrics = Confusion.from_masks(mask, test.truth).metrics()
             seg_rows.append(
                 {
                     "Classifier": "+ Denoising" if denoised else display(name),
                     "classifier": name,
                     "denoised": denoised,
-                    "Accuracy": m["accuracy"],
-                    "Precision": m["precision"],
-                    "Recall": m["recall"],
-                    "IoU": m["iou"],
+                    "Accuracy": seg_metrics["accuracy"],
+                    "Precision": seg_metrics["precision"],
+                    "Recall": seg_metrics["recall"],
+                    "IoU": seg_metrics["iou"],
                 }
             )
         for pname in lookahead:
@@ -146,7 +146,7 @@ def real_pixel_check(
             "test_columns": test.shape[1],
             "rows": test.shape[0],
         },
-        "plume_fraction": {"train": float(train.label.mean()), "test": float(test.label.mean())},
+        "plume_fraction": {"train": float(train.truth.mean()), "test": float(test.truth.mean())},
     }
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ from dyntarget.evaluate.claims import check_claims, paper_results
 from dyntarget.evaluate.crossval import TABLE1_COLUMNS
 from dyntarget.evaluate.endtoend import TABLE2_COLUMNS
 from dyntarget.evaluate.figures import classification_figure, trajectories_figure, utilities_figure
+from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display, markdown_table
 from dyntarget.io.atomic import write_text
 from dyntarget.perceive import load_classifier
@@ -78,7 +80,7 @@ def make_figures(
     model = load_classifier(models_dir / "fold-0" / best)
     figs: dict[str, Path] = {}
     # Figure 3: the held-out scene with the largest plume
-    scene = max(held_out, key=lambda s: float(s.label.mean()))
+    scene = max(held_out, key=lambda s: float(s.truth.mean()))
     wfov = scene.to_wfov(factor)
     lookahead = [
         p for p in dict.fromkeys(r["planner"] for r in table2["rows"]) if p not in BASELINES
@@ -124,7 +126,7 @@ def _scene_view(path: Path, scene: Scene, wfov: Scene, result, planner: str, fac
         probability=result.probability,
         polygons=result.polygons,
         trajectory=traj,
-        point_values=pointing_truth(traj, scene.image, scene.label, factor=factor),
+        point_values=pointing_truth(traj, scene.image, scene.truth, factor=factor),
         transform=wfov.transform,
         crs=wfov.crs,
         title=f"{scene.id}: {planner} (held-out scene, as Figure 3)",
@@ -312,19 +314,14 @@ def evaluate_all(
     scenes: list[Scene],
     out: str | os.PathLike[str],
     *,
-    models_dir: str | os.PathLike[str],
     classifiers: tuple[str, ...],
-    folds: int = 5,
-    epochs: int = 50,
-    factor: int = 4,
-    seed: int = 0,
-    progress: bool = True,
-    scheduler: str | None = None,
+    training: TrainingConfig = TrainingConfig(),
+    options: RunOptions = RunOptions(),
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Path]]:
-    """Table 1 and Table 2 sharing one training run (models in ``models_dir``), plus figures.
+    """Table 1 and Table 2 sharing one training run (models in ``options.models_dir``), plus figures.
 
     Finished tasks are kept in ``out/parts/`` so that an interrupted run resumes;
-    ``scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
+    ``options.scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
 
     Parameters
     ----------
@@ -332,22 +329,13 @@ def evaluate_all(
         Labelled high-resolution scenes.
     out : str or os.PathLike
         Output folder (tables, figures, ``parts/``).
-    models_dir : str or os.PathLike
-        Where the fold models are loaded from or saved to.
     classifiers : tuple of str
         Classifiers.
-    folds : int
-        Cross-validation folds.
-    epochs : int
-        Training epochs of the U-Nets.
-    factor : int
-        High-res -> WFOV downsampling factor.
-    seed : int
-        Seed of the fold split and the training.
-    progress : bool
-        Show progress bars.
-    scheduler : str or None
-        ``None`` (in process), ``"local"``, ``"processes"`` or a Dask scheduler address.
+    training : TrainingConfig
+        Folds, seed, factor and U-Net epochs of both tables.
+    options : RunOptions
+        Where the fold models are kept (default ``out/models``), progress, scheduler;
+        its ``parts`` is ignored (``out/parts/`` holds each table's parts).
 
     Returns
     -------
@@ -362,30 +350,25 @@ def evaluate_all(
     from dyntarget.evaluate.endtoend import E2EConfig, evaluate_end_to_end
     from dyntarget.evaluate.tables import write_result
 
-    out, models_dir = Path(out), Path(models_dir)
+    out = Path(out)
+    models_dir = options.models_dir if options.models_dir is not None else out / "models"
+    shared = asdict(training)
     t0 = time.perf_counter()
-    cv = CVConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
     table1 = cross_validate(
         scenes,
-        cv,
-        models_dir=models_dir,
-        progress=progress,
-        scheduler=scheduler,
-        parts=out / "parts" / "classification",
+        CVConfig(**shared, classifiers=classifiers),
+        options=replace(options, models_dir=models_dir, parts=out / "parts" / "classification"),
     )
     table1["timing"]["seconds"] = time.perf_counter() - t0
     write_result(out, "table1_classification", table1, TABLE1_COLUMNS)
     t0 = time.perf_counter()
-    e2e = E2EConfig(folds=folds, seed=seed, factor=factor, epochs=epochs, classifiers=classifiers)
     table2 = evaluate_end_to_end(
         scenes,
-        e2e,
-        models_dir=models_dir,
-        progress=progress,
-        scheduler=scheduler,
-        parts=out / "parts" / "end-to-end",
+        E2EConfig(**shared, classifiers=classifiers),
+        options=replace(options, models_dir=models_dir, parts=out / "parts" / "end-to-end"),
     )
     table2["timing"] = {"seconds": time.perf_counter() - t0}
     write_result(out, "table2_end_to_end", table2, TABLE2_COLUMNS)
+    factor = training.factor
     figures = make_figures(out, scenes, table1, table2, models_dir, factor=factor)
     return table1, table2, figures

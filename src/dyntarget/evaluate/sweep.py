@@ -429,7 +429,7 @@ def summary_figure(table: Path, path: Path) -> Path | None:
     for ax, param in zip(axes[0], swept, strict=True):
         if GRID_PARAMETERS[param] is str:  # categorical (agility presets), in preset order
             present = {r[param] for r in rows}
-            values = [v for v in AGILITY if v in present]
+            values: list[Any] = [v for v in AGILITY if v in present]
 
             def value(r, param=param):
                 return r[param]

@@ -142,6 +142,7 @@ def fly_one(
     out: str,
     truth_step_s: float,
     int8: bool = False,
+    geo: Any = None,
 ) -> dict[str, Any]:
     """Fly one pass of a campaign and write its outputs; return its row of totals.
 
@@ -161,6 +162,8 @@ def fly_one(
         Time grid of the moving strip's truth, seconds.
     int8 : bool
         Run the INT8 ONNX export (``model.int8.onnx``) instead.
+    geo : dyntarget.fly.geo.GeoSettings or None
+        Fly with a GEO blueprint (``None``: look-ahead only).
 
     Returns
     -------
@@ -172,7 +175,9 @@ def fly_one(
 
     world = load_world(task["strip"], truth_step_s=truth_step_s)
     cfg = replace(config, planner=task["planner"], agility=task["agility"])
-    result = fly_pass(world, _classifier(model, onnx, int8), cfg)
+    if geo is not None:
+        geo.check_against(world.gsd * cfg.factor)
+    result = fly_pass(world, _classifier(model, onnx, int8), cfg, geo=geo)
     strip = Path(task["strip"])  # named after the strip file: unique in its folder, unlike world.id
     stem = strip.name[: -len(".tif")] if strip.name.endswith(".tif") else strip.stem
     write_pass(
@@ -194,6 +199,7 @@ def run_campaign(
     scheduler: str | None = None,
     truth_step_s: float = 1.0,
     progress: bool = True,
+    geo: Any = None,
 ) -> list[dict[str, Any]]:
     """Fly every strip x planner x preset; write ``campaign.csv``/``.md``; return the rows.
 
@@ -209,6 +215,7 @@ def run_campaign(
     scheduler : ``None``, ``"local"``, ``"processes"`` or a Dask scheduler address.
     truth_step_s : time quantum of moving strips' truth.
     progress : show a progress bar.
+    geo : GEO settings (:class:`dyntarget.fly.geo.GeoSettings`) for every pass, or ``None``.
 
     Returns
     -------
@@ -235,6 +242,10 @@ def run_campaign(
     runtime = (onnx, "int8") if int8 else (onnx,)  # FP32 keys as before: parts stay valid
     model_id = None if model is None else (model, *runtime, _model_digest(Path(model)))
     settings = {**config.as_dict(), "truth_step_s": truth_step_s}
+    if geo is not None:  # passes without --geo keep their keys (parts stay valid)
+        from dataclasses import asdict
+
+        settings["geo"] = asdict(geo)
 
     def key(task: dict[str, str]) -> str:
         return task_key(
@@ -254,6 +265,7 @@ def run_campaign(
             "int8": int8,
             "out": str(out),
             "truth_step_s": truth_step_s,
+            "geo": geo,
         },
         progress=progress,
         desc="passes",

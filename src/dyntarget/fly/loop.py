@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
@@ -471,6 +472,8 @@ class PassResult:
         Plume ids in the strip's truth at t = 0.
     stopped : bool
         The pass was stopped before its last frame.
+    geo : dict or None
+        Settings and outcome of the GEO blueprint (``None``: look-ahead only).
     """
 
     world_id: str
@@ -481,6 +484,8 @@ class PassResult:
     plumes_at_start: frozenset[int]
     """Plume ids in the strip's truth at t = 0."""
     stopped: bool = False
+    geo: dict[str, Any] | None = None
+    """GEO foresight: its settings and what the blueprint did (``None``: look-ahead only)."""
 
     @property
     def measured(self) -> bool:
@@ -543,19 +548,65 @@ class FrameView:
 
 
 class _TruthCache:
-    """Truth on the WFOV footprints, rebuilt only when the world's truth object changes."""
+    """Truth on the WFOV footprints, rebuilt only when the world's truth object changes.
 
-    def __init__(self, world: World, factor: int, footprint: int) -> None:
+    A long strip (a world with ``truth_rows``) is scored band by band: ``band``
+    WFOV rows at a time (with the footprint's margin), recent bands kept.
+    """
+
+    def __init__(self, world: World, factor: int, footprint: int, band: int = 64) -> None:
         self.world, self.factor, self.footprint = world, factor, footprint
-        self._key: int | None = None
+        self.lazy = hasattr(world, "truth_rows")
+        self.band = max(1, int(band))
+        self._key: Any = None
         self._value: WfovTruth | None = None
+        self._bands: OrderedDict[tuple[float, int], WfovTruth] = OrderedDict()
 
-    def at(self, t: float) -> WfovTruth:
-        truth = self.world.truth_at(t)
-        if self._key != id(truth) or self._value is None:
-            self._value = wfov_truth(truth, self.factor, self.footprint)
-            self._key = id(truth)
-        return self._value
+    def at(self, t: float, r: int = 0) -> tuple[WfovTruth, int]:
+        """The WFOV truth at ``t`` holding strip WFOV row ``r``, and its first row."""
+        if not self.lazy:
+            truth = self.world.truth_at(t)
+            if self._key != id(truth) or self._value is None:
+                self._value = wfov_truth(truth, self.factor, self.footprint)
+                self._key = id(truth)
+            return self._value, 0
+        tq = self.world.quantize(t)  # type: ignore[attr-defined]
+        b = int(r) // self.band
+        key = (tq, b)
+        hit = self._bands.get(key)
+        r0 = b * self.band
+        if hit is None:
+            f, pad = self.factor, self.footprint // 2
+            hw = self.world.shape[0] // f
+            a, z = max(0, r0 - pad), min(hw, r0 + self.band + pad)
+            w = wfov_truth(self.world.truth_rows(tq, a * f, z * f), f, self.footprint)  # type: ignore[attr-defined]
+            lo, hi = r0 - a, min(r0 - a + self.band, z - a)
+            hit = WfovTruth(*(getattr(w, n)[lo:hi] for n in WFOV_FIELDS))
+            self._bands[key] = hit
+            if len(self._bands) > 32:
+                self._bands.popitem(last=False)
+        else:
+            self._bands.move_to_end(key)
+        return hit, r0
+
+
+WFOV_FIELDS = ("plume", "intensity", "gradient", "ids", "valid")
+
+
+def _label_rows(world: World, t: float, top: int, bottom: int) -> np.ndarray:
+    """The true label of high-resolution rows ``top:bottom`` at ``t`` (by rows on a long strip)."""
+    rows = getattr(world, "label_rows", None)
+    if rows is not None:
+        return rows(t, top, bottom)
+    return world.truth_at(t).maps.label[top:bottom]
+
+
+def _plumes_at_start(world: World) -> frozenset[int]:
+    start = getattr(world, "plumes_at_start", None)
+    if start is not None:
+        return frozenset(start())
+    ids0 = world.truth_at(0.0).ids
+    return frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
 
 
 def fly_pass(
@@ -568,6 +619,7 @@ def fly_pass(
     should_stop: Callable[[], bool] | None = None,
     progress: bool = False,
     frame_sink: Callable[[FrameView], None] | None = None,
+    geo: Any = None,
 ) -> PassResult:
     """Fly a pass over ``world`` (see the module docstring for the model).
 
@@ -582,6 +634,9 @@ def fly_pass(
     should_stop : polled after every frame; true ends the pass early (``stopped``).
     progress : show a progress bar (tqdm) over the frames.
     frame_sink : called with every frame's :class:`FrameView` (e.g. to draw the pass).
+    geo : :class:`dyntarget.fly.geo.GeoSettings`: plan a blueprint over the pass from
+        the GEO stream of the strip's world and refine every frame within it
+        (:mod:`dyntarget.fly.geo`); ``None``: look-ahead only.
 
     Returns
     -------
@@ -607,15 +662,29 @@ def fly_pass(
             "predict: 'wind' needs a wind: give wind_mps and wind_from_deg (--wind-mps, "
             "--wind-from-deg); only synthetic strips carry their own"
         )
-    truth = _TruthCache(world, config.factor, config.footprint)
+    truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
     state = PassState(covered=np.zeros(frames.wfov_shape, bool))
-    ids0 = world.truth_at(0.0).ids
-    plumes_at_start = frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
+    plumes_at_start = _plumes_at_start(world)
     stopped = False
+    gate, geo_info = None, None
+    if geo is not None:
+        from dyntarget.fly.geo import prepare
+
+        gate, geo_info = prepare(world, frames, config, geo)
+        if gate is None:
+            geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
 
     def result() -> PassResult:
+        info = None if geo_info is None else {**geo_info, **(gate.report() if gate else {})}
         return PassResult(
-            world.id, config, frames, list(state.records), state.flown, plumes_at_start, stopped
+            world.id,
+            config,
+            frames,
+            list(state.records),
+            state.flown,
+            plumes_at_start,
+            stopped,
+            info,
         )
 
     bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
@@ -623,7 +692,7 @@ def fly_pass(
         for k in range(frames.n_frames):
             before = len(state.flown.x)
             record, image, planned = _fly_frame(
-                k, world, classifier, fallback, config, frames, agility, truth, state
+                k, world, classifier, fallback, config, frames, agility, truth, state, gate
             )
             state.records.append(record)
             if frame_sink is not None and image is not None:
@@ -655,7 +724,7 @@ def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float)
     return image, valid
 
 
-def _fly_frame(
+def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
     k: int,
     world: World,
     classifier: Classifier | None,
@@ -665,6 +734,7 @@ def _fly_frame(
     agility: Agility,
     truth: _TruthCache,
     state: PassState,
+    gate: Any = None,
 ) -> tuple[FrameRecord, np.ndarray | None, Any]:
     t_k = frames.acquired_s(k)
     top = frames.tops[k]
@@ -680,7 +750,7 @@ def _fly_frame(
     mask = None
     if classifier is None:  # the oracle: the truth at acquisition time, on the WFOV grid
         f, width = config.factor, frames.wfov_shape[1] * config.factor
-        label = world.truth_at(t_k).maps.label[top * f : (top + frames.frame_px) * f, :width]
+        label = _label_rows(world, t_k, top * f, (top + frames.frame_px) * f)[:, :width]
         mask = block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
     t_loop = time.perf_counter()
     predictive = config.predict != "none"
@@ -739,6 +809,8 @@ def _fly_frame(
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
+    if gate is not None and len(keep):  # refine within the blueprint: budgets, reserve
+        keep = keep[gate.filter(rows[keep] + top)]
     todo = Trajectory(traj.points[keep], np.zeros(len(keep)), traj.planner)
     attached = None
     if prediction is not None and prediction.motion.regime == "mixed":
@@ -772,6 +844,8 @@ def _fly_frame(
     sched_t, points = flown.times, flown.trajectory.points
     met = None if deadline is None else (ready - t_k) <= deadline
     flown_local = keep[flown.kept]
+    if gate is not None and len(flown_local):
+        gate.spend(rows[flown_local] + top)
     state.busy_until = ready
     if len(flown_local):
         state.timer_t = flown.end_s + t_k
@@ -786,12 +860,13 @@ def _fly_frame(
         r, c = int(np.floor(y + 0.5)) + top, int(np.floor(x + 0.5))
         t_pass = t_k + float(t_local)
         ok = 0 <= r < hw and 0 <= c < ww
-        w = truth.at(t_pass) if ok else None
-        ok = ok and bool(w.valid[r, c])
-        pl = float(w.plume[r, c]) if ok else 0.0
-        it = float(w.intensity[r, c]) if ok else 0.0
-        gr = float(w.gradient[r, c]) if ok else 0.0
-        pid = int(w.ids[r, c]) if ok and pl > 0 else 0
+        w, b0 = truth.at(t_pass, r) if ok else (None, 0)
+        rb = r - b0
+        ok = ok and bool(w.valid[rb, c])
+        pl = float(w.plume[rb, c]) if ok else 0.0
+        it = float(w.intensity[rb, c]) if ok else 0.0
+        gr = float(w.gradient[rb, c]) if ok else 0.0
+        pid = int(w.ids[rb, c]) if ok and pl > 0 else 0
         plume_sum, inten_sum, grad_sum = plume_sum + pl, inten_sum + it, grad_sum + gr
         if pid and pid not in state.plumes_seen:
             state.plumes_seen.add(pid)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,17 @@ from dyntarget.io.atomic import atomic_path, write_text
 TIMELINE = "timeline.csv"
 POINTINGS = "pointings.geojson"
 SUMMARY = "summary.md"
+SUMMARY_JSON = "summary.json"
+SUMMARY_KEYS = (
+    "utility",
+    "plumes_observed",
+    "plumes_total",
+    "pointings_flown",
+    "ratio_plume",
+    "frames",
+    "geo",
+)
+"""Keys every ``summary.json`` has (with the rest of :meth:`PassResult.totals`)."""
 PICTURE = "pass.png"
 MEASURED = "stage_times.csv"
 VIEW = "pass.html"
@@ -210,6 +222,39 @@ def summary_md(result: PassResult, picture: str | None, note: str | None = None)
     return "\n".join(lines) + "\n"
 
 
+def summary_json(result: PassResult) -> str:
+    """The pass totals as JSON (``summary.json``, beside ``summary.md``).
+
+    Holds every key of :meth:`~dyntarget.fly.loop.PassResult.totals` (``utility``,
+    ``plumes_observed``, ``plumes_total``, ``pointings_flown``, ``ratio_plume``,
+    ``frames``, ...), ``stopped``, and ``geo``: the geostationary settings and
+    what the blueprint did (``None`` for a look-ahead-only pass).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+
+    Returns
+    -------
+    str
+        JSON text (keys sorted, one trailing newline).
+
+    Examples
+    --------
+    >>> from dyntarget.fly.loop import PassConfig, fly_pass
+    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.scene import Scene
+    >>> img = np.full((4, 128, 32), 0.1, np.float32); lab = np.zeros((128, 32), bool)
+    >>> r = fly_pass(StaticWorld(Scene(img, label=lab, gsd=8.0)), None,
+    ...              PassConfig(compute_budget_s=0.5))
+    >>> d = json.loads(summary_json(r)); d["frames"], d["pointings_flown"], d["geo"]
+    (7, 0, None)
+    """
+    doc = {**result.totals(), "stopped": bool(result.stopped), "geo": result.geo}
+    return json.dumps(doc, sort_keys=True, indent=1) + "\n"
+
+
 def _s(v: float | None) -> str:
     return "-" if v is None else f"{v:.3f}"
 
@@ -242,6 +287,8 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
         from matplotlib.patches import Rectangle
     except ImportError:
         return None
+    if not hasattr(world, "truth_at") or getattr(world, "truth_rows", None) is not None:
+        return None  # a long strip: no whole-strip picture (it is never rendered whole)
     f = result.config.factor
     fp = result.frames
     hw, ww = fp.wfov_shape
@@ -446,7 +493,10 @@ def write_pass(
     notes = []
     pic = draw_pass(result, world, out / PICTURE) if picture else None
     if picture and pic is None:
-        notes.append("No picture: matplotlib is not installed (the lean onboard install).")
+        if getattr(world, "truth_rows", None) is not None:
+            notes.append("No picture: a long strip is never rendered whole.")
+        else:
+            notes.append("No picture: matplotlib is not installed (the lean onboard install).")
     if pic is not None:
         written.append(pic)
     if views is not None:
@@ -462,4 +512,5 @@ def write_pass(
             notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
     write_text(out / SUMMARY, summary_md(result, PICTURE if pic else None, " ".join(notes) or None))
     written.append(out / SUMMARY)
+    written.append(write_text(out / SUMMARY_JSON, summary_json(result)))
     return written

@@ -23,6 +23,7 @@ import os
 from collections import OrderedDict
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,13 @@ from dyntarget.synth.dynamic import WorldSpec, sample_strip
 
 STRIP_FORMAT = "dyntarget-strip"
 SIDECAR = ".world.json"
+LONG_VERSION = 2
+"""Sidecar version of a long strip (rendered lazily, :class:`LongStrip`)."""
+MIN_LENGTH_KM, MAX_LENGTH_KM = 10.0, 10_000.0
+PREVIEW_ROWS = 1152
+"""Rows of a long strip written as its ``<id>.tif`` preview (the start of the pass)."""
+LONG_ERUPTION_AGE_S = 7200.0
+"""Vents of a long strip have erupted this long at t = 0 (steady plumes in every GEO image)."""
 
 
 def strip_spec(
@@ -83,6 +91,117 @@ def strip_spec(
         wind_from_deg=wind_from_deg,
     )
     return replace(spec, id=f"strip-{seed:04d}"), window
+
+
+def long_strip_spec(
+    seed: int,
+    length_km: float,
+    *,
+    width: int = 256,
+    gsd: float = 8.0,
+    plumes: int | None = None,
+    plumes_per_100km: float | None = None,
+    clouds_per_100km: float = 2.0,
+    wind_mps: float | None = None,
+    wind_from_deg: float | None = None,
+) -> tuple[WorldSpec, tuple[int, int, int, int]]:
+    """A pass-length moving world: vents and drifting clouds spread along ``length_km``.
+
+    ``plumes`` vents (or ``plumes_per_100km`` per 100 km, at least one), one per
+    equal segment of the strip at a random place inside it (30-70 % of the
+    segment, 25-75 % across); each vent has the plume draws of
+    :func:`dyntarget.synth.dynamic.sample_world` (world ``k`` of ``seed``) and has
+    erupted :data:`LONG_ERUPTION_AGE_S` at t = 0, so its plume is steady in every
+    geostationary image before the pass. Meteorological clouds (not plume: they
+    hide the ground and the plumes from both sensors) are placed uniformly,
+    ``clouds_per_100km`` per 100 km, 0.3-1.5 km in radius.
+
+    Parameters
+    ----------
+    seed : the strip's seed.
+    length_km : strip length along track, km (10 .. 10 000).
+    width : strip width, high-resolution pixels.
+    gsd : high-resolution ground sampling distance, m.
+    plumes, plumes_per_100km : the vents: a count, or a density (one of them; default 1 / 100 km).
+    clouds_per_100km : meteorological cloud density.
+    wind_mps, wind_from_deg : the wind (drawn if not given).
+
+    Returns
+    -------
+    (WorldSpec, window): the world and the strip's window ``(0, 0, width, rows)``.
+
+    Examples
+    --------
+    >>> spec, window = long_strip_spec(0, 500.0, plumes_per_100km=0.4)
+    >>> len(spec.vents), window, spec.id
+    (2, (0, 0, 256, 62500), 'strip-0000')
+    """
+    from dyntarget.synth.dynamic import MAX_CLOUDS, MAX_VENTS, CloudSpec, VentSpec, sample_world
+
+    if not (isinstance(length_km, int | float) and MIN_LENGTH_KM <= length_km <= MAX_LENGTH_KM):
+        raise InvalidParameterError(
+            f"length_km: expected {MIN_LENGTH_KM:g} to {MAX_LENGTH_KM:g} km, got {length_km!r}"
+        )
+    if isinstance(width, bool) or not isinstance(width, int) or not 32 <= width <= 4096:
+        raise InvalidParameterError(f"width: expected an integer in 32..4096, got {width!r}")
+    if plumes is not None and plumes_per_100km is not None:
+        raise InvalidParameterError("give plumes or plumes_per_100km, not both")
+    if plumes_per_100km is not None and not (
+        math.isfinite(plumes_per_100km) and plumes_per_100km > 0
+    ):
+        raise InvalidParameterError(
+            f"plumes_per_100km: expected a density > 0, got {plumes_per_100km!r}"
+        )
+    if not (math.isfinite(clouds_per_100km) and clouds_per_100km >= 0):
+        raise InvalidParameterError(
+            f"clouds_per_100km: expected a density >= 0, got {clouds_per_100km!r}"
+        )
+    rows = round(length_km * 1e3 / gsd)
+    if rows < 4 * width:
+        raise InvalidParameterError(
+            f"length_km: {length_km:g} km is {rows} px at {gsd:g} m, shorter than 4 x the width"
+        )
+    n = (
+        plumes
+        if plumes is not None
+        else max(1, round(length_km / 100.0 * (plumes_per_100km or 1.0)))
+    )
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_VENTS:
+        raise InvalidParameterError(
+            f"plumes: expected 1 to {MAX_VENTS} vents along the strip, got {n!r}"
+        )
+    base = sample_world(
+        seed, 0, size=width, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
+    )
+    rng = np.random.default_rng([int(seed), 0xD7])
+    seg = rows / n
+    vents = []
+    for k in range(n):
+        v = sample_world(
+            seed, k, size=width, gsd=gsd, wind_mps=base.wind.speed_mps,
+            wind_from_deg=base.wind.from_deg,
+        ).vents[0]  # fmt: skip
+        y = seg * (k + float(rng.uniform(0.3, 0.7)))
+        x = width * float(rng.uniform(0.25, 0.75))
+        vents.append(
+            VentSpec(**{**v.__dict__, "x": x, "y": y, "eruption_age_s": LONG_ERUPTION_AGE_S})
+        )
+    n_clouds = min(int(rng.poisson(length_km / 100.0 * clouds_per_100km)), MAX_CLOUDS)
+    clouds = [
+        CloudSpec(
+            x=float(rng.uniform(-0.2, 1.2) * width),
+            y=float(rng.uniform(0.0, rows)),
+            radius_m=float(rng.uniform(300.0, 1500.0)),
+            optical_depth=float(rng.uniform(2.0, 6.0)),
+            volcanic=False,
+            ash_fraction=0.0,
+        )
+        for _ in range(n_clouds)
+    ]
+    spec = replace(
+        base, vents=tuple(vents), clouds=tuple(clouds), tile=2048, id=f"strip-{int(seed):04d}"
+    )
+    return spec, (0, 0, int(width), rows)
 
 
 class MovingStrip:
@@ -203,6 +322,227 @@ class MovingStrip:
         return truth
 
 
+class LongStrip(MovingStrip):
+    """A pass-length moving strip, rendered lazily: only the rows a frame or a score needs.
+
+    The truth of the whole strip is never built: :meth:`truth_rows` renders
+    the rows asked for (cached, recent bands). Utility is absolute here: the
+    intensity utility is the label times the red reflectance (0..1) and the
+    gradient utility the 5x5 Sobel magnitude of it over 48 (its largest value
+    on a 0..1 image), not normalised by the strip's peak as on a short strip
+    (which needs the whole strip). Memory does not grow with the length.
+
+    Parameters
+    ----------
+    spec, window : from :func:`long_strip_spec`.
+    truth_step_s : time grid of the truth, s.
+    capacity : most truth bands kept.
+    frame_capacity : most renderings kept (a benchmark flying one strip many ways
+        keeps them all; a pass needs 4).
+
+    Examples
+    --------
+    >>> spec, window = long_strip_spec(0, 100.0, plumes=2, wind_mps=5.0)
+    >>> s = LongStrip(spec, window)
+    >>> s.shape, s.truth_rows(0.0, 100, 164).ids.shape, sorted(s.plumes_at_start())
+    ((12500, 256), (64, 256), [1, 2])
+    """
+
+    def __init__(
+        self,
+        spec: WorldSpec,
+        window: tuple[int, int, int, int],
+        *,
+        truth_step_s: float = 1.0,
+        capacity: int = 48,
+        frame_capacity: int = 4,
+    ) -> None:
+        from dyntarget.synth.dynamic import MAX_COORD_PX
+
+        if not (math.isfinite(truth_step_s) and truth_step_s >= 0):
+            raise InvalidParameterError(
+                f"truth_step_s: expected seconds >= 0, got {truth_step_s!r}"
+            )
+        c0, r0, w, h = (int(v) for v in window)
+        if not (32 <= w <= 4096 and 64 <= h <= MAX_COORD_PX and abs(c0) + abs(r0) <= MAX_COORD_PX):
+            raise InvalidParameterError(f"window: {window!r} is not a long strip's window")
+        self.spec, self.window = spec, (c0, r0, w, h)
+        self.world = MovingWorld(spec)
+        self.shape = (h, w)
+        self.gsd = float(spec.gsd)
+        self.crs = spec.crs
+        self.transform = self.world.transform((c0, r0, w, 1))
+        self.valid = None
+        self.id = spec.id
+        self.acquired = spec.epoch
+        self.wind = spec.wind
+        self.truth_step_s = truth_step_s
+        self._cache: OrderedDict[tuple[float, int, int], Truth] = OrderedDict()
+        self._capacity = capacity
+        self._frames: OrderedDict[tuple[float, int, int], Any] = OrderedDict()
+        self._frame_capacity = frame_capacity
+
+    def _render(self, t: float, top: int, bottom: int):
+        """The world's rendering of rows ``top:bottom`` at ``t`` (the last few kept)."""
+        key = (float(t), int(top), int(bottom))
+        hit = self._frames.get(key)
+        if hit is None:
+            c0, r0, w, _ = self.window
+            hit = self._frames[key] = self.world.render(t, (c0, r0 + top, w, bottom - top))
+            if len(self._frames) > self._frame_capacity:
+                self._frames.popitem(last=False)
+        return hit
+
+    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """Rows ``top:bottom`` as the look-ahead sensor sees them at ``t`` (rendered on demand).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, bottom - top, W)`` image.
+        """
+        return self._render(t, top, bottom).image
+
+    def label_rows(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """The true label of rows ``top:bottom`` at exactly ``t`` (the frame's own rendering).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(bottom - top, W)``.
+        """
+        return self._render(t, top, bottom).mask
+
+    def quantize(self, t: float) -> float:
+        """``t`` on the truth's time grid.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        float
+            ``t`` rounded to ``truth_step_s``.
+        """
+        return round(t / self.truth_step_s) * self.truth_step_s if self.truth_step_s > 0 else t
+
+    def truth_at(self, t: float) -> Truth:
+        """Not available on a long strip (the whole truth is never built): see :meth:`truth_rows`."""
+        raise InvalidParameterError(
+            f"strip {self.id!r}: a long strip renders its truth by rows (truth_rows)"
+        )
+
+    def plumes_at_start(self) -> frozenset[int]:
+        """Plume ids present at t = 0: every vent erupting by then, volcanic clouds over the strip."""
+        s = self.spec
+        c0, r0, w, h = self.window
+        ids = [i + 1 for i, v in enumerate(s.vents) if v.eruption_age_s > 0]
+        n = len(s.vents)
+        j = 0
+        for c in s.clouds:
+            if c.volcanic:
+                j += 1
+                if c0 <= c.x < c0 + w and r0 <= c.y < r0 + h:
+                    ids.append(n + j)
+        return frozenset(ids)
+
+    def truth_rows(self, t: float, top: int, bottom: int) -> Truth:
+        """The truth of rows ``top:bottom`` at ``t`` (rounded to ``truth_step_s``).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        dyntarget.fly.world.Truth
+            Utility maps (absolute, see the class docstring) and plume ids of the rows.
+        """
+        import cv2
+
+        t = self.quantize(t)
+        key = (t, int(top), int(bottom))
+        hit = self._cache.get(key)
+        if hit is not None:
+            self._cache.move_to_end(key)
+            return hit
+        f = self._render(t, top, bottom)
+        label = f.mask
+        intensity = (label * f.image[2]).astype(np.float32)
+        gx = cv2.Sobel(intensity, cv2.CV_32F, 1, 0, ksize=5)
+        gy = cv2.Sobel(intensity, cv2.CV_32F, 0, 1, ksize=5)
+        gradient = np.clip(np.hypot(gx, gy) / 48.0, 0.0, 1.0).astype(np.float32)
+        ids = np.zeros(label.shape, np.int32)
+        rows, cols = np.nonzero(label)
+        src = self._sources(t)
+        if len(rows) and len(src):
+            d2 = (cols[:, None] - src[None, :, 0]) ** 2 + (
+                rows[:, None] + top - src[None, :, 1]
+            ) ** 2
+            ids[rows, cols] = np.argmin(d2, axis=1).astype(np.int32) + 1
+        truth = Truth(UtilityMaps(label, intensity, gradient, None), ids)
+        self._cache[key] = truth
+        if len(self._cache) > self._capacity:
+            self._cache.popitem(last=False)
+        return truth
+
+
+def write_long_strip(
+    spec: WorldSpec, window: tuple[int, int, int, int], directory: str | os.PathLike[str]
+) -> list[Path]:
+    """Write a long strip: its world sidecar (version 2) and a preview of its start.
+
+    ``<id>.tif`` / ``<id>_mask.tif`` hold only the first :data:`PREVIEW_ROWS`
+    rows flown (the bottom of the strip) at t = 0; ``fly`` renders the whole
+    strip from ``<id>.world.json``, frame by frame.
+
+    Parameters
+    ----------
+    spec, window : from :func:`long_strip_spec`.
+    directory : output directory (created).
+
+    Returns
+    -------
+    list of the paths written (each atomically).
+    """
+    from dyntarget.io import write_scene
+
+    directory = Path(directory)
+    c0, r0, w, h = window
+    n = min(PREVIEW_ROWS, h)
+    scene = MovingWorld(spec).scene(0.0, (c0, r0 + h - n, w, n), id=spec.id)
+    written = write_scene(scene, directory)
+    doc = {
+        "format": STRIP_FORMAT,
+        "version": LONG_VERSION,
+        "world": spec.to_dict(),
+        "window": list(window),
+        "length_km": h * spec.gsd / 1e3,
+        "preview_rows": n,
+    }
+    written.append(write_text(directory / f"{spec.id}{SIDECAR}", json.dumps(doc, sort_keys=True)))
+    return written
+
+
 def write_strip(
     spec: WorldSpec, window: tuple[int, int, int, int], directory: str | os.PathLike[str]
 ) -> list[Path]:
@@ -250,11 +590,18 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
             raise DataFileError(f"{sidecar}: not a {STRIP_FORMAT} sidecar")
         try:
             spec = WorldSpec.from_dict(doc.get("world"))
-            if not isinstance(doc.get("window"), list):
+            win = doc.get("window")
+            if not (
+                isinstance(win, list)
+                and len(win) == 4
+                and all(isinstance(v, int) and not isinstance(v, bool) for v in win)
+            ):
                 raise InvalidParameterError(
-                    f"window: expected [col0, row0, width, length] integers, got {doc.get('window')!r:.60}"
+                    f"window: expected [col0, row0, width, length] integers, got {win!r:.60}"
                 )
-            window = check_window(doc["window"], spec.size)
+            if doc.get("version") == LONG_VERSION:
+                return LongStrip(spec, tuple(win), truth_step_s=truth_step_s)
+            window = check_window(win, spec.size)
         except InvalidParameterError as exc:
             raise DataFileError(f"{sidecar}: {exc}") from None
         return MovingStrip(spec, window, truth_step_s=truth_step_s)

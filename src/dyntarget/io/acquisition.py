@@ -202,7 +202,8 @@ def _tag_time(path: Path) -> tuple[datetime | None, str | None]:
             if m is None:
                 raise DataFileError(f"{path}: {key} {value!r} is not 'YYYY:MM:DD HH:MM:SS'")
             try:
-                return datetime(*(int(g) for g in m.groups()), tzinfo=UTC), key
+                year, month, day, hour, minute, second = (int(g) for g in m.groups())
+                return datetime(year, month, day, hour, minute, second, tzinfo=UTC), key
             except ValueError:
                 raise DataFileError(f"{path}: {key} {value!r} is not a valid date") from None
         try:

@@ -62,11 +62,30 @@ WGS84 = "EPSG:4326"
 class Pointings(Protocol):
     """What the writers read from a trajectory (``dyntarget`` ``Trajectory`` has it)."""
 
-    points: np.ndarray
-    part: np.ndarray
-    planner: str
-    params: dict[str, Any]
-    times: np.ndarray | None
+    @property
+    def points(self) -> np.ndarray:
+        """``(n, 2)`` pointings, WFOV pixel ``(x, y)``."""
+        ...
+
+    @property
+    def part(self) -> np.ndarray:
+        """``(n,)`` index of the part (polygon or pass) each pointing belongs to."""
+        ...
+
+    @property
+    def planner(self) -> str:
+        """The planner's registered name."""
+        ...
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """The planner's settings."""
+        ...
+
+    @property
+    def times(self) -> np.ndarray | None:
+        """``(n,)`` seconds of each pointing, ``None`` for an untimed plan."""
+        ...
 
 
 def _check_mode(crs_mode: str) -> str:
@@ -515,12 +534,14 @@ def polygons_geojson(
     if form != "pixels":
         c = CRS.from_user_input(crs)
         if c.is_projected and c.linear_units in ("metre", "meter"):
+            assert transform is not None  # coordinate_form: only "pixels" has none
             metres = abs(transform.determinant)
 
     def project(coords: np.ndarray) -> np.ndarray:
         return _project(coords, transform, crs, form)
 
     def to_world(coords: np.ndarray) -> np.ndarray:
+        assert transform is not None  # coordinate_form: only "pixels" has none
         return pixels_to_crs(coords, transform)
 
     def to_lonlat(coords: np.ndarray) -> np.ndarray:

@@ -51,7 +51,7 @@ def _refuse(path: Path, what: str, found: str) -> OutputPathError:
     )
 
 
-def is_ours(path: str | os.PathLike[str]) -> bool:
+def is_ours(path: str | os.PathLike[str]) -> bool:  # noqa: PLR0911  (one return per file kind)
     r"""Whether the existing file ``path`` was written by dyntarget (recognised by content).
 
     Recognised: trajectories and plume polygons (GeoJSON FeatureCollections

@@ -460,7 +460,7 @@ def _georef_differs(
 
     When either has no CRS or no transform, the mask is taken pixel for pixel
     (its shape must then match the image's)."""
-    if None in (lcrs, ltransform, crs, transform):
+    if lcrs is None or ltransform is None or crs is None or transform is None:
         return False
     try:
         same_crs = CRS.from_user_input(lcrs) == CRS.from_user_input(crs)
@@ -472,18 +472,21 @@ def _georef_differs(
 
 def _reproject_label(
     data: np.ndarray,
-    lcrs: str,
-    ltransform: Affine,
+    lcrs: str | None,
+    ltransform: Affine | None,
     path: Path,
-    shape: tuple[int, int],
-    crs: str,
-    transform: Affine,
+    shape: tuple[int, int] | None,
+    crs: str | None,
+    transform: Affine | None,
 ) -> np.ndarray:
     """A mask georeferenced on another grid, reprojected (nearest) onto the image grid.
 
     Image pixels the mask does not cover are "not plume". A mask that does not
     overlap the image at all is an error (a wrong file or CRS, almost always).
+    Called only where :func:`_georef_differs` found both georeferenced.
     """
+    assert None not in (lcrs, ltransform, shape, crs, transform)  # _georef_differs
+    assert shape is not None and transform is not None
     from rasterio.warp import Resampling, reproject, transform_bounds
 
     h, w = shape

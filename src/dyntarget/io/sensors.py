@@ -25,6 +25,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from dyntarget.errors import (
 from dyntarget.io import scenes as scene_io
 from dyntarget.io.presets import PRESETS, Preset, get_preset  # noqa: F401  (re-exported)
 from dyntarget.scene import Scene
+
+if TYPE_CHECKING:
+    from affine import Affine
 
 
 def parse_bands(
@@ -210,7 +214,9 @@ def read_band_files(
             f"band files: expected 4 files (R, G, B, NIR), got {len(paths)}"
         )
     p = get_preset(preset) if preset else None
-    planes, georef, shape = [], None, None
+    planes: list[np.ndarray] = []
+    georef: tuple[str | None, Affine | None] = (None, None)
+    shape: tuple[int, ...] | None = None
     for path in map(Path, paths):
         with scene_io._open(path) as src:
             if src.count != 1:
@@ -233,7 +239,7 @@ def read_band_files(
         offset if offset is not None else (p.offset if p else 0.0),
         paths[0],
     )
-    scene_io.check_reflectance(image, paths[0])
+    scene_io.check_reflectance(image, str(paths[0]))
     crs, transform = georef
     return Scene(
         image, crs=crs, transform=transform, id=scene_id or Path(paths[0]).parent.name or "scene"

@@ -1,8 +1,10 @@
 /* dyntarget's random-forest kernel: predict_proba of a packed scikit-learn forest.
  *
- * Built ahead of time by dyntarget.perceive.forest_build (at 'dyntarget export-onnx' /
- * 'train' / 'build-forest', for named targets), never on the flight computer; the forest
- * is packed by dyntarget.perceive.compiled, where the layout is described. In short, per
+ * Built ahead of time by 'dyntarget export-onnx --targets x86-64-v3,x86-64-v4,aarch64'
+ * into the model directory (dyntarget.perceive.compiled.build_kernels; bound to its
+ * forest.npz by SHA-256 in forest.json), or at run time with the C compiler on the PATH
+ * and cached; the forest is packed by dyntarget.perceive.compiled, where the layout is
+ * described. In short, per
  * tree, nodes are in breadth-first order with the two children of a node next to each
  * other, so
  *

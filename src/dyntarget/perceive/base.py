@@ -1,37 +1,26 @@
-"""The classifier interface, its registry, pixel sampling and model files.
+"""The classifier interface and registry, and pixel sampling.
 
 A classifier maps a 4-band image ``(4, H, W)`` to a plume probability
 ``float32 (H, W)`` in 0..1. Every classifier is registered by name in
-:data:`CLASSIFIERS` and passes the same contract test.
-
-A saved model is a directory::
-
-    model/
-      metadata.json     format, classifier name, dyntarget version, band order, config
-      model.skops | model.safetensors | params.json
-
-Loading checks the metadata before touching the weights and never unpickles.
+:data:`CLASSIFIERS` and passes the same contract test. :class:`Predictor` is what
+planning needs of one: the native classifiers (:class:`Classifier`) and their ONNX
+twins (:class:`dyntarget.perceive.onnx.OnnxClassifier`) both satisfy it. Model
+directories are :mod:`dyntarget.perceive.modelfile`.
 """
 
 from __future__ import annotations
 
-import json
 import os
-import shutil
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError, ModelFileError
+from dyntarget.errors import InvalidParameterError, InvalidSceneError, ModelFileError
 from dyntarget.registry import Registry
-from dyntarget.scene import BANDS, Scene, check_image
-
-MODEL_FORMAT = "dyntarget-model"
-MODEL_FORMAT_VERSION = 1
-METADATA = "metadata.json"
+from dyntarget.scene import Scene, check_image
 
 TRAIN_THREADS = 1
 """PyTorch intra-op threads while a U-Net trains, whatever the machine or scheduler.
@@ -43,6 +32,79 @@ bytes in-process, on Dask threads (``local``) and in worker processes
 
 DEFAULT_MAX_PIXELS_PER_CLASS = 50_000
 """Training pixels drawn per class (plume / not plume) over all training scenes."""
+
+
+@runtime_checkable
+class Predictor(Protocol):
+    """What planning needs of a classifier: the native ones and their ONNX twins.
+
+    :func:`dyntarget.pipeline.plan_scene`, the pass loop and the evaluations take a
+    ``Predictor``; training and saving need the full :class:`Classifier`.
+
+    Examples
+    --------
+    >>> from dyntarget.perceive import make_classifier
+    >>> isinstance(make_classifier("band-threshold"), Predictor)
+    True
+    """
+
+    @property
+    def name(self) -> str:
+        """The classifier's registered name."""
+        ...
+
+    @property
+    def kind(self) -> str:
+        """``"threshold"``, ``"pixel"`` or ``"unet"``."""
+        ...
+
+    def predict_proba(self, image: np.ndarray) -> np.ndarray:
+        """Plume probability of each pixel.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance (R, G, B, NIR).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W)`` in 0..1.
+        """
+        ...
+
+    def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+        """Plume mask ``predict_proba(image) >= threshold``.
+
+        Parameters
+        ----------
+        image : numpy.ndarray
+            ``(4, H, W)`` reflectance.
+        threshold : float
+            Probability at or above which a pixel is plume, 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(H, W)`` mask.
+        """
+        ...
+
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Work of classifying an image of ``shape``, in the classifier's own units.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            Pixels (pixel classifiers) or pixels run over in tiles (U-Nets): the deadline
+            logic times a crop once and scales by this.
+        """
+        ...
 
 
 class Classifier(ABC):
@@ -193,42 +255,9 @@ class Classifier(ABC):
         pathlib.Path
             ``path``.
         """
-        if not self.fitted:
-            raise InvalidParameterError(
-                f"{self.name}: nothing to save, the classifier is not fitted"
-            )
-        from dyntarget import __version__
-        from dyntarget.io.outputs import check_model_dir
+        from dyntarget.perceive.modelfile import write_model_dir
 
-        path = check_model_dir(path)  # never replaces anything but a model directory of ours
-        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir(parents=True)
-        try:
-            self._save_weights(tmp)
-            meta = {
-                "format": MODEL_FORMAT,
-                "format_version": MODEL_FORMAT_VERSION,
-                "classifier": self.name,
-                "dyntarget_version": __version__,
-                "bands": list(BANDS),
-                "config": self.get_config(),
-                "training": self.training,
-            }
-            (tmp / METADATA).write_text(
-                json.dumps(meta, indent=2, sort_keys=True), encoding="utf-8"
-            )
-            if path.exists():
-                old = path.with_name(f".{path.name}.old-{os.getpid()}")
-                path.rename(old)
-                tmp.rename(path)
-                shutil.rmtree(old)
-            else:
-                tmp.rename(path)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return path
+        return write_model_dir(self, path)
 
     @abstractmethod
     def _save_weights(self, directory: Path) -> None: ...
@@ -255,6 +284,8 @@ class Classifier(ABC):
         dyntarget.errors.ModelFileError
             When the directory holds another classifier or its metadata does not fit this one.
         """
+        from dyntarget.perceive.modelfile import read_metadata
+
         meta = read_metadata(path)
         if meta["classifier"] != cls.name:
             raise ModelFileError(f"{path}: holds a {meta['classifier']!r} model, not {cls.name!r}")
@@ -294,76 +325,6 @@ for _name, _target in (  # lazy: the module is imported when the classifier is f
     ("unet-uavsar", "dyntarget.perceive.unet:UavsarUNetClassifier"),
 ):
     CLASSIFIERS.register_lazy(_name, _target)
-
-
-def _read_json(path: Path) -> Any:
-    from dyntarget.io.safeopen import read_json
-
-    return read_json(path, max_bytes=1 << 20)
-
-
-def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read and check a model directory's ``metadata.json``.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The model directory.
-
-    Returns
-    -------
-    dict
-        The parsed metadata.
-
-    Raises
-    ------
-    dyntarget.errors.DataFileError
-        When ``path`` is not a directory.
-    dyntarget.errors.ModelFileError
-        When the metadata is missing, not JSON, or of another format, version or band order.
-    """
-    path = Path(path)
-    meta_path = path / METADATA
-    if not path.is_dir():
-        raise DataFileError(f"{path}: not a model directory")
-    if not meta_path.is_file():
-        raise ModelFileError(f"{path}: no {METADATA}; not a dyntarget model")
-    try:
-        meta = _read_json(meta_path)  # a regular file of bounded size and depth
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"{meta_path}: not valid JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
-        raise ModelFileError(f"{meta_path}: not a dyntarget model (format field missing or wrong)")
-    if meta.get("format_version") != MODEL_FORMAT_VERSION:
-        raise ModelFileError(
-            f"{meta_path}: model format version {meta.get('format_version')!r}, expected {MODEL_FORMAT_VERSION}"
-        )
-    if meta.get("bands") != list(BANDS):
-        raise ModelFileError(
-            f"{meta_path}: band order {meta.get('bands')!r}, expected {list(BANDS)}"
-        )
-    if not isinstance(meta.get("classifier"), str) or meta["classifier"] not in CLASSIFIERS:
-        raise ModelFileError(f"{meta_path}: unknown classifier {meta.get('classifier')!r}")
-    if not isinstance(meta.get("config"), dict):
-        raise ModelFileError(f"{meta_path}: config missing")
-    return meta
-
-
-def load_classifier(path: str | os.PathLike[str]) -> Classifier:
-    """Load any saved classifier, dispatching on its metadata.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The model directory.
-
-    Returns
-    -------
-    Classifier
-        The fitted classifier of the class its metadata names.
-    """
-    meta = read_metadata(path)
-    return CLASSIFIERS.get(meta["classifier"]).load(path)
 
 
 def make_classifier(name: str, **kwargs: Any) -> Classifier:
@@ -426,7 +387,7 @@ def sample_pixels(
         ``(n,)`` int64 class, 1 = plume.
     """
     feats = np.concatenate([pixels(s.image) for s in scenes])
-    labels = np.concatenate([s.label.ravel() for s in scenes])
+    labels = np.concatenate([s.truth.ravel() for s in scenes])
     valid = np.concatenate([s.valid_mask.ravel() for s in scenes])
     pos = np.flatnonzero(labels & valid)
     neg = np.flatnonzero(~labels & valid)
@@ -434,71 +395,3 @@ def sample_pixels(
     idx = np.concatenate([rng.choice(pos, n, replace=False), rng.choice(neg, n, replace=False)])
     idx.sort()
     return feats[idx].astype(np.float32), labels[idx].astype(np.int64)
-
-
-def keep_freed_memory(limit: int = 2**31 - 1) -> bool:
-    """Let glibc's malloc keep large freed blocks for reuse (a process-wide setting).
-
-    By default glibc maps every block above a threshold (at most 32 MiB) on its own
-    and hands it back to the system when it is freed, so each large activation of a
-    network is page-faulted in and zeroed again on every pass: at 1024 px, 40 % of
-    UNET-Xception's time in PyTorch (docs/performance.md). Raising the mmap and trim
-    thresholds to ``limit`` makes freed blocks stay in the heap for the next pass, as
-    ONNX Runtime's own arena does; the process's resident memory then stays near its
-    peak instead of shrinking between passes. The ``dyntarget`` command calls this at
-    start; a program using the library can call it (or set the environment variables
-    ``MALLOC_MMAP_THRESHOLD_`` and ``MALLOC_TRIM_THRESHOLD_``).
-
-    Parameters
-    ----------
-    limit : int
-        Bytes: blocks up to this size come from the heap and freed memory up to it is
-        kept (default the largest value ``mallopt`` takes).
-
-    Returns
-    -------
-    bool
-        Whether both settings took (``False`` off glibc: macOS, Windows, musl).
-
-    Examples
-    --------
-    >>> isinstance(keep_freed_memory(), bool)
-    True
-    """
-    import ctypes
-    import sys
-
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    m_trim_threshold, m_mmap_threshold = -1, -3  # <malloc.h>
-    trim = mallopt(m_trim_threshold, int(limit)) == 1
-    # some glibc versions refuse an mmap threshold above 32 MiB: keep that much, then
-    mmap = mallopt(m_mmap_threshold, int(limit)) == 1 or mallopt(m_mmap_threshold, 32 << 20) == 1
-    return trim and mmap
-
-
-def available_cores() -> int:
-    """Cores this process may run on (its CPU affinity on Linux, else ``os.cpu_count()``).
-
-    Every inference path sizes its one thread pool with this: PyTorch's intra-op
-    threads, onnxruntime's intra-op threads and the pixel classifiers' chunk pool (whose
-    chunks then run single-threaded inside), so no two pools multiply.
-
-    Returns
-    -------
-    int
-        At least 1.
-
-    Examples
-    --------
-    >>> available_cores() >= 1
-    True
-    """
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1

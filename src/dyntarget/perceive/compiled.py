@@ -5,12 +5,17 @@ fitted forest is *packed* into a few flat arrays (:func:`pack_forest`) and walke
 small C kernel (``_forest.c``, shipped with the package) that moves 16 pixels down a tree
 at once with AVX-512 where the CPU has it, reads the first five levels of every tree from
 registers and stops a group of pixels as soon as all of them sit on leaves. The kernel is
-compiled once per machine with the C compiler found on the PATH (``cc -O2 -march=native``,
+built ahead of time for named targets by ``dyntarget export-onnx --targets
+x86-64-v3,x86-64-v4,aarch64`` (:func:`build_kernels`: ``cc -march=x86-64-v3`` etc., the
+Debian cross compiler for aarch64) into the model directory, where ``forest.json``
+(:func:`write_manifest`) records each library's SHA-256 and that of the ``forest.npz`` it
+is for; :func:`fast_predictor` loads the best one this CPU runs only if both hashes match
+(:func:`artefact_predictor`), so nothing compiles on a flight computer. Where none fits,
+the kernel is compiled with the C compiler found on the PATH (``cc -O2 -march=native``,
 about a second) and cached under :func:`cache_dir`, keyed by a SHA-256 of its source, the
-flags and the CPU's model and feature flags; a cached build serves without a compiler (a
-flight computer can get the cache directory built on the ground on the same CPU). The
-forest itself is data, so one library serves every forest, and nothing compiled is ever
-read from a model directory.
+flags and the CPU's model and feature flags; a cached build serves without a compiler.
+Either fallback is said once on stderr. The forest itself is data, so one library serves
+every forest.
 
 Layout (per tree, trees one after another): nodes in breadth-first order with the two
 children of a node next to each other, so a pixel goes from node ``k`` to
@@ -32,6 +37,8 @@ from __future__ import annotations
 import ctypes
 import functools
 import hashlib
+import io
+import json
 import os
 import platform
 import shlex
@@ -42,7 +49,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib.resources import files
 from pathlib import Path
 
@@ -176,6 +183,11 @@ class PackedForest:
         Features per pixel.
     fshift : int
         Bits of ``code`` that hold the feature.
+    source : pathlib.Path or None
+        The ``forest.npz`` it was read from (:func:`load_forest`; ``None``: packed in
+        memory); its folder is where :func:`fast_predictor` looks for exported kernels.
+    sha256 : str or None
+        Hex SHA-256 of the bytes of ``source`` as read.
     """
 
     threshold: np.ndarray
@@ -185,6 +197,8 @@ class PackedForest:
     depth: int
     features: int
     fshift: int
+    source: Path | None = field(default=None, compare=False)
+    sha256: str | None = field(default=None, compare=False)
 
     @functools.cached_property
     def node(self) -> np.ndarray:
@@ -198,6 +212,25 @@ class PackedForest:
         total = len(self.value)
         words = self.code[:total].astype(np.int64) << 32
         return words | self.threshold[:total].view(np.uint32)
+
+
+def same_forest(a: PackedForest, b: PackedForest) -> bool:
+    """Whether two packed forests hold the same arrays and numbers (wherever they came from).
+
+    Parameters
+    ----------
+    a, b : PackedForest
+        The forests.
+
+    Returns
+    -------
+    bool
+        ``True`` when every array and number is equal.
+    """
+    return all(
+        np.array_equal(getattr(a, n), getattr(b, n))
+        for n in ("threshold", "code", "value", "roots", "depth", "features", "fshift")
+    )
 
 
 def _breadth_first(left: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -266,8 +299,16 @@ def pack_forest(estimator) -> PackedForest:
         pos[order] = np.arange(t.node_count)
         here = base + np.arange(t.node_count)  # the new index of order[i] is base + i
         leaf = t.children_left[order] == -1
+        split_on = t.feature[order][~leaf]
+        if ((split_on < 0) | (split_on >= nfeat)).any():  # would spill into the child bits
+            raise InvalidParameterError(
+                f"estimator: a tree splits on a feature outside 0..{nfeat - 1}"
+            )
         child = np.where(leaf, here, base + pos[np.where(leaf, 0, t.children_left[order])])
         code[here] = (child << fshift) | np.where(leaf, 0, t.feature[order])
+        feat = t.feature[order]
+        if ((feat < 0) | (feat >= nfeat))[~leaf].any():
+            raise InvalidParameterError(f"estimator: a split on a feature outside 0..{nfeat - 1}")
         t64 = t.threshold[order]
         if np.isnan(t64)[~leaf].any():
             raise InvalidParameterError("estimator: a split threshold is NaN")
@@ -328,8 +369,16 @@ def save_forest(
     arrays = {n: getattr(packed, n) for n in ("threshold", "code", "value", "roots")}
     scalars = {n: np.int64(getattr(packed, n)) for n in ("depth", "features", "fshift")}
     bound = np.frombuffer(bytes.fromhex(model_sha256), np.uint8)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays, **scalars, model_sha256=bound)
+    import zipfile
+
+    members = {**arrays, **scalars, "model_sha256": bound}
+    # np.savez's layout (one .npy per member, stored), dated 1980: the same forest gives the
+    # same bytes (np.savez dates each member now, so its bytes change from run to run)
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as archive:
+        for name, value in members.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            with archive.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
     return path
 
 
@@ -375,7 +424,14 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
                 "fshift": np.int64, "model_sha256": np.uint8}  # fmt: skip
     limit = (MAX_NODES + PAD) * 8 + 4096  # the largest member a forest can need, header included
     try:
-        with zipfile.ZipFile(path) as archive:
+        size = os.stat(path).st_size
+    except OSError as exc:
+        raise fail(f"unreadable: {exc}") from None
+    if size > 9 * limit:
+        raise fail(f"{size} bytes are beyond any forest's size")
+    try:
+        raw = path.read_bytes()  # read once: what is checked is what was hashed
+        with zipfile.ZipFile(io.BytesIO(raw)) as archive:
             members = {i.filename: i.file_size for i in archive.infolist()}
     except (OSError, zipfile.BadZipFile, ValueError) as exc:
         raise fail(f"unreadable: {exc}") from None
@@ -388,7 +444,7 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
     if max(members.values()) > limit:
         raise fail(f"a member of {max(members.values())} bytes is beyond any forest's size")
     try:
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as npz:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             data = {k: npz[k] for k in expected}
     except Exception as exc:  # numpy raises several types on a corrupt archive
         raise fail(f"unreadable: {exc}") from None
@@ -460,6 +516,8 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
         depth=depth,
         features=features,
         fshift=fshift,
+        source=path,
+        sha256=hashlib.sha256(raw).hexdigest(),
     )
 
 
@@ -665,6 +723,419 @@ def _load(lib: Path) -> ctypes.CDLL:
         return _LOADED[str(lib)]
 
 
+MANIFEST_FILE = "forest.json"
+"""The manifest in a model directory: the packed forest's SHA-256, the SHA-256 of the
+``model.skops`` it was packed from, and each kernel built ahead of time for a named target
+(file, target, path, SHA-256 of the library and of the ``forest.npz`` it was built for)."""
+
+MANIFEST_FORMAT = "dyntarget-forest"
+
+TARGETS = {
+    "x86-64-v4": ("avx512", "x86_64", ("-march=x86-64-v4",)),
+    "x86-64-v3": ("avx2", "x86_64", ("-march=x86-64-v3",)),
+    "x86-64": ("sse2", "x86_64", ("-march=x86-64",)),
+    "aarch64": ("neon", "aarch64", ("-march=armv8-a",)),
+}
+"""Targets ``export-onnx --targets`` builds the kernel for: its path (:data:`ISAS`), the
+architecture and the compiler flags."""
+
+CROSS_COMPILERS = {
+    "x86_64": "x86_64-linux-gnu-gcc",
+    "aarch64": "aarch64-linux-gnu-gcc",
+}
+"""The Debian cross compiler of each architecture (packages ``gcc-x86-64-linux-gnu``,
+``gcc-aarch64-linux-gnu``), used where the host is of another architecture."""
+
+_PREFERENCE = ("avx512", "avx2", "neon", "sse2", "portable")
+
+
+def _arch() -> str:
+    machine = platform.machine().lower()
+    return {"amd64": "x86_64", "arm64": "aarch64"}.get(machine, machine)
+
+
+def cpu_class() -> str:
+    """This CPU in the words the fallback messages use, e.g. ``"x86-64 with AVX2, no AVX-512"``.
+
+    Returns
+    -------
+    str
+        The architecture and the widest kernel path it runs.
+
+    Examples
+    --------
+    >>> isinstance(cpu_class(), str)
+    True
+    """
+    arch = _arch()
+    if arch == "x86_64":
+        if cpu_runs("avx512"):
+            return "x86-64 with AVX-512"
+        if cpu_runs("avx2"):
+            return "x86-64 with AVX2, no AVX-512"
+        return "x86-64 without AVX2"
+    if arch == "aarch64":
+        return "aarch64 (NEON)"
+    return arch or "an unknown CPU"
+
+
+def target_compiler(target: str) -> str | None:
+    """The C compiler that builds the kernel for ``target`` on this machine.
+
+    The host's compiler (:func:`compiler`) for the host's architecture, else the Debian
+    cross compiler named in :data:`CROSS_COMPILERS` if it is on the PATH.
+
+    Parameters
+    ----------
+    target : str
+        A key of :data:`TARGETS`.
+
+    Returns
+    -------
+    str or None
+        The compiler, ``None`` when there is none.
+
+    Examples
+    --------
+    >>> target_compiler("x86-64-v3") is None or isinstance(target_compiler("x86-64-v3"), str)
+    True
+    """
+    arch = TARGETS[target][1]
+    if arch == _arch():
+        return compiler()
+    return shutil.which(CROSS_COMPILERS[arch])
+
+
+def parse_targets(text: str) -> list[str]:
+    """``"x86-64-v3,aarch64"`` as a list of :data:`TARGETS` (``"host"``: this machine's best).
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated target names; empty: none.
+
+    Returns
+    -------
+    list of str
+        The targets, each once, in the order given.
+
+    Examples
+    --------
+    >>> parse_targets("x86-64-v4, aarch64,x86-64-v4")
+    ['x86-64-v4', 'aarch64']
+    """
+    out: list[str] = []
+    for word in (w.strip().lower() for w in text.split(",")):
+        if not word:
+            continue
+        if word == "host":
+            word = next(
+                (t for t, (isa, arch, _) in TARGETS.items() if arch == _arch() and cpu_runs(isa)),
+                "",
+            )
+            if not word:
+                raise InvalidParameterError(f"--targets host: no target for {cpu_class()}")
+        if word not in TARGETS:
+            raise InvalidParameterError(
+                f"--targets: unknown target {word!r}; expected {', '.join(TARGETS)} or host"
+            )
+        if word not in out:
+            out.append(word)
+    return out
+
+
+def _kernel_file(target: str) -> str:
+    return f"forest-kernel-{target}.so"
+
+
+def build_target(target: str, out: str | os.PathLike[str]) -> Path:
+    """Compile the kernel for ``target`` into the shared library ``out`` (atomic).
+
+    Parameters
+    ----------
+    target : str
+        A key of :data:`TARGETS`.
+    out : path
+        The library to write.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    InvalidParameterError
+        No compiler for the target on this machine (one line naming the package).
+    MissingExtraError
+        The kernel does not compile.
+    """
+    cc = target_compiler(target)
+    _, arch, flags = TARGETS[target]
+    if cc is None:
+        package = {"x86_64": "gcc-x86-64-linux-gnu", "aarch64": "gcc-aarch64-linux-gnu"}[arch]
+        raise InvalidParameterError(
+            f"--targets {target}: no C compiler for {arch} here "
+            f"({CROSS_COMPILERS[arch]} not on the PATH; Debian: apt-get install {package})"
+        )
+    out = Path(out)
+    source = files("dyntarget.perceive").joinpath("_forest.c").read_bytes()
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        src, part = Path(tmp) / "_forest.c", Path(tmp) / out.name
+        src.write_bytes(source)
+        argv = [*shlex.split(cc), "-O2", "-std=c11", "-shared", "-fPIC", *flags]
+        try:
+            done = subprocess.run(
+                [*argv, str(src), "-o", str(part)], capture_output=True, timeout=COMPILE_TIMEOUT_S
+            )
+        except (OSError, subprocess.SubprocessError) as exc:
+            raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
+        if done.returncode != 0:
+            error = done.stderr.decode(errors="replace").strip().splitlines()
+            raise MissingExtraError(
+                f"the forest kernel does not compile for {target}: {error[-1:]}"
+            )
+        os.chmod(part, 0o644)
+        os.replace(part, out)
+    return out
+
+
+def build_kernels(model_dir: str | os.PathLike[str], targets: list[str]) -> list[dict]:
+    """Build the kernel for each of ``targets`` into ``model_dir`` for its ``forest.npz``.
+
+    Every compiler is looked for before anything is built; the libraries are
+    ``forest-kernel-TARGET.so``.
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory holding ``forest.npz``.
+    targets : list of str
+        Keys of :data:`TARGETS`.
+
+    Returns
+    -------
+    list of dict
+        The manifest's entries: ``file``, ``target``, ``isa``, ``arch``, ``sha256`` (of the
+        library) and ``forest_sha256`` (of the ``forest.npz`` it is for).
+
+    Raises
+    ------
+    InvalidParameterError
+        A target with no compiler here (one line naming the Debian package).
+    """
+    model_dir = Path(model_dir)
+    for target in targets:
+        if target_compiler(target) is None:
+            build_target(target, model_dir / _kernel_file(target))  # raises, naming the package
+    forest_sha = _sha256(model_dir / FOREST_FILE)
+    kernels = []
+    for target in targets:
+        lib = build_target(target, model_dir / _kernel_file(target))
+        isa, arch, _ = TARGETS[target]
+        kernels.append({"file": lib.name, "target": target, "isa": isa, "arch": arch,
+                        "sha256": _sha256(lib), "forest_sha256": forest_sha})  # fmt: skip
+    return kernels
+
+
+def kernel_files(model_dir: str | os.PathLike[str]) -> list[Path]:
+    """The exported kernel libraries in ``model_dir`` (``forest-kernel-TARGET.so``).
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Those present.
+    """
+    return [Path(model_dir) / _kernel_file(t) for t in TARGETS if
+            os.path.lexists(Path(model_dir) / _kernel_file(t))]  # fmt: skip
+
+
+def write_manifest(model_dir: str | os.PathLike[str], kernels: list[dict] | None = None) -> Path:
+    """Bind ``forest.npz`` to its model: ``MODEL_DIR/forest.json``.
+
+    Records the SHA-256 of ``forest.npz`` and of ``model.skops`` (when there) and the
+    exported kernels (:func:`build_kernels`).
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory holding ``forest.npz``.
+    kernels : list of dict, optional
+        The kernels' entries; default: those of the manifest already there.
+
+    Returns
+    -------
+    pathlib.Path
+        The manifest.
+    """
+    from dyntarget.io.atomic import write_text
+
+    model_dir = Path(model_dir)
+    if kernels is None:
+        kernels = (read_manifest(model_dir) or {}).get("kernels", [])
+    skops = model_dir / "model.skops"
+    manifest = {
+        "format": MANIFEST_FORMAT,
+        "version": 1,
+        "forest": {"file": FOREST_FILE, "sha256": _sha256(model_dir / FOREST_FILE)},
+        "model_skops_sha256": _sha256(skops) if skops.is_file() else None,
+        "kernels": kernels,
+    }
+    path = model_dir / MANIFEST_FILE
+    write_text(path, json.dumps(manifest, indent=2) + "\n")
+    return path
+
+
+def read_manifest(model_dir: str | os.PathLike[str]) -> dict | None:
+    """The manifest of a model directory (:func:`write_manifest`), ``None`` when absent or broken.
+
+    Parameters
+    ----------
+    model_dir : path
+        The model directory.
+
+    Returns
+    -------
+    dict or None
+        The parsed manifest, its format checked.
+    """
+    path = Path(model_dir) / MANIFEST_FILE
+    if not path.is_file():
+        return None
+    from dyntarget.io.safeopen import read_json
+
+    try:
+        data = read_json(path, max_bytes=1 << 16)
+    except (OSError, ValueError):
+        return None
+    if (
+        not isinstance(data, dict)
+        or data.get("format") != MANIFEST_FORMAT
+        or not isinstance(data.get("forest"), dict)
+        or not isinstance(data.get("kernels"), list)
+    ):
+        return None
+    return data
+
+
+def bound_forest(model_dir: str | os.PathLike[str]) -> tuple[PackedForest | None, str]:
+    """The packed forest of a native model directory, if it is the one of its ``model.skops``.
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory written by ``dyntarget train`` (random forest).
+
+    Returns
+    -------
+    PackedForest or None
+        The checked forest (:func:`load_forest`), ``None`` when there is none or it is not
+        bound to this ``model.skops``.
+    str
+        Why it is ``None`` (empty otherwise).
+    """
+    model_dir = Path(model_dir)
+    if not (model_dir / FOREST_FILE).is_file():
+        return None, f"no {FOREST_FILE}"
+    manifest = read_manifest(model_dir)
+    if manifest is None:
+        return None, f"no readable {MANIFEST_FILE}"
+    skops = model_dir / "model.skops"
+    if not skops.is_file() or manifest.get("model_skops_sha256") != _sha256(skops):
+        return None, f"{FOREST_FILE} was not packed from this model.skops"
+    packed = load_forest(model_dir / FOREST_FILE)
+    if packed.sha256 != manifest["forest"].get("sha256"):
+        return None, f"{FOREST_FILE} is not the one {MANIFEST_FILE} records"
+    return packed, ""
+
+
+def _artefact_ok(lib: Path) -> str | None:
+    """Why the exported library ``lib`` may not be loaded (``None``: it may)."""
+    try:
+        st = os.lstat(lib)
+    except OSError:
+        return "missing"
+    if not stat.S_ISREG(st.st_mode):
+        return "not a regular file"
+    if hasattr(os, "getuid") and st.st_uid not in (os.getuid(), 0):
+        return f"owned by another user (uid {st.st_uid})"
+    if st.st_mode & 0o022:
+        return f"writable by others (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def artefact_predictor(
+    packed: PackedForest, *, isa: str | None = None
+) -> tuple[Callable[[np.ndarray], np.ndarray] | None, str]:
+    """The best kernel exported beside ``packed``'s ``forest.npz`` that this CPU runs.
+
+    A library is loaded only if its SHA-256 and that of the forest it was built for equal
+    the manifest's, the forest being this one (the bytes :func:`load_forest` read).
+
+    Parameters
+    ----------
+    packed : PackedForest
+        A forest read by :func:`load_forest`.
+    isa : str, optional
+        Only a library of this path (a forced path).
+
+    Returns
+    -------
+    callable or None
+        As :func:`forest_predictor`'s (with ``source``: the library), or ``None``.
+    str
+        What was missing, when ``None`` (empty when the folder exports no kernel).
+    """
+    if packed.source is None:
+        return None, ""
+    manifest = read_manifest(packed.source.parent)
+    if manifest is None or not manifest["kernels"]:
+        return None, ""
+    entries = [k for k in manifest["kernels"] if isinstance(k, dict) and k.get("isa") in ISAS]
+    entries.sort(key=lambda k: _PREFERENCE.index(k["isa"]))
+    missing: list[str] = []
+    refused: list[str] = []  # said even when a lesser kernel runs
+    for entry in entries:
+        name, target = str(entry.get("file", "")), entry.get("target")
+        if isa is not None and entry["isa"] != isa:
+            missing.append(f"{target}: not the forced {isa} path")
+            continue
+        if entry.get("arch") != _arch() or not cpu_runs(entry["isa"]):
+            missing.append(f"{target}: not for this CPU")
+            continue
+        lib = packed.source.parent / name
+        if Path(name).name != name or not name.endswith(".so"):
+            missing.append(f"{target}: a file name that is not a library's")
+            continue
+        why = _artefact_ok(lib)
+        if why is None and entry.get("forest_sha256") != packed.sha256:
+            why = f"built for another {FOREST_FILE}"
+        if why is None and _sha256(lib) != entry.get("sha256"):
+            why = "its SHA-256 is not the manifest's (changed since export)"
+        if why is not None:
+            missing.append(f"{target} ({name}): {why}")
+            refused.append(f"dyntarget: {lib} is not loaded: {why}")
+            continue
+        try:
+            predictor = forest_predictor(packed, library=lib)
+        except (MissingExtraError, OSError) as exc:
+            missing.append(f"{target}: {exc}")
+            continue
+        if predictor.isa != entry["isa"]:  # type: ignore[attr-defined]
+            missing.append(f"{target}: runs the {predictor.isa} path")  # type: ignore[attr-defined]
+            continue
+        for line in refused:
+            _say_once(f"{line}; the {target} kernel runs instead")
+        return predictor, ""
+    listed = ", ".join(str(k.get("target")) for k in entries) or "none"
+    return None, f"exported kernels ({listed}) none usable: {'; '.join(missing)}"
+
+
 def compile_forest(
     estimator,
     *,
@@ -709,10 +1180,13 @@ def compile_forest(
 def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] | None:
     """The kernel's predictor where it is the faster path, else ``None``.
 
-    That is where the kernel builds (or is cached) with AVX2 or AVX-512; without a compiler and
-    cache, or on another CPU (whose portable build is not faster than scikit-learn or
-    ONNX Runtime), ``None`` says to use those. The policy of ``RandomForest``'s ``"auto"``
-    backend and of a forest's ONNX twin.
+    In this order: a kernel exported beside the forest's ``forest.npz`` for this CPU
+    (:func:`artefact_predictor`, hashes checked); else the kernel built here (or found in
+    the cache) where it runs AVX2 or AVX-512; else ``None``, which says to use
+    scikit-learn or ONNX Runtime. Where the folder exports kernels but none fits, or the
+    kernel cannot be built, one line on stderr (once per process) names the CPU class and
+    what was missing. The policy of ``RandomForest``'s ``"auto"`` backend and of a
+    forest's ONNX twin.
 
     Parameters
     ----------
@@ -727,14 +1201,27 @@ def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] |
     forced = forced_isa()
     if forced == "off":
         return None
+    exported, missing = artefact_predictor(packed, isa=forced)
+    if exported is not None:
+        return exported
     if forced is not None:  # the user asked for this path: no silent fallback
         return forest_predictor(packed, isa=forced)
     try:
         predictor = forest_predictor(packed)
     except (MissingExtraError, OSError) as exc:  # no compiler, an unwritable or unsafe cache
-        _say_once(f"dyntarget: the forest kernel is not used ({exc}); a slower backend predicts")
+        why = f"{missing}; {exc}" if missing else str(exc)
+        _say_once(
+            f"dyntarget: the forest kernel is not used on this CPU ({cpu_class()}): {why}; "
+            "a slower backend predicts"
+        )
         return None
-    return predictor if predictor.vectorised else None
+    if missing:
+        state = "runs" if predictor.vectorised else "is not used, a slower backend predicts"  # type: ignore[attr-defined]
+        _say_once(
+            f"dyntarget: {missing}; on this CPU ({cpu_class()}) the kernel built here "
+            f"({predictor.isa} path) {state}"  # type: ignore[attr-defined]
+        )
+    return predictor if predictor.vectorised else None  # type: ignore[attr-defined]
 
 
 def forest_predictor(
@@ -743,6 +1230,7 @@ def forest_predictor(
     directory: str | os.PathLike[str] | None = None,
     portable: bool = False,
     isa: str | None = None,
+    library: Path | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
     """The kernel's predictor for a packed forest (:func:`pack_forest` or :func:`load_forest`).
 
@@ -756,16 +1244,20 @@ def forest_predictor(
         Use the kernel built without ``-march=native``.
     isa : str, optional
         Force a code path (a key of :data:`ISA_FLAGS`; default :func:`forced_isa`).
+    library : pathlib.Path, optional
+        A kernel library already checked (:func:`artefact_predictor`) instead of a build.
 
     Returns
     -------
     callable
-        As :func:`compile_forest`'s.
+        As :func:`compile_forest`'s, with ``source``: the library it runs.
     """
-    isa = isa or forced_isa()
-    if isa not in (None, "off") and not cpu_runs(isa):
-        raise MissingExtraError(f"the forest kernel's {isa} path does not run on this CPU")
-    dll = _load(build_library(directory, portable=portable, isa=isa))
+    if library is None:
+        isa = isa or forced_isa()
+        if isa not in (None, "off") and not cpu_runs(isa):
+            raise MissingExtraError(f"the forest kernel's {isa} path does not run on this CPU")
+        library = build_library(directory, portable=portable, isa=isa)
+    dll = _load(library)
 
     def predict(part: np.ndarray) -> np.ndarray:
         x = np.ascontiguousarray(part, dtype=np.float32)
@@ -789,4 +1281,5 @@ def forest_predictor(
     isa = ISAS[dll.dt_forest_isa()]
     predict.isa = isa  # type: ignore[attr-defined]
     predict.vectorised = isa in FAST_ISAS  # type: ignore[attr-defined]
+    predict.source = library  # type: ignore[attr-defined]
     return predict

@@ -23,6 +23,9 @@ def _bn_relu_conv(cin: int, cout: int) -> list[nn.Module]:
 
 
 class _Normalise(nn.Module):
+    mean: torch.Tensor
+    std: torch.Tensor
+
     def __init__(self, channels: int = 4) -> None:
         super().__init__()
         self.register_buffer("mean", torch.zeros(1, channels, 1, 1))
@@ -195,8 +198,8 @@ class XceptionUNet(nn.Module):
             r = res(x)
             x = block(x).add_(r)
         for block, res in zip(self.upb, self.up_res, strict=True):
-            r = res[1](x)
-            x = block[-1](block[:-1](x).add_(r))
+            r = res[1](x)  # type: ignore[index]
+            x = block[-1](block[:-1](x).add_(r))  # type: ignore[index]
         return self.head(x)
 
 
@@ -295,7 +298,7 @@ def prepare_inference(model: nn.Module) -> nn.Module:
             if isinstance(module, nn.ReLU):
                 module.inplace = True
         model.inference = True
-    return model.to(memory_format=torch.channels_last)
+    return model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
 
 
 def build(network: type[nn.Module], width: int, seed: int) -> nn.Module:
@@ -333,7 +336,7 @@ def build(network: type[nn.Module], width: int, seed: int) -> nn.Module:
     modules = dict(model.named_modules())
     gen = torch.Generator().manual_seed(int(seed))
     with torch.no_grad():
-        for name in _creation_order(network):  # the order torch's default init draws in
+        for name in _creation_order(network):  # type: ignore[arg-type]  # torch's init order
             module = modules[name]
             if isinstance(module, nn.modules.conv._ConvNd):
                 nn.init.kaiming_uniform_(module.weight, a=math.sqrt(5), generator=gen)

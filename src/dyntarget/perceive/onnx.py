@@ -1,56 +1,41 @@
-"""Onboard-ready models: export classifiers to ONNX and run them with onnxruntime.
+"""Onboard inference: run a model directory's ONNX export with ONNX Runtime.
 
-* The two U-Nets are exported with PyTorch's ONNX exporter (``torch.onnx.export``,
-  opset 18, batch, height and width dynamic); prediction stitches the image as the
-  PyTorch path does (:class:`dyntarget.perceive.unet.Stitching`). UNET-Xception is
-  exported with the forward pass that upsamples each up stage once, after its sum
-  (the same function, about a fifth faster in ONNX Runtime at 1024 px).
-* The five scikit-learn pixel classifiers are converted with skl2onnx
-  (probabilities as a plain ``(n, 2)`` tensor, no ZipMap).
-* ``band-threshold`` is not exported: it is three comparisons per pixel in numpy.
+:func:`load_onnx` returns an :class:`OnnxClassifier` with the same ``predict_proba`` /
+``predict`` as the native classifier (it satisfies :class:`dyntarget.perceive.base.Predictor`),
+built from the model directory alone (``metadata.json`` beside ``model.onnx``): neither
+torch nor scikit-learn nor skops is imported. A random forest's ``forest.npz`` runs on
+dyntarget's forest kernel (:mod:`dyntarget.perceive.compiled`) where it can.
 
-:func:`export_onnx` writes ``model.onnx`` into the model directory beside the
-native weights; :func:`load_onnx` returns an :class:`OnnxClassifier` with the
-same ``predict_proba`` / ``predict`` as the native classifier, built from the
-model directory alone (``metadata.json`` beside ``model.onnx``): neither torch
-nor scikit-learn nor skops is imported. Outputs agree with the native ones to
-:data:`TOLERANCE` (tested): onnxruntime computes in float32 where scikit-learn
-uses float64, and fuses convolutions differently.
-
-Inference needs ``pip install "dyntarget[onboard]"`` (onnxruntime); export
-needs ``dyntarget[full]``.
+Inference needs ``pip install "dyntarget[onboard]"`` (onnxruntime). Writing the export is
+:mod:`dyntarget.perceive.onnx_export` (``dyntarget[full]``); INT8 quantization is
+:mod:`dyntarget.perceive.int8`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import copy
-import io
-import logging
 import os
-import warnings
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, MissingExtraError, ModelFileError
-from dyntarget.perceive.base import (
-    CLASSIFIERS,
-    Classifier,
-    available_cores,
-    pixels,
-    read_metadata,
-)
+from dyntarget.perceive.base import CLASSIFIERS, pixels
+from dyntarget.perceive.modelfile import read_metadata
+from dyntarget.perceive.resources import available_cores
 from dyntarget.perceive.validate import check_onnx_file, check_onnx_session, run_onnx
 from dyntarget.scene import BANDS, check_image
 
+if TYPE_CHECKING:
+    from dyntarget.perceive.unet import _UNetClassifier
+
 ONNX_FILE = "model.onnx"
-TOLERANCE = 1e-4
-"""Largest absolute difference in plume probability between ONNX and native outputs."""
-OPSET = 18
+INT8_FILE = "model.int8.onnx"
+"""The INT8 twin written by :func:`dyntarget.perceive.int8.quantize_int8`."""
 
 
-def _require(module: str, extra: str = "full"):
+def _require(module: str, extra: str = "full") -> ModuleType:
     import importlib
 
     try:
@@ -60,129 +45,6 @@ def _require(module: str, extra: str = "full"):
             f"{module} is not installed; ONNX {'inference' if extra == 'onboard' else 'export'} "
             f"needs it: pip install 'dyntarget[{extra}]'"
         ) from None
-
-
-def supports_onnx(classifier: Classifier) -> bool:
-    """Whether :func:`export_onnx` exports this classifier (all but the band threshold).
-
-    Parameters
-    ----------
-    classifier : Classifier
-        Any classifier.
-
-    Returns
-    -------
-    bool
-        ``True`` for the scikit-learn and U-Net classifiers.
-    """
-    return classifier.kind != "threshold"
-
-
-def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Path:
-    """Write ``model_dir/model.onnx`` for a fitted classifier.
-
-    A random forest also gets ``forest.npz`` (:func:`dyntarget.perceive.compiled.save_forest`):
-    its packed arrays, which the ONNX twin runs on dyntarget's forest kernel where it
-    builds with AVX-512, bit-identical to scikit-learn and about 4x faster than ONNX
-    Runtime's tree ensemble (see :class:`OnnxClassifier`).
-
-    Parameters
-    ----------
-    classifier : Classifier
-        A fitted scikit-learn or U-Net classifier.
-    model_dir : path
-        Its model directory (``model.onnx`` goes beside ``metadata.json``).
-
-    Returns
-    -------
-    pathlib.Path
-        The written ``model.onnx``.
-    """
-    if not classifier.fitted:
-        raise InvalidParameterError(f"{classifier.name}: fit or load the classifier before export")
-    if not supports_onnx(classifier):
-        raise InvalidParameterError(
-            f"{classifier.name}: not exported to ONNX (three comparisons per pixel in numpy "
-            "already run at memory speed)"
-        )
-    from dyntarget.io.atomic import atomic_path
-
-    path = Path(model_dir) / ONNX_FILE
-    if classifier.kind == "unet":
-        data = _export_unet(classifier)
-    else:
-        data = _export_sklearn(classifier)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_bytes(data)
-    if classifier.name == "random-forest":  # the lean install's way to the forest kernel
-        import hashlib
-
-        from dyntarget.perceive.compiled import FOREST_FILE, pack_forest, save_forest
-
-        forest = Path(model_dir) / FOREST_FILE
-        try:
-            packed = pack_forest(classifier.estimator)
-        except InvalidParameterError:  # beyond the kernel (e.g. deeper than it takes)
-            forest.unlink(missing_ok=True)  # model.onnx alone, run by ONNX Runtime
-        else:
-            save_forest(packed, forest, model_sha256=hashlib.sha256(data).hexdigest())
-    return path
-
-
-def _export_unet(classifier) -> bytes:
-    import torch
-
-    _require("onnx")
-    _require("onnxscript")
-    net = copy.deepcopy(classifier.model).eval()
-    if hasattr(net, "inference"):  # XceptionUNet: the graph that upsamples after each sum
-        net.inference = True
-    f = 2**classifier.levels  # height and width: any multiple of the downsampling factor
-    example = torch.zeros(2, 4, 2 * f, 3 * f)
-    exporter_log = logging.getLogger("torch.onnx")
-    level = exporter_log.level
-    exporter_log.setLevel(logging.ERROR)  # e.g. "torchvision is not installed", irrelevant here
-    try:
-        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
-            # the exporter's own progress lines and deprecation notices (torch internals)
-            warnings.simplefilter("ignore", FutureWarning)
-            warnings.simplefilter("ignore", DeprecationWarning)
-            program = torch.onnx.export(
-                net,
-                (example,),
-                dynamo=True,
-                input_names=["image"],
-                output_names=["logits"],
-                dynamic_shapes={
-                    "x": {
-                        0: torch.export.Dim("batch", min=1, max=4096),
-                        2: f * torch.export.Dim("rows", min=1, max=4096),
-                        3: f * torch.export.Dim("cols", min=1, max=4096),
-                    }
-                },
-                opset_version=OPSET,
-                verbose=False,
-            )
-    finally:
-        exporter_log.setLevel(level)
-    buf = io.BytesIO()
-    program.save(buf)
-    return buf.getvalue()
-
-
-def _export_sklearn(classifier) -> bytes:
-    skl2onnx = _require("skl2onnx")
-    from skl2onnx.common.data_types import FloatTensorType
-
-    est = classifier.estimator
-    model = skl2onnx.convert_sklearn(
-        est,
-        initial_types=[("pixels", FloatTensorType([None, 4]))],
-        options={id(est): {"zipmap": False}},
-        target_opset={"": OPSET, "ai.onnx.ml": 3},
-    )
-    model.graph.name = classifier.name  # skl2onnx names the graph with a random UUID
-    return model.SerializeToString()
 
 
 class OnnxClassifier:
@@ -245,7 +107,7 @@ class OnnxClassifier:
         if kind == "unet":
             from dyntarget.perceive.unet import Stitching
 
-            cls = CLASSIFIERS.get(name)
+            cls = cast("type[_UNetClassifier]", CLASSIFIERS.get(name))
             dims = self.session.get_inputs()[0].shape[2:]
             if all(isinstance(d, int) for d in dims):
                 stitch = "blend"
@@ -275,6 +137,7 @@ class OnnxClassifier:
                 e = np.exp(z)
                 return (e[:, 1] / e.sum(axis=1)).astype(np.float32)
 
+            assert self.stitching is not None  # set for every U-Net in __init__
             proba = self.stitching.run(image, forward)
         elif self._forest_kernel() is not None:
             from dyntarget.perceive.pixel import predict_in_chunks
@@ -307,6 +170,23 @@ class OnnxClassifier:
                 self.backend = "forest kernel"
         return self._kernel
 
+    def work_units(self, shape: tuple[int, int]) -> float:
+        """Work of classifying an image of ``shape``, as the native classifier counts it.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The image's ``(H, W)``.
+
+        Returns
+        -------
+        float
+            Pixels for a pixel classifier; for a U-Net, the pixels its tiles run over.
+        """
+        if self.stitching is not None:
+            return float(self.stitching.work_units(shape))
+        return float(shape[0] * shape[1])
+
     def predict(self, image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
         """Plume mask ``predict_proba(image) >= threshold``.
 
@@ -332,7 +212,7 @@ class OnnxClassifier:
 def load_onnx(
     model_dir: str | os.PathLike[str], *, int8: bool = False, kernel: bool = True
 ) -> OnnxClassifier:
-    """The ONNX twin of the model in ``model_dir`` (exported with :func:`export_onnx`).
+    """The ONNX twin of the model in ``model_dir`` (exported with :func:`dyntarget.perceive.onnx_export.export_onnx`).
 
     Only ``metadata.json``, ``model.onnx`` and, for a random forest, ``forest.npz`` are
     read (the last checked rule by rule, and against the SHA-256 of the ``model.onnx``
@@ -344,7 +224,7 @@ def load_onnx(
     model_dir : path
         A model directory with ``model.onnx``.
     int8 : bool
-        Load ``model.int8.onnx`` (from :func:`quantize_int8`) instead.
+        Load ``model.int8.onnx`` (from :func:`dyntarget.perceive.int8.quantize_int8`) instead.
     kernel : bool
         Let a random forest run on dyntarget's forest kernel when ``forest.npz`` is there
         (default); ``False`` runs ``model.onnx`` in ONNX Runtime whatever the directory holds.
@@ -387,188 +267,3 @@ def load_onnx(
                     f"the {len(BANDS)} bands"
                 )
     return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width, forest=forest)
-
-
-def export_checked(
-    native: Classifier, model_dir: str | os.PathLike[str], check_image: np.ndarray
-) -> tuple[Path, float]:
-    """Export ``native`` to ONNX and check the export on ``check_image``.
-
-    Parameters
-    ----------
-    native : Classifier
-        The fitted classifier loaded from ``model_dir``.
-    model_dir : path
-        Its model directory.
-    check_image : numpy.ndarray
-        ``(4, H, W)`` image both runtimes classify.
-
-    Returns
-    -------
-    tuple of (pathlib.Path, float)
-        ``model.onnx`` and the largest absolute difference in plume probability.
-        A difference above :data:`TOLERANCE` removes the export and raises
-        :class:`~dyntarget.errors.ExportError`.
-    """
-    from dyntarget.errors import ExportError
-    from dyntarget.perceive.compiled import FOREST_FILE
-
-    def remove() -> None:
-        (Path(model_dir) / ONNX_FILE).unlink(missing_ok=True)
-        (Path(model_dir) / FOREST_FILE).unlink(missing_ok=True)
-
-    try:
-        path = export_onnx(native, model_dir)
-        expected = native.predict_proba(check_image)
-        ort = load_onnx(model_dir, kernel=False).predict_proba(check_image)
-        diff = float(np.abs(ort - expected).max())
-        twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel
-        if twin.forest is not None:
-            got = twin.predict_proba(check_image)
-            if twin.backend == "forest kernel":  # bit-identical to scikit-learn, or refused
-                reference = copy.copy(native).set_backend("sklearn").predict_proba(check_image)
-                if not np.array_equal(got, reference):
-                    diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
-    except BaseException:
-        remove()  # nothing half-written
-        raise
-    if not diff <= TOLERANCE:
-        remove()
-        raise ExportError(
-            f"{native.name}: ONNX output differs from the native model by {diff:.2e} "
-            f"(> {TOLERANCE:g}); export removed"
-        )
-    return path, diff
-
-
-INT8_FILE = "model.int8.onnx"
-INT8_TOLERANCE = 0.05
-"""Largest absolute difference in plume probability between the INT8 and the FP32 ONNX
-model on the fixed parity scene of the tests (a pixel near 0.5 may cross the threshold;
-the IoU change on held-out scenes is what the benchmark reports)."""
-INT8_SUPPORTED = ("unet-uavsar", "unet-xception", "mlp")
-CALIBRATION_TILES = 64
-"""Training tiles (U-Nets) or chunks of 4096 training pixels (MLP) fed to calibration."""
-
-
-def calibration_batches(
-    kind: str, images: list[np.ndarray], *, tile: int = 64, seed: int = 0
-) -> list[np.ndarray]:
-    """Inputs for static-quantization calibration, cut from training images.
-
-    Parameters
-    ----------
-    kind : {"unet", "pixel"}
-        ``(1, 4, tile, tile)`` tiles for a U-Net, ``(4096, 4)`` pixel rows otherwise.
-    images : list of numpy.ndarray
-        ``(4, H, W)`` training images (on the grid the model sees).
-    tile : int
-        U-Net tile size.
-    seed : int
-        Seed of the random choice of tiles / pixels.
-
-    Returns
-    -------
-    list of numpy.ndarray
-        At most :data:`CALIBRATION_TILES` float32 batches.
-
-    Examples
-    --------
-    >>> img = np.zeros((4, 128, 96), np.float32)
-    >>> [b.shape for b in calibration_batches("unet", [img], tile=32)][:2]
-    [(1, 4, 32, 32), (1, 4, 32, 32)]
-    """
-    if not images:
-        raise InvalidParameterError("images: expected at least one calibration image, got none")
-    rng = np.random.default_rng(seed)
-    if kind == "unet":
-        tiles = [
-            img[:, r : r + tile, c : c + tile]
-            for img in images
-            for r in range(0, img.shape[1] - tile + 1, tile)
-            for c in range(0, img.shape[2] - tile + 1, tile)
-        ]
-        if not tiles:
-            raise InvalidParameterError(
-                f"images: calibration needs images of at least {tile} px, got "
-                f"{[tuple(i.shape[1:]) for i in images]}"
-            )
-        pick = rng.permutation(len(tiles))[:CALIBRATION_TILES]
-        return [np.ascontiguousarray(tiles[i][None], dtype=np.float32) for i in sorted(pick)]
-    rows = np.concatenate([pixels(img) for img in images]).astype(np.float32)
-    rows = rows[rng.permutation(len(rows))[: 4096 * CALIBRATION_TILES]]
-    return [np.ascontiguousarray(rows[i : i + 4096]) for i in range(0, len(rows), 4096)]
-
-
-def quantize_int8(
-    model_dir: str | os.PathLike[str], images: list[np.ndarray], *, seed: int = 0
-) -> Path:
-    """Write ``model_dir/model.int8.onnx``: the exported FP32 model with static INT8
-    quantization (onnxruntime.quantization, QDQ format, per-channel INT8 weights,
-    UINT8 activations calibrated by min/max on training tiles).
-
-    Parameters
-    ----------
-    model_dir : path
-        A model directory holding ``model.onnx`` (see :func:`export_onnx`).
-    images : list of numpy.ndarray
-        ``(4, H, W)`` training images to calibrate on.
-    seed : int
-        Seed of the choice of calibration tiles.
-
-    Returns
-    -------
-    pathlib.Path
-        The INT8 model file.
-    """
-    meta = read_metadata(model_dir)
-    name = meta["classifier"]
-    if name not in INT8_SUPPORTED:
-        raise InvalidParameterError(
-            f"{name}: INT8 quantization is offered for {', '.join(INT8_SUPPORTED)} "
-            "(tree models and linear models gain nothing from it)"
-        )
-    src = Path(model_dir) / ONNX_FILE
-    if not src.is_file():
-        raise ModelFileError(f"{model_dir}: no {ONNX_FILE}; export the FP32 model first")
-    _require("onnxruntime", "onboard")
-    from onnxruntime.quantization import (
-        CalibrationDataReader,
-        QuantFormat,
-        QuantType,
-        quantize_static,
-    )
-
-    kind = CLASSIFIERS.get(name).kind
-    batches = calibration_batches(kind, images, tile=meta["config"].get("tile", 64), seed=seed)
-    input_name = "image" if kind == "unet" else "pixels"
-
-    class Reader(CalibrationDataReader):
-        def __init__(self) -> None:
-            self.it = iter(batches)
-
-        def get_next(self):
-            batch = next(self.it, None)
-            return None if batch is None else {input_name: batch}
-
-    from dyntarget.io.atomic import atomic_path
-
-    path = Path(model_dir) / INT8_FILE
-    with atomic_path(path) as tmp, warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # onnxruntime's advice to pre-process the model
-        exporter_log = logging.getLogger()
-        level = exporter_log.level
-        exporter_log.setLevel(logging.ERROR)
-        try:
-            quantize_static(
-                str(src),
-                str(tmp),
-                Reader(),
-                quant_format=QuantFormat.QDQ,
-                activation_type=QuantType.QUInt8,
-                weight_type=QuantType.QInt8,
-                per_channel=True,
-            )
-        finally:
-            exporter_log.setLevel(level)
-    return path

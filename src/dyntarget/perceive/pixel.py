@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import io
 import re
+import sys
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -36,14 +37,16 @@ from dyntarget.perceive.base import (
     CLASSIFIERS,
     DEFAULT_MAX_PIXELS_PER_CLASS,
     Classifier,
-    available_cores,
     pixels,
     sample_pixels,
 )
+from dyntarget.perceive.resources import available_cores
 from dyntarget.perceive.validate import check_estimator
 
 if TYPE_CHECKING:
     from sklearn.base import BaseEstimator
+
+    from dyntarget.perceive.compiled import PackedForest
 
 MODEL_FILE = "model.skops"
 PREDICT_CHUNK = 1 << 18
@@ -240,6 +243,10 @@ class PixelClassifier(Classifier):
         (directory / MODEL_FILE).write_bytes(_canonical_skops(sio.dumps(self.estimator)))
 
     def _load_weights(self, directory: Path) -> None:
+        self.estimator = self._read_estimator(directory)
+
+    def _read_estimator(self, directory: Path) -> BaseEstimator:
+        """The checked estimator of ``directory/model.skops`` (imports scikit-learn and skops)."""
         import skops.io as sio
 
         path = directory / MODEL_FILE
@@ -262,7 +269,7 @@ class PixelClassifier(Classifier):
                 f"{path}: holds a {type(est).__name__}, expected {expected.__name__}"
             )
         check_estimator(est, path)
-        self.estimator = est
+        return est
 
 
 @CLASSIFIERS.register("naive-bayes")
@@ -369,6 +376,81 @@ class RandomForest(PixelClassifier):
     backend: str = "auto"
     """``"auto"`` (default), ``"sklearn"`` or ``"compiled"`` (see :meth:`set_backend`)."""
 
+    _estimator: BaseEstimator | None = None
+    _packed: PackedForest | None = None
+    _lazy_dir: Path | None = None
+
+    @property
+    def estimator(self) -> BaseEstimator | None:
+        """The fitted ``RandomForestClassifier``; read from ``model.skops`` on first use
+        when the model was loaded from its packed forest (which predicts without it).
+
+        Returns
+        -------
+        sklearn.ensemble.RandomForestClassifier or None
+            ``None`` before fitting.
+        """
+        if self._estimator is None and self._lazy_dir is not None:
+            self._estimator = self._read_estimator(self._lazy_dir)
+            self._lazy_dir = None
+        return self._estimator
+
+    @estimator.setter
+    def estimator(self, value: BaseEstimator | None) -> None:
+        self._estimator, self._packed, self._lazy_dir = value, None, None
+
+    def packed(self) -> PackedForest:
+        """The forest as the kernel's arrays (:func:`~dyntarget.perceive.compiled.pack_forest`).
+
+        Returns
+        -------
+        dyntarget.perceive.compiled.PackedForest
+            Read from ``forest.npz`` at load, else packed from the estimator (once).
+        """
+        if self._packed is None:
+            from dyntarget.perceive.compiled import pack_forest
+
+            self._packed = pack_forest(self.estimator)
+        return self._packed
+
+    def _save_weights(self, directory: Path) -> None:
+        """``model.skops``, and the packed forest bound to it (``forest.npz``, ``forest.json``)."""
+        super()._save_weights(directory)
+        try:
+            _write_packed(self, directory)
+        except InvalidParameterError:  # beyond the kernel: scikit-learn predicts it
+            pass
+
+    def _load_weights(self, directory: Path) -> None:
+        """The packed forest where ``forest.npz`` is bound to ``model.skops`` (no scikit-learn
+        is imported: the estimator is read on first use), else ``model.skops``; an older
+        model directory gets its ``forest.npz`` written now where it can be."""
+        from dyntarget.perceive.compiled import bound_forest
+
+        packed, why = bound_forest(directory)
+        if packed is not None and packed.features == 4:
+            self._estimator, self._packed, self._lazy_dir = None, packed, directory
+            return
+        self.estimator = self._read_estimator(directory)
+        if packed is None:  # a directory from before forest.npz, or a stale binding: bind it
+            try:
+                _write_packed(self, directory)
+            except InvalidParameterError:  # beyond the kernel: scikit-learn predicts it
+                return
+            except OSError as exc:
+                print(
+                    f"dyntarget: {directory} has no packed forest and it cannot be written "
+                    f"({exc}); scikit-learn is loaded to predict ('dyntarget train' or "
+                    "'dyntarget export-onnx' writes it)",
+                    file=sys.stderr,
+                )
+            else:
+                print(
+                    f"dyntarget: {directory}: {why}; bound the packed forest to model.skops "
+                    "(forest.npz, forest.json): later runs predict without loading scikit-learn",
+                    file=sys.stderr,
+                )
+
     def set_backend(self, backend: str) -> RandomForest:
         """Choose what predicts: scikit-learn or dyntarget's compiled forest kernel.
 
@@ -410,18 +492,19 @@ class RandomForest(PixelClassifier):
         """
         if self.backend == "sklearn":
             return super().chunk_predictor()
+        key = self._packed if self._estimator is None else self._estimator
         cached = getattr(self, "_compiled", None)
-        if cached is None or cached[0] is not self.estimator:  # refitted: pack anew
-            from dyntarget.perceive.compiled import compile_forest, fast_predictor, pack_forest
+        if cached is None or cached[0] is not key:  # refitted: pack anew
+            from dyntarget.perceive.compiled import fast_predictor, forest_predictor
 
             if self.backend == "compiled":
-                predictor = compile_forest(self.estimator)
+                predictor = forest_predictor(self.packed())
             else:
                 try:
-                    predictor = fast_predictor(pack_forest(self.estimator))
+                    predictor = fast_predictor(self.packed())
                 except InvalidParameterError:  # beyond the kernel, e.g. too deep
                     predictor = None
-            self._compiled = cached = (self.estimator, predictor)
+            self._compiled = cached = (key, predictor)
         return cached[1] or super().chunk_predictor()
 
     def __getstate__(self) -> dict[str, Any]:
@@ -449,6 +532,41 @@ class RandomForest(PixelClassifier):
         return RandomForestClassifier(
             n_estimators=50, max_depth=14, min_samples_leaf=5, random_state=self.seed, n_jobs=1
         )
+
+
+def _write_packed(model: RandomForest, directory: Path) -> None:
+    """``forest.npz`` and ``forest.json`` beside ``model.skops``.
+
+    A ``forest.npz`` already there with the same arrays (an ONNX export's, bound to its
+    ``model.onnx``) is kept and only bound to ``model.skops`` in the manifest. Raises
+    ``InvalidParameterError`` for a forest beyond the kernel (then nothing is written).
+    """
+    import hashlib
+
+    from dyntarget.perceive.compiled import (
+        FOREST_FILE,
+        load_forest,
+        same_forest,
+        save_forest,
+        write_manifest,
+    )
+
+    try:  # only a forest that loads from model.skops gets a packed form
+        check_estimator(model.estimator, directory / MODEL_FILE)
+    except ModelFileError:
+        raise InvalidParameterError("the forest does not pass the model checks") from None
+    packed = model.packed()
+    path = directory / FOREST_FILE
+    try:
+        there = load_forest(path) if path.is_file() else None
+    except ModelFileError:
+        there = None
+    if there is None or not same_forest(there, packed):
+        skops = hashlib.sha256((directory / MODEL_FILE).read_bytes()).hexdigest()
+        save_forest(packed, path, model_sha256=skops)
+        write_manifest(directory, kernels=[])  # kernels of another forest.npz would be refused
+    else:
+        write_manifest(directory)
 
 
 @CLASSIFIERS.register("mlp")

@@ -46,7 +46,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -105,7 +105,7 @@ def _pad_to(image: np.ndarray, tile: int) -> np.ndarray:
     h, w = image.shape[1:]
     ph, pw = max(0, tile - h), max(0, tile - w)
     if ph or pw:
-        mode = "reflect" if (h > ph and w > pw) else "edge"
+        mode: Literal["reflect", "edge"] = "reflect" if (h > ph and w > pw) else "edge"
         image = np.pad(image, ((0, 0), (0, ph), (0, pw)), mode=mode)
     return image
 
@@ -116,7 +116,7 @@ def _pad_multiple(image: np.ndarray, multiple: int) -> np.ndarray:
     h, w = image.shape[1:]
     ph, pw = -h % multiple, -w % multiple
     if ph or pw:
-        mode = "reflect" if (h > ph and w > pw) else "edge"
+        mode: Literal["reflect", "edge"] = "reflect" if (h > ph and w > pw) else "edge"
         image = np.pad(image, ((0, 0), (0, ph), (0, pw)), mode=mode)
     return image
 

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.errors import ModelFileError
+from dyntarget.errors import InvalidParameterError, ModelFileError
 
 N_FEATURES = 4
 """Band values per pixel (R, G, B, NIR)."""
@@ -422,6 +422,8 @@ def onnx_signature(kind: str, tile: int | None = None) -> dict[str, list]:
     [('image', 'tensor(float)', (None, 4, 32, 32))]
     """
     if kind == "unet":
+        if tile is None:
+            raise InvalidParameterError("onnx_signature: a U-Net's signature needs its tile")
         side = TileSide(tile)
         return {
             "inputs": [("image", _FLOAT, (None, 4, side, side))],
@@ -623,7 +625,7 @@ def check_onnx_output(outputs: Any, kind: str, rows: int, where: Any = "model.on
     """
     arrays = [np.asarray(o) for o in outputs]
     if kind == "unet":
-        names, shapes = ["logits"], [(rows, 2)]
+        names, shapes = ["logits"], [(rows, 2)]  # type: list[str], list[tuple[int, ...]]
     else:
         names, shapes = ["label", "probabilities"], [(rows,), (rows, 2)]
     if len(arrays) != len(names):

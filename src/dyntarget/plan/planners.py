@@ -41,7 +41,9 @@ from dyntarget.plan.geometry import (
 from dyntarget.registry import Registry
 from dyntarget.trajectory import Trajectory
 
-PlannerFn = Callable[[np.ndarray, Sequence[Polygon], "PlanConfig"], Trajectory]
+PlannerFn = Callable[..., Trajectory]
+"""``(mask, polygons, config)`` -> trajectory; ``(mask, polygons, config, context)`` where
+the planner has ``needs_context = True``."""
 """A planner: ``(mask, polygons, config) -> Trajectory``. A planner with the attribute
 ``needs_context = True`` takes a fourth argument, the :class:`PlanContext`; with
 ``timed = True`` its trajectory is already timed under the kinematics."""

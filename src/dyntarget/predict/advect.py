@@ -1,9 +1,13 @@
 """The plume as it will be: semi-Lagrangian advection of the mask or probability.
 
-* **detached** cloud: every pixel is carried by the plume velocity ``v``; the
-  field at time ``t`` is the current field traced back along the flow,
-  ``f_t(x) = f_0(x - v t)`` (semi-Lagrangian step, bilinear sampling; with one
-  velocity per plume the back-trajectory is exact in one step).
+* **detached** cloud: every pixel is carried by the plume velocity; the field
+  at time ``t`` is the current field traced back along the flow (semi-Lagrangian,
+  bilinear sampling, ``cv2.remap``): with a dense motion field
+  (``Motion.dense``, from :func:`~dyntarget.predict.estimate_motion`) each pixel
+  by its own velocity, ``f_t(x) = f_0(x0)``, ``x0 = x - t v((x + x0) / 2)``, so
+  each plume moves, turns and shears by its own motion; with one velocity
+  ``f_t(x) = f_0(x - v t)`` (exact in one step). Attached plumes use the scene's
+  velocity ``Motion.velocity``.
 * **attached** plume: the puffs already emitted are carried like a detached
   cloud, ``f_0(x - v t)``, and the vent keeps emitting: the plume's source end
   (its upwind :data:`SOURCE_BAND_PX`) is swept downwind from the vent over
@@ -22,6 +26,7 @@ Pixels entering from beyond the border are background (0).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -72,6 +77,52 @@ def _shift(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
     )
 
 
+def _carry(field: np.ndarray, motion: Motion, lead: float) -> np.ndarray:
+    """Detached plumes ``lead`` s ahead: one shift, or semi-Lagrangian through the dense field.
+
+    With ``motion.dense`` the field at ``x`` is the current field at the departure
+    point ``x0 = x - t v((x + x0) / 2)`` (midpoint rule, three fixed-point
+    iterations on a :data:`DEPARTURE_STEP_PX` grid, then interpolated to every
+    pixel; ``cv2.remap``, bilinear), so a rotating or shearing cloud turns and
+    each plume moves by its own motion.
+    """
+    dense = motion.dense
+    if dense is None:
+        dx, dy = motion.displacement(lead)
+        return _shift(field, dx, dy)
+    h, w = field.shape
+    # departure points on a grid of STEP px (the field is smooth over FIELD_SIGMA cells),
+    # then interpolated to every pixel: one full-size remap of the field itself
+    step = max(int(dense.scale), DEPARTURE_STEP_PX)
+    hc, wc = -(-h // step), -(-w // step)
+    gy, gx = np.mgrid[0:hc, 0:wc].astype(np.float32) * step + (step - 1) / 2
+    t = np.float32(lead)
+    v = dense.sample(gx, gy)
+    x0, y0 = gx - t * v[..., 0], gy - t * v[..., 1]
+    for _ in range(3):
+        v = dense.sample((gx + x0) * 0.5, (gy + y0) * 0.5)
+        x0, y0 = gx - t * v[..., 0], gy - t * v[..., 1]
+    disp = np.stack([gx - x0, gy - y0], axis=-1)
+    disp = cv2.resize(disp, (wc * step, hc * step), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    fy, fx = _grid(h, w)
+    return cv2.remap(
+        field, fx - disp[..., 0], fy - disp[..., 1], cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=0,
+    )  # fmt: skip
+
+
+@functools.lru_cache(maxsize=4)
+def _grid(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column coordinates ``float32 (H, W)`` (cached: the same grid every look)."""
+    fy, fx = np.mgrid[0:h, 0:w].astype(np.float32)
+    fy.flags.writeable = fx.flags.writeable = False
+    return fy, fx
+
+
+DEPARTURE_STEP_PX = 4
+"""Grid (px) on which the semi-Lagrangian departure points are traced before interpolation."""
+
+
 def _sweep(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """``max over s in [0, 1] of field(x - s (dx, dy))``: grey dilation with a line."""
     r = math.ceil(max(abs(dx), abs(dy)))
@@ -118,15 +169,20 @@ def predict_field(field: np.ndarray, motion: Motion, lead_s: float) -> np.ndarra
         raise InvalidSceneError("field: NaN or infinite values")
     lead = check_lead(lead_s)
     dx, dy = motion.displacement(lead)
-    if motion.regime == "calm" or (dx == 0 and dy == 0):
+    dense = motion.dense
+    if dense is not None and tuple(dense.shape) != arr.shape:
+        raise InvalidSceneError(
+            f"field: shape {arr.shape} does not match the motion field's grid {dense.shape}"
+        )
+    if motion.regime == "calm" or lead == 0 or (dense is None and dx == 0 and dy == 0):
         return arr.copy()
     if motion.regime == "detached":
-        return _shift(arr, dx, dy)
+        return _carry(arr, motion, lead)
     attached = attached_region(arr >= 0.5, motion)
     if not attached.all():  # a margin so the attached plume's soft edge goes with it
         attached = cv2.dilate(attached.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     plume = np.where(attached, arr, 0.0).astype(np.float32)
-    moved = _shift(np.where(attached, 0.0, arr).astype(np.float32), dx, dy)
+    moved = _carry(np.where(attached, 0.0, arr).astype(np.float32), motion, lead)
     if ATTACHED_MODEL == "sweep":
         front = front_speed(motion) / max(motion.speed, 1e-12)  # share of the flow displacement
         return np.maximum(_sweep(plume, dx * front, dy * front), moved)
@@ -408,8 +464,14 @@ class Prediction:
             ``(n, 2)`` shifts ``(dx, dy)``, pixels.
         """
         dt = np.asarray(dt_s, np.float64).reshape(-1)
-        shift = np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
         regime = self.motion.regime
+        dense = self.motion.dense
+        if dense is not None and points is not None and regime != "calm":
+            pts = np.asarray(points, np.float64).reshape(-1, 2)
+            v = dense.sample(pts[:, 0], pts[:, 1]).astype(np.float64)
+            shift = v * dt[:, None]
+        else:
+            shift = np.stack([self.motion.velocity[0] * dt, self.motion.velocity[1] * dt], axis=1)
         if regime == "detached":
             return shift
         if regime != "mixed" or points is None or attached is None:

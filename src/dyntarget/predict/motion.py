@@ -1,34 +1,48 @@
 """Plume motion from two looks (dense optical flow) or from a wind prior (one look).
 
-Method (documented in ``docs/onboard.md``, "Predictive targeting"):
+Method of :func:`estimate_motion` (documented in ``docs/onboard.md``, "Predictive
+targeting"; measured on real evolving fields by ``benchmarks/motion_real.py``):
 
 1. Both frames are reduced to one *brightness* band, the mean of R, G, B and
-   NIR: plumes and clouds are bright in all four, averaging four bands halves
-   the sensor noise, and no band is needed that a sensor preset may lack.
-   Both are scaled to 8 bits with the *same* percentiles (1 and 99 % of the two
-   frames together), so brightness constancy between looks survives.
-2. OpenCV's DIS optical flow (``DISOpticalFlow``, preset MEDIUM) gives a dense
-   flow previous -> current and current -> previous.
-3. The fixed ground: the median forward flow over textured ground pixels (away
-   from both plume masks) is the frames' misregistration; it is subtracted from
-   the plume's flow (so frames need not be co-registered, only share a grid).
-4. Plume pixels of the previous mask whose flow is forward-backward consistent
-   (within 1 px) and which carry texture that pins the flow in both directions
-   (Shi-Tomasi: smaller structure-tensor eigenvalue above ``MIN_EIGEN``) vote.
-   Over semi-transparent plume edges the flow is a mixture of the ground (still)
-   and the plume (moving), so the moving votes are separated from the still ones:
-   if fewer than ``CALM_FRACTION`` of the votes move by more than ``STILL_PX``,
-   the air is calm; otherwise the velocity is the median of the moving votes.
-5. Upwind and downwind edges: the masks' pixels are projected on the flow
-   direction; the 1st and 99th percentiles are the upwind and downwind edges,
-   and their displacement between the looks tells the regimes apart: a
-   *detached* cloud moves as a whole (its upwind edge moves like the flow), an
-   *attached* plume keeps its vent end (upwind edge still) while puffs move.
-6. Confidence in [0, 1]: the share of plume pixels that carry trackable texture
-   (saturating at 30 %), times the agreement of the votes (1 - spread / abs(median)),
-   times a count term (saturating at 200 votes). Below ``LOW_CONFIDENCE`` the
-   flow is not trusted: the velocity falls back on the masks' centroid shift
-   and ``Motion.method`` says so.
+   NIR, over the plumes' bounding box plus a margin (:data:`CROP_MARGIN`, at
+   least :data:`MIN_CROP` px). Both are scaled to 8 bits with the *same* range
+   (1 % of the two frames together to the larger of their 99 % and the plumes'
+   own 99.5 %, so a few bright cells in a dark frame keep their texture) and
+   downsampled by a whole factor to at most :data:`FLOW_MAX_PX` a side.
+2. OpenCV's Farneback optical flow (default; ``flow="dis"``: DIS; ``flow="lk"``:
+   pysteps' Lucas-Kanade, the ``nowcast`` extra) gives a dense flow previous ->
+   current and current -> previous; a pixel is consistent when the round trip
+   returns within 1 px (or 10 % of its displacement), textured when the smaller
+   structure-tensor eigenvalue exceeds :data:`MIN_EIGEN` (Shi-Tomasi).
+3. The background: the histogram mode of the flow over textured, consistent
+   pixels away from the plumes (farther than the plumes' own displacement), or
+   phase correlation where there are too few. ``ground="fixed"`` removes it as
+   misregistration; ``"moving"`` keeps it (weather, radar: the background is
+   the same moving field and votes too); ``"auto"`` (default) calls it moving
+   when it exceeds :data:`MAX_MISREGISTRATION_PX`, is not one rigid shift, or
+   moves as the plumes do, and writes its decision in ``Motion.ground`` and the notes.
+4. The consistent, textured pixels of the previous mask's interior vote. If fewer
+   than :data:`CALM_FRACTION` move by more than :data:`STILL_PX`, the air is calm;
+   otherwise ``Motion.velocity`` is the *mode* of the moving votes (smoothed 2-D
+   histogram peak: over semi-transparent edges the flow mixes in the still ground,
+   which pulls a median towards zero).
+5. The dense field (``Motion.dense``, :class:`MotionField`): a base motion (a robust
+   affine fit when it clearly explains the votes better than the mode: rotation,
+   shear; else the mode) plus the votes' local departures from it when they exceed
+   the flow's noise (:data:`RESIDUAL_MIN_PX`), averaged by Gaussian normalised
+   convolution (:data:`FIELD_SIGMA`). :mod:`dyntarget.predict.advect` carries each
+   detached plume along it (semi-Lagrangian).
+6. Regimes per plume: each current plume is carried back by its own displacement
+   and compared with the previous mask inside that footprint; an upwind edge that
+   stayed makes it *attached* (vent held), otherwise *detached*. Over a background
+   ``"auto"`` found moving no vent is sought (growth upwind is not a vent).
+7. Confidence in [0, 1]: the share of plume pixels with trackable texture
+   (saturating at :data:`TEXTURE_SATURATION`), times the agreement of the votes
+   with the dense field (1 - median residual / median displacement: rotation and
+   shear are not disagreement), times a count term (saturating at 200 full-grid
+   px of votes). Below :data:`LOW_CONFIDENCE` the estimate is not used: the Motion
+   is calm with ``fallback="persistence"`` (the mask is not moved, never worse
+   than not predicting) and its notes say so and why.
 """
 
 from __future__ import annotations
@@ -47,6 +61,9 @@ STILL_PX = 0.5
 """A vote moving by less than this many pixels between the looks counts as still."""
 CALM_FRACTION = 0.25
 """Fewer moving votes than this share of all votes: calm air (no motion)."""
+MAX_LEAD_INTERVALS = 30
+"""Longest lead two looks support, in intervals between the looks: the motion is
+extrapolated, and growth, decay and turning are not modelled (``plan --lead-s`` says so)."""
 LOW_CONFIDENCE = 0.3
 """Below this confidence the flow is not trusted (``Motion.reliable`` is False)."""
 MIN_EIGEN = 25.0
@@ -67,6 +84,88 @@ ATTACHED_UPWIND = 0.5
 """Upwind edge moving less than this share of the flow displacement: attached plume."""
 
 
+GROUNDS = ("auto", "fixed", "moving")
+MOTION_FIELDS = ("dense", "uniform")
+FLOW_MAX_PX = 256
+"""The flow is computed on the plumes' window downsampled (area mean, by a whole factor) to
+at most this many pixels a side; the displacements are scaled back. Cost then stays near
+constant with the image size; the velocity resolution stays well under a pixel of the
+full grid for displacements of a few pixels (``benchmarks/motion_real.py``)."""
+MAX_MISREGISTRATION_PX = 4.0
+"""``ground="auto"``: a background moving by more than this between the looks (full-grid px)
+is not a misregistration of a fixed ground but the scene moving (weather, clouds)."""
+FIELD_SIGMA = 6.0
+"""Gaussian (cells of the flow grid) over which the votes are averaged into the dense field."""
+FIELD_PRIOR = 0.05
+"""Weight (share of a fully voted neighbourhood) of the scene's mode in the dense field:
+far from any vote the field tends to the mode."""
+TEXTURE_SATURATION = 0.15
+"""Share of plume pixels carrying trackable texture at which the texture term reaches 1."""
+
+
+@dataclass(frozen=True, eq=False)
+class MotionField:
+    """A spatially varying velocity: ``(vx, vy)`` px/s on a coarse grid over the plumes' window.
+
+    Parameters
+    ----------
+    velocity : numpy.ndarray
+        ``float32 (h, w, 2)`` px/s of the full grid, one cell per ``scale`` x ``scale`` px.
+    origin : tuple of int
+        ``(x0, y0)``: the full-grid pixel of cell (0, 0)'s top-left corner.
+    scale : int
+        Full-grid pixels per cell.
+    shape : tuple of int
+        ``(H, W)`` of the full grid.
+
+    Examples
+    --------
+    >>> f = MotionField(np.ones((2, 2, 2), np.float32), (0, 0), 4, (8, 8))
+    >>> f.full().shape, float(f.full()[5, 5, 0])
+    ((8, 8, 2), 1.0)
+    """
+
+    velocity: np.ndarray
+    origin: tuple[int, int]
+    scale: int
+    shape: tuple[int, int]
+
+    def sample(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Velocity (px/s) at full-grid positions ``x``, ``y`` (bilinear; the window's edge beyond).
+
+        Parameters
+        ----------
+        x, y : numpy.ndarray
+            Positions, full-grid pixels (any shape).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (..., 2)``.
+        """
+        s = float(self.scale)
+        cx = ((np.asarray(x, np.float32) - self.origin[0] - (s - 1) / 2) / s).astype(np.float32)
+        cy = ((np.asarray(y, np.float32) - self.origin[1] - (s - 1) / 2) / s).astype(np.float32)
+        flat = cx.ndim != 2
+        if flat:
+            cx, cy = cx.reshape(1, -1), cy.reshape(1, -1)
+        out = cv2.remap(self.velocity, cx, cy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        out = out.reshape(*cx.shape, 2)
+        return out.reshape(*np.shape(x), 2) if flat else out
+
+    def full(self) -> np.ndarray:
+        """The velocity at every pixel of the full grid, ``float32 (H, W, 2)`` px/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``float32 (H, W, 2)``.
+        """
+        h, w = self.shape
+        gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+        return self.sample(gx, gy)
+
+
 @dataclass(frozen=True)
 class Motion:
     """How the plume moves, in pixels of the current frame's grid.
@@ -85,7 +184,7 @@ class Motion:
     source : str
         ``"two-looks"`` or ``"wind-prior"``.
     method : str
-        How the velocity was obtained (e.g. ``"DIS flow"``).
+        How the velocity was obtained (e.g. ``"Farneback flow, dense field (1/2 grid)"``).
     vent : tuple of float or None
         ``(x, y)`` of the attached plume's upwind end in the current frame, else ``None``.
     ground_shift : tuple of float
@@ -102,6 +201,16 @@ class Motion:
         looks; plumes of the mask near none of these vents move as a whole. Empty
         for a wind prior (then ``regime`` applies to every plume and an attached
         plume's front advances at the full speed).
+    ground : str
+        Two looks: ``"fixed"`` (the background's shift was removed as
+        misregistration) or ``"moving"`` (the background moves itself: not removed);
+        empty for a wind prior.
+    fallback : str
+        ``"persistence"`` when the estimate was too unsure to use (then the motion is
+        calm: the mask is not moved) and the notes say why; else empty.
+    dense : MotionField or None
+        The spatially varying velocity (px/s) detached plumes are advected by; ``None``
+        for one velocity per scene.
     """
 
     velocity: tuple[float, float]
@@ -116,6 +225,9 @@ class Motion:
     interval_s: float | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
     attached: tuple[tuple[float, float, float], ...] = ()
+    ground: str = ""
+    fallback: str = ""
+    dense: MotionField | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         vx, vy = (float(v) for v in self.velocity)
@@ -199,6 +311,11 @@ class Motion:
             "interval_s": self.interval_s,
             "notes": list(self.notes),
             "attached": [list(a) for a in self.attached],
+            "ground": self.ground,
+            "fallback": self.fallback,
+            "dense_field": None
+            if self.dense is None
+            else {"cells": list(self.dense.velocity.shape[:2]), "px_per_cell": self.dense.scale},
         }
 
 
@@ -288,7 +405,18 @@ def _to_u8(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip((a - lo) * scale, 0, 255).astype(np.uint8)
 
 
-FLOWS = {"dis": "DIS", "farneback": "Farneback"}
+AFFINE_GAIN_PX = 0.1
+"""The affine base must lower the votes' median residual by more than this (full-grid px)."""
+RESIDUAL_MIN_PX = 0.75
+"""Votes departing from the base motion (mode or affine) by less than this (median, full-grid
+px) are the flow's noise: the field is the base alone (a rigid drift stays rigid)."""
+MOVING_GROUND_WEIGHT = 1.0
+"""Moving ground: weight of a background vote in the dense field (a plume vote weighs 1)."""
+MOVING_ALL_VOTES = 200
+"""Moving ground: with fewer plume votes (full-grid px) than this the background votes too."""
+FARNEBACK_WINDOW = 9
+"""Farneback's Gaussian averaging window (px of the flow grid)."""
+FLOWS = {"dis": "DIS", "farneback": "Farneback", "lk": "pysteps Lucas-Kanade"}
 
 
 def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndarray:
@@ -321,7 +449,7 @@ def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndar
         return dis.calc(a, b, None)
     if flow == "farneback":  # Gaussian 9 px window, 5 iterations: the most accurate we measured
         return cv2.calcOpticalFlowFarneback(
-            a, b, None, 0.5, 4, 9, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
+            a, b, None, 0.5, 4, FARNEBACK_WINDOW, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
         )
     raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
 
@@ -389,6 +517,97 @@ def _vent(mask: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     return float(xs[near].mean()), float(ys[near].mean())
 
 
+def _downsample(a: np.ndarray, f: int) -> np.ndarray:
+    if f == 1:
+        return a
+    h, w = a.shape[0] // f * f, a.shape[1] // f * f
+    return cv2.resize(a[:h, :w], (w // f, h // f), interpolation=cv2.INTER_AREA)
+
+
+def _mask_down(m: np.ndarray, f: int) -> np.ndarray:
+    return m if f == 1 else _downsample(m.astype(np.float32), f) >= 0.5
+
+
+def _normalized(weights: np.ndarray, values: np.ndarray, prior: np.ndarray, sigma: float):
+    """Gaussian normalised convolution of the votes, tending to ``prior`` where none is near."""
+    k = (0, 0)
+    w = cv2.GaussianBlur(weights, k, sigma, borderType=cv2.BORDER_REFLECT)
+    out = np.empty((*weights.shape, 2), np.float32)
+    for c in range(2):
+        num = cv2.GaussianBlur(weights * values[..., c], k, sigma, borderType=cv2.BORDER_REFLECT)
+        out[..., c] = (num + FIELD_PRIOR * prior[c]) / (w + FIELD_PRIOR)
+    return out
+
+
+def _robust_field(weights: np.ndarray, rel: np.ndarray, mode: tuple[float, float]) -> np.ndarray:
+    """The dense displacement field (cells of the flow grid, full-grid px) from the votes.
+
+    A base motion, then local departures from it. The base is a robust affine fit of
+    the votes (least squares on the 60 % closest, four rounds) when it explains them
+    clearly better than the one mode (median residual below 0.7 of the mode's, and
+    smaller by more than :data:`AFFINE_GAIN_PX`: rotation, shear, convergence), else
+    the mode. The departures: the votes' residuals
+    from the base, outliers dropped (over twice the median residual and 0.5 px: mixed
+    semi-transparent edges), averaged over :data:`FIELD_SIGMA` cells (normalised
+    convolution), fading to the base where no vote is near; none when their median is
+    under :data:`RESIDUAL_MIN_PX` (noise).
+    """
+    votes = weights > 0
+    h, w = votes.shape
+    ys, xs = np.nonzero(votes)
+    vx, vy = rel[..., 0][votes].astype(np.float64), rel[..., 1][votes].astype(np.float64)
+    cx, cy = w / 2.0, h / 2.0
+    step = max(1, len(xs) // 5000)
+    X = np.stack([xs[::step] - cx, ys[::step] - cy, np.ones(len(xs[::step]))], axis=1)
+    tx, ty = vx[::step], vy[::step]
+    res_mode = np.hypot(tx - mode[0], ty - mode[1])
+    res = res_mode
+    keep = res_mode <= np.percentile(res_mode, 60)
+    ax, ay = np.zeros(3), np.zeros(3)
+    for _ in range(4):
+        if keep.sum() < 10:
+            break
+        ax = np.linalg.lstsq(X[keep], tx[keep], rcond=None)[0]
+        ay = np.linalg.lstsq(X[keep], ty[keep], rcond=None)[0]
+        res = np.hypot(tx - X @ ax, ty - X @ ay)
+        keep = res <= np.percentile(res, 60)
+    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+    base = np.empty((h, w, 2), np.float32)
+    gain = float(np.median(res_mode) - np.median(res))
+    if keep.sum() >= 10 and np.median(res) < 0.7 * np.median(res_mode) and gain > AFFINE_GAIN_PX:
+        base[..., 0] = (gx - cx) * ax[0] + (gy - cy) * ax[1] + ax[2]
+        base[..., 1] = (gx - cx) * ay[0] + (gy - cy) * ay[1] + ay[2]
+    else:
+        base[..., 0], base[..., 1] = mode
+    resid = rel - base
+    rmag = np.hypot(resid[..., 0], resid[..., 1])
+    typical = float(np.median(rmag[votes]))
+    if typical < RESIDUAL_MIN_PX:
+        return base  # the base explains the votes to within the flow's noise: keep it exact
+    good = votes & (rmag <= max(0.5, 2.0 * typical))
+    return base + _normalized(
+        np.where(good, weights, 0.0).astype(np.float32), resid, np.zeros(2, np.float32), FIELD_SIGMA
+    )
+
+
+def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from pysteps import motion as psmotion
+    except ImportError as exc:
+        raise InvalidParameterError(
+            "flow: 'lk' needs pysteps (pip install 'dyntarget[nowcast]')"
+        ) from exc
+    stack = np.stack([a, b]).astype(np.float64) / 255.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        v = psmotion.get_method("LK")(stack, verbose=False)
+    return np.moveaxis(np.nan_to_num(v), 0, -1).astype(np.float32)
+
+
 def estimate_motion(
     previous: np.ndarray,
     current: np.ndarray,
@@ -397,8 +616,10 @@ def estimate_motion(
     previous_mask: np.ndarray,
     current_mask: np.ndarray,
     flow: str = "farneback",
+    ground: str = "auto",
+    field: str = "dense",
 ) -> Motion:
-    """Estimate the plume's motion between two looks on the same grid.
+    """Estimate the plumes' motion between two looks on the same grid.
 
     Parameters
     ----------
@@ -409,14 +630,31 @@ def estimate_motion(
     previous_mask, current_mask : bool (H, W)
         The plume in each frame (hand label or classifier output).
     flow : str
-        Dense optical flow: ``"farneback"`` (OpenCV Farneback, default) or ``"dis"``
-        (OpenCV DIS); ``benchmarks/motion_methods.py`` compares them (and pysteps).
+        Dense optical flow: ``"farneback"`` (OpenCV Farneback, default), ``"dis"``
+        (OpenCV DIS) or ``"lk"`` (pysteps' Lucas-Kanade, interpolated to a dense
+        field; needs the ``nowcast`` extra); ``benchmarks/motion_methods.py`` and
+        ``benchmarks/motion_real.py`` compare them.
+    ground : {"auto", "fixed", "moving"}
+        ``"fixed"``: the background outside the plumes is the ground; its apparent
+        shift is misregistration and is removed from the plumes' motion.
+        ``"moving"``: the background moves itself (weather, radar, a plume over
+        moving cloud); nothing is removed. ``"auto"`` (default) decides from the
+        frames (moving when the background's shift exceeds
+        :data:`MAX_MISREGISTRATION_PX` or is not one rigid shift) and says so in
+        ``Motion.ground`` and the notes.
+    field : {"dense", "uniform"}
+        ``"dense"`` (default): each plume pixel moves by the dense motion field
+        (``Motion.dense``), ``"uniform"``: every detached plume moves by the one
+        ``velocity``.
 
     Returns
     -------
     Motion
-        Velocity relative to the ground in px/s of the current grid, the regime
-        seen, the vent (attached plumes), edge displacements and a confidence.
+        Velocity (the mode of the plume's flow votes) relative to the ground in
+        px/s of the current grid, the dense field, the regime seen, the vents
+        (attached plumes), edge displacements and a confidence. Below
+        :data:`LOW_CONFIDENCE` the motion is not used: the result is calm with
+        ``fallback="persistence"`` (the mask is not moved) and the notes say why.
 
     Examples
     --------
@@ -431,8 +669,8 @@ def estimate_motion(
     ...     return img, m
     >>> (a, ma), (b, mb) = frame(20), frame(24)
     >>> m = estimate_motion(a, b, 2.0, previous_mask=ma, current_mask=mb)
-    >>> m.regime, round(m.velocity[0], 1), abs(round(m.velocity[1], 1))
-    ('detached', 2.0, 0.0)
+    >>> m.regime, round(m.velocity[0], 1), abs(round(m.velocity[1], 1)), m.ground
+    ('detached', 2.0, 0.0, 'fixed')
     """
     prev = _check_frame(previous, "previous")
     cur = _check_frame(current, "current")
@@ -443,6 +681,12 @@ def estimate_motion(
     dt = check_interval(interval_s)
     if flow not in FLOWS:
         raise InvalidParameterError(f"flow: expected one of {', '.join(FLOWS)}, got {flow!r}")
+    if ground not in GROUNDS:
+        raise InvalidParameterError(f"ground: expected one of {', '.join(GROUNDS)}, got {ground!r}")
+    if field not in MOTION_FIELDS:
+        raise InvalidParameterError(
+            f"field: expected one of {', '.join(MOTION_FIELDS)}, got {field!r}"
+        )
     shape = cur.shape[1:]
     pm = _check_mask(previous_mask, shape, "previous_mask")
     cm = _check_mask(current_mask, shape, "current_mask")
@@ -457,101 +701,182 @@ def estimate_motion(
             notes=("no plume in the previous or current mask: no motion estimated",),
         )
 
-    bp, bc = brightness(prev), brightness(cur)
-    lo, hi = np.percentile(np.concatenate([bp.ravel(), bc.ravel()]), [1, 99])
-    near_plume = cv2.dilate((pm | cm).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
-
-    # dense flow on the plume's bounding box (plus a margin): cost follows the plume, not the image
+    # dense flow on the plumes' bounding box (plus a margin): cost follows the plumes
     ys, xs = np.nonzero(pm | cm)
     h, w = shape
     y0, y1 = _span(int(ys.min()), int(ys.max()) + 1, h)
     x0, x1 = _span(int(xs.min()), int(xs.max()) + 1, w)
-    p8 = _to_u8(bp[y0:y1, x0:x1], lo, hi)
-    c8 = _to_u8(bc[y0:y1, x0:x1], lo, hi)
-    fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
-    gy, gx = np.mgrid[0 : y1 - y0, 0 : x1 - x0].astype(np.float32)
-    back_at = cv2.remap(
-        bwd, gx + fwd[..., 0], gy + fwd[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
-    fb_err = np.hypot(fwd[..., 0] + back_at[..., 0], fwd[..., 1] + back_at[..., 1])
-    consistent = fb_err < 1.0
+    bp, bc = brightness(prev[:, y0:y1, x0:x1]), brightness(cur[:, y0:y1, x0:x1])
+    sample = np.concatenate([bp.ravel()[::7], bc.ravel()[::7]])
+    lo, hi = np.percentile(sample, [1, 99])
+    # the plumes keep their texture when they are brighter than 99 % of the scene (a
+    # few bright cells in a dark radar frame): the scale reaches the plumes' own top
+    pm_c, cm_c = pm[y0:y1, x0:x1], cm[y0:y1, x0:x1]
+    hi = max(hi, float(np.percentile(np.concatenate([bp[pm_c], bc[cm_c]]), 99.5)))
+    f = max(1, math.ceil(max(y1 - y0, x1 - x0) / FLOW_MAX_PX))
+    pmf, cmf = _mask_down(pm_c, f), _mask_down(cm_c, f)
+    if f > 1 and (pmf.sum() < 50 or cmf.sum() < 50):
+        f, pmf, cmf = 1, pm_c, cm_c  # plumes too small to see on the coarse grid
+    p8 = _to_u8(_downsample(bp, f), lo, hi)
+    c8 = _to_u8(_downsample(bc, f), lo, hi)
+    if flow == "lk":
+        fwd = _pysteps_lk(p8, c8)
+        bwd = -fwd
+        consistent = np.ones(p8.shape, bool)
+    else:
+        fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
+        gy, gx = np.mgrid[0 : p8.shape[0], 0 : p8.shape[1]].astype(np.float32)
+        back_at = cv2.remap(
+            bwd, gx + fwd[..., 0], gy + fwd[..., 1], cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )  # fmt: skip
+        fb_err = np.hypot(fwd[..., 0] + back_at[..., 0], fwd[..., 1] + back_at[..., 1])
+        consistent = fb_err < np.maximum(1.0, 0.1 * np.hypot(fwd[..., 0], fwd[..., 1]))
     # texture that pins the flow down in both directions (not just an edge): the smaller
     # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
     textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, 3) > MIN_EIGEN
+    fwd_px = fwd * f  # full-grid pixels
+    inner = cv2.erode(pmf.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    if not inner.any():
+        inner = pmf
+    votes = inner & textured & consistent
+    # the plumes' raw displacement (ground not removed) sets how far from the masks the
+    # background is safe from the plumes' own flow (occluded and uncovered ground)
+    raw = _mode(fwd_px[..., 0][votes], fwd_px[..., 1][votes]) if votes.any() else (0.0, 0.0)
+    r = 4 + math.ceil(math.hypot(*raw) / f)
+    near_plume = cv2.dilate((pmf | cmf).astype(np.uint8), np.ones((2 * r + 1,) * 2, np.uint8)) > 0
 
-    # the fixed ground's apparent motion (misregistration): the flow over textured ground
-    # around the plume; where the margin has too little, phase correlation of the frames
-    ground_votes = ~near_plume[y0:y1, x0:x1] & textured & consistent
+    # the background's apparent motion: over textured ground around the plumes; where
+    # the margin has too little, phase correlation of the frames
+    ground_votes = ~near_plume & textured & consistent
+    rigid = True
     if ground_votes.sum() >= 50:
-        gdx = _snap_still(float(np.median(fwd[..., 0][ground_votes])))
-        gdy = _snap_still(float(np.median(fwd[..., 1][ground_votes])))
+        gx_all, gy_all = fwd_px[..., 0][ground_votes], fwd_px[..., 1][ground_votes]
+        gdx, gdy = (_snap_still(v) for v in _mode(gx_all, gy_all))
+        near_g = np.hypot(gx_all - gdx, gy_all - gdy) <= max(1.0, 0.2 * math.hypot(gdx, gdy))
+        rigid = float(near_g.mean()) >= 0.5
         ground_ok = True
     else:
-        gdx, gdy, ground_ok = _ground_shift(bp, bc, near_plume)
+        near_full = np.zeros(shape, bool)
+        near_full[y0:y1, x0:x1] = (
+            cv2.resize(
+                near_plume.astype(np.uint8), (x1 - x0, y1 - y0), interpolation=cv2.INTER_NEAREST
+            )
+            > 0
+        )
+        gdx, gdy, ground_ok = _ground_shift(brightness(prev), brightness(cur), near_full)
+    notes: list[str] = []
+    g_mag = math.hypot(gdx, gdy)
+    decided = ground
+    if ground == "auto":
+        like_plume = g_mag > 2.0 and math.hypot(raw[0] - gdx, raw[1] - gdy) < 0.25 * g_mag
+        decided = (
+            "moving"
+            if ground_ok and (g_mag > MAX_MISREGISTRATION_PX or not rigid or like_plume)
+            else "fixed"
+        )
+        if g_mag > STILL_PX or decided == "moving":
+            why = (
+                f"more than {MAX_MISREGISTRATION_PX:g} px"
+                if g_mag > MAX_MISREGISTRATION_PX
+                else "not one rigid shift"
+                if not rigid
+                else "as the plumes do"
+            )
+            notes.append(
+                f"ground auto -> {decided}: the background moved by ({gdx:+.2f}, {gdy:+.2f}) px"
+                + (f", {why}: not removed" if decided == "moving" else ": misregistration removed")
+            )
+        else:
+            notes.append("ground auto -> fixed: the background is still")
+    elif ground == "fixed":
+        if not ground_ok:
+            notes.append(
+                "ground registration failed (no texture outside the plume): assumed aligned"
+            )
+        elif g_mag > STILL_PX:
+            notes.append(f"ground moved by ({gdx:+.2f}, {gdy:+.2f}) px between the looks (removed)")
+    else:
+        notes.append(
+            f"ground moving: the background's shift ({gdx:+.2f}, {gdy:+.2f}) px is not removed"
+        )
+    if decided == "moving":
+        gdx = gdy = 0.0
+    rel = fwd_px - np.float32([gdx, gdy])
 
-    pm_c = pm[y0:y1, x0:x1]
-    inner = cv2.erode(pm_c.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    if not inner.any():
-        inner = pm_c
-    votes = inner & textured & consistent
+    if decided == "moving" and int(votes.sum()) * f * f < MOVING_ALL_VOTES:
+        votes = votes | ground_votes  # few plume votes: the moving background is the same weather
     n_votes = int(votes.sum())
-    rel_x = fwd[..., 0][votes] - gdx
-    rel_y = fwd[..., 1][votes] - gdy
+    rel_x, rel_y = rel[..., 0][votes], rel[..., 1][votes]
     mag = np.hypot(rel_x, rel_y)
     moving = mag > STILL_PX
     n_moving = int(moving.sum())
     texture_share = n_votes / max(int(inner.sum()), 1)
-    notes: list[str] = []
-    if not ground_ok:
-        notes.append("ground registration failed (no texture outside the plume): assumed aligned")
-    elif abs(gdx) > STILL_PX or abs(gdy) > STILL_PX:
-        notes.append(f"ground moved by ({gdx:+.2f}, {gdy:+.2f}) px between the looks (removed)")
-
     calm = n_votes > 0 and n_moving < CALM_FRACTION * n_votes
+    dense = None
     if n_votes == 0:
-        vx = vy = 0.0
+        mx = my = 0.0
         agreement = 0.0
     elif calm:
-        vx = vy = 0.0
+        mx = my = 0.0
         agreement = 1.0 - n_moving / n_votes
     else:
         mx, my = _mode(rel_x[moving], rel_y[moving])
-        spread = float(
-            np.median(np.hypot(rel_x[moving] - mx, rel_y[moving] - my))
-        )  # median distance of the votes from the mode, px
-        agreement = max(0.0, 1.0 - spread / max(math.hypot(mx, my), 1e-6))
-        vx, vy = mx / dt, my / dt
-    confidence = min(1.0, texture_share / 0.3) * agreement * min(1.0, n_votes / 200.0)
+        # the dense field: the votes averaged over FIELD_SIGMA cells (a moving background
+        # votes too: it is the same weather), tending to the mode far from any vote
+        weights = votes.astype(np.float32)
+        if decided == "moving":
+            # the background is the same weather: every trackable pixel around votes too
+            weights[textured & consistent & ~votes] = MOVING_GROUND_WEIGHT
+        vfield = _robust_field(weights, rel, (mx, my))
+        # agreement: how well the votes follow the field (rotation and shear are not
+        # disagreement), relative to the displacement
+        res = np.hypot(rel_x - vfield[..., 0][votes], rel_y - vfield[..., 1][votes])
+        scale = max(float(np.median(mag)), 1.0)
+        agreement = max(0.0, 1.0 - float(np.median(res)) / scale)
+        if field == "dense":
+            dense = MotionField(vfield / np.float32(dt), (x0, y0), f, (h, w))
+    vx, vy = mx / dt, my / dt
+    confidence = (
+        min(1.0, texture_share / TEXTURE_SATURATION)
+        * agreement
+        * min(1.0, n_votes * f * f / 200.0)  # a coarse vote stands for f x f pixels
+    )
     confidence = float(np.clip(confidence, 0.0, 1.0))
-    method = f"{FLOWS[flow]} flow"
+    method = f"{FLOWS[flow]} flow" + (f", dense field (1/{f} grid)" if dense is not None else "")
     if confidence < LOW_CONFIDENCE:
-        # the flow is not trusted: fall back on how the masks moved
-        ys0, xs0 = np.nonzero(pm)
-        ys1, xs1 = np.nonzero(cm)
-        dx, dy = float(xs1.mean() - xs0.mean()), float(ys1.mean() - ys0.mean())
-        if math.hypot(dx, dy) < STILL_PX:
-            dx = dy = 0.0
-        vx, vy = dx / dt, dy / dt
-        calm = dx == 0.0 and dy == 0.0
-        method = "mask centroid shift (flow unreliable)"
+        # the flow is not trusted: not moving the mask is never worse than a wrong move
         notes.append(
-            f"low confidence: only {100 * texture_share:.0f} % of the plume carries trackable texture"
+            f"LOW CONFIDENCE {confidence:.2f} < {LOW_CONFIDENCE}: fallback to persistence "
+            f"(the mask is not moved; flow said ({vx:+.3f}, {vy:+.3f}) px/s, "
+            f"{100 * texture_share:.0f} % of the plume textured, {n_votes} votes)"
         )
+        return Motion(
+            (0.0, 0.0), regime="calm", confidence=confidence, source="two-looks",
+            method=f"persistence ({FLOWS[flow]} flow unreliable)", ground_shift=(gdx, gdy),
+            interval_s=dt, notes=tuple(notes), ground=decided, fallback="persistence",
+        )  # fmt: skip
 
     if calm:
         return Motion(
             (0.0, 0.0), regime="calm", confidence=confidence, source="two-looks",
             method=method, ground_shift=(gdx, gdy), upwind_shift=0.0, downwind_shift=0.0,
-            interval_s=dt, notes=tuple(notes),
+            interval_s=dt, notes=tuple(notes), ground=decided,
         )  # fmt: skip
     u = np.array([vx, vy]) / math.hypot(vx, vy)
-    up0, down0 = _edges(pm, u)
-    up1, down1 = _edges(cm, u)
+    up0, down0 = _edges(pm_c, u)  # on the window: the shifts are differences
+    up1, down1 = _edges(cm_c, u)
     along = math.hypot(vx, vy) * dt
     up_shift, down_shift = up1 - up0, down1 - down0
     if along < 1.0:
         notes.append(f"the plume moved only {along:.2f} px between the looks: regime uncertain")
-    parts = _component_regimes(pm, cm, (vx * dt, vy * dt), u, along, dt)
+    if ground == "auto" and decided == "moving":
+        # a vent is held by the ground: over a background found moving (weather) a plume's
+        # still upwind end is growth, not a vent; every plume is carried (ground="moving"
+        # given explicitly keeps the regimes: a plume over moving cloud)
+        parts: list = [None]
+    else:
+        parts = _component_regimes(pm_c, cm_c, (vx * dt, vy * dt), dense, dt, (x0, y0), (h, w))
     attached = tuple(a for a in parts if a is not None)
     n_detached = sum(a is None for a in parts)
     if attached and n_detached:
@@ -573,62 +898,86 @@ def estimate_motion(
         interval_s=dt,
         notes=tuple(notes),
         attached=attached,
+        ground=decided,
+        dense=dense,
     )
 
 
-def _component_regimes(pm, cm, d, u, along, dt) -> list[tuple[float, float, float] | None]:
+def _on_border(xs: np.ndarray, ys: np.ndarray, w: int, h: int) -> bool:
+    return bool((xs == 0).any() or (ys == 0).any() or (xs == w - 1).any() or (ys == h - 1).any())
+
+
+def _component_regimes(
+    pm, cm, d, dense, dt, origin=(0, 0), full=None
+) -> list[tuple[float, float, float] | None]:
     """Per plume of the current mask (largest first): ``None`` if it moved as a whole,
     else ``(vent x, vent y, front speed px/s)`` of an attached plume.
 
-    A current component is matched with the previous components it overlaps when
-    carried back by the displacement ``d``; its upwind edge moving less than
-    :data:`ATTACHED_UPWIND` of the displacement makes it attached, unless that end
-    touches the image border (a cloud drifting in: no vent seen). Its front speed
-    is how fast it grows along the flow: the area gained between the looks over its
-    mean width (area / length), per second; 0 for a mature plume whose far end fades
-    as fast as it is fed, or lies beyond the image border; at most the flow speed.
+    Each current plume is carried back by its own displacement (the dense field's mean
+    over it, else the scene's ``d``) and compared with the previous mask *inside that
+    carried-back footprint* (dilated by 1 px), so a fragment beside a big cloud is
+    compared with its own past, not with its neighbour's. Its upwind edge moving less
+    than :data:`ATTACHED_UPWIND` of the displacement makes it attached, unless that end
+    touches the image border (a cloud drifting in: no vent seen). Its front speed is how
+    fast it grows along the flow: the area gained between the looks over its mean width
+    (area / length), per second; 0 for a mature plume whose far end fades as fast as it
+    is fed, or lies beyond the image border; at most the flow speed. Work is done on
+    each plume's bounding box (plus the displacement), so many fragments stay cheap.
+    ``pm`` and ``cm`` may be a window of the image at ``origin`` ``(x0, y0)`` of an
+    image of shape ``full``; positions returned are the image's.
     """
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(cm.astype(np.uint8), connectivity=8)
-    _, prev_labels = cv2.connectedComponents(pm.astype(np.uint8), connectivity=8)
-    h, w = cm.shape
-    back = np.float32([[1, 0, -d[0]], [0, 1, -d[1]]])
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(cm.astype(np.uint8), connectivity=8)
+    ch, cw = cm.shape
+    ox, oy = origin
+    h, w = full if full is not None else cm.shape
     order = sorted(range(1, n), key=lambda i: -stats[i, cv2.CC_STAT_AREA])
     out: list[tuple[float, float, float] | None] = []
     for i in order:
         if stats[i, cv2.CC_STAT_AREA] < MIN_COMPONENT_PX:
             continue
-        comp = labels == i
-        carried = cv2.warpAffine(comp.astype(np.uint8), back, (w, h), flags=cv2.INTER_NEAREST) > 0
-        carried = cv2.dilate(carried.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-        ids = np.unique(prev_labels[carried & pm])
-        prev = np.isin(prev_labels, ids[ids > 0])
-        if not prev.any():
+        if dense is not None:
+            v = dense.sample(np.float32([cents[i][0] + ox]), np.float32([cents[i][1] + oy]))[0]
+            di = (float(v[0]) * dt, float(v[1]) * dt)
+        else:
+            di = d
+        along = math.hypot(*di)
+        if along < 1.0:
+            out.append(None)  # too little motion to tell a vent from a drift
+            continue
+        u = np.array(di) / along
+        bx, by, bw, bh = (int(stats[i, k]) for k in range(4))
+        pad = math.ceil(along) + 3
+        wx0, wy0 = max(bx - pad, 0), max(by - pad, 0)
+        wx1, wy1 = min(bx + bw + pad, cw), min(by + bh + pad, ch)
+        comp = labels[wy0:wy1, wx0:wx1] == i
+        back = np.float32([[1, 0, -di[0]], [0, 1, -di[1]]])
+        carried = cv2.warpAffine(
+            comp.astype(np.uint8), back, comp.shape[::-1], flags=cv2.INTER_NEAREST
+        )
+        carried = cv2.dilate(carried, np.ones((3, 3), np.uint8)) > 0
+        prev = carried & pm[wy0:wy1, wx0:wx1]
+        if prev.sum() < MIN_COMPONENT_PX:
             out.append(None)  # new since the previous look: nothing to compare; moves with the flow
             continue
         up0, _ = _edges(prev, u)
         up1, down1 = _edges(comp, u)
         cys, cxs = np.nonzero(comp)
-        upwind = cxs * u[0] + cys * u[1] <= up1 + 1.5
-        if (
-            (cxs[upwind] == 0).any() or (cys[upwind] == 0).any()
-            or (cxs[upwind] == w - 1).any() or (cys[upwind] == h - 1).any()
-        ):  # fmt: skip
+        s = cxs * u[0] + cys * u[1]
+        upwind = s <= up1 + 1.5
+        if _on_border(cxs[upwind] + wx0 + ox, cys[upwind] + wy0 + oy, w, h):
             out.append(None)  # its upwind end is cut by the image border: no vent seen
             continue
         if up1 - up0 < ATTACHED_UPWIND * along:
-            downwind = cxs * u[0] + cys * u[1] >= down1 - 1.5
-            at_border = (
-                (cxs[downwind] == 0).any() or (cys[downwind] == 0).any()
-                or (cxs[downwind] == w - 1).any() or (cys[downwind] == h - 1).any()
-            )  # fmt: skip
+            downwind = s >= down1 - 1.5
             # a far end beyond the image is not seen to advance: the part inside stays
+            at_border = _on_border(cxs[downwind] + wx0 + ox, cys[downwind] + wy0 + oy, w, h)
             # the front's advance from the plume's growth: area gained / mean width (the
             # area over the length), steadier than the far end's flickering tip
             length = max(down1 - up1, 1.0)
             growth = (comp.sum() - prev.sum()) * length / comp.sum()
             front = 0.0 if at_border else float(np.clip(growth / dt, 0.0, along / dt))
             vx, vy = _vent(comp, u)
-            out.append((vx, vy, front))
+            out.append((vx + wx0 + ox, vy + wy0 + oy, front))
         else:
             out.append(None)
     return out

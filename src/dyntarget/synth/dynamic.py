@@ -675,7 +675,7 @@ def check_window(window: object, size: int) -> Window:
     if window is None:
         return (0, 0, size, size)
     try:
-        vals = tuple(window)  # type: ignore[arg-type]
+        vals: tuple[object, ...] = tuple(window)  # type: ignore[arg-type]
     except TypeError:
         vals = ()
     if len(vals) != 4 or not all(
@@ -684,7 +684,7 @@ def check_window(window: object, size: int) -> Window:
         raise InvalidParameterError(
             f"window: expected (col0, row0, width, height) integers, got {window!r}"
         )
-    c0, r0, w, h = (int(v) for v in vals)
+    c0, r0, w, h = (int(v) for v in vals)  # type: ignore[call-overload]
     if w < 1 or h < 1:
         raise InvalidParameterError(f"window: expected a positive size, got {w} x {h}")
     if max(w, h) > MAX_WINDOW_SIDE or w * h > MAX_WINDOW_PIXELS:

@@ -197,7 +197,7 @@ def sample_params(rng: np.random.Generator, *, size: int, gsd: float) -> ScenePa
 
 def _shift(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """Translate a field by (dx, dy) pixels, zeros coming in from outside."""
-    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    m = np.array([[1, 0, dx], [0, 1, dy]], np.float32)
     h, w = field.shape
     return cv2.warpAffine(field, m, (w, h), flags=cv2.INTER_LINEAR, borderValue=0.0)
 

@@ -1,0 +1,565 @@
+"""Geostationary foresight for a pass: the GEO stream of the strip's world, its blueprint, the gate.
+
+* **GEO stream.** The same world (:class:`~dyntarget.synth.dynamic.WorldSpec`)
+  seen by a geostationary imager: rendered at ``gsd_m / 8`` (area-averaged: narrow plumes count by the fraction
+  of the cell they cover) over the strip and
+  an 8 km margin around it, averaged onto ``gsd_m`` cells (brightness: the mean
+  of the four bands), plus the imager's own Gaussian noise (``noise``,
+  reflectance). Images are taken every ``cadence_s`` (at multiples of it, pass
+  time 0 being one) and an image taken at ``t`` is usable from ``t + latency_s``.
+* **Detection** (:func:`dyntarget.geo.detect`): brightness above the clear-sky
+  background (the same ground without plume or cloud: a clear-day composite)
+  by ``threshold`` on GEO cells — not the look-ahead's classifiers. It takes
+  meteorological clouds for plumes too.
+* **Nowcast** (:func:`dyntarget.geo.nowcast`, pysteps): the anomaly of the last
+  usable images (up to three) carried to when the satellite will be over each
+  GEO row, then thresholded again; each connected detection over the strip is
+  a :class:`~dyntarget.geo.Target`. Its value per pointing is its nowcast
+  anomaly times its *persistence* (the cell's smallest anomaly over the images
+  over its last one): a vent's plume stays put, a drifting cloud does not, so
+  clouds weigh little (and so do detached volcanic clouds: a known cost).
+* **Blueprint** (:func:`dyntarget.geo.plan_blueprint`), computed on the ground
+  before the pass from the images usable at pass time 0, and uplinked.
+* **Gate** (:class:`BlueprintGate`): onboard, each frame's plan keeps at most
+  the pointings a target still has in its budget, drops the pointings of
+  targets the blueprint gave up, and flies pointings on plumes the blueprint
+  does not hold out of its reserve.
+* **Omniscient** (:func:`omniscient_targets`): the blueprint planned on the true
+  plumes, each where it is when the satellite is over it, no latency, no noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from dyntarget.errors import InvalidParameterError, InvalidSceneError
+from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint
+from dyntarget.scene import block_mean
+from dyntarget.schedule import get_agility
+
+MARGIN_M = 8_000.0
+"""GEO coverage beyond the strip on every side, metres (context for the motion)."""
+SUBSAMPLE = 8
+"""Render pixels per GEO cell side."""
+NEED_FILL = 2.0
+"""Pointings a plume is worth per WFOV pixel of its area (about what the look-ahead's
+lawnmower flies over a plume it has time for)."""
+CONTRAST = 0.3
+"""Brightness of a plume over the ground (reflectance): a GEO cell's anomaly over it
+is the fraction of the cell the plume covers."""
+SPAN_CELLS = 3
+"""A GEO target's rows, widened by this many GEO cells each way (the narrow plume near
+the vent is below the threshold on 2 km cells; what GEO sees is the spread plume downwind)."""
+OMNISCIENT_REACH_M = 30_000.0
+"""The omniscient truth is rendered only within this distance of a vent or volcanic cloud."""
+NEED_MAX = 400
+LEAD_STEPS = 8
+"""Lead times the nowcast is computed at, spread over the pass (each GEO row takes the nearest)."""
+OBSERVE_BEFORE_NADIR_S = 20.0
+"""A target is taken to be observed this long before the satellite is over it (mid-window)."""
+MAX_RENDER_ROWS = 8192
+
+
+@dataclass(frozen=True)
+class GeoSettings:
+    """Settings of the geostationary stream and of the blueprint.
+
+    Parameters
+    ----------
+    gsd_m : GEO cell size, m (coarser than the look-ahead's WFOV pixels).
+    cadence_s : seconds between GEO images (> 0).
+    latency_s : an image taken at ``t`` is usable from ``t + latency_s`` (>= 0).
+    noise : std of the GEO brightness noise, reflectance.
+    threshold : detection threshold above the background, reflectance.
+    reserve : fraction of sensor time the blueprint leaves for the look-ahead's own finds.
+    history_s : how far before the pass the GEO archive goes, s.
+    omniscient : plan the blueprint on the true plumes instead (the bound).
+    """
+
+    gsd_m: float = 2000.0
+    cadence_s: float = 600.0
+    latency_s: float = 300.0
+    noise: float = 0.005
+    threshold: float = 0.03
+    reserve: float = 0.1
+    history_s: float = 3600.0
+    omniscient: bool = False
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (
+            ("gsd_m", 1.0, 50_000.0),
+            ("cadence_s", 1e-9, 86_400.0),
+            ("latency_s", 0.0, 86_400.0),
+            ("noise", 0.0, 1.0),
+            ("threshold", 1e-6, 1.0),
+            ("reserve", 0.0, 0.9),
+            ("history_s", 0.0, 86_400.0),
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise InvalidParameterError(f"geo {name}: expected a number, got {v!r}")
+            if not lo <= v <= hi:
+                what = "> 0" if name == "cadence_s" else f"in [{lo:g}, {hi:g}]"
+                raise InvalidParameterError(f"geo {name}: expected {what}, got {v!r}")
+
+    def check_against(self, wfov_gsd_m: float) -> None:
+        """Refuse a GEO grid finer than the look-ahead's WFOV pixels.
+
+        Parameters
+        ----------
+        wfov_gsd_m : float
+            The look-ahead's WFOV ground sampling distance, m.
+        """
+        if self.gsd_m <= wfov_gsd_m:
+            raise InvalidParameterError(
+                f"geo gsd_m: {self.gsd_m:g} m is not coarser than the look-ahead's "
+                f"{wfov_gsd_m:g} m WFOV pixels"
+            )
+
+
+def image_times(settings: GeoSettings, t_plan: float) -> list[float]:
+    """Acquisition times of the GEO images usable at ``t_plan`` (oldest first, at most three).
+
+    Parameters
+    ----------
+    settings : GeoSettings
+    t_plan : when the blueprint is planned, pass seconds.
+
+    Returns
+    -------
+    list of float
+
+    Examples
+    --------
+    >>> image_times(GeoSettings(cadence_s=600, latency_s=300), 0.0)
+    [-1800.0, -1200.0, -600.0]
+    >>> image_times(GeoSettings(latency_s=900, history_s=1000), 0.0)
+    []
+    """
+    c = settings.cadence_s
+    last = math.floor((t_plan - settings.latency_s) / c + 1e-9) * c
+    times = [last - k * c for k in range(3)]
+    return sorted(t for t in times if t >= -settings.history_s - 1e-9)
+
+
+class GeoStream:
+    """The GEO images of a synthetic strip's world (see the module docstring).
+
+    Parameters
+    ----------
+    world : a moving strip (:class:`~dyntarget.fly.strip.MovingStrip` or ``LongStrip``).
+    settings : GeoSettings
+    """
+
+    def __init__(self, world: Any, settings: GeoSettings) -> None:
+        from dyntarget.synth.dynamic import World as MovingWorld
+
+        spec = getattr(world, "spec", None)
+        if spec is None:
+            raise InvalidSceneError(
+                f"strip {world.id!r}: --geo needs a synthetic strip (its world renders the "
+                "GEO stream); a GeoTIFF strip has no world to render"
+            )
+        self.settings, self.strip = settings, world
+        g = settings.gsd_m / SUBSAMPLE
+        g = max(g, spec.gsd)
+        self.m = max(1, round(settings.gsd_m / g))  # render px per GEO cell
+        g = settings.gsd_m / self.m
+        scale = spec.gsd / g
+        self.render_gsd = g
+        coarse = replace(
+            spec,
+            gsd=g,
+            size=max(16, round(spec.size * scale)),
+            vents=tuple(replace(v, x=v.x * scale, y=v.y * scale) for v in spec.vents),
+            clouds=tuple(replace(c, x=c.x * scale, y=c.y * scale) for c in spec.clouds),
+            noise_sigma=0.0,
+        )
+        self.coarse = MovingWorld(coarse)
+        # the clear-sky background: the same ground, no plume, no cloud
+        self._clear = MovingWorld(
+            replace(
+                coarse,
+                vents=tuple(replace(v, emission_optical_depth=1e-9) for v in coarse.vents),
+                clouds=(),
+            )
+        )
+        self._background: np.ndarray | None = None
+        c0, r0, w, h = world.window
+        G = settings.gsd_m
+        x0, x1 = c0 * spec.gsd - MARGIN_M, (c0 + w) * spec.gsd + MARGIN_M
+        y0, y1 = r0 * spec.gsd - MARGIN_M, (r0 + h) * spec.gsd + MARGIN_M
+        self.cell0 = (math.floor(x0 / G), math.floor(y0 / G))  # GEO cell of the grid's corner
+        self.cells = (math.ceil(y1 / G) - self.cell0[1], math.ceil(x1 / G) - self.cell0[0])
+        self._images: dict[float, np.ndarray] = {}
+
+    def background(self) -> np.ndarray:
+        """The clear-sky brightness of every GEO cell (no plume, no cloud, no noise).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(rows, cols)`` brightness.
+        """
+        if self._background is None:
+            self._background = self._render(self._clear, 0.0)
+        return self._background
+
+    def _render(self, world: Any, t: float) -> np.ndarray:
+        m = self.m
+        nrow, ncol = self.cells
+        cx, cy = self.cell0
+        out = np.empty((nrow, ncol), np.float32)
+        step = max(1, MAX_RENDER_ROWS // m)
+        for a in range(0, nrow, step):
+            b = min(nrow, a + step)
+            f = world.render(t, (cx * m, (cy + a) * m, ncol * m, (b - a) * m), noise=False)
+            out[a:b] = block_mean(f.image.mean(axis=0, keepdims=True), m)[0]
+        return out
+
+    def image(self, t: float) -> np.ndarray:
+        """The GEO brightness image taken at ``t`` (pass seconds), noise included.
+
+        Parameters
+        ----------
+        t : float
+            Acquisition time.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(rows, cols)`` brightness on GEO cells (row 0: the strip's top, as the strip).
+        """
+        hit = self._images.get(t)
+        if hit is not None:
+            return hit
+        out = self._render(self.coarse, t)
+        if self.settings.noise > 0:
+            rng = np.random.default_rng([self.strip.spec.seed, 0x6E0, round(t * 1000) & 0xFFFFFFFF])
+            out += rng.normal(0.0, self.settings.noise, out.shape).astype(np.float32)
+        self._images[t] = out
+        return out
+
+    def strip_rows(self, gy: np.ndarray) -> np.ndarray:
+        """High-resolution strip rows of the centres of GEO rows ``gy``."""
+        s = self.strip.spec
+        return (self.cell0[1] + np.asarray(gy) + 0.5) * self.settings.gsd_m / s.gsd - (
+            self.strip.window[1]
+        )
+
+    def strip_cols(self) -> tuple[int, int]:
+        """GEO columns overlapping the strip (first, last + 1)."""
+        s, G = self.strip.spec, self.settings.gsd_m
+        c0, _, w, _ = self.strip.window
+        a = math.floor(c0 * s.gsd / G) - self.cell0[0]
+        b = math.ceil((c0 + w) * s.gsd / G) - self.cell0[0]
+        return a, b
+
+
+def _along_of_row(frames: Any, row_w: np.ndarray) -> np.ndarray:
+    """Pass ground coordinate (ahead of nadir at t = 0, m) of strip WFOV rows."""
+    g = frames.geometry
+    hw = frames.wfov_shape[0]
+    top = hw - frames.frame_px
+    return g.look_ahead_m + ((frames.frame_px - 1) / 2.0 - (np.asarray(row_w) - top)) * g.wfov_gsd_m
+
+
+def _targets_from_mask(
+    mask: np.ndarray,
+    value_map: np.ndarray,
+    row_w: np.ndarray,
+    frames: Any,
+    cell_m: float,
+    cross_m: np.ndarray,
+    margin_rows: float,
+    fraction: np.ndarray | None = None,
+) -> list[Target]:
+    """One target per 8-connected component of ``mask`` (rows: along-track)."""
+    n, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    out = []
+    gsd_w = frames.geometry.wfov_gsd_m
+    for i in range(1, n):
+        rr, cc = np.nonzero(comp == i)
+        rows = row_w[rr]
+        cover = len(rr) if fraction is None else float(np.sum(fraction[rr, cc]))
+        area_px = cover * (cell_m / gsd_w) ** 2
+        need = int(np.clip(round(area_px * NEED_FILL), 1, NEED_MAX))
+        along = float(np.mean(_along_of_row(frames, rows)))
+        value = float(np.mean(value_map[rr, cc]))
+        out.append(
+            Target(
+                along,
+                float(np.mean(cross_m[cc])),
+                value,
+                need,
+                (float(rows.min() - margin_rows), float(rows.max() + margin_rows)),
+            )
+        )
+    return out
+
+
+def geo_targets(
+    stream: GeoStream, frames: Any, factor: int, t_plan: float = 0.0
+) -> tuple[list[Target], dict[str, Any]]:
+    """Targets for the blueprint from the GEO images usable at ``t_plan``, nowcast to overpass.
+
+    Parameters
+    ----------
+    stream : GeoStream
+    frames : the pass's :class:`~dyntarget.fly.loop.FramePlan`.
+    factor : high-res -> WFOV factor.
+    t_plan : when the blueprint is planned, pass seconds.
+
+    Returns
+    -------
+    (targets, info): the targets, and what was used (image times, motion).
+    """
+    s = stream.settings
+    times = image_times(s, t_plan)
+    info: dict[str, Any] = {"images": times}
+    if not times:
+        return [], {**info, "note": "no GEO image usable before the pass: look-ahead only"}
+    bg = stream.background()
+    fields = [detect(stream.image(t), s.threshold, bg)[1] for t in times]
+    nrow = stream.cells[0]
+    row_w = stream.strip_rows(np.arange(nrow)) / factor
+    v = frames.geometry.ground_speed
+    t_obs = np.maximum(_along_of_row(frames, row_w) / v - OBSERVE_BEFORE_NADIR_S, 0.0)
+    leads_all = np.maximum(t_obs - times[-1], 0.0)
+    lo, hi = float(leads_all.min()), float(leads_all.max())
+    leads = list(np.linspace(lo, hi, LEAD_STEPS)) if hi > lo else [lo]
+    out, vel = nowcast(fields, s.cadence_s, leads)
+    pick = np.abs(leads_all[:, None] - np.asarray(leads)[None, :]).argmin(axis=1)
+    composite = out[pick, np.arange(nrow)]  # (nrow, ncol): each row at its own lead
+    # persistence: a vent's plume stays where it is from image to image, a drifting
+    # cloud does not: weight each cell by its smallest anomaly over the images
+    # relative to the last one (1: steady; about 0: something passing through)
+    last = np.maximum(fields[-1], 1e-6)
+    steady = np.clip(np.minimum.reduce(fields) / last, 0.0, 1.0) if len(fields) > 1 else 1.0
+    a, b = stream.strip_cols()
+    weight = np.ones_like(composite) * steady
+    full = composite * weight > s.threshold
+    # components on the whole GEO grid (a plume blown across the track spreads beside
+    # the strip), kept where they reach the strip's columns or the next ones
+    a1, b1 = max(0, a - 1), min(composite.shape[1], b + 1)
+    _, comp = cv2.connectedComponents(full.astype(np.uint8), connectivity=8)
+    near = np.zeros_like(full)
+    near[:, a1:b1] = True
+    keep_ids = np.unique(comp[near & full])
+    mask = np.isin(comp, keep_ids[keep_ids > 0])[:, a1:b1]
+    sub = composite[:, a1:b1]
+    # cross-track: centre of each GEO column's overlap with the strip, metres from its centre
+    spec, (c0, _, w, _) = stream.strip.spec, stream.strip.window
+    cx = (stream.cell0[0] + np.arange(a1, b1) + 0.5) * s.gsd_m
+    lo_x, hi_x = c0 * spec.gsd, (c0 + w) * spec.gsd
+    cross = np.clip(cx, lo_x, hi_x) - (lo_x + hi_x) / 2.0
+    # the row range of a target, widened (its position is that coarse)
+    margin = SPAN_CELLS * s.gsd_m / (spec.gsd * factor)
+    frac = np.clip(sub / CONTRAST, 0.0, 1.0)
+    targets = _targets_from_mask(
+        mask, sub * weight[:, a1:b1], row_w, frames, s.gsd_m, cross, margin, frac
+    )
+    speed = float(np.hypot(*np.median(vel.reshape(2, -1), axis=1)) * s.gsd_m)
+    return targets, {**info, "motion_mps": round(speed, 3)}
+
+
+def omniscient_targets(world: Any, frames: Any, factor: int) -> list[Target]:
+    """The true plumes as targets: each band of the strip at the time the satellite is over it.
+
+    Rendered on the WFOV grid (the true label, no noise, no latency), so each
+    target's rows, area and need are the true ones.
+
+    Parameters
+    ----------
+    world : a moving strip.
+    frames : the pass's FramePlan.
+    factor : high-res -> WFOV factor.
+
+    Returns
+    -------
+    list of Target
+    """
+    from dyntarget.synth.dynamic import World as MovingWorld
+
+    spec = world.spec
+    c0, r0, w, h = world.window
+    gw = spec.gsd * factor
+    coarse = MovingWorld(
+        replace(
+            spec,
+            gsd=gw,
+            size=max(16, round(spec.size / factor)),
+            vents=tuple(replace(v, x=v.x / factor, y=v.y / factor) for v in spec.vents),
+            clouds=tuple(replace(c, x=c.x / factor, y=c.y / factor) for c in spec.clouds),
+        )
+    )
+    hw, ww = h // factor, w // factor
+    label = np.zeros((hw, ww), bool)
+    value = np.zeros((hw, ww), np.float32)
+    v = frames.geometry.ground_speed
+    band = 1024
+    reach = OMNISCIENT_REACH_M / gw
+    _, uy = spec.wind.velocity_px(spec.gsd)
+    sources = [v_.y / factor - r0 / factor for v_ in spec.vents]
+    for a in range(0, hw, band):
+        b = min(hw, a + band)
+        t_mid = (_along_of_row(frames, np.array([(a + b) / 2.0]))[0]) / v
+        near = [y for y in sources if a - reach <= y <= b + reach]
+        near += [
+            (c.y + uy * t_mid) / factor - r0 / factor
+            for c in spec.clouds
+            if c.volcanic and a - reach <= (c.y + uy * t_mid) / factor - r0 / factor <= b + reach
+        ]
+        if not near:
+            continue
+        mid = np.array([(a + b) / 2.0])
+        t = float(max(_along_of_row(frames, mid)[0] / v - OBSERVE_BEFORE_NADIR_S, 0.0))
+        mk, tau = coarse.truth(t, (c0 // factor, r0 // factor + a, ww, b - a))
+        label[a:b], value[a:b] = mk, 1.0 - np.exp(-tau)
+    cross = (np.arange(ww) - (ww - 1) / 2.0) * gw
+    return _targets_from_mask(label, value, np.arange(hw, dtype=float), frames, gw, cross, 2.0)
+
+
+class BlueprintGate:
+    """Onboard refinement within a blueprint: budgets per target, a reserve for new plumes.
+
+    Parameters
+    ----------
+    blueprint : dyntarget.geo.Blueprint
+        Its targets' ``span`` are strip WFOV rows.
+    """
+
+    def __init__(self, blueprint: Blueprint) -> None:
+        self.blueprint = blueprint
+        self.left = blueprint.budget.astype(np.int64).copy()
+        self.reserve_left = int(blueprint.reserve)
+        spans = np.array([t.span for t in blueprint.targets], np.float64).reshape(-1, 2)
+        self.lo, self.hi = spans[:, 0], spans[:, 1]
+        self.mid = spans.mean(axis=1) if len(spans) else np.zeros(0)
+        self.dropped_given_up = 0
+        self.dropped_budget = 0
+        self.from_reserve = 0
+
+    def target_of(self, rows: np.ndarray) -> np.ndarray:
+        """The blueprint target holding each strip WFOV row (nearest centre; -1: none)."""
+        rows = np.asarray(rows, np.float64)
+        if len(self.lo) == 0:
+            return np.full(len(rows), -1, np.int64)
+        inside = (rows[:, None] >= self.lo[None]) & (rows[:, None] <= self.hi[None])
+        d = np.where(inside, np.abs(rows[:, None] - self.mid[None]), np.inf)
+        best = d.argmin(axis=1)
+        return np.where(np.isfinite(d.min(axis=1)), best, -1)
+
+    def filter(self, rows: np.ndarray) -> np.ndarray:
+        """Which of a plan's pointings (strip WFOV rows, plan order) may be flown.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray
+            Strip WFOV row of each pointing.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean keep mask.
+        """
+        tgt = self.target_of(rows)
+        keep = np.zeros(len(tgt), bool)
+        used = np.zeros(len(self.left), np.int64)
+        reserve = 0
+        for n, i in enumerate(tgt):
+            if i < 0:
+                if reserve < self.reserve_left:
+                    keep[n], reserve = True, reserve + 1
+            elif self.blueprint.budget[i] == 0:
+                self.dropped_given_up += 1
+            elif used[i] < self.left[i]:
+                keep[n] = True
+                used[i] += 1
+            else:
+                self.dropped_budget += 1
+        return keep
+
+    def spend(self, rows: np.ndarray) -> None:
+        """Count flown pointings (strip WFOV rows) against the budgets and the reserve.
+
+        Parameters
+        ----------
+        rows : numpy.ndarray
+            Strip WFOV row of each flown pointing.
+        """
+        for i in self.target_of(rows):
+            if i < 0:
+                self.reserve_left -= 1
+                self.from_reserve += 1
+            else:
+                self.left[i] -= 1
+
+    def report(self) -> dict[str, Any]:
+        """What the gate did (for summary.json)."""
+        return {
+            "pointings_dropped_given_up": self.dropped_given_up,
+            "pointings_dropped_over_budget": self.dropped_budget,
+            "pointings_from_reserve": self.from_reserve,
+            "reserve_left": self.reserve_left,
+        }
+
+
+def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
+    """The blueprint and gate of a pass (``None`` gate: no GEO image arrived: look-ahead only).
+
+    Parameters
+    ----------
+    world : a moving strip.
+    frames : its FramePlan.
+    config : the PassConfig (agility, factor).
+    settings : GeoSettings
+
+    Returns
+    -------
+    (gate or None, info dict for summary.json)
+    """
+    import time
+
+    settings.check_against(frames.geometry.wfov_gsd_m)
+    agility = get_agility(config.agility)
+    t0 = time.perf_counter()
+    if settings.omniscient:
+        targets, info = omniscient_targets(world, frames, config.factor), {"images": "truth"}
+    else:
+        streams = world.__dict__.setdefault("_geo_streams", {})  # the same images, reused
+        key = (settings.gsd_m, settings.noise)
+        if key not in streams:
+            streams[key] = GeoStream(world, settings)
+        stream = streams[key]
+        stream.settings = settings
+        targets, info = geo_targets(stream, frames, config.factor)
+    t_targets = time.perf_counter() - t0
+    doc: dict[str, Any] = {"settings": asdict(settings), "computed": "ground", **info}
+    if not targets and not info.get("images"):
+        return None, {**doc, "targets": 0}
+    horizon = frames.n_frames * frames.cadence_s + frames.geometry.look_ahead_m / (
+        frames.geometry.ground_speed
+    )
+    t0 = time.perf_counter()
+    bp = plan_blueprint(
+        targets, replace(frames.geometry, start_s=0.0), agility, horizon_s=horizon,
+        reserve=settings.reserve,
+    )  # fmt: skip
+    t_bp = time.perf_counter() - t0
+    doc |= {
+        "targets": len(bp.targets),
+        "targets_chosen": len(bp.chosen),
+        "blueprint_pointings": int(bp.budget.sum()),
+        "reserve_pointings": int(bp.reserve),
+        "blueprint_value": round(bp.value, 4),
+        "targets_s": round(t_targets, 4),
+        "blueprint_s": round(t_bp, 4),
+        "slots": bp.info.get("slots", 0),
+    }
+    return BlueprintGate(bp), doc

@@ -1,0 +1,23 @@
+"""Long-horizon foresight from geostationary imagery: detect, nowcast, plan a blueprint.
+
+A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
+
+* :func:`detect` — plume candidates on a coarse GEO image: a brightness threshold
+  above the image's background (the median), on coarse pixels. It cannot tell a
+  plume from a meteorological cloud (both are bright): clouds are false targets.
+* :func:`nowcast` — the GEO field carried to future times with pysteps
+  (dense Lucas-Kanade motion from the last images, semi-Lagrangian
+  extrapolation); needs the ``[geo]`` extra (pysteps).
+* :func:`plan_blueprint` — which targets to observe, in what order, with how
+  many pointings, over the whole pass: a dynamic programme over targets in
+  along-track order and sensor time slots (polynomial; see its docstring).
+
+The blueprint is computed **on the ground** (where the GEO images are) before
+the pass and uplinked; the onboard loop only refines within it
+(:mod:`dyntarget.fly.geo`). Nothing here needs pysteps except :func:`nowcast`.
+"""
+
+from dyntarget.geo.blueprint import Blueprint, Target, plan_blueprint
+from dyntarget.geo.nowcast import detect, nowcast
+
+__all__ = ["Blueprint", "Target", "detect", "nowcast", "plan_blueprint"]
