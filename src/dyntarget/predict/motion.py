@@ -919,7 +919,8 @@ def _component_regimes(
     compared with its own past, not with its neighbour's. Its upwind edge moving less
     than :data:`ATTACHED_UPWIND` of the displacement makes it attached, unless that end
     touches the image border (a cloud drifting in: no vent seen). Its front speed is how
-    fast it grows along the flow: the area gained between the looks over its mean width
+    fast it grows along the flow: the area gained between the looks (against the whole
+    previous plumes its footprint touches) over its mean width
     (area / length), per second; 0 for a mature plume whose far end fades as fast as it
     is fed, or lies beyond the image border; at most the flow speed. Work is done on
     each plume's bounding box (plus the displacement), so many fragments stay cheap.
@@ -927,6 +928,9 @@ def _component_regimes(
     image of shape ``full``; positions returned are the image's.
     """
     n, labels, stats, cents = cv2.connectedComponentsWithStats(cm.astype(np.uint8), connectivity=8)
+    _, prev_labels, prev_stats, _ = cv2.connectedComponentsWithStats(
+        pm.astype(np.uint8), connectivity=8
+    )
     ch, cw = cm.shape
     ox, oy = origin
     h, w = full if full is not None else cm.shape
@@ -974,7 +978,11 @@ def _component_regimes(
             # the front's advance from the plume's growth: area gained / mean width (the
             # area over the length), steadier than the far end's flickering tip
             length = max(down1 - up1, 1.0)
-            growth = (comp.sum() - prev.sum()) * length / comp.sum()
+            # growth against the whole previous plume(s) it came from (its footprint alone
+            # misses the part that moved out of it, and would read as growth)
+            ids = np.unique(prev_labels[wy0:wy1, wx0:wx1][prev])
+            prev_area = int(prev_stats[ids[ids > 0], cv2.CC_STAT_AREA].sum())
+            growth = (comp.sum() - prev_area) * length / comp.sum()
             front = 0.0 if at_border else float(np.clip(growth / dt, 0.0, along / dt))
             vx, vy = _vent(comp, u)
             out.append((vx + wx0 + ox, vy + wy0 + oy, front))
