@@ -203,6 +203,8 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
         )  # fmt: skip
     current_raw = None
     if args.previous is None:
+        if prior is None:  # _check_args asks for --previous or --wind-mps
+            raise InvalidParameterError("--predict: give --previous or --wind-mps")
         motion = prior
     else:
         prev = _read_previous(args, wfov)

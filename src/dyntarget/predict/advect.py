@@ -70,7 +70,7 @@ def check_lead(lead_s: object) -> float:
 
 
 def _shift(field: np.ndarray, dx: float, dy: float) -> np.ndarray:
-    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    m = np.array([[1, 0, dx], [0, 1, dy]], np.float32)
     h, w = field.shape
     return cv2.warpAffine(
         field, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0

@@ -445,8 +445,8 @@ def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndar
     (16, 16, 2)
     """
     if flow == "dis":
-        dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-        return dis.calc(a, b, None)
+        dis = cv2.DISOpticalFlow.create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        return np.asarray(dis.calc(a, b, None))  # type: ignore[call-overload]  # None: a new field
     if flow == "farneback":  # Gaussian 9 px window, 5 iterations: the most accurate we measured
         return cv2.calcOpticalFlowFarneback(
             a, b, None, 0.5, 4, FARNEBACK_WINDOW, 5, 5, 1.1, cv2.OPTFLOW_FARNEBACK_GAUSSIAN
@@ -608,7 +608,7 @@ def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.moveaxis(np.nan_to_num(v), 0, -1).astype(np.float32)
 
 
-def estimate_motion(
+def estimate_motion(  # noqa: C901, PLR0912, PLR0915  (to split: window flow, ground, field, regimes)
     previous: np.ndarray,
     current: np.ndarray,
     interval_s: float,
@@ -734,7 +734,7 @@ def estimate_motion(
         consistent = fb_err < np.maximum(1.0, 0.1 * np.hypot(fwd[..., 0], fwd[..., 1]))
     # texture that pins the flow down in both directions (not just an edge): the smaller
     # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
-    textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, 3) > MIN_EIGEN
+    textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, ksize=3) > MIN_EIGEN
     fwd_px = fwd * f  # full-grid pixels
     inner = cv2.erode(pmf.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     if not inner.any():
@@ -802,7 +802,7 @@ def estimate_motion(
         )
     if decided == "moving":
         gdx = gdy = 0.0
-    rel = fwd_px - np.float32([gdx, gdy])
+    rel = fwd_px - np.array([gdx, gdy], np.float32)
 
     if decided == "moving" and int(votes.sum()) * f * f < MOVING_ALL_VOTES:
         votes = votes | ground_votes  # few plume votes: the moving background is the same weather
@@ -940,7 +940,9 @@ def _component_regimes(
         if stats[i, cv2.CC_STAT_AREA] < MIN_COMPONENT_PX:
             continue
         if dense is not None:
-            v = dense.sample(np.float32([cents[i][0] + ox]), np.float32([cents[i][1] + oy]))[0]
+            v = dense.sample(
+                np.array([cents[i][0] + ox], np.float32), np.array([cents[i][1] + oy], np.float32)
+            )[0]
             di = (float(v[0]) * dt, float(v[1]) * dt)
         else:
             di = d
@@ -954,11 +956,11 @@ def _component_regimes(
         wx0, wy0 = max(bx - pad, 0), max(by - pad, 0)
         wx1, wy1 = min(bx + bw + pad, cw), min(by + bh + pad, ch)
         comp = labels[wy0:wy1, wx0:wx1] == i
-        back = np.float32([[1, 0, -di[0]], [0, 1, -di[1]]])
-        carried = cv2.warpAffine(
+        back = np.array([[1, 0, -di[0]], [0, 1, -di[1]]], np.float32)
+        moved = cv2.warpAffine(
             comp.astype(np.uint8), back, comp.shape[::-1], flags=cv2.INTER_NEAREST
         )
-        carried = cv2.dilate(carried, np.ones((3, 3), np.uint8)) > 0
+        carried = cv2.dilate(moved, np.ones((3, 3), np.uint8)) > 0
         prev = carried & pm[wy0:wy1, wx0:wx1]
         if prev.sum() < MIN_COMPONENT_PX:
             out.append(None)  # new since the previous look: nothing to compare; moves with the flow
