@@ -143,7 +143,7 @@ def image_times(settings: GeoSettings, t_plan: float) -> list[float]:
     """
     c = settings.cadence_s
     last = math.floor((t_plan - settings.latency_s) / c + 1e-9) * c
-    times = [last - k * c for k in range(3)]
+    times = [float(last - k * c) for k in range(3)]
     return sorted(t for t in times if t >= -settings.history_s - 1e-9)
 
 
