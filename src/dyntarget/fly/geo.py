@@ -143,7 +143,7 @@ def image_times(settings: GeoSettings, t_plan: float) -> list[float]:
     """
     c = settings.cadence_s
     last = math.floor((t_plan - settings.latency_s) / c + 1e-9) * c
-    times = [last - k * c for k in range(3)]
+    times = [float(last - k * c) for k in range(3)]
     return sorted(t for t in times if t >= -settings.history_s - 1e-9)
 
 
@@ -246,14 +246,31 @@ class GeoStream:
         return out
 
     def strip_rows(self, gy: np.ndarray) -> np.ndarray:
-        """High-resolution strip rows of the centres of GEO rows ``gy``."""
+        """High-resolution strip rows of the centres of GEO rows ``gy``.
+
+        Parameters
+        ----------
+        gy : numpy.ndarray
+            GEO rows.
+
+        Returns
+        -------
+        numpy.ndarray
+            Strip rows (high resolution, may lie outside the strip).
+        """
         s = self.strip.spec
         return (self.cell0[1] + np.asarray(gy) + 0.5) * self.settings.gsd_m / s.gsd - (
             self.strip.window[1]
         )
 
     def strip_cols(self) -> tuple[int, int]:
-        """GEO columns overlapping the strip (first, last + 1)."""
+        """GEO columns overlapping the strip.
+
+        Returns
+        -------
+        tuple of int
+            ``(first, last + 1)``.
+        """
         s, G = self.strip.spec, self.settings.gsd_m
         c0, _, w, _ = self.strip.window
         a = math.floor(c0 * s.gsd / G) - self.cell0[0]
@@ -446,7 +463,18 @@ class BlueprintGate:
         self.from_reserve = 0
 
     def target_of(self, rows: np.ndarray) -> np.ndarray:
-        """The blueprint target holding each strip WFOV row (nearest centre; -1: none)."""
+        """The blueprint target holding each strip WFOV row (nearest centre; -1: none).
+
+        Parameters
+        ----------
+        rows : numpy.ndarray
+            Strip WFOV rows.
+
+        Returns
+        -------
+        numpy.ndarray
+            Target index per row, -1 outside every target.
+        """
         rows = np.asarray(rows, np.float64)
         if len(self.lo) == 0:
             return np.full(len(rows), -1, np.int64)
@@ -501,7 +529,13 @@ class BlueprintGate:
                 self.left[i] -= 1
 
     def report(self) -> dict[str, Any]:
-        """What the gate did (for summary.json)."""
+        """What the gate did (for summary.json).
+
+        Returns
+        -------
+        dict
+            Pointings dropped (given up, over budget), taken from the reserve, reserve left.
+        """
         return {
             "pointings_dropped_given_up": self.dropped_given_up,
             "pointings_dropped_over_budget": self.dropped_budget,

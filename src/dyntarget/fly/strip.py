@@ -443,13 +443,30 @@ class LongStrip(MovingStrip):
         return round(t / self.truth_step_s) * self.truth_step_s if self.truth_step_s > 0 else t
 
     def truth_at(self, t: float) -> Truth:
-        """Not available on a long strip (the whole truth is never built): see :meth:`truth_rows`."""
+        """Not available on a long strip (the whole truth is never built): see :meth:`truth_rows`.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        Truth
+            Never: raises :class:`~dyntarget.errors.InvalidParameterError`.
+        """
         raise InvalidParameterError(
             f"strip {self.id!r}: a long strip renders its truth by rows (truth_rows)"
         )
 
     def plumes_at_start(self) -> frozenset[int]:
-        """Plume ids present at t = 0: every vent erupting by then, volcanic clouds over the strip."""
+        """Plume ids present at t = 0: every vent erupting by then, volcanic clouds over the strip.
+
+        Returns
+        -------
+        frozenset of int
+            Ids as :meth:`truth_rows` numbers them (vents first, then volcanic clouds).
+        """
         s = self.spec
         c0, r0, w, h = self.window
         ids = [i + 1 for i, v in enumerate(s.vents) if v.eruption_age_s > 0]

@@ -65,6 +65,8 @@ class Blueprint:
         The blueprint's expected utility.
     slot_s : float
         The DP's time slot (one pointing's time, with the reserve).
+    info : dict
+        Sizes of the programme (``slots``).
     """
 
     targets: list[Target]

@@ -108,8 +108,12 @@ def nowcast(
         raise InvalidParameterError(
             "nowcasting GEO images needs pysteps: pip install 'dyntarget[geo]'"
         ) from None
+    import warnings
+
     stack = np.stack([np.asarray(f, np.float64) for f in fields])
-    v = motion.get_method("LK")(stack, verbose=False)  # px per interval
+    with warnings.catch_warnings():  # pysteps' LK: statistics of empty feature sets
+        warnings.simplefilter("ignore", RuntimeWarning)
+        v = motion.get_method("LK")(stack, verbose=False)  # px per interval
     v = np.nan_to_num(np.asarray(v, np.float64))
     out = np.zeros((len(leads), *last.shape))
     steps = leads / interval_s
