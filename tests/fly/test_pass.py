@@ -294,3 +294,29 @@ def test_the_pass_loop_keeps_attached_plumes_of_a_mixed_scene_at_their_vent(monk
     # A only (it stretches west, downwind, from its vent), never B, in A's rows
     assert cols.max() <= 9
     assert rows.min() >= 18 and rows.max() <= 21
+
+
+@pytest.mark.parametrize("ground", ["fixed", "moving"])
+def test_the_pass_asks_two_look_motion_for_the_ground_it_was_given(monkeypatch, ground):
+    from dyntarget.fly import loop
+
+    asked = []
+    real = loop.two_look_motion
+
+    def record(*args, **kw):
+        asked.append(kw.get("ground"))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(loop, "two_look_motion", record)
+    world = _strip([(904, 920, 8, 40)])
+    config = PassConfig(
+        agility="unlimited", compute_budget_s=0.01, predict="two-looks", ground=ground
+    )
+    fly_pass(world, None, config)
+    assert asked and set(asked) == {ground}
+    assert config.as_dict()["ground"] == ground  # recorded with the flown trajectory
+
+
+def test_an_unknown_ground_is_refused():
+    with pytest.raises(InvalidParameterError, match="ground: expected one of auto, fixed"):
+        PassConfig(ground="sea")

@@ -74,6 +74,7 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
         predict=args.predict,
         wind_mps=args.wind_mps,
         wind_from_deg=args.wind_from_deg,
+        ground=args.ground,
         pipeline=PipelineConfig(plan=plan_config(args)),
     )
 
@@ -332,6 +333,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="none: plan on the look as it is (static, default); wind: carry the plume with a "
         "wind prior; two-looks: motion from this frame's overlap with the previous one, "
         "checked against the wind prior when there is one",
+    )
+    pr.add_argument(
+        "--ground",
+        choices=["auto", "fixed", "moving"],
+        default="auto",
+        help="with two-looks: is the background a fixed ground (its shift is misregistration, "
+        "removed) or moving itself (weather, a plume over moving cloud)? auto (default) "
+        "decides from the frames and says so",
     )
     pr.add_argument(
         "--wind-mps",

@@ -59,7 +59,7 @@ from dyntarget.pipeline import (
     schedule_on_prediction,
     two_look_motion,
 )
-from dyntarget.predict import Prediction, wind_motion
+from dyntarget.predict import GROUNDS, Prediction, wind_motion
 from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
 from dyntarget.schedule import (
     Agility,
@@ -107,6 +107,8 @@ class PassConfig:
         against the wind prior when there is one).
     wind_mps, wind_from_deg : the wind prior (meteorological convention); by
         default a moving strip's own wind (an ideal forecast).
+    ground : with ``"two-looks"``: ``"auto"`` (decided from the frames),
+        ``"fixed"`` or ``"moving"`` background (:func:`dyntarget.predict.estimate_motion`).
     pipeline : settings of the pipeline run on each frame
         (:class:`~dyntarget.pipeline.PipelineConfig`).
     """
@@ -125,6 +127,7 @@ class PassConfig:
     predict: str = "none"
     wind_mps: float | None = None
     wind_from_deg: float | None = None
+    ground: str = "auto"
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:
@@ -132,6 +135,10 @@ class PassConfig:
         if self.predict not in PREDICT_MODES:
             raise InvalidParameterError(
                 f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
+            )
+        if self.ground not in GROUNDS:
+            raise InvalidParameterError(
+                f"ground: expected one of {', '.join(GROUNDS)}, got {self.ground!r}"
             )
         if self.wind_mps is not None and not (math.isfinite(self.wind_mps) and self.wind_mps >= 0):
             raise InvalidParameterError(f"wind_mps: expected m/s >= 0, got {self.wind_mps!r}")
@@ -411,8 +418,9 @@ class Flown:
         if not self.x:
             return Trajectory.empty(planner, params)
         return Trajectory(
-            np.column_stack([self.x, self.y]), np.asarray(self.part), planner, params, self.t
-        )
+            np.column_stack([self.x, self.y]), np.asarray(self.part), planner, params,
+            np.asarray(self.t, np.float64),
+        )  # fmt: skip
 
 
 @dataclass
@@ -501,7 +509,7 @@ class PassResult:
             Strip, planner, agility, frame and pointing counts, plume pixels, utility,
             ratio plume, plumes observed and in total, median and largest latency.
         """
-        lat = np.array([r.latency_s for r in self.records if not r.dropped]) if self.records else []
+        lat = np.array([r.latency_s for r in self.records if not r.dropped], np.float64)
         observed = {i for i in self.flown.plume_id if i > 0}
         return {
             "strip": self.world_id,
@@ -724,7 +732,7 @@ def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float)
     return image, valid
 
 
-def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
+def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, score)
     k: int,
     world: World,
     classifier: Classifier | None,
@@ -842,6 +850,7 @@ def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
         ready = start + sum(stage.values())
         flown = fly_from(ready)
     sched_t, points = flown.times, flown.trajectory.points
+    assert sched_t is not None  # a scheduled trajectory is timed
     met = None if deadline is None else (ready - t_k) <= deadline
     flown_local = keep[flown.kept]
     if gate is not None and len(flown_local):
@@ -849,6 +858,7 @@ def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
     state.busy_until = ready
     if len(flown_local):
         state.timer_t = flown.end_s + t_k
+        assert flown.end_target is not None  # set whenever a pointing was kept
         along, cross = flown.end_target
         state.target = (along + frames.geometry.ground_speed * t_k, cross)
     # score each flown pointing against the truth at its own time
@@ -859,14 +869,18 @@ def _fly_frame(  # noqa: PLR0915  (next to split: frame, plan, schedule, score)
     for j, (x, y), t_local in zip(flown_local, points, sched_t, strict=True):
         r, c = int(np.floor(y + 0.5)) + top, int(np.floor(x + 0.5))
         t_pass = t_k + float(t_local)
-        ok = 0 <= r < hw and 0 <= c < ww
-        w, b0 = truth.at(t_pass, r) if ok else (None, 0)
-        rb = r - b0
-        ok = ok and bool(w.valid[rb, c])
-        pl = float(w.plume[rb, c]) if ok else 0.0
-        it = float(w.intensity[rb, c]) if ok else 0.0
-        gr = float(w.gradient[rb, c]) if ok else 0.0
-        pid = int(w.ids[rb, c]) if ok and pl > 0 else 0
+        pl = it = gr = 0.0
+        pid = 0
+        if 0 <= r < hw and 0 <= c < ww:
+            w, b0 = truth.at(t_pass, r)
+            rb = r - b0
+            if w.valid[rb, c]:
+                pl, it, gr = (
+                    float(w.plume[rb, c]),
+                    float(w.intensity[rb, c]),
+                    float(w.gradient[rb, c]),
+                )
+                pid = int(w.ids[rb, c]) if pl > 0 else 0
         plume_sum, inten_sum, grad_sum = plume_sum + pl, inten_sum + it, grad_sum + gr
         if pid and pid not in state.plumes_seen:
             state.plumes_seen.add(pid)
@@ -949,6 +963,7 @@ def _motion(k, image, clean, config: PassConfig, frames: FramePlan, world: World
         current_mask=clean,
         prior=prior,
         offset_rows=offset,
+        ground=config.ground,
     )
 
 

@@ -436,7 +436,9 @@ def write_view(
         traj = None
         if n:
             pts = np.column_stack([fl.x[sl], np.asarray(fl.y[sl]) - v.top])
-            traj = Trajectory(pts, np.asarray(fl.part[sl]), result.config.planner, times=fl.t[sl])
+            traj = Trajectory(
+                pts, np.asarray(fl.part[sl]), result.config.planner, times=np.asarray(fl.t[sl])
+            )
         steps.append(
             PassFrame(
                 time_s=round(result.frames.acquired_s(v.frame), 3),

@@ -259,7 +259,7 @@ class MovingStrip:
         """The strip's true wind (what ``predict="wind"`` uses unless a wind is given)."""
         """ISO-8601 UTC of t = 0 (the first frame's acquisition)."""
         self.truth_step_s = truth_step_s
-        self._cache: OrderedDict[float, Truth] = OrderedDict()
+        self._cache: OrderedDict[Any, Truth] = OrderedDict()  # keyed by time (and rows)
         self._capacity = capacity
 
     def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
@@ -310,7 +310,7 @@ class MovingStrip:
             return hit
         scene = self.world.scene(t, self.window, id=self.id)
         ids = np.zeros(self.shape, np.int32)
-        rows, cols = np.nonzero(scene.label)
+        rows, cols = np.nonzero(scene.truth)
         src = self._sources(t)
         if len(rows) and len(src):
             d2 = (cols[:, None] - src[None, :, 0]) ** 2 + (rows[:, None] - src[None, :, 1]) ** 2
@@ -606,7 +606,10 @@ def load_world(path: str | os.PathLike[str], *, truth_step_s: float = 1.0) -> Wo
         if not isinstance(doc, dict) or doc.get("format") != STRIP_FORMAT:
             raise DataFileError(f"{sidecar}: not a {STRIP_FORMAT} sidecar")
         try:
-            spec = WorldSpec.from_dict(doc.get("world"))
+            world = doc.get("world")
+            if not isinstance(world, dict):
+                raise InvalidParameterError(f"world: expected an object, got {world!r:.60}")
+            spec = WorldSpec.from_dict(world)
             win = doc.get("window")
             if not (
                 isinstance(win, list)

@@ -53,12 +53,35 @@ class Truth:
 class World(Protocol):
     """A strip the pass flies over (see the module docstring)."""
 
-    shape: tuple[int, int]
-    gsd: float
-    crs: str | None
-    transform: Affine | None
-    valid: np.ndarray | None
-    id: str
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of the strip, high resolution."""
+        ...
+
+    @property
+    def gsd(self) -> float:
+        """Metres per high-resolution pixel."""
+        ...
+
+    @property
+    def crs(self) -> str | None:
+        """The strip's CRS, ``None`` for pixel coordinates."""
+        ...
+
+    @property
+    def transform(self) -> Affine | None:
+        """The strip's geotransform, ``None`` for pixel coordinates."""
+        ...
+
+    @property
+    def valid(self) -> np.ndarray | None:
+        """Where the strip has data, ``None`` when everywhere."""
+        ...
+
+    @property
+    def id(self) -> str:
+        """The strip's name (its file stem)."""
+        ...
 
     def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
         """Rows ``top:bottom`` of the strip as the look-ahead sensor sees them at ``t``.

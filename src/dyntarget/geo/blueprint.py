@@ -106,7 +106,7 @@ def pointing_s(agility: Agility, geometry: OrbitGeometry) -> float:
     return agility.slew_time_one(step_deg) + agility.settle_s + agility.dwell_s
 
 
-def plan_blueprint(
+def plan_blueprint(  # noqa: PLR0915  (to split: slots, the programme, the walk back)
     targets: list[Target],
     geometry: OrbitGeometry,
     agility: Agility,
@@ -222,14 +222,13 @@ def plan_blueprint(
         kk = 1 + np.argmax(win[:, ::-1] == best[:, None], axis=1)  # ties: the fewest pointings
         F = np.full(T, neg)
         Kfull = np.zeros(T, np.int64)
-        e = arr + 1  # e - 1 = m, the last arrival slot in the window
-        ok = e < T
-        F[e[ok]] = best[ok] + u * e[ok]
-        Kfull[e[ok]] = kk[ok]
-        K = Kfull
+        ends = arr + 1  # ends - 1 = m, the last arrival slot in the window
+        ok = ends < T
+        F[ends[ok]] = best[ok] + u * ends[ok]
+        Kfull[ends[ok]] = kk[ok]
         Jfull = np.full(T, -1, np.int64)
         Jfull[arr] = J
-        Kbest[i], Jbest[i] = K, Jfull
+        Kbest[i], Jbest[i] = Kfull, Jfull
         # running maximum over slots (the sensor may idle after e)
         P[i] = np.maximum.accumulate(F)
         idx = np.where(F == P[i], np.arange(T), 0)
