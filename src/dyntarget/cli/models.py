@@ -115,7 +115,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
         if compiled.target_compiler(target) is None:
             compiled.build_target(target, Path(args.model) / "unused")  # raises, one line
     if native.name == "random-forest":
-        native.estimator  # noqa: B018 (read model.skops now: the export replaces forest.npz)
+        native.estimator  # type: ignore[attr-defined]  # noqa: B018 (read model.skops first)
         for old in compiled.kernel_files(args.model):  # built for the forest.npz replaced now
             old.unlink()
         if (Path(args.model) / compiled.FOREST_FILE).is_file():

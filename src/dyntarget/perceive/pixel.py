@@ -459,9 +459,11 @@ class RandomForest(PixelClassifier):
         Parameters
         ----------
         backend : {"auto", "sklearn", "compiled"}
-            ``"compiled"`` runs the kernel (built once per machine with the C compiler on
-            the PATH, then cached); ``"auto"`` runs it where it builds with AVX-512 (the
-            case measured faster) and scikit-learn otherwise, silently.
+            ``"compiled"`` runs the kernel (a library exported into the model directory, or
+            built once per machine with the C compiler on the PATH, then cached);
+            ``"auto"`` runs it where an exported library fits the CPU or the build runs
+            AVX2 or AVX-512 (the cases measured faster), scikit-learn otherwise
+            (:func:`~dyntarget.perceive.compiled.fast_predictor`).
 
         Returns
         -------

@@ -1,0 +1,172 @@
+"""Random-forest backends side by side, on one fitted forest and one scene, in one run.
+
+The forest is a project random forest (``dyntarget train ... --classifier random-forest``:
+50 trees, depth <= 14) and its ONNX export (``export-onnx``); the scene a 1024 x 1024 px
+WFOV image (1 M pixels, ``(n, 4) float32``). Each backend predicts the plume probability
+of every pixel; the table gives the build time (where there is one), the median of
+``--repeats`` runs after one warm-up, and the largest absolute difference from
+scikit-learn's ``predict_proba`` (the reference, float64, and rounded to float32 as the
+classifiers return it):
+
+* scikit-learn ``predict_proba`` (one call, ``n_jobs=1``; and in the project's chunk pool,
+  one thread per core);
+* ONNX Runtime's TreeEnsemble on ``model.onnx`` with ``intra_op_num_threads`` 1 and 2
+  (sequential execution, all graph optimisations; spinning on and off for 2 threads);
+* TL2cgen (Treelite 4 model, C generated per tree, compiled with gcc; ``nthread`` 1 and 2),
+  with and without threshold quantisation;
+* dyntarget's kernel forced on each path this CPU runs (``avx512``, ``avx2``, ``sse2``,
+  ``portable``), one thread and in the chunk pool.
+
+    python benchmarks/forest_backends.py --model RF --image IMG.tif [--repeats 5]
+        [--out docs/benchmarks/forest_backends.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from dyntarget.evaluate.bench import machine
+from dyntarget.io.atomic import write_text
+
+
+def timed(fn: Callable[[], np.ndarray], repeats: int) -> tuple[list[float], np.ndarray]:
+    """Seconds of ``repeats`` calls after one warm-up, and the last result."""
+    out = fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return times, np.asarray(out, np.float64).ravel()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", required=True, help="random-forest model dir with model.onnx")
+    parser.add_argument("--image", required=True, help="the scene (a 4-band GeoTIFF)")
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--skip", default="", help="comma-separated row names to leave out")
+    parser.add_argument("--out", default="docs/benchmarks/forest_backends.json")
+    a = parser.parse_args()
+    skip = set(filter(None, a.skip.split(",")))
+
+    from dyntarget.io.sensors import read_any
+    from dyntarget.perceive import compiled, load_classifier
+    from dyntarget.perceive.base import available_cores
+    from dyntarget.perceive.pixel import predict_in_chunks
+
+    image = read_any([a.image]).image.astype(np.float32)  # as plan reads it
+    x = np.ascontiguousarray(image.reshape(4, -1).T)
+    model = load_classifier(a.model)
+    est = model.estimator
+    cores = available_cores()
+    ref = est.predict_proba(x)[:, 1]  # float64
+    ref32 = ref.astype(np.float32).astype(np.float64)  # as the classifiers return it
+    rows: list[dict] = []
+
+    def add(name: str, fn: Callable[[], np.ndarray], build_s: float | None = None, **kw) -> None:
+        if name in skip:
+            return
+        times, out = timed(fn, a.repeats)
+        row = {"backend": name, "build_s": build_s, "seconds": times,
+               "median_s": statistics.median(times),
+               "max_abs_diff": float(np.abs(out - ref).max()),
+               "max_abs_diff_float32": float(np.abs(out - ref32).max()), **kw}  # fmt: skip
+        rows.append(row)
+        print(
+            f"{name:50s} {row['median_s']:8.3f} s  max|d| {row['max_abs_diff']:.2g} "
+            f"(float32 ref {row['max_abs_diff_float32']:.2g})",
+            flush=True,
+        )
+
+    add("scikit-learn predict_proba (1 thread)", lambda: est.predict_proba(x)[:, 1], threads=1)
+    add(
+        f"scikit-learn in the chunk pool ({cores} threads)",
+        lambda: predict_in_chunks(image, lambda p: est.predict_proba(p)[:, 1]),
+        threads=cores,
+    )
+
+    import onnxruntime as ort
+
+    onnx_path = str(Path(a.model) / "model.onnx")
+    for threads, spin in ((1, True), (2, True), (2, False)):
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads, opts.inter_op_num_threads = threads, 1
+        opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        if not spin:
+            opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        sess = ort.InferenceSession(onnx_path, opts, providers=["CPUExecutionProvider"])
+
+        def run_ort(sess=sess) -> np.ndarray:
+            return sess.run(["probabilities"], {"pixels": x})[0][:, 1]
+
+        label = f"ONNX Runtime TreeEnsemble ({threads} thread{'s' if threads > 1 else ''}"
+        add(label + ("" if spin else ", no spinning") + ")", run_ort, threads=threads)
+
+    try:
+        import tl2cgen
+        import treelite
+    except ImportError as exc:
+        print(f"TL2cgen / Treelite not installed ({exc}): not measured")
+    else:
+        tl_model = treelite.sklearn.import_model(est)
+        tmp = Path(tempfile.mkdtemp(prefix="tl2cgen-"))
+        dmat = tl2cgen.DMatrix(x, dtype="float32")
+        for quantize in (0, 1):
+            lib = tmp / f"forest-q{quantize}.so"
+            t0 = time.perf_counter()
+            tl2cgen.export_lib(
+                tl_model, toolchain="gcc", libpath=str(lib),
+                params={"parallel_comp": 50, "quantize": quantize}, nthread=cores,
+            )  # fmt: skip
+            build = time.perf_counter() - t0
+            for threads in (1, cores):
+                pred = tl2cgen.Predictor(str(lib), nthread=threads)
+
+                def run_tl(pred=pred) -> np.ndarray:
+                    out = np.asarray(pred.predict(dmat))
+                    return out.reshape(len(x), -1)[:, -1]
+
+                add(f"TL2cgen -O2{' quantized' if quantize else ''} ({threads} threads)",
+                    run_tl, build, threads=threads, quantize=quantize)  # fmt: skip
+
+    packed = compiled.pack_forest(est)
+    for isa in ("avx512", "avx2", "sse2", "portable"):
+        if not compiled.cpu_runs(isa):
+            print(f"kernel {isa}: this CPU does not run it")
+            continue
+        with tempfile.TemporaryDirectory() as cache:
+            t0 = time.perf_counter()
+            predict = compiled.forest_predictor(packed, directory=cache, isa=isa)
+            build = time.perf_counter() - t0
+            add(f"dyntarget kernel {isa} (1 thread)", lambda p=predict: p(x), build, threads=1)
+            add(
+                f"dyntarget kernel {isa} in the chunk pool ({cores} threads)",
+                lambda p=predict: predict_in_chunks(image, p),
+                build,
+                threads=cores,
+            )
+
+    result = {
+        "command": "python benchmarks/forest_backends.py --model RF --image IMG "
+        f"--repeats {a.repeats}",
+        "pixels": len(x),
+        "trees": len(est.estimators_),
+        "nodes": int(sum(t.tree_.node_count for t in est.estimators_)),
+        "rows": rows,
+        "machine": machine(),
+    }
+    write_text(Path(a.out), json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
