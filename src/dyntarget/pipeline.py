@@ -19,6 +19,7 @@ from dyntarget.perceive.base import Predictor
 from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
 from dyntarget.predict import Motion, Prediction
 from dyntarget.scene import check_image
+from dyntarget.schedule import Agility, OrbitGeometry
 
 
 @dataclass(frozen=True)
@@ -127,8 +128,8 @@ class Kinematics:
     ----------
     geometry : dyntarget.schedule.OrbitGeometry
         Where the scene lies and when the plan starts.
-    agility : str
-        Agility preset (``dyntarget agility``).
+    agility : dyntarget.schedule.Agility or str
+        The agility preset, or its name (``dyntarget agility``).
     budget_s : float or None
         Time budget from the start, seconds.
     objective : str
@@ -137,8 +138,8 @@ class Kinematics:
         Pointing budget of ``utility-max``.
     """
 
-    geometry: Any
-    agility: str
+    geometry: OrbitGeometry
+    agility: Agility | str
     budget_s: float | None = None
     objective: str = "gradient"
     max_pointings: int | None = None

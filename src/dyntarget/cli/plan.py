@@ -40,7 +40,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from dyntarget.cli._outputs import acquisition
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.sensors import read_any
-    from dyntarget.perceive import load_classifier
+    from dyntarget.perceive import Predictor, load_classifier
     from dyntarget.pipeline import Kinematics, PipelineConfig, plan_scene
 
     check_orbit(args)
@@ -80,7 +80,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         force=args.force,
         what="--fallback-model",
     )
-    classifier = None
+    classifier: Predictor | None = None
     if (args.onnx or args.int8) and args.model is None:
         flag = "--int8" if args.int8 else "--onnx"
         raise InvalidParameterError(f"{flag} runs a model's ONNX export: give --model PATH")

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import shapely
@@ -40,6 +40,9 @@ from dyntarget.plan.geometry import (
 )
 from dyntarget.registry import Registry
 from dyntarget.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from dyntarget.schedule import Agility
 
 PlannerFn = Callable[..., Trajectory]
 """``(mask, polygons, config)`` -> trajectory; ``(mask, polygons, config, context)`` where
@@ -176,7 +179,7 @@ class PlanContext:
         ``(4, H, W)`` WFOV image.
     geometry : dyntarget.schedule.OrbitGeometry or None
         Where the scene lies and when the plan starts.
-    agility : str or None
+    agility : dyntarget.schedule.Agility or str or None
         Agility preset name.
     objective : str
         What ``utility-max`` maximises.
@@ -189,7 +192,7 @@ class PlanContext:
     probability: np.ndarray | None = None
     image: np.ndarray | None = None
     geometry: Any = None
-    agility: str | None = None
+    agility: Agility | str | None = None
     objective: str = "gradient"
     budget_s: float | None = None
     max_pointings: int | None = None
