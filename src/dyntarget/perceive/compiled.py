@@ -12,8 +12,8 @@ Debian cross compiler for aarch64) into the model directory, where ``forest.json
 is for; :func:`fast_predictor` loads the best one this CPU runs only if both hashes match
 (:func:`artefact_predictor`), so nothing compiles on a flight computer. Where none fits,
 the kernel is compiled with the C compiler found on the PATH (``cc -O2 -march=native``,
-about a second) and cached under :func:`cache_dir`, keyed by a SHA-256 of its source, the
-flags and the CPU's model and feature flags; a cached build serves without a compiler.
+0.1-2.8 s, docs/performance.md) and cached under :func:`cache_dir`, keyed by a SHA-256 of
+its source, the flags and the CPU's model and feature flags; a cached build serves without a compiler.
 Either fallback is said once on stderr. The forest itself is data, so one library serves
 every forest.
 
