@@ -11,6 +11,7 @@ import pytest
 
 from dyntarget import InvalidParameterError
 from dyntarget.cli import main
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.evaluate.sweep import SweepInterrupted, expand, parse_grid, summary_figure, sweep
 from helpers import synth_dir
 
@@ -64,13 +65,17 @@ def test_parse_and_expand_grid():
         parse_grid(["factor=two"])
 
 
-KW38 = dict(classifiers=["band-threshold", "decision-tree", "naive-bayes"], folds=2, progress=False)
+KW38 = dict(classifiers=["band-threshold", "decision-tree", "naive-bayes"], folds=2)
+
+
+def _run(cluster, **kw):
+    return RunOptions(scheduler=cluster, progress=False, **kw)
 
 
 @pytest.fixture(scope="module")
 def ref38(data38, cluster, tmp_path_factory):
     """The uninterrupted sweep of 38 scenes x 3 classifiers x 6 planners."""
-    rows = _rows(sweep(data38, tmp_path_factory.mktemp("ref"), scheduler=cluster, **KW38))
+    rows = _rows(sweep(data38, tmp_path_factory.mktemp("ref"), options=_run(cluster), **KW38))
     assert len(rows) == 38 * 3 * 6  # scenes x classifiers x planners
     return rows
 
@@ -84,11 +89,11 @@ def test_killed_sweep_resumes_with_identical_results(data38, ref38, cluster, tmp
     """38 scenes x 3 classifiers x 6 planners on a 2-worker LocalCluster, stopped halfway."""
     out = tmp_path / "resumed"
     with pytest.raises(SweepInterrupted):
-        sweep(data38, out, stop_after=57, scheduler=cluster, **KW38)
+        sweep(data38, out, stop_after=57, options=_run(cluster), **KW38)
     finished = _parts(out)
     assert 57 <= len(finished) < 114 and not (out / "sweep.csv").exists()
     mtimes = {p.name: p.stat().st_mtime_ns for p in finished}
-    table = sweep(data38, out, models_dir=out / "models", scheduler=cluster, **KW38)
+    table = sweep(data38, out, options=_run(cluster, models_dir=out / "models"), **KW38)
     rows = _rows(table)
     assert rows == ref38  # identical, in the same order
     keys = [(r["task"], r["planner"]) for r in rows]
@@ -117,7 +122,7 @@ def test_sweep_process_killed_with_sigkill_resumes(data38, ref38, cluster, tmp_p
         proc.kill()
         proc.wait()
     assert 20 <= len(_parts(out)) < 114 and not (out / "sweep.csv").exists()
-    rows = _rows(sweep(data38, out, scheduler=cluster, **KW38))
+    rows = _rows(sweep(data38, out, options=_run(cluster), **KW38))
     assert rows == ref38
     assert len({(r["task"], r["planner"]) for r in rows}) == len(rows)
 
@@ -130,8 +135,7 @@ def test_sweep_grid_points(data, cluster, tmp_path):
         planners=["track-center", "lawnmower-transect"],
         grid={"step_fraction": [0.01, 0.03], "denoise_iterations": [0, 1]},
         folds=2,
-        scheduler=cluster,
-        progress=False,
+        options=_run(cluster),
     )
     rows = _rows(table)
     assert len(rows) == 6 * 4 * 2
@@ -204,8 +208,7 @@ def test_sweep_over_agility_presets(data, cluster, tmp_path):
         planners=["lawnmower-transect", "track-center"],
         grid=parse_grid(["agility=unlimited,slow"]),
         folds=2,
-        scheduler=cluster,
-        progress=False,
+        options=_run(cluster),
     )
     with open(table) as fh:
         rows = list(csv.DictReader(fh))

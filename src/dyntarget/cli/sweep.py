@@ -11,6 +11,7 @@ from dyntarget.cli._common import EXIT_OK, positive_int, writes
 
 @writes(dirs=("out", "models"))
 def cmd_sweep(args: argparse.Namespace) -> int:
+    from dyntarget.evaluate.options import RunOptions
     from dyntarget.evaluate.sweep import parse_grid, summary_figure, sweep
 
     grid = parse_grid(args.grid or [])
@@ -23,9 +24,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         folds=args.folds,
         seed=args.seed,
         epochs=args.epochs,
-        scheduler=args.scheduler,
-        models_dir=args.models,
-        progress=not args.quiet,
+        options=RunOptions(
+            models_dir=args.models, progress=not args.quiet, scheduler=args.scheduler
+        ),
     )
     figure = summary_figure(table, Path(args.out) / "sweep.png")
     print(table)

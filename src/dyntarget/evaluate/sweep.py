@@ -33,6 +33,7 @@ from dyntarget.evaluate.distributed import (
     run_tasks,
     task_key,
 )
+from dyntarget.evaluate.options import RunOptions
 from dyntarget.io.atomic import write_text
 from dyntarget.schedule import AGILITY, get_agility
 
@@ -293,6 +294,10 @@ class SweepInterrupted(Exception):
     """Raised by ``stop_after`` (tests simulate a killed sweep with it)."""
 
 
+SWEEP_RUN = RunOptions(scheduler="local")
+"""A sweep's default :class:`~dyntarget.evaluate.options.RunOptions`: on local Dask threads."""
+
+
 def sweep(
     data: str | os.PathLike[str],
     out: str | os.PathLike[str],
@@ -303,9 +308,7 @@ def sweep(
     folds: int = 5,
     seed: int = 0,
     epochs: int = 50,
-    scheduler: str = "local",
-    models_dir: str | os.PathLike[str] | None = None,
-    progress: bool = True,
+    options: RunOptions = SWEEP_RUN,
     stop_after: int | None = None,
 ) -> Path:
     """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``.
@@ -328,12 +331,10 @@ def sweep(
         Seed of the fold split and the training.
     epochs : int
         Training epochs of the U-Nets.
-    scheduler : str
-        ``"local"``, ``"processes"`` or a Dask scheduler address.
-    models_dir : str or os.PathLike or None
-        Where the fold models are loaded from or saved to.
-    progress : bool
-        Show progress bars.
+    options : RunOptions
+        Where the fold models are kept (default ``OUT/models``), progress, and the scheduler
+        (default ``"local"``: a sweep always runs on Dask); ``parts`` is ignored
+        (``OUT/parts`` holds them).
     stop_after : int or None
         Stop after this many finished tasks (tests).
 
@@ -347,6 +348,8 @@ def sweep(
     from dyntarget.perceive import CLASSIFIERS
     from dyntarget.plan import PAPER_PLANNERS, PLANNERS
 
+    models_dir, progress = options.models_dir, options.progress
+    scheduler = options.scheduler or "local"
     check_scheduler(scheduler)
     check_grid(grid or {})  # all of it, before any training
     check_unique("classifiers", classifiers)
