@@ -60,7 +60,7 @@ def main() -> None:
 
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import compiled, load_classifier
-    from dyntarget.perceive.base import available_cores
+    from dyntarget.perceive.resources import available_cores
     from dyntarget.perceive.pixel import predict_in_chunks
 
     image = read_any([a.image]).image.astype(np.float32)  # as plan reads it
