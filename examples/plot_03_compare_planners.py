@@ -23,7 +23,9 @@ fig, axes = plt.subplots(2, 3, figsize=(11, 7.5), layout="constrained")
 for ax, planner in zip(axes.flat, PAPER_PLANNERS, strict=True):
     result = plan_scene(wfov.image, None, planner, mask=wfov.label)
     metrics = observe(result.trajectory, scene, factor=factor)
-    print(f"{planner:20s} {len(result.trajectory):4d} pointings, ratio plume {metrics.ratio_plume:.2f}")
+    print(
+        f"{planner:20s} {len(result.trajectory):4d} pointings, ratio plume {metrics.ratio_plume:.2f}"
+    )
     ax.imshow(rgb(wfov.image))
     ax.contour(wfov.label, levels=[0.5], colors="yellow", linewidths=0.7)
     draw_trajectory(ax, result.trajectory, label="pointings")
