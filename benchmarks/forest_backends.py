@@ -60,8 +60,8 @@ def main() -> None:
 
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import compiled, load_classifier
-    from dyntarget.perceive.resources import available_cores
     from dyntarget.perceive.pixel import predict_in_chunks
+    from dyntarget.perceive.resources import available_cores
 
     image = read_any([a.image]).image.astype(np.float32)  # as plan reads it
     x = np.ascontiguousarray(image.reshape(4, -1).T)
