@@ -19,7 +19,7 @@ from dyntarget.perceive.base import Predictor
 from dyntarget.plan import PlanConfig, PlanContext, Trajectory, plan
 from dyntarget.predict import Motion, Prediction
 from dyntarget.scene import check_image
-from dyntarget.schedule import Agility, OrbitGeometry
+from dyntarget.schedule import Agility, OrbitGeometry, make_feasible, schedule
 
 
 @dataclass(frozen=True)
@@ -375,7 +375,6 @@ def schedule_plan(
         What is flown (``.trajectory``) and what was dropped.
     """
     from dyntarget.plan import PLANNERS
-    from dyntarget.schedule import make_feasible, schedule
 
     if getattr(PLANNERS.get(planner), "timed", False):
         return schedule(trajectory, shape, kinematics.geometry, kinematics.agility)
@@ -791,8 +790,6 @@ def schedule_on_prediction(
     >>> s.trajectory.points[:, 0].tolist()  # flown at t = 4 s: moved 0.5 px/s x 4 s
     [12.0, 22.0]
     """
-    from dyntarget.schedule import make_feasible, schedule
-
     chosen: list[bool] = []
 
     def fly(t: Trajectory):

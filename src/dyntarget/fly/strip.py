@@ -204,6 +204,11 @@ def long_strip_spec(
     return spec, (0, 0, int(width), rows)
 
 
+def _check_truth_step(truth_step_s: float) -> None:
+    if not (math.isfinite(truth_step_s) and truth_step_s >= 0):
+        raise InvalidParameterError(f"truth_step_s: expected seconds >= 0, got {truth_step_s!r}")
+
+
 class MovingStrip:
     """A :class:`~dyntarget.fly.world.World` rendered from a moving world, frame by frame.
 
@@ -239,10 +244,7 @@ class MovingStrip:
         truth_step_s: float = 1.0,
         capacity: int = 8,
     ) -> None:
-        if not (math.isfinite(truth_step_s) and truth_step_s >= 0):
-            raise InvalidParameterError(
-                f"truth_step_s: expected seconds >= 0, got {truth_step_s!r}"
-            )
+        _check_truth_step(truth_step_s)
         from dyntarget.synth.dynamic import check_window
 
         self.spec, self.window = spec, check_window(window, spec.size)
@@ -359,10 +361,7 @@ class LongStrip(MovingStrip):
     ) -> None:
         from dyntarget.synth.dynamic import MAX_COORD_PX
 
-        if not (math.isfinite(truth_step_s) and truth_step_s >= 0):
-            raise InvalidParameterError(
-                f"truth_step_s: expected seconds >= 0, got {truth_step_s!r}"
-            )
+        _check_truth_step(truth_step_s)
         c0, r0, w, h = (int(v) for v in window)
         if not (32 <= w <= 4096 and 64 <= h <= MAX_COORD_PX and abs(c0) + abs(r0) <= MAX_COORD_PX):
             raise InvalidParameterError(f"window: {window!r} is not a long strip's window")
