@@ -417,6 +417,12 @@ MOVING_ALL_VOTES = 200
 FARNEBACK_WINDOW = 9
 """Farneback's Gaussian averaging window (px of the flow grid)."""
 FLOWS = {"dis": "DIS", "farneback": "Farneback", "lk": "pysteps Lucas-Kanade"}
+VOTE_INSET = FARNEBACK_WINDOW // 2
+"""Votes come from at least this many pixels (flow grid) inside the plume's edge: half the
+flow's window, so the window holds the plume's texture alone (measured on the real 38-Cloud
+layer drifting 0.8 px between looks: the 1 px inset read 8 % too fast, 4 px 3.7 %)."""
+MIN_INTERIOR_SHARE = 0.2
+"""The deep interior is used when it keeps at least this share of the mask's pixels."""
 
 
 def dense_flow(a: np.ndarray, b: np.ndarray, flow: str = "farneback") -> np.ndarray:
@@ -517,6 +523,24 @@ def _vent(mask: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     return float(xs[near].mean()), float(ys[near].mean())
 
 
+def _interior(mask: np.ndarray, trackable: np.ndarray, f: int) -> np.ndarray:
+    """The mask's pixels whose flow is the plume's own: at least :data:`VOTE_INSET` px (of
+    the flow grid) inside its edge, where Farneback's window no longer straddles the edge
+    (whose motion is the mask's, rounded to whole pixels, or the still ground's). Thin or
+    texture-poor plumes (a deep interior under :data:`MIN_INTERIOR_SHARE` of the mask, or
+    with fewer than 200 full-grid px of trackable votes) keep the 1 px inset, then the mask."""
+    u8 = mask.astype(np.uint8)
+    k = 2 * VOTE_INSET + 1
+    deep = cv2.erode(u8, np.ones((k, k), np.uint8)) > 0
+    if (
+        int(deep.sum()) >= MIN_INTERIOR_SHARE * int(mask.sum())
+        and int((deep & trackable).sum()) * f * f >= 200
+    ):
+        return deep
+    inner = cv2.erode(u8, np.ones((3, 3), np.uint8)) > 0
+    return inner if inner.any() else mask
+
+
 def _downsample(a: np.ndarray, f: int) -> np.ndarray:
     if f == 1:
         return a
@@ -608,7 +632,7 @@ def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.moveaxis(np.nan_to_num(v), 0, -1).astype(np.float32)
 
 
-def estimate_motion(  # noqa: C901, PLR0912, PLR0915  (to split: window flow, ground, field, regimes)
+def estimate_motion(
     previous: np.ndarray,
     current: np.ndarray,
     interval_s: float,
@@ -688,6 +712,7 @@ def estimate_motion(  # noqa: C901, PLR0912, PLR0915  (to split: window flow, gr
             f"field: expected one of {', '.join(MOTION_FIELDS)}, got {field!r}"
         )
     shape = cur.shape[1:]
+    h, w = shape
     pm = _check_mask(previous_mask, shape, "previous_mask")
     cm = _check_mask(current_mask, shape, "current_mask")
     if not pm.any() or not cm.any():
@@ -701,141 +726,29 @@ def estimate_motion(  # noqa: C901, PLR0912, PLR0915  (to split: window flow, gr
             notes=("no plume in the previous or current mask: no motion estimated",),
         )
 
-    # dense flow on the plumes' bounding box (plus a margin): cost follows the plumes
-    ys, xs = np.nonzero(pm | cm)
-    h, w = shape
-    y0, y1 = _span(int(ys.min()), int(ys.max()) + 1, h)
-    x0, x1 = _span(int(xs.min()), int(xs.max()) + 1, w)
-    bp, bc = brightness(prev[:, y0:y1, x0:x1]), brightness(cur[:, y0:y1, x0:x1])
-    sample = np.concatenate([bp.ravel()[::7], bc.ravel()[::7]])
-    lo, hi = np.percentile(sample, [1, 99])
-    # the plumes keep their texture when they are brighter than 99 % of the scene (a
-    # few bright cells in a dark radar frame): the scale reaches the plumes' own top
-    pm_c, cm_c = pm[y0:y1, x0:x1], cm[y0:y1, x0:x1]
-    hi = max(hi, float(np.percentile(np.concatenate([bp[pm_c], bc[cm_c]]), 99.5)))
-    f = max(1, math.ceil(max(y1 - y0, x1 - x0) / FLOW_MAX_PX))
-    pmf, cmf = _mask_down(pm_c, f), _mask_down(cm_c, f)
-    if f > 1 and (pmf.sum() < 50 or cmf.sum() < 50):
-        f, pmf, cmf = 1, pm_c, cm_c  # plumes too small to see on the coarse grid
-    p8 = _to_u8(_downsample(bp, f), lo, hi)
-    c8 = _to_u8(_downsample(bc, f), lo, hi)
-    if flow == "lk":
-        fwd = _pysteps_lk(p8, c8)
-        bwd = -fwd
-        consistent = np.ones(p8.shape, bool)
-    else:
-        fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
-        gy, gx = np.mgrid[0 : p8.shape[0], 0 : p8.shape[1]].astype(np.float32)
-        back_at = cv2.remap(
-            bwd, gx + fwd[..., 0], gy + fwd[..., 1], cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )  # fmt: skip
-        fb_err = np.hypot(fwd[..., 0] + back_at[..., 0], fwd[..., 1] + back_at[..., 1])
-        consistent = fb_err < np.maximum(1.0, 0.1 * np.hypot(fwd[..., 0], fwd[..., 1]))
-    # texture that pins the flow down in both directions (not just an edge): the smaller
-    # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
-    textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, ksize=3) > MIN_EIGEN
-    fwd_px = fwd * f  # full-grid pixels
-    inner = cv2.erode(pmf.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    if not inner.any():
-        inner = pmf
-    votes = inner & textured & consistent
+    wf = _window_flow(prev, cur, pm, cm, flow)
     # the plumes' raw displacement (ground not removed) sets how far from the masks the
     # background is safe from the plumes' own flow (occluded and uncovered ground)
-    raw = _mode(fwd_px[..., 0][votes], fwd_px[..., 1][votes]) if votes.any() else (0.0, 0.0)
-    r = 4 + math.ceil(math.hypot(*raw) / f)
-    near_plume = cv2.dilate((pmf | cmf).astype(np.uint8), np.ones((2 * r + 1,) * 2, np.uint8)) > 0
-
-    # the background's apparent motion: over textured ground around the plumes; where
-    # the margin has too little, phase correlation of the frames
-    ground_votes = ~near_plume & textured & consistent
-    rigid = True
-    if ground_votes.sum() >= 50:
-        gx_all, gy_all = fwd_px[..., 0][ground_votes], fwd_px[..., 1][ground_votes]
-        gdx, gdy = (_snap_still(v) for v in _mode(gx_all, gy_all))
-        near_g = np.hypot(gx_all - gdx, gy_all - gdy) <= max(1.0, 0.2 * math.hypot(gdx, gdy))
-        rigid = float(near_g.mean()) >= 0.5
-        ground_ok = True
-    else:
-        near_full = np.zeros(shape, bool)
-        near_full[y0:y1, x0:x1] = (
-            cv2.resize(
-                near_plume.astype(np.uint8), (x1 - x0, y1 - y0), interpolation=cv2.INTER_NEAREST
-            )
-            > 0
-        )
-        gdx, gdy, ground_ok = _ground_shift(brightness(prev), brightness(cur), near_full)
-    notes: list[str] = []
-    g_mag = math.hypot(gdx, gdy)
-    decided = ground
-    if ground == "auto":
-        like_plume = g_mag > 2.0 and math.hypot(raw[0] - gdx, raw[1] - gdy) < 0.25 * g_mag
-        decided = (
-            "moving"
-            if ground_ok and (g_mag > MAX_MISREGISTRATION_PX or not rigid or like_plume)
-            else "fixed"
-        )
-        if g_mag > STILL_PX or decided == "moving":
-            why = (
-                f"more than {MAX_MISREGISTRATION_PX:g} px"
-                if g_mag > MAX_MISREGISTRATION_PX
-                else "not one rigid shift"
-                if not rigid
-                else "as the plumes do"
-            )
-            notes.append(
-                f"ground auto -> {decided}: the background moved by ({gdx:+.2f}, {gdy:+.2f}) px"
-                + (f", {why}: not removed" if decided == "moving" else ": misregistration removed")
-            )
-        else:
-            notes.append("ground auto -> fixed: the background is still")
-    elif ground == "fixed":
-        if not ground_ok:
-            notes.append(
-                "ground registration failed (no texture outside the plume): assumed aligned"
-            )
-        elif g_mag > STILL_PX:
-            notes.append(f"ground moved by ({gdx:+.2f}, {gdy:+.2f}) px between the looks (removed)")
-    else:
-        notes.append(
-            f"ground moving: the background's shift ({gdx:+.2f}, {gdy:+.2f}) px is not removed"
-        )
+    raw = wf.mode(wf.votes) if wf.votes.any() else (0.0, 0.0)
+    gdx, gdy, ground_ok, rigid, ground_votes = _background(wf, prev, cur, raw)
+    decided, notes = _decide_ground(ground, (gdx, gdy), ground_ok, rigid, raw)
     if decided == "moving":
         gdx = gdy = 0.0
-    rel = fwd_px - np.array([gdx, gdy], np.float32)
-
-    if decided == "moving" and int(votes.sum()) * f * f < MOVING_ALL_VOTES:
+    rel = wf.fwd_px - np.array([gdx, gdy], np.float32)
+    votes = wf.votes
+    if decided == "moving" and int(votes.sum()) * wf.f * wf.f < MOVING_ALL_VOTES:
         votes = votes | ground_votes  # few plume votes: the moving background is the same weather
+    weights = votes.astype(np.float32)
+    if decided == "moving":
+        # the background is the same weather: every trackable pixel around votes too
+        weights[wf.trackable & ~votes] = MOVING_GROUND_WEIGHT
     n_votes = int(votes.sum())
-    rel_x, rel_y = rel[..., 0][votes], rel[..., 1][votes]
-    mag = np.hypot(rel_x, rel_y)
-    moving = mag > STILL_PX
-    n_moving = int(moving.sum())
-    texture_share = n_votes / max(int(inner.sum()), 1)
-    calm = n_votes > 0 and n_moving < CALM_FRACTION * n_votes
+    texture_share = n_votes / max(int(wf.inner.sum()), 1)
+    (mx, my), agreement, calm, vfield = _vote(rel, votes, weights)
     dense = None
-    if n_votes == 0:
-        mx = my = 0.0
-        agreement = 0.0
-    elif calm:
-        mx = my = 0.0
-        agreement = 1.0 - n_moving / n_votes
-    else:
-        mx, my = _mode(rel_x[moving], rel_y[moving])
-        # the dense field: the votes averaged over FIELD_SIGMA cells (a moving background
-        # votes too: it is the same weather), tending to the mode far from any vote
-        weights = votes.astype(np.float32)
-        if decided == "moving":
-            # the background is the same weather: every trackable pixel around votes too
-            weights[textured & consistent & ~votes] = MOVING_GROUND_WEIGHT
-        vfield = _robust_field(weights, rel, (mx, my))
-        # agreement: how well the votes follow the field (rotation and shear are not
-        # disagreement), relative to the displacement
-        res = np.hypot(rel_x - vfield[..., 0][votes], rel_y - vfield[..., 1][votes])
-        scale = max(float(np.median(mag)), 1.0)
-        agreement = max(0.0, 1.0 - float(np.median(res)) / scale)
-        if field == "dense":
-            dense = MotionField(vfield / np.float32(dt), (x0, y0), f, (h, w))
+    if vfield is not None and field == "dense":
+        dense = MotionField(vfield / np.float32(dt), (wf.x0, wf.y0), wf.f, (h, w))
+    f, pm_c, cm_c, x0, y0 = wf.f, wf.pm_c, wf.cm_c, wf.x0, wf.y0
     vx, vy = mx / dt, my / dt
     confidence = (
         min(1.0, texture_share / TEXTURE_SATURATION)
@@ -901,6 +814,169 @@ def estimate_motion(  # noqa: C901, PLR0912, PLR0915  (to split: window flow, gr
         ground=decided,
         dense=dense,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class _WindowFlow:
+    """The dense flow over the plumes' window (plus a margin), on the flow grid."""
+
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+    f: int
+    """Full-grid pixels per flow-grid cell."""
+    pm_c: np.ndarray
+    """The masks on the window, full resolution."""
+    cm_c: np.ndarray
+    pmf: np.ndarray
+    """The masks on the flow grid."""
+    cmf: np.ndarray
+    fwd_px: np.ndarray
+    """Flow previous -> current, full-grid pixels, per flow-grid cell."""
+    textured: np.ndarray
+    trackable: np.ndarray
+    """Textured and forward-backward consistent cells."""
+    inner: np.ndarray
+    """The previous mask's interior (:func:`_interior`)."""
+
+    @property
+    def votes(self) -> np.ndarray:
+        """The plume's own votes: trackable cells of the interior."""
+        return self.inner & self.trackable
+
+    def mode(self, where: np.ndarray) -> tuple[float, float]:
+        """The densest displacement (:func:`_mode`) of the cells ``where``."""
+        return _mode(self.fwd_px[..., 0][where], self.fwd_px[..., 1][where])
+
+
+def _window_flow(prev, cur, pm, cm, flow: str) -> _WindowFlow:
+    """Steps 1-2 of :func:`estimate_motion`: the window, the shared 8-bit scale, the
+    downsampling, the flow both ways and which cells can be trusted."""
+    ys, xs = np.nonzero(pm | cm)
+    h, w = pm.shape
+    y0, y1 = _span(int(ys.min()), int(ys.max()) + 1, h)
+    x0, x1 = _span(int(xs.min()), int(xs.max()) + 1, w)
+    bp, bc = brightness(prev[:, y0:y1, x0:x1]), brightness(cur[:, y0:y1, x0:x1])
+    sample = np.concatenate([bp.ravel()[::7], bc.ravel()[::7]])
+    lo, hi = np.percentile(sample, [1, 99])
+    # the plumes keep their texture when they are brighter than 99 % of the scene (a
+    # few bright cells in a dark radar frame): the scale reaches the plumes' own top
+    pm_c, cm_c = pm[y0:y1, x0:x1], cm[y0:y1, x0:x1]
+    hi = max(hi, float(np.percentile(np.concatenate([bp[pm_c], bc[cm_c]]), 99.5)))
+    f = max(1, math.ceil(max(y1 - y0, x1 - x0) / FLOW_MAX_PX))
+    pmf, cmf = _mask_down(pm_c, f), _mask_down(cm_c, f)
+    if f > 1 and (pmf.sum() < 50 or cmf.sum() < 50):
+        f, pmf, cmf = 1, pm_c, cm_c  # plumes too small to see on the coarse grid
+    p8 = _to_u8(_downsample(bp, f), lo, hi)
+    c8 = _to_u8(_downsample(bc, f), lo, hi)
+    if flow == "lk":
+        fwd = _pysteps_lk(p8, c8)
+        consistent = np.ones(p8.shape, bool)
+    else:
+        fwd, bwd = dense_flow(p8, c8, flow), dense_flow(c8, p8, flow)
+        gy, gx = np.mgrid[0 : p8.shape[0], 0 : p8.shape[1]].astype(np.float32)
+        back_at = cv2.remap(
+            bwd, gx + fwd[..., 0], gy + fwd[..., 1], cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )  # fmt: skip
+        fb_err = np.hypot(fwd[..., 0] + back_at[..., 0], fwd[..., 1] + back_at[..., 1])
+        consistent = fb_err < np.maximum(1.0, 0.1 * np.hypot(fwd[..., 0], fwd[..., 1]))
+    # texture that pins the flow down in both directions (not just an edge): the smaller
+    # eigenvalue of the local structure tensor (Shi-Tomasi), in 8-bit units of the scaled band
+    textured = cv2.cornerMinEigenVal(p8.astype(np.float32), 5, ksize=3) > MIN_EIGEN
+    return _WindowFlow(
+        x0, y0, x1, y1, f, pm_c, cm_c, pmf, cmf, fwd * f, textured,
+        textured & consistent, _interior(pmf, textured & consistent, f),
+    )  # fmt: skip
+
+
+def _background(wf: _WindowFlow, prev, cur, raw) -> tuple[float, float, bool, bool, np.ndarray]:
+    """Step 3's measurement: the background's apparent shift ``(dx, dy)`` px, whether it
+    could be measured, whether it is one rigid shift, and the background's votes.
+
+    Over trackable ground farther from the plumes than they moved (the histogram mode);
+    where the margin has too little, phase correlation of the whole frames."""
+    r = 4 + math.ceil(math.hypot(*raw) / wf.f)
+    kernel = np.ones((2 * r + 1,) * 2, np.uint8)
+    near_plume = cv2.dilate((wf.pmf | wf.cmf).astype(np.uint8), kernel) > 0
+    ground_votes = ~near_plume & wf.trackable
+    if ground_votes.sum() >= 50:
+        gdx, gdy = (_snap_still(v) for v in wf.mode(ground_votes))
+        gx_all, gy_all = wf.fwd_px[..., 0][ground_votes], wf.fwd_px[..., 1][ground_votes]
+        near_g = np.hypot(gx_all - gdx, gy_all - gdy) <= max(1.0, 0.2 * math.hypot(gdx, gdy))
+        return gdx, gdy, True, float(near_g.mean()) >= 0.5, ground_votes
+    near_full = np.zeros(prev.shape[1:], bool)
+    size = (wf.x1 - wf.x0, wf.y1 - wf.y0)
+    near_full[wf.y0 : wf.y1, wf.x0 : wf.x1] = (
+        cv2.resize(near_plume.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+    )
+    gdx, gdy, ok = _ground_shift(brightness(prev), brightness(cur), near_full)
+    return gdx, gdy, ok, True, ground_votes
+
+
+def _decide_ground(ground: str, shift, ground_ok: bool, rigid: bool, raw) -> tuple[str, list[str]]:
+    """Step 3's decision: ``"fixed"`` or ``"moving"`` (``ground="auto"``: from the
+    background's shift ``shift``), and the notes that say what was decided and why."""
+    gdx, gdy = shift
+    g_mag = math.hypot(gdx, gdy)
+    if ground == "fixed":
+        if not ground_ok:
+            return ground, [
+                "ground registration failed (no texture outside the plume): assumed aligned"
+            ]
+        if g_mag > STILL_PX:
+            return ground, [
+                f"ground moved by ({gdx:+.2f}, {gdy:+.2f}) px between the looks (removed)"
+            ]
+        return ground, []
+    if ground == "moving":
+        return ground, [
+            f"ground moving: the background's shift ({gdx:+.2f}, {gdy:+.2f}) px is not removed"
+        ]
+    like_plume = g_mag > 2.0 and math.hypot(raw[0] - gdx, raw[1] - gdy) < 0.25 * g_mag
+    decided = (
+        "moving"
+        if ground_ok and (g_mag > MAX_MISREGISTRATION_PX or not rigid or like_plume)
+        else "fixed"
+    )
+    if not (g_mag > STILL_PX or decided == "moving"):
+        return decided, ["ground auto -> fixed: the background is still"]
+    why = (
+        f"more than {MAX_MISREGISTRATION_PX:g} px"
+        if g_mag > MAX_MISREGISTRATION_PX
+        else "not one rigid shift"
+        if not rigid
+        else "as the plumes do"
+    )
+    return decided, [
+        f"ground auto -> {decided}: the background moved by ({gdx:+.2f}, {gdy:+.2f}) px"
+        + (f", {why}: not removed" if decided == "moving" else ": misregistration removed")
+    ]
+
+
+def _vote(rel: np.ndarray, votes: np.ndarray, weights: np.ndarray):
+    """Steps 4-5: ``((mx, my), agreement, calm, field)`` from the votes' displacements
+    ``rel`` (full-grid px between the looks, ground removed): the mode of the moving
+    votes, how well the votes follow the dense field, whether the air is calm, and the
+    dense displacement field (``None`` when calm or without votes)."""
+    n_votes = int(votes.sum())
+    if n_votes == 0:
+        return (0.0, 0.0), 0.0, False, None
+    rel_x, rel_y = rel[..., 0][votes], rel[..., 1][votes]
+    mag = np.hypot(rel_x, rel_y)
+    moving = mag > STILL_PX
+    n_moving = int(moving.sum())
+    if n_moving < CALM_FRACTION * n_votes:
+        return (0.0, 0.0), 1.0 - n_moving / n_votes, True, None
+    mx, my = _mode(rel_x[moving], rel_y[moving])
+    # the dense field: the votes averaged over FIELD_SIGMA cells, tending to the mode far
+    # from any vote; agreement: how well the votes follow it (rotation and shear are not
+    # disagreement), relative to the displacement
+    vfield = _robust_field(weights, rel, (mx, my))
+    res = np.hypot(rel_x - vfield[..., 0][votes], rel_y - vfield[..., 1][votes])
+    scale = max(float(np.median(mag)), 1.0)
+    return (mx, my), max(0.0, 1.0 - float(np.median(res)) / scale), False, vfield
 
 
 def _on_border(xs: np.ndarray, ys: np.ndarray, w: int, h: int) -> bool:
