@@ -16,6 +16,9 @@ Two groups of cases (issue 28), all scored by the IoU of the predicted mask with
   rows by ``k`` times the drift between the top and the bottom edge). Looks at
   0 and 10 s, the truth the moved mask 90 s after the second look. Cloud entering
   from beyond the border is clear sky (the mask is cut by the border, as real ones are).
+  Also a **rigid-drift sweep**: 0.1, 0.25, 0.5 and 1 px/s, each in 8 directions, with
+  the ``true motion`` ceiling (the current mask carried by the exact velocity: whole-pixel
+  masks put even that a pixel off on some directions) and the velocity's error.
 
 Methods: ``persistence`` (the current mask, unmoved), ``dyntarget``
 (:func:`dyntarget.predict.estimate_motion` + :func:`dyntarget.predict.predict_mask`,
@@ -234,6 +237,82 @@ def run_clouds(steps, dyn_options: dict) -> list[dict]:
     return rows
 
 
+DRIFT_SPEEDS = (0.1, 0.25, 0.5, 1.0)
+"""px/s of the rigid-drift sweep, each in 8 directions (every 45 deg from east)."""
+
+
+def run_drift_directions(steps, dyn_options: dict) -> list[dict]:
+    """Rigid drift of the real cloud layer at each of :data:`DRIFT_SPEEDS` in 8 directions.
+
+    One direction alone is a lottery at these speeds: the masks are whole pixels, so a
+    velocity right within a few per cent can still put the 90 s mask a pixel off (e.g.
+    0.1 px/s towards (0.8, 0.6): the estimate must read vy within -17 % / +2 %). The
+    ``true motion`` column is that rounding's ceiling: the current mask carried by the
+    velocity that made the frames."""
+    from dyntarget.predict import Motion
+
+    image, gt, ground = _read_cloud()
+    rows = []
+    for speed in DRIFT_SPEEDS:
+        for deg in range(0, 360, 45):
+            v = (speed * math.cos(math.radians(deg)), -speed * math.sin(math.radians(deg)))
+            a, pm = cloud_frames(image, gt, ground, "drift", v, 0.0, 0.0)
+            b, cm = cloud_frames(image, gt, ground, "drift", v, 0.0, CLOUD_INTERVAL)
+            _, truth = cloud_frames(image, gt, ground, "drift", v, 0.0, CLOUD_INTERVAL + CLOUD_LEAD)
+            m = estimate_motion(
+                a, b, CLOUD_INTERVAL, previous_mask=pm, current_mask=cm, **dyn_options
+            )
+            row = {
+                "speed px/s": speed,
+                "direction deg": deg,
+                "persistence 90 s": iou(cm, truth),
+                "dyntarget 90 s": iou(predict_mask(cm, m, CLOUD_LEAD), truth),
+                "true motion 90 s": iou(predict_mask(cm, Motion(v), CLOUD_LEAD), truth),
+                "velocity error %": 100
+                * math.hypot(m.velocity[0] - v[0], m.velocity[1] - v[1])
+                / speed,
+            }
+            if steps is not None:
+                row["pysteps LK 90 s"] = _lk_mask(steps, a, b, cm, truth)
+            rows.append(row)
+        print(
+            {
+                "speed px/s": speed,
+                **{k: round(_mean([r for r in rows if r["speed px/s"] == speed], k) or 0, 3)
+                   for k in ("dyntarget 90 s", "true motion 90 s", "velocity error %")},
+            },
+            flush=True,
+        )  # fmt: skip
+    return rows
+
+
+def _lk_mask(steps, a, b, cm, truth) -> float:
+    ba, bb = a.mean(axis=0), b.mean(axis=0)
+    lo, hi = np.percentile(np.concatenate([ba.ravel(), bb.ravel()]), [1, 99])
+    stack = np.clip((np.stack([ba, bb]) - lo) / (hi - lo), 0, 1).astype(np.float64)
+    vel = _lk(steps, stack)
+    ext = _extrapolate(steps, cm.astype(np.float64), vel, [CLOUD_LEAD / CLOUD_INTERVAL])
+    return iou(np.nan_to_num(ext[0], nan=0.0) >= 0.5, truth)
+
+
+def summarise_drift(rows: list[dict]) -> list[dict]:
+    out = []
+    for speed in DRIFT_SPEEDS:
+        sel = [r for r in rows if r["speed px/s"] == speed]
+        if not sel:
+            continue
+        row: dict = {"speed px/s": speed}
+        for key in ("persistence 90 s", "dyntarget 90 s", "true motion 90 s", "pysteps LK 90 s"):
+            vals = [r[key] for r in sel if key in r]
+            row[f"{key.removesuffix(' 90 s')} mean"] = (
+                round(float(np.mean(vals)), 3) if vals else None
+            )
+        row["dyntarget worst"] = round(min(r["dyntarget 90 s"] for r in sel), 3)
+        row["velocity error % (max)"] = round(max(r["velocity error %"] for r in sel), 2)
+        out.append(row)
+    return out
+
+
 # ---------------------------------------------------------------- timing
 def run_timing(repeats: int = 5) -> list[dict]:
     """Whole call (estimate_motion + predict_mask 90 s ahead) at 1024 px, 10 s looks:
@@ -310,6 +389,17 @@ def summarise(radar: list[dict], clouds: list[dict]) -> dict:
     return out
 
 
+DRIFT_COLUMNS = [
+    "speed px/s",
+    "persistence mean",
+    "dyntarget mean",
+    "dyntarget worst",
+    "true motion mean",
+    "pysteps LK mean",
+    "velocity error % (max)",
+]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--radar-cases", type=int, default=11)
@@ -331,8 +421,10 @@ def main() -> None:
     cv2.setNumThreads(2)
     radar = [] if args.no_radar else run_radar(args.radar_cases, steps, dyn_options)
     clouds = [] if args.no_clouds else run_clouds(steps, dyn_options)
+    drift = [] if args.no_clouds else run_drift_directions(steps, dyn_options)
     timing = [] if args.no_timing else run_timing()
     summary = summarise(radar, clouds)
+    summary["drift directions"] = summarise_drift(drift)
     doc = {
         "machine": machine(),
         "command": "PYTHONPATH=src python benchmarks/motion_real.py "
@@ -343,6 +435,7 @@ def main() -> None:
         "summary": summary,
         "radar": radar,
         "clouds": clouds,
+        "drift directions": drift,
         "timing": timing,
         "pysteps": steps is not None,
     }
@@ -357,6 +450,9 @@ def main() -> None:
             summary["clouds"], ["case", "persistence", "dyntarget", "pysteps LK", "dyntarget / LK"]
         )
         + f"\n\nseconds per call (median): {summary['clouds s per call']}\n"
+        + "\n## Rigid drift of the real cloud layer, 8 directions per speed (IoU at 90 s)\n\n"
+        + markdown_table(summary["drift directions"], DRIFT_COLUMNS)
+        + "\n"
         + "\n## Whole call (estimate + predict 90 s / 9 intervals ahead), median of 5\n\n"
         + markdown_table(timing, ["case", "variant", "s per call"])
         + "\n"
