@@ -7,6 +7,7 @@ already) and reads ``sys.modules`` at the end.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -83,6 +84,10 @@ def test_planning_from_the_onnx_export_of_a_sklearn_model_imports_no_native_ml(
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(
+    os.environ.get("DYNTARGET_FOREST_ISA") == "off",
+    reason="DYNTARGET_FOREST_ISA=off switches the forest kernel off: nothing plans on it",
+)
 def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_ml(
     tiny_scenes, tmp_path
 ):
@@ -126,6 +131,10 @@ def _plan_args(model_dir, image, out):
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(
+    os.environ.get("DYNTARGET_FOREST_ISA") == "off",
+    reason="DYNTARGET_FOREST_ISA=off switches the forest kernel off: nothing plans on it",
+)
 def test_native_random_forest_plans_from_its_packed_forest_without_native_ml(tiny_scenes, tmp_path):
     """``train`` writes forest.npz bound to model.skops (forest.json); ``plan --model RF``
     (native, not --onnx) predicts from it and imports neither torch nor scikit-learn nor
