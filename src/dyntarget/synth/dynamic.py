@@ -75,6 +75,10 @@ PAD = 8
 """Pixels rendered around a window and cropped, so neighbourhood operations
 (blur, gradients) give the same values whatever the window."""
 
+CONE_REACH = 24.0
+"""Distance from a vent, in world sizes, beyond which its cone and lava bias are exactly
+zero in float32 (``exp(-24 / 0.15)`` and ``exp(-24 / 0.2)`` underflow): not computed there."""
+
 MAX_VENTS = 64
 """Most vents in one world (a strip of ``synth --strip --plumes`` has one per plume)."""
 MAX_CLOUDS = 256
@@ -763,7 +767,7 @@ class World:
         self._tiles: dict[str, np.ndarray] = {}
         self._thresholds: dict[str, float] = {}
         self._ground_cache: OrderedDict[Window, np.ndarray] = OrderedDict()
-        self._puff_blocks: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+        self._puff_draws: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
         self._build_tiles()
 
     # ------------------------------------------------------------------ noise tiles
@@ -825,6 +829,11 @@ class World:
         cone = np.zeros_like(xx)
         lava_bias = np.zeros_like(xx)
         for vent in s.vents:  # a volcanic cone under every vent
+            # beyond CONE_REACH sizes both terms underflow to exactly 0 in float32: skip
+            dx = max(c0 - pad - vent.x, 0.0, vent.x - (c0 + w + pad - 1))
+            dy = max(r0 - pad - vent.y, 0.0, vent.y - (r0 + h + pad - 1))
+            if math.hypot(dx, dy) > CONE_REACH * s.size:
+                continue
             r_vent = np.hypot(xx - vent.x, yy - vent.y) / s.size
             cone = np.maximum(cone, 2.5 * np.exp(-r_vent / 0.2))
             lava_bias = np.maximum(lava_bias, 2.0 * np.exp(-r_vent / 0.15))
@@ -866,23 +875,27 @@ class World:
         return surface
 
     # ------------------------------------------------------------------ plumes
-    def _puffs(self, vi: int, k: np.ndarray) -> dict[str, np.ndarray]:
-        """Per-puff random draws (mass factor, crosswind velocity) for puff indices ``k``."""
-        out = {"gust": np.empty(len(k)), "cross": np.empty(len(k))}
-        blocks = k // self.PUFF_BLOCK
-        for b in np.unique(blocks):
-            key = (vi, int(b))
-            if key not in self._puff_blocks:
-                rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD3, vi, int(b)])
-                self._puff_blocks[key] = {
-                    "gust": rng.standard_normal(self.PUFF_BLOCK),
-                    "cross": rng.standard_normal(self.PUFF_BLOCK),
-                }
-            sel = blocks == b
-            idx = k[sel] % self.PUFF_BLOCK
-            out["gust"][sel] = self._puff_blocks[key]["gust"][idx]
-            out["cross"][sel] = self._puff_blocks[key]["cross"][idx]
-        return out
+    def _puffs(self, vi: int, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """Per-puff random draws (mass factor, crosswind velocity) of puffs ``k0 .. k1 - 1``.
+
+        Drawn in blocks of :attr:`PUFF_BLOCK` puffs, block ``b`` from its own seed (so a
+        puff's draws do not depend on which puffs are asked for), kept per vent as one
+        array. Also returns the largest ``|crosswind draw|`` of the vent's puffs drawn so
+        far (a bound for culling).
+        """
+        gust, cross, top = self._puff_draws.get(vi, (np.empty(0), np.empty(0), 0.0))
+        have = len(gust) // self.PUFF_BLOCK
+        need = -(-k1 // self.PUFF_BLOCK)
+        if need > have:
+            g, c = [gust], [cross]
+            for blk in range(have, need):
+                rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD3, vi, blk])
+                g.append(rng.standard_normal(self.PUFF_BLOCK))
+                c.append(rng.standard_normal(self.PUFF_BLOCK))
+            gust, cross = np.concatenate(g), np.concatenate(c)
+            top = float(np.abs(cross).max())
+            self._puff_draws[vi] = (gust, cross, top)
+        return gust[k0:k1], cross[k0:k1], top
 
     def _pulse(self, vi: int, vent: VentSpec, release: np.ndarray) -> np.ndarray:
         """Smooth unit-variance random function of release time (8 random cosines)."""
@@ -928,6 +941,24 @@ class World:
             # puff k carries the emission over [start + k step, start + (k+1) step), clipped at t
             k_last = math.floor((t - start) / step)
             k_first = max(0, math.floor((t - start - 8.0 * v.fade_s) / step))
+            # the whole train's bounding box first: most vents of a long strip are far away
+            gust, cross_draw, top = self._puffs(vi, k_first, k_last + 1)
+            age_max = max(t - start - k_first * step, 0.0)
+            sig_max = math.sqrt(
+                sigma0**2
+                + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age_max
+                + (v.turbulence * speed_px * age_max) ** 2
+            )
+            drift = v.meander * speed_px * top * age_max  # largest crosswind offset
+            sx = abs(nx) * drift + 4.0 * sig_max + 1.0
+            sy = abs(ny) * drift + 4.0 * sig_max + 1.0
+            if (
+                v.x + max(ux * age_max, 0.0) + sx < c0
+                or v.x + min(ux * age_max, 0.0) - sx > c0 + w - 1
+                or v.y + max(uy * age_max, 0.0) + sy < r0
+                or v.y + min(uy * age_max, 0.0) - sy > r0 + h - 1
+            ):
+                continue
             k = np.arange(k_first, k_last + 1)
             t0 = start + k * step
             t1 = np.minimum(t0 + step, t)
@@ -935,35 +966,38 @@ class World:
             k, t0, t1 = k[keep], t0[keep], t1[keep]
             if len(k) == 0:
                 continue
+            gust, cross_draw = gust[keep], cross_draw[keep]
             age = t - 0.5 * (t0 + t1)  # age of the puff's centre of emission
-            draws = self._puffs(vi, k)
-            # line-source normalisation: a steady train of puffs has centreline
-            # optical depth ~ emission_optical_depth near the vent
-            u_norm = max(speed_px, 1.0 / s.gsd)  # px/s; at least 1 m/s so calm air stays finite
-            q = v.emission_optical_depth * u_norm * math.sqrt(2.0 * math.pi) * sigma0  # per s
-            log_rate = v.gustiness * draws["gust"] - 0.5 * v.gustiness**2
-            if v.pulsation > 0:
-                log_rate = log_rate + v.pulsation * self._pulse(vi, v, 0.5 * (t0 + t1))
-                log_rate -= 0.5 * v.pulsation**2
-            mass = q * (t1 - t0) * np.exp(log_rate) * np.exp(-age / v.fade_s)
             sig = np.sqrt(
                 sigma0**2
                 + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age
                 + (v.turbulence * speed_px * age) ** 2
             )
-            cross = v.meander * speed_px * draws["cross"] * age
+            cross = v.meander * speed_px * cross_draw * age
             px = v.x + ux * age + nx * cross
             py = v.y + uy * age + ny * cross
-            ash = v.ash_fraction * np.exp(-age / v.ash_fade_s)
             reach = 4.0 * sig
-            inside = (
+            near = np.flatnonzero(
                 (px + reach >= c0)
                 & (px - reach <= c0 + w - 1)
                 & (py + reach >= r0)
                 & (py - reach <= r0 + h - 1)
-                & (mass / (2 * math.pi * sig**2) > 1e-5)
             )
-            for j in np.flatnonzero(inside):
+            if len(near) == 0:
+                continue
+            age, sig, px, py, reach = age[near], sig[near], px[near], py[near], reach[near]
+            t0, t1, gust = t0[near], t1[near], gust[near]
+            # line-source normalisation: a steady train of puffs has centreline
+            # optical depth ~ emission_optical_depth near the vent
+            u_norm = max(speed_px, 1.0 / s.gsd)  # px/s; at least 1 m/s so calm air stays finite
+            q = v.emission_optical_depth * u_norm * math.sqrt(2.0 * math.pi) * sigma0  # per s
+            log_rate = v.gustiness * gust - 0.5 * v.gustiness**2
+            if v.pulsation > 0:
+                log_rate = log_rate + v.pulsation * self._pulse(vi, v, 0.5 * (t0 + t1))
+                log_rate -= 0.5 * v.pulsation**2
+            mass = q * (t1 - t0) * np.exp(log_rate) * np.exp(-age / v.fade_s)
+            ash = v.ash_fraction * np.exp(-age / v.ash_fade_s)
+            for j in np.flatnonzero(mass / (2 * math.pi * sig**2) > 1e-5):
                 # pixels within 4 sigma of the centre (the same ones in any window)
                 a0 = max(math.ceil(px[j] - reach[j]) - c0, 0)
                 a1 = min(math.floor(px[j] + reach[j]) - c0 + 1, w)
