@@ -152,7 +152,7 @@ def _fly(args: argparse.Namespace) -> int:
                 classifier,
                 config,
                 fallback=fallback,
-                on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
+                on_frame=_Progress(lambda r: write_progress(r, world, out, crs_mode=args.crs)),
                 should_stop=stop.is_set,
                 progress=not args.quiet,
                 frame_sink=views,
@@ -178,6 +178,33 @@ def _fly(args: argparse.Namespace) -> int:
     if result.stopped and stop.caught:
         return 128 + stop.caught[0]
     return EXIT_OK
+
+
+class _Progress:
+    """Rewrite the progress files after a frame, keeping the rewrites to a small share of the time.
+
+    The files hold the whole pass so far, so rewriting them after every frame costs time
+    growing with the pass (quadratic over a 3000 km pass). After a rewrite that took
+    ``d`` seconds the next one waits for ``PROGRESS_TIME_FACTOR * d`` seconds: on a short
+    pass (a rewrite of a millisecond) they are rewritten every few frames, on a long one
+    every second or so. The last frame's are written by ``write_pass`` in any case.
+    """
+
+    def __init__(self, write) -> None:
+        self.write, self.next_at = write, 0.0
+
+    def __call__(self, result) -> None:
+        import time
+
+        now = time.monotonic()
+        if now < self.next_at:
+            return
+        self.write(result)
+        self.next_at = now + PROGRESS_TIME_FACTOR * (time.monotonic() - now)
+
+
+PROGRESS_TIME_FACTOR = 20.0
+"""After a rewrite of the progress files taking ``d`` s, the next waits ``20 d`` (<= 5 % of the time)."""
 
 
 def _remove_progress(out: Path) -> None:
