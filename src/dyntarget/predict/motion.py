@@ -907,12 +907,12 @@ def _flow_and_ground(prev, cur, pm, cm, flow: str, ground: str):
     decided, notes = _decide_ground(ground, (gdx, gdy), ground_ok, rigid, raw)
     if decided == "fixed":
         return wf, (gdx, gdy), decided, notes, ground_votes
-    if ground == "auto":
-        finer = _window_flow(prev, cur, pm, cm, flow, FLOW_MAX_PX_MOVING)
-        if finer.f < wf.f:  # the weather's own cells: the flow again on a finer grid
-            wf = finer
-            raw = wf.mode(wf.votes) if wf.votes.any() else (0.0, 0.0)
-            ground_votes = _background(wf, prev, cur, raw)[4]
+    side = max(wf.x1 - wf.x0, wf.y1 - wf.y0)
+    if ground == "auto" and math.ceil(side / FLOW_MAX_PX_MOVING) < wf.f:
+        # the weather's own cells: the flow again on a finer grid
+        wf = _window_flow(prev, cur, pm, cm, flow, FLOW_MAX_PX_MOVING)
+        raw = wf.mode(wf.votes) if wf.votes.any() else (0.0, 0.0)
+        ground_votes = _background(wf, prev, cur, raw)[4]
     return wf, (0.0, 0.0), decided, notes, ground_votes
 
 
