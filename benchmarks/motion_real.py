@@ -344,14 +344,24 @@ def run_timing(repeats: int = 5) -> list[dict]:
     rows = []
     for case, (p, c, m0, m1, dt) in cases:
         for name, opts in variants.items():
-            times = []
+            times, cpu = [], []
             for _ in range(repeats if "lk" not in name else 1):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 mo = estimate_motion(p, c, dt, previous_mask=m0, current_mask=m1, **opts)
                 predict_mask(m1, mo, 9 * dt)
                 times.append(time.perf_counter() - t0)
+                cpu.append(time.process_time() - c0)
             rows.append(
-                {"case": case, "variant": name, "s per call": round(float(np.median(times)), 3)}
+                {
+                    "case": case,
+                    "variant": name,
+                    "s per call": round(float(np.median(times)), 3),
+                    # CPU seconds of this process (all its threads), which a loaded machine
+                    # inflates far less than the wall time; on free cores the wall time is
+                    # about this or less (OpenCV's two threads)
+                    "cpu s per call": round(float(np.median(cpu)), 3),
+                    "grid": mo.method,
+                }
             )
             print(rows[-1], flush=True)
     return rows
@@ -492,7 +502,7 @@ def main() -> None:
         + markdown_table(summary["drift directions"], DRIFT_COLUMNS)
         + "\n"
         + "\n## Whole call (estimate + predict 90 s / 9 intervals ahead), median of 5\n\n"
-        + markdown_table(timing, ["case", "variant", "s per call"])
+        + markdown_table(timing, ["case", "variant", "s per call", "cpu s per call", "grid"])
         + "\n"
     )
     out.with_suffix(".md").write_text(md)
