@@ -673,7 +673,8 @@ def estimate_motion(
         moving cloud); nothing is removed. ``"auto"`` (default) decides from the
         frames (moving when the background's shift exceeds
         :data:`MAX_MISREGISTRATION_PX` or is not one rigid shift) and says so in
-        ``Motion.ground`` and the notes.
+        ``Motion.ground`` and the notes. A moving background's flow runs on the finer
+        :data:`FLOW_MAX_PX_MOVING` grid.
     field : {"dense", "uniform"}
         ``"dense"`` (default): each plume pixel moves by the dense motion field
         (``Motion.dense``), ``"uniform"``: every detached plume moves by the one
