@@ -8,7 +8,11 @@ figure of ratio plume against latency with one curve per mode.
 
     python benchmarks/predictive_recovery.py --dynamic OUT/dynamic.json \\
         [--latency 90] [--out docs/benchmarks/predictive_recovery.json] \\
-        [--figure docs/img/predictive-vs-static.png]
+        [--figure docs/img/predictive-vs-static.png] [--compare OTHER/dynamic.json]
+
+``--compare`` puts another run on the same scenes beside this one (the mean ratio plume at
+``--latency`` per classifier, planner and mode both have), e.g. the same evaluation with
+another version of ``dyntarget.predict``.
 """
 
 from __future__ import annotations
@@ -61,6 +65,42 @@ def recovery(records: list[dict], latency: float) -> list[dict]:
     return rows
 
 
+def compare(records: list[dict], other: list[dict], latency: float) -> list[dict]:
+    """Mean ratio plume at ``latency`` per classifier x planner x mode found in both runs
+    (over their common scenes): this run's, the other's and the difference."""
+    rows = []
+
+    def at(recs, key):
+        return {
+            r["scene"]: r["ratio_plume"]
+            for r in recs
+            if (r["classifier"], r["planner"], r["mode"]) == key and r["latency_s"] == latency
+        }
+
+    keys = dict.fromkeys(
+        (r["classifier"], r["planner"], r["mode"]) for r in other if r["classifier"] != "N/A"
+    )
+    for key in keys:
+        mine, theirs = at(records, key), at(other, key)
+        common = sorted(set(mine) & set(theirs))
+        if not common:
+            continue
+        a = float(np.mean([mine[s] for s in common]))
+        b = float(np.mean([theirs[s] for s in common]))
+        rows.append(
+            {
+                "classifier": key[0],
+                "planner": key[1],
+                "mode": key[2],
+                "scenes": len(common),
+                f"this run {latency:g}s": round(a, 4),
+                f"other run {latency:g}s": round(b, 4),
+                "difference": round(a - b, 4),
+            }
+        )
+    return rows
+
+
 def figure(records: list[dict], path: Path) -> Path:
     from matplotlib import colormaps
 
@@ -106,14 +146,27 @@ def main() -> None:
     ap.add_argument("--latency", type=float, default=90.0)
     ap.add_argument("--out", default="docs/benchmarks/predictive_recovery.json")
     ap.add_argument("--figure", default="docs/img/predictive-vs-static.png")
+    ap.add_argument(
+        "--compare",
+        metavar="OTHER/dynamic.json",
+        help="another run on the same scenes (e.g. other code): means at --latency side by side",
+    )
+    ap.add_argument(
+        "--note", default="", help="free text kept in the JSON (e.g. the evaluation's command)"
+    )
     args = ap.parse_args()
     records = json.loads(Path(args.dynamic).read_text())["records"]
     rows = recovery(records, args.latency)
+    doc: dict = {"machine": machine(), "latency_s": args.latency, "rows": rows}
+    if args.note:
+        doc["note"] = args.note
+    if args.compare:
+        other = json.loads(Path(args.compare).read_text())["records"]
+        doc["compare"] = {"other": args.compare, "rows": compare(records, other, args.latency)}
+        print(markdown_table(doc["compare"]["rows"], list(doc["compare"]["rows"][0])))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(
-        json.dumps({"machine": machine(), "latency_s": args.latency, "rows": rows}, indent=1) + "\n"
-    )
+    out.write_text(json.dumps(doc, indent=1) + "\n")
     cols = [
         "classifier",
         "planner",

@@ -237,3 +237,64 @@ def test_utility_max_plans_on_the_prediction(tmp_path, capsys, looks):
     )  # fmt: skip
     assert code == 0, err
     assert "predict" in err and (tmp_path / "u.csv").read_text().count("\n") > 1
+
+
+@pytest.fixture(scope="module")
+def flat_looks(tmp_path_factory):
+    """Two looks of a cloud with no texture inside (the flow cannot be trusted)."""
+    d = tmp_path_factory.mktemp("flat-looks")
+    world = RigidCloud(velocity=(1.5, -0.8), textured=False)
+    return {
+        "prev": _write(d / "prev.tif", world.frame(0.0)),
+        "cur": _write(d / "cur.tif", world.frame(4.0)),
+        "prev_mask": _write(d / "prev_mask.tif", world.mask(0.0)),
+        "cur_mask": _write(d / "cur_mask.tif", world.mask(4.0)),
+    }
+
+
+def test_a_fallback_is_said_on_stderr_and_in_the_geojson(tmp_path, capsys, flat_looks):
+    """Issue 28: an estimate too unsure to use falls back to persistence; the plan is the
+    one drawn without prediction, stderr says FALLBACK, and the GeoJSON's properties
+    carry the fallback."""
+    code, err = _plan(capsys, flat_looks, tmp_path / "still.geojson")
+    assert code == 0, err
+    code, err = _plan(
+        capsys, flat_looks, tmp_path / "fb.geojson", "--previous", flat_looks["prev"],
+        "--previous-mask", flat_looks["prev_mask"], "--interval-s", 4, "--lead-s", 40,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "motion: FALLBACK to persistence" in err, err
+    doc = json.loads((tmp_path / "fb.geojson").read_text())
+    pred = doc["properties"]["prediction"]
+    assert pred["fallback"] == "persistence" and pred["velocity_px_s"] == [0.0, 0.0]
+    assert pred["lead_s"] == 40.0 and "fallback to persistence" in pred["summary"]
+    still = json.loads((tmp_path / "still.geojson").read_text())
+    assert "prediction" not in still["properties"]
+    assert [f["geometry"] for f in doc["features"]] == [f["geometry"] for f in still["features"]]
+
+
+def test_a_used_prediction_is_recorded_in_the_geojson(tmp_path, capsys, looks):
+    code, err = _plan(
+        capsys, looks, tmp_path / "p.geojson", "--previous", looks["prev"],
+        "--previous-mask", looks["prev_mask"], "--interval-s", 4, "--lead-s", 12,
+        "--polygons", tmp_path / "poly.geojson",
+    )  # fmt: skip
+    assert code == 0, err
+    for name in ("p.geojson", "poly.geojson"):
+        pred = json.loads((tmp_path / name).read_text())["properties"]["prediction"]
+        assert pred["fallback"] == "" and pred["lead_s"] == 12.0
+        # the world drifts (1.5, -0.8) px/s
+        assert pred["velocity_px_s"] == pytest.approx([1.5, -0.8], abs=0.15)
+
+
+def test_an_all_nodata_current_image_exits_2(tmp_path, capsys, looks, bad_looks):
+    code, _, err = run(
+        capsys, "plan", bad_looks["nodata"], "--mask", looks["cur_mask"],
+        "--planner", "lawnmower-transect", "--previous", looks["prev"],
+        "--previous-mask", looks["prev_mask"], "--interval-s", 4, "--lead-s", 10,
+        "--out", tmp_path / "t.csv",
+    )  # fmt: skip
+    assert code == 2, err
+    assert "nodata" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "t.csv").exists()

@@ -133,3 +133,33 @@ def test_motion_field_samples_bilinearly_between_cells():
     f = MotionField(vel, (0, 0), 4, (12, 20))
     got = f.sample(np.float32([1.5, 3.5, 5.5, 100.0]), np.float32([1.5, 1.5, 1.5, 1.5]))
     assert got[:, 0].tolist() == pytest.approx([0.0, 0.5, 1.0, 4.0])  # beyond: the edge cell
+
+
+@pytest.mark.slow  # a 1024 px scene, three estimates: ~10 s on 2 loaded cores
+def test_a_moving_background_gets_the_finer_flow_grid():
+    """Issue 28: weather filling a 1024 px window; once the background is found moving the
+    flow runs on at most FLOW_MAX_PX_MOVING = 384 px a side (1024 / 384 -> every 3 px),
+    where a fixed ground keeps FLOW_MAX_PX = 256 (every 4 px)."""
+    rng = np.random.default_rng(7)
+    field = ndimage.gaussian_filter(rng.random((1024, 1024)), 4.0)
+    field = (field - field.min()) / (field.max() - field.min())
+    cells = ndimage.gaussian_filter(rng.random((1024, 1024)), 40.0)
+    plume = cells > np.percentile(cells, 90)  # a few large cells, textured by the field
+    v = (0.6, -0.3)
+
+    def look(t):
+        shift = (v[1] * t, v[0] * t)  # rows, cols
+        img = ndimage.shift(0.2 + 0.6 * field, shift, order=1, mode="wrap")
+        m = ndimage.shift(plume.astype(float), shift, order=0, mode="wrap") > 0.5
+        return np.repeat(img[None], 4, 0).astype(np.float32), m
+
+    (a, ma), (b, mb) = look(0), look(10)
+    auto = estimate_motion(a, b, 10.0, previous_mask=ma, current_mask=mb)
+    assert auto.ground == "moving" and auto.dense is not None, auto.summary()
+    assert auto.dense.scale == 3 and "1/3 grid" in auto.method, auto.method
+    assert auto.velocity == pytest.approx(v, abs=0.05), auto.summary()
+    given = estimate_motion(a, b, 10.0, previous_mask=ma, current_mask=mb, ground="moving")
+    assert given.dense is not None and given.dense.scale == 3
+    fixed = estimate_motion(a, b, 10.0, previous_mask=ma, current_mask=mb, ground="fixed")
+    assert fixed.dense is None or fixed.dense.scale == 4, fixed.method
+    assert "1/4 grid" in fixed.method or fixed.dense is None, fixed.method

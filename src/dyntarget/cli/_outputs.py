@@ -55,8 +55,11 @@ def write_outputs(
     polygons=None,
     probability=None,
     title: str = "",
+    properties: dict | None = None,
 ) -> None:
-    """Write ``--out`` (GeoJSON or CSV), ``--polygons`` and ``--html``; print each path."""
+    """Write ``--out`` (GeoJSON or CSV), ``--polygons`` and ``--html``; print each path.
+
+    ``properties`` (e.g. ``{"prediction": ...}``) join the GeoJSON collections' properties."""
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.geojson import write_polygons, write_trajectory
 
@@ -86,9 +89,13 @@ def write_outputs(
         from dyntarget.view import require_plotly
 
         require_plotly()
-    print(write_trajectory(args.out, traj, crs_mode=args.crs, **georef))
+    print(write_trajectory(args.out, traj, crs_mode=args.crs, properties=properties, **georef))
     if args.polygons:
-        print(write_polygons(args.polygons, polygons, crs_mode=args.crs, **georef))
+        print(
+            write_polygons(
+                args.polygons, polygons, crs_mode=args.crs, properties=properties, **georef
+            )
+        )
     if args.html:
         from dyntarget.observe import pointing_truth
         from dyntarget.view import write_scene_view

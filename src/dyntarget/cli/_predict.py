@@ -225,3 +225,14 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
     if wfov.label is not None:
         current_raw = None  # the pipeline reads the given mask itself
     return Prediction(motion, args.lead_s), current_raw
+
+
+def prediction_record(prediction) -> dict:
+    """What the GeoJSON outputs say about the prediction the plan was drawn on: the lead,
+    the motion (:meth:`dyntarget.predict.Motion.to_dict`, with ``fallback`` set when the
+    estimate was too unsure and the plume was not moved) and one line of it."""
+    return {
+        "lead_s": float(prediction.lead_s),
+        "summary": prediction.motion.summary(),
+        **prediction.motion.to_dict(),
+    }

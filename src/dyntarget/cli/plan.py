@@ -19,7 +19,12 @@ from dyntarget.cli._common import (
     writes,
 )
 from dyntarget.cli._outputs import add_output_options, write_outputs
-from dyntarget.cli._predict import add_predict_options, prediction_for, wants_prediction
+from dyntarget.cli._predict import (
+    add_predict_options,
+    prediction_for,
+    prediction_record,
+    wants_prediction,
+)
 
 
 def cmd_planners(args: argparse.Namespace) -> int:
@@ -146,6 +151,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     write_outputs(
         args, wfov, traj, polygons=result.polygons, probability=result.probability,
         title=f"{wfov.id}: {result.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
+        properties=None if prediction is None else {"prediction": prediction_record(prediction)},
     )  # fmt: skip
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
