@@ -110,10 +110,12 @@ def _fake_compiler(tmp_path, body: str) -> str:
 
 
 def test_a_compiler_that_refuses_native_code_gets_the_portable_build(tmp_path, monkeypatch):
+    """A compiler that knows neither -march=native nor the x86-64-v3/v4 levels (e.g. gcc < 11)."""
     real = shutil.which("gcc") or shutil.which("cc")
     cc = _fake_compiler(
         tmp_path,
-        'for a in "$@"; do [ "$a" = "-march=native" ] && { echo "no native" >&2; exit 1; }; done\n'
+        'for a in "$@"; do case "$a" in -march=native|-march=x86-64-v*) echo "no $a" >&2; exit 1;;'
+        " esac; done\n"
         f'exec {real} "$@"',
     )
     monkeypatch.setenv("CC", cc)
