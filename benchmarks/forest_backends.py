@@ -22,7 +22,7 @@ classifiers return it):
   ``portable``), one thread and in the chunk pool.
 
     python benchmarks/forest_backends.py --model RF --image IMG.tif [--repeats 5]
-        [--out docs/benchmarks/forest_backends.json]
+        [--out docs/benchmarks/forest_backends.json] [--before OLD/_forest.c]
 """
 
 from __future__ import annotations
@@ -42,15 +42,38 @@ from dyntarget.evaluate.bench import machine
 from dyntarget.io.atomic import write_text
 
 
-def timed(fn: Callable[[], np.ndarray], repeats: int) -> tuple[list[float], np.ndarray]:
-    """Seconds of ``repeats`` calls after one warm-up, and the last result."""
+def timed(
+    fn: Callable[[], np.ndarray], repeats: int
+) -> tuple[list[float], list[float], np.ndarray]:
+    """Wall and process-CPU seconds of ``repeats`` calls after one warm-up, and the last result.
+
+    The CPU seconds (all threads of this process) move less with the load of other
+    processes than the wall seconds do, so they compare rows measured on a busy machine.
+    """
     out = fn()
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
         times.append(time.perf_counter() - t0)
-    return times, np.asarray(out, np.float64).ravel()
+        cpu.append(time.process_time() - c0)
+    return times, cpu, np.asarray(out, np.float64).ravel()
+
+
+def library_from(source: Path, isa: str, where: Path) -> Path:
+    """The kernel of another ``_forest.c`` (``--before``) built for the forced path ``isa``."""
+    import shlex
+    import subprocess
+
+    from dyntarget.perceive import compiled
+
+    cc = compiled.compiler()
+    if cc is None:
+        raise SystemExit("--before needs a C compiler")
+    flags = [f for f in compiled.FLAGS if f != "-march=native"] + list(compiled.ISA_FLAGS[isa])
+    out = where / f"before-{isa}.so"
+    subprocess.run([*shlex.split(cc), *flags, str(source), "-o", str(out)], check=True)
+    return out
 
 
 def regressor_graph(packed) -> bytes:
@@ -93,7 +116,18 @@ def main() -> None:
     parser.add_argument("--model", required=True, help="random-forest model dir with model.onnx")
     parser.add_argument("--image", required=True, help="the scene (a 4-band GeoTIFF)")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--skip", default="", help="comma-separated row names to leave out")
+    parser.add_argument(
+        "--skip",
+        default="",
+        help="comma-separated row names to leave out ('tl2cgen': all its rows and builds)",
+    )
+    parser.add_argument(
+        "--before",
+        default=None,
+        help="another _forest.c (e.g. from an older commit): its forced paths are measured "
+        "too, each row next to the current kernel's, for a before/after in one run",
+    )
+    parser.add_argument("--isas", default="avx512,avx2,sse2,portable", help="kernel paths to run")
     parser.add_argument("--out", default="docs/benchmarks/forest_backends.json")
     a = parser.parse_args()
     skip = set(filter(None, a.skip.split(",")))
@@ -116,14 +150,16 @@ def main() -> None:
     def add(name: str, fn: Callable[[], np.ndarray], build_s: float | None = None, **kw) -> None:
         if name in skip:
             return
-        times, out = timed(fn, a.repeats)
+        times, cpu, out = timed(fn, a.repeats)
         row = {"backend": name, "build_s": build_s, "seconds": times,
-               "median_s": statistics.median(times),
+               "median_s": statistics.median(times), "cpu_seconds": cpu,
+               "median_cpu_s": statistics.median(cpu),
                "max_abs_diff": float(np.abs(out - ref).max()),
                "max_abs_diff_float32": float(np.abs(out - ref32).max()), **kw}  # fmt: skip
         rows.append(row)
         print(
-            f"{name:50s} {row['median_s']:8.3f} s  max|d| {row['max_abs_diff']:.2g} "
+            f"{name:58s} {row['median_s']:8.3f} s (cpu {row['median_cpu_s']:.3f} s)  "
+            f"max|d| {row['max_abs_diff']:.2g} "
             f"(float32 ref {row['max_abs_diff_float32']:.2g})",
             flush=True,
         )
@@ -169,10 +205,12 @@ def main() -> None:
             run_reg, threads=threads)  # fmt: skip
 
     try:
+        if "tl2cgen" in skip:
+            raise ImportError("left out with --skip tl2cgen")
         import tl2cgen
         import treelite
     except ImportError as exc:
-        print(f"TL2cgen / Treelite not installed ({exc}): not measured")
+        print(f"TL2cgen / Treelite not measured ({exc})")
     else:
         tl_model = treelite.sklearn.import_model(est)
         tmp = Path(tempfile.mkdtemp(prefix="tl2cgen-"))
@@ -195,7 +233,7 @@ def main() -> None:
                 add(f"TL2cgen -O2{' quantized' if quantize else ''} ({threads} threads)",
                     run_tl, build, threads=threads, quantize=quantize)  # fmt: skip
 
-    for isa in ("avx512", "avx2", "sse2", "portable"):
+    for isa in a.isas.split(","):
         if not compiled.cpu_runs(isa):
             print(f"kernel {isa}: this CPU does not run it")
             continue
@@ -203,17 +241,23 @@ def main() -> None:
             t0 = time.perf_counter()
             predict = compiled.forest_predictor(packed, directory=cache, isa=isa)
             build = time.perf_counter() - t0
-            add(f"dyntarget kernel {isa} (1 thread)", lambda p=predict: p(x), build, threads=1)
-            add(
-                f"dyntarget kernel {isa} in the chunk pool ({cores} threads)",
-                lambda p=predict: predict_in_chunks(image, p),
-                build,
-                threads=cores,
-            )
+            kernels = [("", predict, build)]
+            if a.before:
+                lib = library_from(Path(a.before), isa, Path(cache))
+                kernels.insert(0, (" before", compiled.forest_predictor(packed, library=lib), None))
+            for label, p, b in kernels:  # before and after side by side
+                add(f"dyntarget kernel {isa}{label} (1 thread)", lambda p=p: p(x), b, threads=1)
+            for label, p, b in kernels:
+                add(
+                    f"dyntarget kernel {isa}{label} in the chunk pool ({cores} threads)",
+                    lambda p=p: predict_in_chunks(image, p),
+                    b,
+                    threads=cores,
+                )
 
     result = {
         "command": "python benchmarks/forest_backends.py --model RF --image IMG "
-        f"--repeats {a.repeats}",
+        f"--repeats {a.repeats}" + (" --before OLD/_forest.c" if a.before else ""),
         "pixels": len(x),
         "trees": len(est.estimators_),
         "nodes": int(sum(t.tree_.node_count for t in est.estimators_)),
