@@ -1287,8 +1287,9 @@ def fast_predictor(
 
     In this order: a kernel exported beside the forest's ``forest.npz`` for this CPU
     (:func:`artefact_predictor`, hashes checked); else the kernel built here (or found in
-    the cache) where it runs AVX2 or AVX-512; else ``None``, which says to use
-    scikit-learn or ONNX Runtime. Where the folder exports kernels but none fits, or the
+    the cache) where it runs a path measured faster than the backend ``against`` (AVX2 or
+    AVX-512 against scikit-learn; also SSE2 against ONNX Runtime); else ``None``, which
+    says to use that backend. Where the folder exports kernels but none fits, or the
     kernel cannot be built, one line on stderr (once per process) names the CPU class and
     what was missing. The policy of ``RandomForest``'s ``"auto"`` backend and of a
     forest's ONNX twin.
