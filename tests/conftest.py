@@ -68,9 +68,13 @@ def pytest_collection_modifyitems(config, items):
         return
     import pytest
 
+    why = (
+        f"this CPU ({compiled.cpu_class()}) does not run that forest-kernel path"
+        if forced in compiled.ISA_FLAGS
+        else f"not a forest-kernel path (auto, off, {', '.join(compiled.ISA_FLAGS)})"
+    )
     skip = pytest.mark.skip(
-        reason=f"DYNTARGET_FOREST_ISA={forced}: this CPU ({compiled.cpu_class()}) does not run "
-        "that forest-kernel path, so a run forcing it cannot stand for any machine"
+        reason=f"DYNTARGET_FOREST_ISA={forced}: {why}; the run forcing it is skipped"
     )
     for item in items:
         item.add_marker(skip)
