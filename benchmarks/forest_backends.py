@@ -11,20 +11,25 @@ classifiers return it):
 * scikit-learn ``predict_proba`` (one call, ``n_jobs=1``; and in the project's chunk pool,
   one thread per core);
 * ONNX Runtime's TreeEnsemble on ``model.onnx`` with ``intra_op_num_threads`` 1 and 2
-  (sequential execution, all graph optimisations; spinning on and off for 2 threads);
+  (sequential execution, all graph optimisations; spinning on and off for 2 threads); and
+  on another graph form, built here from the packed forest and not what ``export-onnx``
+  writes: one ``TreeEnsembleRegressor`` (``ai.onnx.ml`` opset 3) giving the plume fraction
+  only (float32, ``AVERAGE`` of the leaves' fractions, no label, no second class, no
+  ZipMap), thresholds rounded down to float32 as the kernel has them;
 * TL2cgen (Treelite 4 model, C generated per tree, compiled with gcc; ``nthread`` 1 and 2),
   with and without threshold quantisation;
 * dyntarget's kernel forced on each path this CPU runs (``avx512``, ``avx2``, ``sse2``,
   ``portable``), one thread and in the chunk pool.
 
     python benchmarks/forest_backends.py --model RF --image IMG.tif [--repeats 5]
-        [--out docs/benchmarks/forest_backends.json]
+        [--out docs/benchmarks/forest_backends.json] [--before OLD/_forest.c]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import tempfile
 import time
@@ -37,15 +42,73 @@ from dyntarget.evaluate.bench import machine
 from dyntarget.io.atomic import write_text
 
 
-def timed(fn: Callable[[], np.ndarray], repeats: int) -> tuple[list[float], np.ndarray]:
-    """Seconds of ``repeats`` calls after one warm-up, and the last result."""
+def timed(
+    fn: Callable[[], np.ndarray], repeats: int
+) -> tuple[list[float], list[float], np.ndarray]:
+    """Wall and process-CPU seconds of ``repeats`` calls after one warm-up, and the last result.
+
+    The CPU seconds (all threads of this process) move less with the load of other
+    processes than the wall seconds do, so they compare rows measured on a busy machine.
+    """
     out = fn()
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
         times.append(time.perf_counter() - t0)
-    return times, np.asarray(out, np.float64).ravel()
+        cpu.append(time.process_time() - c0)
+    return times, cpu, np.asarray(out, np.float64).ravel()
+
+
+def library_from(source: Path, isa: str, where: Path) -> Path:
+    """The kernel of another ``_forest.c`` (``--before``) built for the forced path ``isa``."""
+    import shlex
+    import subprocess
+
+    from dyntarget.perceive import compiled
+
+    cc = compiled.compiler()
+    if cc is None:
+        raise SystemExit("--before needs a C compiler")
+    flags = [f for f in compiled.FLAGS if f != "-march=native"] + list(compiled.ISA_FLAGS[isa])
+    out = where / f"before-{isa}.so"
+    subprocess.run([*shlex.split(cc), *flags, str(source), "-o", str(out)], check=True)
+    return out
+
+
+def regressor_graph(packed) -> bytes:
+    """One ``TreeEnsembleRegressor`` giving a packed forest's plume fraction (see the module)."""
+    from onnx import TensorProto, helper
+
+    total, ntrees = len(packed.value), len(packed.roots)
+    bounds = [*packed.roots.tolist(), total]
+    leaf = np.isposinf(packed.threshold[:total])
+    tree = np.repeat(np.arange(ntrees), np.diff(bounds))
+    local = np.arange(total) - np.asarray(bounds[:-1])[tree]
+    child = (packed.code[:total] >> packed.fshift) - np.asarray(bounds[:-1])[tree]
+    feature = packed.code[:total] & ((1 << packed.fshift) - 1)
+    node = helper.make_node(
+        "TreeEnsembleRegressor", ["pixels"], ["plume"], domain="ai.onnx.ml",
+        nodes_treeids=tree.tolist(), nodes_nodeids=local.tolist(),
+        nodes_featureids=np.where(leaf, 0, feature).tolist(),
+        nodes_values=np.where(leaf, 0.0, packed.threshold[:total]).tolist(),
+        nodes_modes=["LEAF" if lf else "BRANCH_LEQ" for lf in leaf],
+        nodes_truenodeids=np.where(leaf, 0, child).tolist(),
+        nodes_falsenodeids=np.where(leaf, 0, child + 1).tolist(),
+        target_treeids=tree[leaf].tolist(), target_nodeids=local[leaf].tolist(),
+        target_ids=[0] * int(leaf.sum()), target_weights=packed.value[leaf].tolist(),
+        n_targets=1, aggregate_function="AVERAGE", post_transform="NONE",
+    )  # fmt: skip
+    graph = helper.make_graph(
+        [node], "plume-fraction",
+        [helper.make_tensor_value_info("pixels", TensorProto.FLOAT, [None, packed.features])],
+        [helper.make_tensor_value_info("plume", TensorProto.FLOAT, [None, 1])],
+    )  # fmt: skip
+    model = helper.make_model(
+        graph, opset_imports=[helper.make_opsetid("", 17), helper.make_opsetid("ai.onnx.ml", 3)]
+    )
+    model.ir_version = 8
+    return model.SerializeToString()
 
 
 def main() -> None:
@@ -53,10 +116,22 @@ def main() -> None:
     parser.add_argument("--model", required=True, help="random-forest model dir with model.onnx")
     parser.add_argument("--image", required=True, help="the scene (a 4-band GeoTIFF)")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--skip", default="", help="comma-separated row names to leave out")
+    parser.add_argument(
+        "--skip",
+        default="",
+        help="comma-separated row names to leave out ('tl2cgen': all its rows and builds)",
+    )
+    parser.add_argument(
+        "--before",
+        default=None,
+        help="another _forest.c (e.g. from an older commit): its forced paths are measured "
+        "too, each row next to the current kernel's, for a before/after in one run",
+    )
+    parser.add_argument("--isas", default="avx512,avx2,sse2,portable", help="kernel paths to run")
     parser.add_argument("--out", default="docs/benchmarks/forest_backends.json")
     a = parser.parse_args()
     skip = set(filter(None, a.skip.split(",")))
+    load_start = round(os.getloadavg()[0], 2)
 
     from dyntarget.io.sensors import read_any
     from dyntarget.perceive import compiled, load_classifier
@@ -75,14 +150,16 @@ def main() -> None:
     def add(name: str, fn: Callable[[], np.ndarray], build_s: float | None = None, **kw) -> None:
         if name in skip:
             return
-        times, out = timed(fn, a.repeats)
+        times, cpu, out = timed(fn, a.repeats)
         row = {"backend": name, "build_s": build_s, "seconds": times,
-               "median_s": statistics.median(times),
+               "median_s": statistics.median(times), "cpu_seconds": cpu,
+               "median_cpu_s": statistics.median(cpu),
                "max_abs_diff": float(np.abs(out - ref).max()),
                "max_abs_diff_float32": float(np.abs(out - ref32).max()), **kw}  # fmt: skip
         rows.append(row)
         print(
-            f"{name:50s} {row['median_s']:8.3f} s  max|d| {row['max_abs_diff']:.2g} "
+            f"{name:58s} {row['median_s']:8.3f} s (cpu {row['median_cpu_s']:.3f} s)  "
+            f"max|d| {row['max_abs_diff']:.2g} "
             f"(float32 ref {row['max_abs_diff_float32']:.2g})",
             flush=True,
         )
@@ -112,11 +189,28 @@ def main() -> None:
         label = f"ONNX Runtime TreeEnsemble ({threads} thread{'s' if threads > 1 else ''}"
         add(label + ("" if spin else ", no spinning") + ")", run_ort, threads=threads)
 
+    packed = compiled.pack_forest(est)
+    for threads in (1, cores):
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads, opts.inter_op_num_threads = threads, 1
+        opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        sess = ort.InferenceSession(
+            regressor_graph(packed), opts, providers=["CPUExecutionProvider"]
+        )
+
+        def run_reg(sess=sess) -> np.ndarray:
+            return sess.run(None, {"pixels": x})[0][:, 0]
+
+        add(f"ONNX Runtime TreeEnsembleRegressor, plume fraction only ({threads} threads)",
+            run_reg, threads=threads)  # fmt: skip
+
     try:
+        if "tl2cgen" in skip:
+            raise ImportError("left out with --skip tl2cgen")
         import tl2cgen
         import treelite
     except ImportError as exc:
-        print(f"TL2cgen / Treelite not installed ({exc}): not measured")
+        print(f"TL2cgen / Treelite not measured ({exc})")
     else:
         tl_model = treelite.sklearn.import_model(est)
         tmp = Path(tempfile.mkdtemp(prefix="tl2cgen-"))
@@ -139,8 +233,7 @@ def main() -> None:
                 add(f"TL2cgen -O2{' quantized' if quantize else ''} ({threads} threads)",
                     run_tl, build, threads=threads, quantize=quantize)  # fmt: skip
 
-    packed = compiled.pack_forest(est)
-    for isa in ("avx512", "avx2", "sse2", "portable"):
+    for isa in a.isas.split(","):
         if not compiled.cpu_runs(isa):
             print(f"kernel {isa}: this CPU does not run it")
             continue
@@ -148,22 +241,29 @@ def main() -> None:
             t0 = time.perf_counter()
             predict = compiled.forest_predictor(packed, directory=cache, isa=isa)
             build = time.perf_counter() - t0
-            add(f"dyntarget kernel {isa} (1 thread)", lambda p=predict: p(x), build, threads=1)
-            add(
-                f"dyntarget kernel {isa} in the chunk pool ({cores} threads)",
-                lambda p=predict: predict_in_chunks(image, p),
-                build,
-                threads=cores,
-            )
+            kernels = [("", predict, build)]
+            if a.before:
+                lib = library_from(Path(a.before), isa, Path(cache))
+                kernels.insert(0, (" before", compiled.forest_predictor(packed, library=lib), None))
+            for label, p, b in kernels:  # before and after side by side
+                add(f"dyntarget kernel {isa}{label} (1 thread)", lambda p=p: p(x), b, threads=1)
+            for label, p, b in kernels:
+                add(
+                    f"dyntarget kernel {isa}{label} in the chunk pool ({cores} threads)",
+                    lambda p=p: predict_in_chunks(image, p),
+                    b,
+                    threads=cores,
+                )
 
     result = {
         "command": "python benchmarks/forest_backends.py --model RF --image IMG "
-        f"--repeats {a.repeats}",
+        f"--repeats {a.repeats}" + (" --before OLD/_forest.c" if a.before else ""),
         "pixels": len(x),
         "trees": len(est.estimators_),
         "nodes": int(sum(t.tree_.node_count for t in est.estimators_)),
         "rows": rows,
-        "machine": machine(),
+        "load_1min_start": load_start,
+        "machine": machine(),  # its load_1min: at the end
     }
     write_text(Path(a.out), json.dumps(result, indent=2) + "\n")
 

@@ -2,7 +2,8 @@
 
 Runs the command ``--runs`` times as a fresh process (after one untimed warm-up run)
 and records, per run, the wall time start to exit, the peak resident memory
-(``ru_maxrss``) and the classify time the command logs (``classify N ms``), then once
+(``ru_maxrss``), the CPU time (user + system) and the classify time the command logs
+(``classify N ms``), then once
 more in a probe interpreter that prints which heavy packages were left in
 ``sys.modules`` (torch, sklearn, skops, scipy, onnxruntime).
 
@@ -31,8 +32,9 @@ from dyntarget.io.atomic import write_text
 HEAVY = ("torch", "sklearn", "skops", "scipy", "onnxruntime")
 
 
-def run_once(argv: list[str]) -> tuple[float, float, float | None]:
-    """Wall seconds, peak MiB and the logged classify seconds of one process."""
+def run_once(argv: list[str]) -> tuple[float, float, float | None, float]:
+    """Wall seconds, peak MiB, the logged classify seconds and the CPU seconds (user + system,
+    all threads) of one process; the CPU seconds move less with other processes' load."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -41,7 +43,8 @@ def run_once(argv: list[str]) -> tuple[float, float, float | None]:
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"{argv} failed: {err}")
     found = re.search(r"classify ([0-9.]+) ms", err)
-    return seconds, usage.ru_maxrss / 1024, float(found.group(1)) / 1000 if found else None
+    cpu = usage.ru_utime + usage.ru_stime
+    return seconds, usage.ru_maxrss / 1024, float(found.group(1)) / 1000 if found else None, cpu
 
 
 def imported(args: list[str]) -> list[str]:
@@ -63,6 +66,7 @@ def main() -> None:
     parser.add_argument("--label", default="after")
     parser.add_argument("--out", default="docs/benchmarks/plan_rf_native.json")
     a = parser.parse_args()
+    load_start = round(os.getloadavg()[0], 2)
     out = Path(a.out)
     args = ["plan", a.image, "--model", a.model, "--planner", "lawnmower-transect"]
     args += ["--out", str(Path(os.environ.get("TMPDIR", "/tmp")) / "plan_rf_process.geojson")]
@@ -81,6 +85,9 @@ def main() -> None:
         "classify_median_s": statistics.median(classify) if classify else None,
         "rest_median_s": statistics.median(r[0] - (r[2] or 0.0) for r in runs),
         "peak_mib_median": statistics.median(r[1] for r in runs),
+        "cpu_s": [r[3] for r in runs],
+        "cpu_median_s": statistics.median(r[3] for r in runs),
+        "load_1min_start": load_start,
         "heavy_imports": imported(args),
         "machine": machine(),
     }

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from affine import Affine
@@ -52,3 +54,27 @@ settings.register_profile(
     "dyntarget", max_examples=60, deadline=None, derandomize=True, print_blob=True
 )
 settings.load_profile("dyntarget")
+
+
+def pytest_collection_modifyitems(config, items):
+    """A run with ``DYNTARGET_FOREST_ISA`` forcing a kernel path this CPU cannot run (e.g.
+    ``avx512`` on an AVX2-only CPU) simulates a machine this is not: every test skips, saying so."""
+    forced = os.environ.get("DYNTARGET_FOREST_ISA", "").strip().lower()
+    if forced in ("", "auto", "off"):
+        return
+    from dyntarget.perceive import compiled
+
+    if forced in compiled.ISA_FLAGS and compiled.cpu_runs(forced):
+        return
+    import pytest
+
+    why = (
+        f"this CPU ({compiled.cpu_class()}) does not run that forest-kernel path"
+        if forced in compiled.ISA_FLAGS
+        else f"not a forest-kernel path (auto, off, {', '.join(compiled.ISA_FLAGS)})"
+    )
+    skip = pytest.mark.skip(
+        reason=f"DYNTARGET_FOREST_ISA={forced}: {why}; the run forcing it is skipped"
+    )
+    for item in items:
+        item.add_marker(skip)

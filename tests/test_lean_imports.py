@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import platform
 import subprocess
 import sys
 
@@ -92,8 +93,10 @@ def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_m
     tiny_scenes, tmp_path
 ):
     """forest.npz beside model.onnx: the lean path loads neither scikit-learn nor torch,
-    maps the forest kernel where it builds with AVX-512, and plans what the native model
-    plans (bit-identical probabilities, so the same mask)."""
+    maps the forest kernel where it builds on x86-64 (every x86-64 path was measured faster
+    than ONNX Runtime's tree ensemble; NEON was not measured) or where
+    ``DYNTARGET_FOREST_ISA`` forces a path (a forced path is never replaced silently), and
+    plans what the native model plans (bit-identical probabilities, so the same mask)."""
     pytest.importorskip("onnxruntime")
     pytest.importorskip("skl2onnx")
     from dyntarget.cli import main
@@ -117,11 +120,11 @@ def test_the_onnx_export_of_a_random_forest_plans_on_the_kernel_without_native_m
         "print(any('forest-kernel' in line for line in open('/proc/self/maps')))"
     )
     assert not set(loaded) & set(NATIVE_ML), loaded
-    fast = (
-        compiled.compiler() is not None
-        and compiled.forest_predictor(compiled.pack_forest(model.estimator)).vectorised
-    )
-    assert out.strip().splitlines()[-1] == str(fast)  # the kernel ran where it can
+    if compiled.forced_isa() is not None:  # e.g. portable or sse2: run because it was asked for
+        expected = True
+    else:  # auto: the kernel built here on any x86-64
+        expected = compiled.compiler() is not None and platform.machine() in ("x86_64", "AMD64")
+    assert out.strip().splitlines()[-1] == str(expected)  # the kernel ran where it should
     assert onnx_out.read_text() == native_out.read_text()
 
 

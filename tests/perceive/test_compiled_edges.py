@@ -110,10 +110,12 @@ def _fake_compiler(tmp_path, body: str) -> str:
 
 
 def test_a_compiler_that_refuses_native_code_gets_the_portable_build(tmp_path, monkeypatch):
+    """A compiler that knows neither -march=native nor the x86-64-v3/v4 levels (e.g. gcc < 11)."""
     real = shutil.which("gcc") or shutil.which("cc")
     cc = _fake_compiler(
         tmp_path,
-        'for a in "$@"; do [ "$a" = "-march=native" ] && { echo "no native" >&2; exit 1; }; done\n'
+        'for a in "$@"; do case "$a" in -march=native|-march=x86-64-v*) echo "no $a" >&2; exit 1;;'
+        " esac; done\n"
         f'exec {real} "$@"',
     )
     monkeypatch.setenv("CC", cc)
@@ -311,3 +313,24 @@ def test_a_forest_trained_with_missing_values_round_trips_through_its_file(tmp_p
     np.testing.assert_array_equal(
         forest_predictor(back)(finite), est.predict_proba(finite)[:, 1].astype(np.float32)
     )
+
+
+def test_cpu_runs_reads_cpuid_through_numpy_before_proc_cpuinfo(monkeypatch):
+    """A Haswell as CPUID reports it (AVX2, no AVX-512), whatever /proc/cpuinfo says (under
+    qemu-user it is the host's); with an older numpy lacking the names, /proc/cpuinfo."""
+    monkeypatch.setattr(compiled.platform, "machine", lambda: "x86_64")
+    haswell = {"AVX2": True, "FMA3": True, "BMI": True, "BMI2": True, "F16C": True,
+               "MOVBE": True, "LZCNT": True, "AVX512F": False, "AVX512BW": False,
+               "AVX512CD": False, "AVX512DQ": False, "AVX512VL": False}  # fmt: skip
+    monkeypatch.setattr(compiled, "_cpuid_features", lambda: haswell)
+    monkeypatch.setattr(compiled, "_cpu", lambda: "flags\t: avx2 avx512f avx512bw\n")
+    assert (compiled.cpu_runs("avx2"), compiled.cpu_runs("avx512")) == (True, False)
+    assert compiled._best_isa() == "avx2"
+    monkeypatch.setattr(compiled, "_cpuid_features", lambda: {"AVX2": True})  # names missing
+    flags = (
+        "flags\t: fma bmi1 bmi2 f16c movbe abm avx2 avx512f avx512bw avx512cd avx512dq avx512vl\n"
+    )
+    monkeypatch.setattr(compiled, "_cpu", lambda: flags)
+    assert (compiled.cpu_runs("avx2"), compiled.cpu_runs("avx512")) == (True, True)
+    monkeypatch.setattr(compiled.platform, "machine", lambda: "aarch64")
+    assert compiled._best_isa() is None and not compiled.cpu_runs("avx2")

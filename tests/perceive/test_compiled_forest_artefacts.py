@@ -184,7 +184,33 @@ def test_export_onnx_builds_the_named_targets(tiny_scenes, tmp_path, flight, mon
     assert main(["export-onnx", str(model_dir), "--targets", ",".join(targets)]) == 0
     manifest = json.loads((model_dir / compiled.MANIFEST_FILE).read_text())
     assert [k["target"] for k in manifest["kernels"]] == targets
-    assert main(["export-onnx", str(model_dir)]) == 0  # default: none, the old ones removed
+    assert main(["export-onnx", str(model_dir), "--targets", "none"]) == 0  # the old ones removed
     assert compiled.kernel_files(model_dir) == []
     assert json.loads((model_dir / compiled.MANIFEST_FILE).read_text())["kernels"] == []
     assert shutil.which("cc")
+
+
+@pytest.mark.slow
+def test_export_onnx_by_default_builds_every_class_it_has_a_compiler_for(
+    tiny_scenes, tmp_path, monkeypatch, capsys
+):
+    """Default --targets auto: every x86-64 level where the host is x86-64 (or aarch64 where it
+    is aarch64); the other architecture's target, its cross compiler hidden, is said once."""
+    pytest.importorskip("skl2onnx")
+    from dyntarget.cli import main
+
+    host = compiled._arch()
+    foreign = "aarch64" if host == "x86_64" else "x86_64"
+    monkeypatch.setitem(compiled.CROSS_COMPILERS, foreign, "no-such-cross-gcc")
+    model_dir = tmp_path / "rf"
+    make_classifier("random-forest", max_pixels_per_class=500).fit(tiny_scenes[:2]).save(model_dir)
+    capsys.readouterr()
+    assert main(["export-onnx", str(model_dir)]) == 0
+    built = {"x86_64": ["x86-64-v4", "x86-64-v3", "x86-64"], "aarch64": ["aarch64"]}[host]
+    manifest = json.loads((model_dir / compiled.MANIFEST_FILE).read_text())
+    assert [k["target"] for k in manifest["kernels"]] == built
+    assert sorted(p.name for p in compiled.kernel_files(model_dir)) == sorted(
+        f"forest-kernel-{t}.so" for t in built
+    )
+    said = [line for line in capsys.readouterr().err.splitlines() if "no forest kernel" in line]
+    assert len(said) == 1 and "no-such-cross-gcc" in said[0] and "ONNX Runtime" in said[0]

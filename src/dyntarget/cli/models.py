@@ -97,14 +97,44 @@ def cmd_train(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_export_onnx(args: argparse.Namespace) -> int:  # noqa: C901  (to split: targets, export, INT8)
+def _build_forest_kernels(model: Path, targets: list[str], *, default: bool) -> None:
+    """The forest kernel for each target into ``model`` (``--targets``; ``default``: auto)."""
+    from dyntarget.perceive import compiled
+
+    if not (model / "forest.npz").is_file():
+        if targets and not default:
+            from dyntarget.errors import InvalidParameterError
+
+            raise InvalidParameterError(
+                "--targets: this forest has no packed form (beyond the kernel), nothing to build"
+            )
+        return
+    print(model / "forest.npz")  # the packed forest, for the forest kernel
+    failed: list[str] = []
+    kernels = compiled.build_kernels(model, targets, failed=failed if default else None)
+    print(compiled.write_manifest(model, kernels=kernels))
+    for k in kernels:
+        log(f"random-forest: forest kernel for {k['target']} ({k['isa']}): {k['file']}")
+        print(model / k["file"])
+    left = [*compiled.available_targets()[1], *failed] if default else []
+    if left:
+        log(
+            f"random-forest: no forest kernel for {'; '.join(left)}; on such a CPU --onnx "
+            "runs ONNX Runtime's slower tree ensemble (docs/performance.md)"
+        )
+
+
+def cmd_export_onnx(args: argparse.Namespace) -> int:
     from dyntarget.io.outputs import OutputPathError
     from dyntarget.perceive import compiled, load_classifier
     from dyntarget.perceive.onnx_export import export_checked
     from dyntarget.synth import generate_scene
 
     native = load_classifier(args.model)  # a model directory of ours: model.onnx may be replaced
-    targets = compiled.parse_targets(args.targets or "")
+    default = args.targets.strip().lower() == "auto"  # every class this machine can build
+    targets = compiled.parse_targets(args.targets)
+    if default and native.name != "random-forest":
+        targets = []
     if targets and native.name != "random-forest":
         from dyntarget.errors import InvalidParameterError
 
@@ -128,19 +158,8 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:  # noqa: C901  (to split: 
     path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
-    if (Path(args.model) / "forest.npz").is_file() and native.name == "random-forest":
-        print(Path(args.model) / "forest.npz")  # the packed forest, for the forest kernel
-        kernels = compiled.build_kernels(args.model, targets)
-        print(compiled.write_manifest(args.model, kernels=kernels))
-        for k in kernels:
-            log(f"{native.name}: forest kernel for {k['target']} ({k['isa']}): {k['file']}")
-            print(Path(args.model) / k["file"])
-    elif targets:
-        from dyntarget.errors import InvalidParameterError
-
-        raise InvalidParameterError(
-            "--targets: this forest has no packed form (beyond the kernel), nothing to build"
-        )
+    if native.name == "random-forest":
+        _build_forest_kernels(Path(args.model), targets, default=default)
     if args.int8:
         import numpy as np
 
@@ -260,11 +279,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--targets",
-        default="",
-        help="random forest: also build the forest kernel ahead of time for these CPUs, "
+        default="auto",
+        help="random forest: the CPUs to build the forest kernel for ahead of time, "
         "comma-separated: x86-64-v4 (AVX-512), x86-64-v3 (AVX2), x86-64, aarch64 (NEON), "
-        "host (this machine's best); e.g. --targets x86-64-v3,x86-64-v4,aarch64 (default: "
-        "none). aarch64 on x86 needs aarch64-linux-gnu-gcc (Debian gcc-aarch64-linux-gnu). "
-        "The libraries go into the model directory, bound by SHA-256 in forest.json",
+        "host (this machine's best); 'none' builds none. Default 'auto': every one of these "
+        "there is a compiler for here (those left out are said on stderr). aarch64 on x86 "
+        "needs aarch64-linux-gnu-gcc (Debian gcc-aarch64-linux-gnu). The libraries go into "
+        "the model directory, bound by SHA-256 in forest.json",
     )
     p.set_defaults(func=cmd_export_onnx)

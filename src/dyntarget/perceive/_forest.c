@@ -100,15 +100,19 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
         int keep = 0;
         for (int a = 0; a < na; a++) {
             const int g = active[a];
-            int64_t w[16] __attribute__((aligned(64)));
-            for (int i = 0; i < 16; i++) w[i] = node[idx[g + i]]; /* scalar loads */
-            const __m512i lo = _mm512_load_si512(w), hi = _mm512_load_si512(w + 8);
-            const __m512i k = _mm512_load_si512(idx + g);
+            const int32_t *at = idx + g; /* scalar loads straight into registers */
+            const __m512i lo = _mm512_set_epi64(node[at[7]], node[at[6]], node[at[5]], node[at[4]],
+                                                node[at[3]], node[at[2]], node[at[1]], node[at[0]]);
+            const __m512i hi = _mm512_set_epi64(node[at[15]], node[at[14]], node[at[13]],
+                                                node[at[12]], node[at[11]], node[at[10]],
+                                                node[at[9]], node[at[8]]);
+            const __m512i k = _mm512_load_si512(at);
             const __m512i next = step(_mm512_castsi512_ps(_mm512_permutex2var_epi32(lo, even, hi)),
                                       _mm512_permutex2var_epi32(lo, odd, hi), xs, g, nfeat,
                                       fshift);
             _mm512_store_si512(idx + g, next);
-            if (_mm512_cmpneq_epi32_mask(next, k)) active[keep++] = g; /* not all on leaves */
+            active[keep] = g; /* kept (no branch to mispredict) unless all sit on leaves */
+            keep += _mm512_cmpneq_epi32_mask(next, k) != 0;
         }
         na = keep;
     }
@@ -154,17 +158,21 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
         int keep = 0;
         for (int a = 0; a < na; a++) {
             const int g = active[a];
-            int64_t w[8] __attribute__((aligned(32)));
-            for (int i = 0; i < 8; i++) w[i] = node[idx[g + i]]; /* scalar loads */
+            const int32_t *at = idx + g;
+            /* scalar loads put straight into registers (through a buffer, the vector load
+               would wait for the eight stores to retire: a store-forwarding stall) */
+            const __m256i w0 = _mm256_set_epi64x(node[at[3]], node[at[2]], node[at[1]], node[at[0]]);
+            const __m256i w1 = _mm256_set_epi64x(node[at[7]], node[at[6]], node[at[5]], node[at[4]]);
             /* (t0 c0 t1 c1 ...) -> (t0 t1 t2 t3 c0 c1 c2 c3) per half, then the halves joined */
-            const __m256i lo = _mm256_permutevar8x32_epi32(_mm256_load_si256((const __m256i *)w), split);
-            const __m256i hi = _mm256_permutevar8x32_epi32(_mm256_load_si256((const __m256i *)(w + 4)), split);
+            const __m256i lo = _mm256_permutevar8x32_epi32(w0, split);
+            const __m256i hi = _mm256_permutevar8x32_epi32(w1, split);
             const __m256i th = _mm256_permute2x128_si256(lo, hi, 0x20);
             const __m256i c = _mm256_permute2x128_si256(lo, hi, 0x31);
-            const __m256i k = _mm256_load_si256((const __m256i *)(idx + g));
+            const __m256i k = _mm256_load_si256((const __m256i *)at);
             const __m256i next = step(_mm256_castsi256_ps(th), c, xs, g, nfeat, fshift);
             _mm256_store_si256((__m256i *)(idx + g), next);
-            if (_mm256_movemask_epi8(_mm256_cmpeq_epi32(next, k)) != -1) active[keep++] = g;
+            active[keep] = g; /* kept (no branch to mispredict) unless all sit on leaves */
+            keep += _mm256_movemask_epi8(_mm256_cmpeq_epi32(next, k)) != -1;
         }
         na = keep;
     }
@@ -173,6 +181,12 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
 /* GCC / Clang vector extensions: NEON on aarch64, SSE2 on x86-64, the same C. */
 typedef float vf4 __attribute__((vector_size(16)));
 typedef int32_t vi4 __attribute__((vector_size(16)));
+typedef int64_t vl2 __attribute__((vector_size(16)));
+#if defined(__clang__)
+#define SHUFFLE(a, b, i, j, k, l) __builtin_shufflevector(a, b, i, j, k, l)
+#else
+#define SHUFFLE(a, b, i, j, k, l) __builtin_shuffle(a, b, (vi4){i, j, k, l})
+#endif
 
 static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int fshift,
                  int depth, const int64_t *node, const float *thr, const int32_t *code)
@@ -185,13 +199,14 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
         int keep = 0;
         for (int a = 0; a < na; a++) {
             const int g = active[a];
-            vi4 k, c, tb;
-            memcpy(&k, idx + g, sizeof k);
-            for (int i = 0; i < 4; i++) { /* scalar loads of each lane's node */
-                const int64_t w = node[k[i]];
-                tb[i] = (int32_t)(uint32_t)(uint64_t)w;
-                c[i] = (int32_t)(w >> 32);
-            }
+            const int32_t *at = idx + g;
+            vi4 k;
+            memcpy(&k, at, sizeof k);
+            /* scalar loads of each lane's node straight into registers: (t0 c0 t1 c1) and
+               (t2 c2 t3 c3) (little-endian), split into thresholds and codes */
+            const vl2 w0 = {node[at[0]], node[at[1]]}, w1 = {node[at[2]], node[at[3]]};
+            const vi4 tb = SHUFFLE((vi4)w0, (vi4)w1, 0, 2, 4, 6);
+            const vi4 c = SHUFFLE((vi4)w0, (vi4)w1, 1, 3, 5, 7);
             const vi4 f = c & fmask;
             vf4 v;
             memcpy(&v, xs[0] + g, sizeof v);
@@ -206,7 +221,8 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
             const vi4 next = (c >> fshift) - (vi4)(v > th); /* a true lane compares as -1 */
             memcpy(idx + g, &next, sizeof next);
             const vi4 moved = next != k;
-            if (moved[0] | moved[1] | moved[2] | moved[3]) active[keep++] = g;
+            active[keep] = g; /* kept (no branch to mispredict) unless all sit on leaves */
+            keep += (moved[0] | moved[1] | moved[2] | moved[3]) != 0;
         }
         na = keep;
     }
@@ -230,7 +246,8 @@ static void walk(float xs[][BLOCK], int32_t *idx, int32_t root, int nfeat, int f
                 moved |= next != k;
                 idx[i] = next;
             }
-            if (moved) active[keep++] = g;
+            active[keep] = g; /* kept (no branch to mispredict) unless all sit on leaves */
+            keep += moved;
         }
         na = keep;
     }

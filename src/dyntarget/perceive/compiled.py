@@ -11,8 +11,9 @@ Debian cross compiler for aarch64) into the model directory, where ``forest.json
 (:func:`write_manifest`) records each library's SHA-256 and that of the ``forest.npz`` it
 is for; :func:`fast_predictor` loads the best one this CPU runs only if both hashes match
 (:func:`artefact_predictor`), so nothing compiles on a flight computer. Where none fits,
-the kernel is compiled with the C compiler found on the PATH (``cc -O2 -march=native``,
-0.1-2.8 s, docs/performance.md) and cached under :func:`cache_dir`, keyed by a SHA-256 of
+the kernel is compiled with the C compiler found on the PATH (``cc -O2`` with the
+``-march=x86-64-v4``/``-v3`` level of the widest path the CPU's CPUID reports, else
+``-march=native``; 0.1-2.8 s, docs/performance.md) and cached under :func:`cache_dir`, keyed by a SHA-256 of
 its source, the flags and the CPU's model and feature flags; a cached build serves without a compiler.
 Either fallback is said once on stderr. The forest itself is data, so one library serves
 every forest.
@@ -76,7 +77,8 @@ MAX_NODES = 1 << 27
 stays a positive int32)."""
 
 FLAGS = ("-O2", "-march=native", "-std=c11", "-shared", "-fPIC")
-"""Compiler flags of the kernel; without ``-march=native`` when the compiler refuses it."""
+"""Compiler flags of the kernel; ``-march=native`` is replaced by the x86-64 level of the
+widest path CPUID reports (:func:`build_library`), and dropped where the compiler refuses it."""
 
 ISAS = ("portable", "sse2", "neon", "avx2", "avx512")
 """The kernel's code paths, by the number its ``dt_forest_isa()`` returns (``_forest.c``)."""
@@ -84,10 +86,15 @@ ISAS = ("portable", "sse2", "neon", "avx2", "avx512")
 FAST_ISAS = ("avx2", "avx512")
 """Paths measured faster than scikit-learn (docs/performance.md); ``"auto"`` runs these."""
 
+FASTER_THAN_ONNXRUNTIME = ("sse2", "avx2", "avx512")
+"""Paths measured faster than ONNX Runtime's tree ensemble on the same CPU (x86-64 with
+AVX2, and with AVX-512; docs/performance.md): a forest's ONNX twin runs these where built
+here. NEON is not in it: it could not be measured (no aarch64 hardware)."""
+
 ISA_ENV = "DYNTARGET_FOREST_ISA"
 """Environment variable forcing the kernel's path: ``avx512``, ``avx2``, ``sse2``,
 ``neon``, ``portable`` or ``off`` (no kernel: scikit-learn / ONNX Runtime); unset or
-``auto``: the compiler's ``-march=native``."""
+``auto``: the widest path this CPU runs (:func:`cpu_runs`)."""
 
 ISA_FLAGS = {
     "avx512": ("-march=x86-64-v4",),
@@ -525,6 +532,27 @@ _NEEDS = {
     "avx512": ("avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl", "avx2", "fma", "bmi2"),
     "avx2": ("avx2", "fma", "bmi1", "bmi2", "f16c", "movbe", "abm"),
 }
+_NUMPY_NAMES = {"avx512f": "AVX512F", "avx512bw": "AVX512BW", "avx512cd": "AVX512CD",
+                "avx512dq": "AVX512DQ", "avx512vl": "AVX512VL", "avx2": "AVX2", "fma": "FMA3",
+                "bmi1": "BMI", "bmi2": "BMI2", "f16c": "F16C", "movbe": "MOVBE",
+                "abm": "LZCNT"}  # fmt: skip
+
+
+def _cpuid_features() -> dict[str, bool]:
+    """numpy's run-time CPU features (read with CPUID and XGETBV at its import), ``{}`` if absent.
+
+    Preferred to ``/proc/cpuinfo``: it is what the running code can execute, also where
+    the CPU is emulated (``qemu-x86_64 -cpu Haswell`` passes the host's ``/proc/cpuinfo``).
+    """
+    import importlib
+
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):  # 2.x, 1.x
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        return dict(getattr(module, "__cpu_features__", {}))
+    return {}
 
 
 def cpu_runs(isa: str) -> bool:
@@ -552,8 +580,19 @@ def cpu_runs(isa: str) -> bool:
         return machine in ("aarch64", "arm64")
     if machine not in ("x86_64", "amd64"):
         return False
-    flags = set(_cpu().replace(":", " ").split())
-    return all(f in flags for f in _NEEDS.get(isa, ()))
+    needs = _NEEDS.get(isa, ())
+    found = _cpuid_features()
+    if all(_NUMPY_NAMES[f] in found for f in needs):
+        return all(found[_NUMPY_NAMES[f]] for f in needs)
+    flags = set(_cpu().replace(":", " ").split())  # an older numpy without some names
+    return all(f in flags for f in needs)
+
+
+def _best_isa() -> str | None:
+    """The widest vectorised path this x86-64 CPU runs (:func:`cpu_runs`); ``None`` elsewhere."""
+    if _arch() != "x86_64":
+        return None
+    return next((isa for isa in ("avx512", "avx2") if cpu_runs(isa)), None)
 
 
 def _cpu() -> str:
@@ -643,9 +682,12 @@ def build_library(
     directory : path, optional
         Cache directory (default :func:`cache_dir`).
     portable : bool
-        Compile without ``-march=native`` (the baseline of the machine: SSE2 or NEON).
+        Compile for the baseline of the machine (SSE2 or NEON).
     isa : str, optional
-        Force a path (a key of :data:`ISA_FLAGS`); default :func:`forced_isa`, else native.
+        Force a path (a key of :data:`ISA_FLAGS`); default :func:`forced_isa`, else on
+        x86-64 the widest path the CPU's CPUID reports (``-march=x86-64-v4`` or ``-v3``,
+        the flags ``export-onnx`` builds that target with), elsewhere ``-march=native``;
+        the baseline build is the fallback where the compiler refuses those flags.
 
     Returns
     -------
@@ -662,12 +704,17 @@ def build_library(
     isa = isa or forced_isa()
     if isa == "off":
         raise MissingExtraError(f"the forest kernel is off ({ISA_ENV}=off)")
-    first = [f for f in FLAGS if f != "-march=native"] if portable or isa else list(FLAGS)
+    base = [f for f in FLAGS if f != "-march=native"]
+    best = None if portable or isa else _best_isa()
     if isa:
-        first = [*first, *ISA_FLAGS[isa]]
+        first = [*base, *ISA_FLAGS[isa]]
         portable = True  # a forced path has no fallback build
-    builds = []  # (flags, library), the preferred first; without -march=native as a fallback
-    for flags in (first, [f for f in first if f != "-march=native"])[: 2 if not portable else 1]:
+    elif best:  # the named level of the widest path CPUID reports, as export-onnx builds it
+        first = [*base, *ISA_FLAGS[best]]
+    else:
+        first = base if portable else list(FLAGS)
+    builds = []  # (flags, library), the preferred first; the baseline build as a fallback
+    for flags in (first, base)[: 2 if not portable else 1]:
         key = b"\0".join([source, " ".join(flags).encode(), _cpu().encode()])
         builds.append((flags, where / f"forest-kernel-{hashlib.sha256(key).hexdigest()[:24]}.so"))
     cc = compiler()
@@ -806,13 +853,50 @@ def target_compiler(target: str) -> str | None:
     return shutil.which(CROSS_COMPILERS[arch])
 
 
+def available_targets() -> tuple[list[str], list[str]]:
+    """The targets this machine has a compiler for, and why each other one is not built.
+
+    ``export-onnx``'s default (``--targets auto``): every CPU class of :data:`TARGETS`
+    whose compiler is here (:func:`target_compiler`), so that the onboard ``--onnx`` path
+    finds a kernel on any x86-64 (baseline, AVX2, AVX-512) and on aarch64, and ONNX
+    Runtime's slower tree ensemble is left for CPUs of no listed class.
+
+    Returns
+    -------
+    list of str
+        Keys of :data:`TARGETS`, in its order.
+    list of str
+        One line per target left out, naming the compiler it needs.
+
+    Examples
+    --------
+    >>> built, left = available_targets()
+    >>> sorted(built + [line.split(":")[0] for line in left]) == sorted(TARGETS)
+    True
+    """
+    built, left = [], []
+    for target, (_, arch, _) in TARGETS.items():
+        if target_compiler(target) is not None:
+            built.append(target)
+        else:
+            package = {"x86_64": "gcc-x86-64-linux-gnu", "aarch64": "gcc-aarch64-linux-gnu"}
+            need = "cc or gcc" if arch == _arch() else CROSS_COMPILERS.get(arch, arch)
+            left.append(
+                f"{target}: no {need} on the PATH (Debian: apt-get install {package.get(arch, 'gcc')})"
+            )
+    return built, left
+
+
 def parse_targets(text: str) -> list[str]:
-    """``"x86-64-v3,aarch64"`` as a list of :data:`TARGETS` (``"host"``: this machine's best).
+    """``"x86-64-v3,aarch64"`` as a list of :data:`TARGETS`.
+
+    ``"host"`` is this machine's best target; ``"auto"`` alone every target there is a
+    compiler for (:func:`available_targets`); ``"none"`` or an empty string none.
 
     Parameters
     ----------
     text : str
-        Comma-separated target names; empty: none.
+        Comma-separated target names, or ``auto`` or ``none``.
 
     Returns
     -------
@@ -823,7 +907,14 @@ def parse_targets(text: str) -> list[str]:
     --------
     >>> parse_targets("x86-64-v4, aarch64,x86-64-v4")
     ['x86-64-v4', 'aarch64']
+    >>> parse_targets("none")
+    []
     """
+    word = text.strip().lower()
+    if word == "auto":
+        return available_targets()[0]
+    if word == "none":
+        return []
     out: list[str] = []
     for word in (w.strip().lower() for w in text.split(",")):
         if not word:
@@ -837,7 +928,8 @@ def parse_targets(text: str) -> list[str]:
                 raise InvalidParameterError(f"--targets host: no target for {cpu_class()}")
         if word not in TARGETS:
             raise InvalidParameterError(
-                f"--targets: unknown target {word!r}; expected {', '.join(TARGETS)} or host"
+                f"--targets: unknown target {word!r}; expected auto, none, or of "
+                f"{', '.join(TARGETS)} and host"
             )
         if word not in out:
             out.append(word)
@@ -900,7 +992,9 @@ def build_target(target: str, out: str | os.PathLike[str]) -> Path:
     return out
 
 
-def build_kernels(model_dir: str | os.PathLike[str], targets: list[str]) -> list[dict]:
+def build_kernels(
+    model_dir: str | os.PathLike[str], targets: list[str], *, failed: list[str] | None = None
+) -> list[dict]:
     """Build the kernel for each of ``targets`` into ``model_dir`` for its ``forest.npz``.
 
     Every compiler is looked for before anything is built; the libraries are
@@ -912,6 +1006,9 @@ def build_kernels(model_dir: str | os.PathLike[str], targets: list[str]) -> list
         A model directory holding ``forest.npz``.
     targets : list of str
         Keys of :data:`TARGETS`.
+    failed : list of str, optional
+        Where given, a target whose build fails is left out and a line saying why is
+        appended here (``export-onnx``'s default targets); otherwise the failure raises.
 
     Returns
     -------
@@ -931,7 +1028,13 @@ def build_kernels(model_dir: str | os.PathLike[str], targets: list[str]) -> list
     forest_sha = _sha256(model_dir / FOREST_FILE)
     kernels = []
     for target in targets:
-        lib = build_target(target, model_dir / _kernel_file(target))
+        try:
+            lib = build_target(target, model_dir / _kernel_file(target))
+        except MissingExtraError as exc:
+            if failed is None:
+                raise
+            failed.append(f"{target}: {exc}")
+            continue
         isa, arch, _ = TARGETS[target]
         kernels.append({"file": lib.name, "target": target, "isa": isa, "arch": arch,
                         "sha256": _sha256(lib), "forest_sha256": forest_sha})  # fmt: skip
@@ -1177,13 +1280,16 @@ def compile_forest(
     return forest_predictor(pack_forest(estimator), directory=directory, portable=portable, isa=isa)
 
 
-def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] | None:
+def fast_predictor(
+    packed: PackedForest, *, against: str = "scikit-learn"
+) -> Callable[[np.ndarray], np.ndarray] | None:
     """The kernel's predictor where it is the faster path, else ``None``.
 
     In this order: a kernel exported beside the forest's ``forest.npz`` for this CPU
     (:func:`artefact_predictor`, hashes checked); else the kernel built here (or found in
-    the cache) where it runs AVX2 or AVX-512; else ``None``, which says to use
-    scikit-learn or ONNX Runtime. Where the folder exports kernels but none fits, or the
+    the cache) where it runs a path measured faster than the backend ``against`` (AVX2 or
+    AVX-512 against scikit-learn; also SSE2 against ONNX Runtime); else ``None``, which
+    says to use that backend. Where the folder exports kernels but none fits, or the
     kernel cannot be built, one line on stderr (once per process) names the CPU class and
     what was missing. The policy of ``RandomForest``'s ``"auto"`` backend and of a
     forest's ONNX twin.
@@ -1192,12 +1298,16 @@ def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] |
     ----------
     packed : PackedForest
         The forest.
+    against : {"scikit-learn", "onnxruntime"}
+        The backend a kernel built here must beat: :data:`FAST_ISAS` for scikit-learn,
+        :data:`FASTER_THAN_ONNXRUNTIME` for ONNX Runtime (the ONNX twin).
 
     Returns
     -------
     callable or None
         As :func:`forest_predictor`'s, or ``None``.
     """
+    fast = FASTER_THAN_ONNXRUNTIME if against == "onnxruntime" else FAST_ISAS
     forced = forced_isa()
     if forced == "off":
         return None
@@ -1215,13 +1325,14 @@ def fast_predictor(packed: PackedForest) -> Callable[[np.ndarray], np.ndarray] |
             "a slower backend predicts"
         )
         return None
+    runs = predictor.isa in fast  # type: ignore[attr-defined]
     if missing:
-        state = "runs" if predictor.vectorised else "is not used, a slower backend predicts"  # type: ignore[attr-defined]
+        state = "runs" if runs else f"is not used, {against} predicts"
         _say_once(
             f"dyntarget: {missing}; on this CPU ({cpu_class()}) the kernel built here "
             f"({predictor.isa} path) {state}"  # type: ignore[attr-defined]
         )
-    return predictor if predictor.vectorised else None  # type: ignore[attr-defined]
+    return predictor if runs else None
 
 
 def forest_predictor(

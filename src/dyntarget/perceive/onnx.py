@@ -69,8 +69,13 @@ class OnnxClassifier:
         onnxruntime intra-op threads (default: the cores this process may use).
     forest : dyntarget.perceive.compiled.PackedForest or None
         A random forest's packed arrays (``forest.npz``): pixels then go through
-        dyntarget's forest kernel where it builds with AVX-512 (a C compiler on the
-        PATH), and through ``model.onnx`` otherwise. :attr:`backend` says which ran.
+        dyntarget's forest kernel where a kernel exported beside it fits the CPU, or one
+        built here runs a path faster than ONNX Runtime
+        (:func:`dyntarget.perceive.compiled.fast_predictor`), and through ``model.onnx``
+        otherwise, said once on stderr. :attr:`backend` says which ran.
+    say_fallback : bool
+        Say on stderr (once per process) when a random forest runs on ONNX Runtime's
+        tree ensemble; ``False`` where that was asked for (``load_onnx(kernel=False)``).
     """
 
     def __init__(
@@ -84,8 +89,9 @@ class OnnxClassifier:
         stitch: str = "halo",
         threads: int | None = None,
         forest=None,
+        say_fallback: bool = True,
     ) -> None:
-        self.forest, self._kernel = forest, None
+        self.forest, self._kernel, self._say = forest, None, say_fallback
         self.backend = "onnxruntime"  # "forest kernel" once a forest has predicted on it
         ort = _require("onnxruntime", "onboard")
         options = ort.SessionOptions()
@@ -146,6 +152,7 @@ class OnnxClassifier:
         else:
             from dyntarget.perceive.pixel import PREDICT_CHUNK
 
+            self._say_tree_ensemble()
             h, w = image.shape[1:]
             x = pixels(image)  # a view; each chunk is copied contiguous on its own
             proba = np.empty(h * w, np.float32)
@@ -163,12 +170,24 @@ class OnnxClassifier:
         if self.forest is not None and self._kernel is None:
             from dyntarget.perceive.compiled import fast_predictor
 
-            self._kernel = fast_predictor(self.forest)
+            self._kernel = fast_predictor(self.forest, against="onnxruntime")
             if self._kernel is None:
-                self.forest = None  # ONNX Runtime, silently
+                self.forest = None
             else:
                 self.backend = "forest kernel"
         return self._kernel
+
+    def _say_tree_ensemble(self) -> None:
+        """Say once that a random forest runs on ONNX Runtime's tree ensemble (the slow fallback)."""
+        from dyntarget.perceive import compiled
+
+        if self._say and self.name == "random-forest" and compiled.forced_isa() != "off":
+            compiled._say_once(
+                f"dyntarget: {self.path.parent}: no forest kernel runs this random forest on "
+                f"this CPU ({compiled.cpu_class()}); ONNX Runtime's tree ensemble predicts, "
+                "slower than scikit-learn (docs/performance.md; 'dyntarget export-onnx' builds "
+                "the kernel for every CPU class it has a compiler for)"
+            )
 
     def work_units(self, shape: tuple[int, int]) -> float:
         """Work of classifying an image of ``shape``, as the native classifier counts it.
@@ -266,4 +285,6 @@ def load_onnx(
                     f"{model_dir}: {FOREST_FILE} takes {forest.features} features, not "
                     f"the {len(BANDS)} bands"
                 )
-    return OnnxClassifier(path, name=name, kind=kind, tile=tile, width=width, forest=forest)
+    return OnnxClassifier(
+        path, name=name, kind=kind, tile=tile, width=width, forest=forest, say_fallback=kernel
+    )
