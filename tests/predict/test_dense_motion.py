@@ -85,19 +85,20 @@ def test_rotation_field_matches_the_analytic_velocity():
     assert np.median(err) < 0.1 * np.median(np.hypot(*truth.T)), np.median(err)
 
 
+def _weather_look(field, plume, v, t):
+    """The whole scene (ground and plume alike) carried by ``v`` px/s for ``t`` s, wrapping."""
+    shift = (v[1] * t, v[0] * t)  # rows, cols
+    img = ndimage.shift(0.2 + 0.6 * field, shift, order=1, mode="wrap")
+    m = ndimage.shift(plume.astype(float), shift, order=0, mode="wrap") > 0.5
+    return np.repeat(img[None], 4, 0).astype(np.float32), m
+
+
 def test_moving_ground_is_found_and_not_removed():
     """The whole scene translates by (6, -3) px per 10 s look (weather): auto finds it moving."""
     field = _texture(3, 3.0)
     plume = field > np.percentile(field, 85)
     v = (0.6, -0.3)
-
-    def look(t):
-        shift = (v[1] * t, v[0] * t)  # rows, cols
-        img = ndimage.shift(0.2 + 0.6 * field, shift, order=1, mode="wrap")
-        m = ndimage.shift(plume.astype(float), shift, order=0, mode="wrap") > 0.5
-        return np.repeat(img[None], 4, 0).astype(np.float32), m
-
-    (a, ma), (b, mb) = look(0), look(10)
+    (a, ma), (b, mb) = (_weather_look(field, plume, v, t) for t in (0, 10))
     auto = estimate_motion(a, b, 10.0, previous_mask=ma, current_mask=mb)
     assert auto.ground == "moving" and any("ground auto -> moving" in n for n in auto.notes)
     assert auto.velocity == pytest.approx(v, abs=0.05), auto.summary()
@@ -146,14 +147,7 @@ def test_a_moving_background_gets_the_finer_flow_grid():
     cells = ndimage.gaussian_filter(rng.random((1024, 1024)), 40.0)
     plume = cells > np.percentile(cells, 90)  # a few large cells, textured by the field
     v = (0.6, -0.3)
-
-    def look(t):
-        shift = (v[1] * t, v[0] * t)  # rows, cols
-        img = ndimage.shift(0.2 + 0.6 * field, shift, order=1, mode="wrap")
-        m = ndimage.shift(plume.astype(float), shift, order=0, mode="wrap") > 0.5
-        return np.repeat(img[None], 4, 0).astype(np.float32), m
-
-    (a, ma), (b, mb) = look(0), look(10)
+    (a, ma), (b, mb) = (_weather_look(field, plume, v, t) for t in (0, 10))
     auto = estimate_motion(a, b, 10.0, previous_mask=ma, current_mask=mb)
     assert auto.ground == "moving" and auto.dense is not None, auto.summary()
     assert auto.dense.scale == 3 and "1/3 grid" in auto.method, auto.method
