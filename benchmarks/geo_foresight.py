@@ -140,9 +140,7 @@ def summarise(rows: list[dict]) -> list[dict]:
             ub = sum(base[r["strip"]]["utility"] for r in rs)
             uref = sum(ref[r["strip"]]["utility"] for r in rs if r["strip"] in ref)
             per = [r["utility"] / max(base[r["strip"]]["utility"], 1e-9) for r in rs]
-            fewer = sum(
-                r["plumes_observed"] < base[r["strip"]]["plumes_observed"] for r in rs
-            )
+            fewer = sum(r["plumes_observed"] < base[r["strip"]]["plumes_observed"] for r in rs)
             out.append({
                 "density": density, "preset": preset, "mode": mode, "passes": len(rs),
                 "utility": round(u, 3), "vs_lookahead": round(u / max(ub, 1e-9), 3),

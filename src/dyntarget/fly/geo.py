@@ -489,7 +489,7 @@ class BlueprintGate:
 
     def __init__(self, blueprint: Blueprint, frames: Any, agility: Any) -> None:
         from dyntarget.geo.blueprint import step_s
-        from dyntarget.schedule import visibility_windows
+        from dyntarget.schedule import Timer, visibility_windows
 
         self.blueprint, self.frames, self.agility = blueprint, frames, agility
         self.geometry = replace(frames.geometry, start_s=0.0)
@@ -500,6 +500,7 @@ class BlueprintGate:
         self.chosen = blueprint.budget > 0
         self._step = step_s
         self._windows = visibility_windows
+        self._timer = Timer
         # targets: the blueprint's, then the look-ahead's own, appended as found
         self.t_lo: list[float] = [float(v) for v in self.lo]
         self.t_hi: list[float] = [float(v) for v in self.hi]
@@ -512,6 +513,7 @@ class BlueprintGate:
         self.released: list[float | None] = [None] * n  # the worst value released
         self.done_keys: set[tuple[int, int]] = set()
         self.booked_s = 0.0
+        self.booked_at: tuple[float, float] | None = None  # what the sensor tracks then
         self.top = frames.wfov_shape[0]
         self.stats = {
             "targets_released": 0,
@@ -589,7 +591,9 @@ class BlueprintGate:
         out: list[tuple[int, int]] = []
         self.top = top
         tgt = self.target_of(rows)
-        for r, c, v, i in zip(rows.tolist(), cols.tolist(), values.tolist(), tgt.tolist(), strict=True):
+        for r, c, v, i in zip(
+            rows.tolist(), cols.tolist(), values.tolist(), tgt.tolist(), strict=True
+        ):
             key = (int(r), int(c))
             if key in self.done_keys:
                 continue
@@ -602,7 +606,8 @@ class BlueprintGate:
                 out.append(key)
                 self.done_keys.add(key)
                 del self.pool[j][key]
-        self.booked_s = max(self.booked_s, free_s)
+        if free_s > self.booked_s:
+            self.booked_s = free_s
         out.extend(self._uncap())
         for j in self._due(t_k, top):
             out.extend(self._release(j))
@@ -631,11 +636,15 @@ class BlueprintGate:
 
     def _refuted(self, i: int) -> bool:
         """Whether the look-ahead has seen all of target ``i`` and found nothing on it."""
-        return self.released[i] is None and not self.pool[i] and self.top <= self.t_lo[i] - MERGE_ROWS
+        return (
+            self.released[i] is None and not self.pool[i] and self.top <= self.t_lo[i] - MERGE_ROWS
+        )
 
     def _release(self, j: int, more: bool = False) -> list[tuple[int, int]]:
         t_in, t_out, along, cross = self._window(j)
-        start = max(self.booked_s, t_in)
+        timer = self._timer(self.geometry, self.agility)  # the loop's kinematics
+        timer.t, timer.target = self.booked_s, self.booked_at
+        start = timer.arrival_one(along, cross, t_in)  # the slew there included
         step = float(self._step(self.geometry, self.agility, np.array([along]),
                                 np.array([cross]), np.array([start]))[0])  # fmt: skip
         limit = t_out
@@ -658,14 +667,19 @@ class BlueprintGate:
         best = sorted(pool.items(), key=lambda kv: -kv[1])[:k]
         if not more or best:
             self.released[j] = best[-1][1] if best else -math.inf
-        keys = sorted((kv[0] for kv in best), key=lambda rc: (-rc[0], rc[1] if rc[0] % 2 else -rc[1]))
+        keys = sorted(
+            (kv[0] for kv in best), key=lambda rc: (-rc[0], rc[1] if rc[0] % 2 else -rc[1])
+        )
         for key in keys:
             del pool[key]
             self.done_keys.add(key)
         if keys:
             self.booked_s = start + len(keys) * step
+            self.booked_at = (along, cross)
         self.stats["targets_released"] += int(not more)
-        self.stats["targets_released_blueprint"] += int(not more and j < len(self.blueprint.targets))
+        self.stats["targets_released_blueprint"] += int(
+            not more and j < len(self.blueprint.targets)
+        )
         self.stats["pointings_released"] += len(keys)
         return keys
 
@@ -714,10 +728,10 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
         targets, info = [], {"images": "none: no blueprint (the refinement alone)"}
     elif settings.omniscient:
         cache = world.__dict__.setdefault("_geo_truth_targets", {})  # reused across presets
-        key = (config.factor, frames.frame_px, frames.step, frames.geometry)
-        if key not in cache:
-            cache[key] = omniscient_targets(world, frames, config.factor)
-        targets, info = cache[key], {"images": "truth"}
+        tkey = (config.factor, frames.frame_px, frames.step, frames.geometry)
+        if tkey not in cache:
+            cache[tkey] = omniscient_targets(world, frames, config.factor)
+        targets, info = cache[tkey], {"images": "truth"}
     else:
         streams = world.__dict__.setdefault("_geo_streams", {})  # the same images, reused
         key = (settings.gsd_m, settings.noise)

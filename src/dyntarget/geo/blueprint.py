@@ -159,9 +159,10 @@ def _transition(geometry, agility, src, free_s, dst, t_in) -> np.ndarray:
     :meth:`dyntarget.schedule.Timer.arrival`, vectorised over the departure times.
     """
     timer = Timer(geometry, agility)
-    timer.t = np.asarray(free_s, np.float64)
+    t = np.asarray(free_s, np.float64)
+    timer.t = t  # type: ignore[assignment]  # Timer.arrival is elementwise in its time too
     timer.target = src
-    n = len(timer.t)
+    n = len(t)
     return timer.arrival(np.full(n, dst[0]), np.full(n, dst[1]), np.full(n, t_in))
 
 
@@ -219,8 +220,10 @@ def plan_blueprint(  # noqa: C901, PLR0915  (one programme: slots, windows, tran
     >>> g = OrbitGeometry(wfov_gsd_m=64.0)
     >>> ts = [Target(300e3, 0.0, 1.0, 40), Target(320e3, 0.0, 2.0, 40)]  # 3 s apart
     >>> bp = plan_blueprint(ts, g, get_agility("slow"), horizon_s=80.0, reserve=0.0)
-    >>> bp.budget.tolist()   # both windows close at nadir: the richer one takes the time
-    [0, 34]
+    >>> bp.budget.tolist()   # the richer one takes all the time left after the first slew
+    [0, 19]
+    >>> round(float(bp.start_s[1]), 1), round(float(bp.window[1, 1]), 1)  # ~17 s from nadir
+    (17.1, 45.3)
     """
     if not (math.isfinite(horizon_s) and horizon_s > 0):
         raise InvalidParameterError(f"horizon_s: expected seconds > 0, got {horizon_s!r}")
@@ -251,7 +254,8 @@ def plan_blueprint(  # noqa: C901, PLR0915  (one programme: slots, windows, tran
     E = np.floor(np.minimum(t_out, horizon_s) / slot + 1e-9)
     E = np.where(np.isfinite(t_out) & (t_in <= t_out), E, -1).astype(np.int64)
     E = np.minimum(E, T - 1)
-    reach = agility.slew_time_one(2.0 * float(agility.field_of_regard_deg)) + agility.settle_s
+    assert agility.field_of_regard_deg is not None  # limited agility (unlimited returned above)
+    reach = agility.slew_time_one(2.0 * agility.field_of_regard_deg) + agility.settle_s
     neg = -np.inf
     P = np.full((n, T), neg)
     Parg = np.zeros((n, T), np.int64)  # slot achieving the running maximum
