@@ -375,6 +375,12 @@ def visibility_windows(
     ``t_in > t_out`` marks a point that is never inside (too far across track).
     Unlimited agility: ``(-inf, inf)``.
 
+    How far ahead of and behind nadir a point can be seen depends only on its
+    cross-track distance (and the orbit's altitude and the field of regard), so
+    those distances are found once per cross-track value and kept (a pass asks
+    for the same few WFOV columns frame after frame); the times follow from the
+    along-track distance.
+
     Parameters
     ----------
     geometry : OrbitGeometry
@@ -392,11 +398,71 @@ def visibility_windows(
         When each point enters the field of regard, seconds.
     t_out : numpy.ndarray
         When it leaves, seconds.
+
+    Examples
+    --------
+    >>> g = OrbitGeometry(altitude_m=500e3, look_ahead_m=0.0)
+    >>> t_in, t_out = visibility_windows(g, AGILITY["fast"], np.array([0.0]), np.array([0.0]))
+    >>> round(float(t_in[0]), 1), round(float(t_out[0]), 6)  # seen from 41 s before nadir to nadir
+    (-41.4, 0.0)
     """
     along, cross = np.asarray(along, np.float64), np.asarray(cross, np.float64)
     if agility.unlimited:
         return np.full(along.shape, -np.inf), np.full(along.shape, np.inf)
     v = geometry.ground_speed
+    visible_now, ahead, behind = _reach(geometry, agility, cross)
+    t_in = np.where(visible_now, (along - ahead) / v, np.inf)
+    t_out = np.where(visible_now, (along - behind) / v, -np.inf)
+    return t_in, t_out
+
+
+_REACH: dict[tuple[float, float, float], dict[float, tuple[bool, float, float]]] = {}
+"""Per (altitude, field of regard, aft limit): cross-track distance -> (seen, ahead, behind)."""
+REACH_CACHE_SIZE = 100_000
+"""Most cross-track distances kept per geometry (a speed setting; results do not depend on it)."""
+
+
+def _reach(
+    geometry: OrbitGeometry, agility: Agility, cross: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(visible_now, ahead, behind)`` of :func:`_reach_compute`, looked up per distinct ``cross``."""
+    if cross.size == 0:
+        return np.zeros(cross.shape, bool), np.zeros(cross.shape), np.zeros(cross.shape)
+    if not np.isfinite(cross).all():
+        return _reach_compute(geometry, agility, cross)
+    key = (
+        float(geometry.altitude_m),
+        float(agility.field_of_regard_deg),  # type: ignore[arg-type]
+        float(agility.aft_limit_deg),
+    )
+    table = _REACH.setdefault(key, {})
+    uniq, inverse = np.unique(cross, return_inverse=True)
+    values = uniq.tolist()
+    known = [table.get(c) for c in values]
+    missing = [c for c, hit in zip(values, known, strict=True) if hit is None]
+    if missing:
+        seen, ahead, behind = _reach_compute(geometry, agility, np.asarray(missing, np.float64))
+        found = dict(
+            zip(
+                missing,
+                zip(seen.tolist(), ahead.tolist(), behind.tolist(), strict=True),
+                strict=True,
+            )
+        )
+        if len(table) + len(found) > REACH_CACHE_SIZE:
+            table.clear()
+        table.update(found)
+        known = [hit if hit is not None else found[c] for c, hit in zip(values, known, strict=True)]
+    arr = np.asarray(known, np.float64).reshape(-1, 3)[inverse.reshape(cross.shape)]
+    return arr[..., 0] > 0.5, arr[..., 1], arr[..., 2]
+
+
+def _reach_compute(
+    geometry: OrbitGeometry, agility: Agility, cross: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Visible at nadir's along-track position, and how far ahead / behind nadir (m), by bisection."""
+    fov = agility.field_of_regard_deg
+    assert fov is not None  # limited agility
 
     def los_at(delta):  # the target ``delta`` metres ahead of nadir
         return look_vectors(geometry, delta, cross, 0.0)
@@ -409,22 +475,18 @@ def visibility_windows(
         return lo
 
     reach = geometry.altitude_m * 10.0  # far beyond any field of regard below 70 degrees
-    zero = np.zeros_like(along)
-    visible_now = off_nadir_deg(los_at(zero)) <= agility.field_of_regard_deg
-    ahead = bisect(
-        lambda d: off_nadir_deg(los_at(d)) <= agility.field_of_regard_deg, zero, zero + reach
-    )
+    zero = np.zeros_like(cross)
+    visible_now = off_nadir_deg(los_at(zero)) <= fov
+    ahead = bisect(lambda d: off_nadir_deg(los_at(d)) <= fov, zero, zero + reach)
     behind = -bisect(
         lambda d: (
-            (off_nadir_deg(los_at(-d)) <= agility.field_of_regard_deg)
+            (off_nadir_deg(los_at(-d)) <= fov)
             & (pitch_deg(los_at(-d)) >= -agility.aft_limit_deg - 1e-9)
         ),
         zero,
         zero + reach,
     )
-    t_in = np.where(visible_now, (along - ahead) / v, np.inf)
-    t_out = np.where(visible_now, (along - behind) / v, -np.inf)
-    return t_in, t_out
+    return visible_now, ahead, behind
 
 
 @dataclass(frozen=True, eq=False)

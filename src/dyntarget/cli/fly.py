@@ -152,7 +152,7 @@ def _fly(args: argparse.Namespace) -> int:
                 classifier,
                 config,
                 fallback=fallback,
-                on_frame=lambda r: write_progress(r, world, out, crs_mode=args.crs),
+                on_frame=_Progress(lambda r: write_progress(r, world, out, crs_mode=args.crs)),
                 should_stop=stop.is_set,
                 progress=not args.quiet,
                 frame_sink=views,
@@ -178,6 +178,33 @@ def _fly(args: argparse.Namespace) -> int:
     if result.stopped and stop.caught:
         return 128 + stop.caught[0]
     return EXIT_OK
+
+
+class _Progress:
+    """Rewrite the progress files after a frame, at most every :data:`PROGRESS_EVERY_S`.
+
+    The files hold the whole pass so far, so writing them after every frame costs time
+    growing with the pass (quadratic over a 3000 km pass); writing at most once a second,
+    and not more often than keeps writing under a tenth of the time, keeps them at most a
+    few seconds old. The last frame's are written by ``write_pass`` in any case.
+    """
+
+    def __init__(self, write) -> None:
+        self.write, self.next_at = write, 0.0
+
+    def __call__(self, result) -> None:
+        import time
+
+        now = time.monotonic()
+        if now < self.next_at:
+            return
+        self.write(result)
+        took = time.monotonic() - now
+        self.next_at = now + max(PROGRESS_EVERY_S, 10.0 * took)
+
+
+PROGRESS_EVERY_S = 1.0
+"""Least wall time between two rewrites of ``timeline.csv`` and ``pointings.geojson``."""
 
 
 def _remove_progress(out: Path) -> None:

@@ -75,6 +75,15 @@ PAD = 8
 """Pixels rendered around a window and cropped, so neighbourhood operations
 (blur, gradients) give the same values whatever the window."""
 
+CONE_REACH = 24.0
+"""Distance from a vent, in world sizes, beyond which its cone and lava bias are exactly
+zero in float32 (``exp(-24 / 0.15)`` and ``exp(-24 / 0.2)`` underflow): not computed there."""
+
+GROUND_BLOCK = 128
+"""Rows of the bands the ground is computed (and kept) in."""
+GROUND_CACHE_PX = 1 << 21
+"""Most ground pixels kept in bands (32 MB of 4-band float32)."""
+
 MAX_VENTS = 64
 """Most vents in one world (a strip of ``synth --strip --plumes`` has one per plume)."""
 MAX_CLOUDS = 256
@@ -763,7 +772,9 @@ class World:
         self._tiles: dict[str, np.ndarray] = {}
         self._thresholds: dict[str, float] = {}
         self._ground_cache: OrderedDict[Window, np.ndarray] = OrderedDict()
-        self._puff_blocks: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+        self._ground_blocks: OrderedDict[tuple[int, int, int], np.ndarray] = OrderedDict()
+        self._ground_block_px = 0
+        self._puff_draws: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
         self._build_tiles()
 
     # ------------------------------------------------------------------ noise tiles
@@ -796,9 +807,16 @@ class World:
         """Tile values at integer pixels of ``window`` (+ ``pad`` around), periodic."""
         c0, r0, w, h = window
         p = self.spec.tile
+        tile = self._tiles[name]
+        a, b = (r0 - pad) % p, (c0 - pad) % p
+        n, m = h + 2 * pad, w + 2 * pad
+        if a + n <= p and b + m <= p:  # no wrap: a (read-only) view, the same values
+            view = tile[a : a + n, b : b + m]
+            view.flags.writeable = False
+            return view
         rows = np.arange(r0 - pad, r0 + h + pad) % p
         cols = np.arange(c0 - pad, c0 + w + pad) % p
-        return self._tiles[name][np.ix_(rows, cols)]
+        return tile[np.ix_(rows, cols)]
 
     def _sample_shifted(self, name: str, window: Window, dx: float, dy: float) -> np.ndarray:
         """Tile values at ``(x - dx, y - dy)`` for the pixels of ``window`` (bilinear, periodic)."""
@@ -813,11 +831,42 @@ class World:
 
     # ------------------------------------------------------------------ ground
     def _ground(self, window: Window) -> np.ndarray:
-        """Surface reflectance (4, h, w): fixed in time; cached for recent windows."""
+        """Surface reflectance (4, h, w): fixed in time; cached for recent windows.
+
+        Built from bands of :data:`GROUND_BLOCK` rows at multiples of it (as wide as the
+        window, kept): a pixel's ground does not depend on the window it is rendered in
+        (the :data:`PAD` margin), so overlapping frames of a pass compute each band once.
+        """
         cached = self._ground_cache.get(window)
         if cached is not None:
             self._ground_cache.move_to_end(window)
             return cached
+        c0, r0, w, h = window
+        first, last = r0 // GROUND_BLOCK, (r0 + h - 1) // GROUND_BLOCK
+        parts = []
+        for blk in range(first, last + 1):
+            key = (c0, w, blk)
+            part = self._ground_blocks.get(key)
+            if part is None:
+                part = self._ground_window((c0, blk * GROUND_BLOCK, w, GROUND_BLOCK))
+                self._ground_blocks[key] = part
+                self._ground_block_px += w * GROUND_BLOCK
+                while self._ground_block_px > GROUND_CACHE_PX and len(self._ground_blocks) > 1:
+                    (_, bw, _), _ = self._ground_blocks.popitem(last=False)
+                    self._ground_block_px -= bw * GROUND_BLOCK
+            else:
+                self._ground_blocks.move_to_end(key)
+            parts.append(part)
+        top = r0 - first * GROUND_BLOCK
+        surface = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+        surface = np.ascontiguousarray(surface[:, top : top + h])
+        self._ground_cache[window] = surface
+        if len(self._ground_cache) > 4:
+            self._ground_cache.popitem(last=False)
+        return surface
+
+    def _ground_window(self, window: Window) -> np.ndarray:
+        """Surface reflectance (4, h, w) of ``window``, computed (see :meth:`_ground`)."""
         s = self.spec
         c0, r0, w, h = window
         pad = PAD
@@ -825,6 +874,11 @@ class World:
         cone = np.zeros_like(xx)
         lava_bias = np.zeros_like(xx)
         for vent in s.vents:  # a volcanic cone under every vent
+            # beyond CONE_REACH sizes both terms underflow to exactly 0 in float32: skip
+            dx = max(c0 - pad - vent.x, 0.0, vent.x - (c0 + w + pad - 1))
+            dy = max(r0 - pad - vent.y, 0.0, vent.y - (r0 + h + pad - 1))
+            if math.hypot(dx, dy) > CONE_REACH * s.size:
+                continue
             r_vent = np.hypot(xx - vent.x, yy - vent.y) / s.size
             cone = np.maximum(cone, 2.5 * np.exp(-r_vent / 0.2))
             lava_bias = np.maximum(lava_bias, 2.0 * np.exp(-r_vent / 0.15))
@@ -859,30 +913,30 @@ class World:
         surface = (
             surface * (1.0 - haze[None]) + np.asarray(HAZE, np.float32)[:, None, None] * haze[None]
         )
-        surface = np.ascontiguousarray(surface, dtype=np.float32)
-        self._ground_cache[window] = surface
-        if len(self._ground_cache) > 4:
-            self._ground_cache.popitem(last=False)
-        return surface
+        return np.ascontiguousarray(surface, dtype=np.float32)
 
     # ------------------------------------------------------------------ plumes
-    def _puffs(self, vi: int, k: np.ndarray) -> dict[str, np.ndarray]:
-        """Per-puff random draws (mass factor, crosswind velocity) for puff indices ``k``."""
-        out = {"gust": np.empty(len(k)), "cross": np.empty(len(k))}
-        blocks = k // self.PUFF_BLOCK
-        for b in np.unique(blocks):
-            key = (vi, int(b))
-            if key not in self._puff_blocks:
-                rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD3, vi, int(b)])
-                self._puff_blocks[key] = {
-                    "gust": rng.standard_normal(self.PUFF_BLOCK),
-                    "cross": rng.standard_normal(self.PUFF_BLOCK),
-                }
-            sel = blocks == b
-            idx = k[sel] % self.PUFF_BLOCK
-            out["gust"][sel] = self._puff_blocks[key]["gust"][idx]
-            out["cross"][sel] = self._puff_blocks[key]["cross"][idx]
-        return out
+    def _puffs(self, vi: int, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """Per-puff random draws (mass factor, crosswind velocity) of puffs ``k0 .. k1 - 1``.
+
+        Drawn in blocks of :attr:`PUFF_BLOCK` puffs, block ``b`` from its own seed (so a
+        puff's draws do not depend on which puffs are asked for), kept per vent as one
+        array. Also returns the largest ``|crosswind draw|`` of the vent's puffs drawn so
+        far (a bound for culling).
+        """
+        gust, cross, top = self._puff_draws.get(vi, (np.empty(0), np.empty(0), 0.0))
+        have = len(gust) // self.PUFF_BLOCK
+        need = -(-k1 // self.PUFF_BLOCK)
+        if need > have:
+            g, c = [gust], [cross]
+            for blk in range(have, need):
+                rng = np.random.default_rng([self.spec.seed, self.spec.size, 0xD3, vi, blk])
+                g.append(rng.standard_normal(self.PUFF_BLOCK))
+                c.append(rng.standard_normal(self.PUFF_BLOCK))
+            gust, cross = np.concatenate(g), np.concatenate(c)
+            top = float(np.abs(cross).max())
+            self._puff_draws[vi] = (gust, cross, top)
+        return gust[k0:k1], cross[k0:k1], top
 
     def _pulse(self, vi: int, vent: VentSpec, release: np.ndarray) -> np.ndarray:
         """Smooth unit-variance random function of release time (8 random cosines)."""
@@ -908,90 +962,141 @@ class World:
             np.clip(0.4 * vent.source_sigma_m / max(self.spec.wind.speed_mps, 1e-6), 0.5, 20.0)
         )
 
+    def _puff_train(
+        self, vi: int, v: VentSpec, t: float, window: Window
+    ) -> tuple[np.ndarray, ...] | None:
+        """Vent ``vi``'s puffs at ``t`` that reach ``window``: ``(px, py, sig, mass, ash)``.
+
+        ``None`` when none does. The train's bounding box is checked first (most vents
+        of a long strip are far from any one window), then each puff's 4-sigma box; the
+        pulsation and masses are computed only for the puffs left.
+        """
+        s = self.spec
+        c0, r0, w, h = window
+        ux, uy = s.wind.velocity_px(s.gsd)  # px/s
+        speed_px = math.hypot(ux, uy)
+        nx, ny = (-uy / speed_px, ux / speed_px) if speed_px > 0 else (0.0, 0.0)
+        start = -v.eruption_age_s
+        if t <= start:
+            return None
+        step = self.puff_step_s(v)
+        sigma0 = v.source_sigma_m / s.gsd
+        # puff k carries the emission over [start + k step, start + (k+1) step), clipped at t
+        k_last = math.floor((t - start) / step)
+        k_first = max(0, math.floor((t - start - 8.0 * v.fade_s) / step))
+        gust, cross_draw, top = self._puffs(vi, k_first, k_last + 1)
+        age_max = max(t - start - k_first * step, 0.0)
+        sig_max = math.sqrt(
+            sigma0**2
+            + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age_max
+            + (v.turbulence * speed_px * age_max) ** 2
+        )
+        drift = v.meander * speed_px * top * age_max  # largest crosswind offset
+        sx = abs(nx) * drift + 4.0 * sig_max + 1.0
+        sy = abs(ny) * drift + 4.0 * sig_max + 1.0
+        if (
+            v.x + max(ux * age_max, 0.0) + sx < c0
+            or v.x + min(ux * age_max, 0.0) - sx > c0 + w - 1
+            or v.y + max(uy * age_max, 0.0) + sy < r0
+            or v.y + min(uy * age_max, 0.0) - sy > r0 + h - 1
+        ):
+            return None
+        k = np.arange(k_first, k_last + 1)
+        t0 = start + k * step
+        t1 = np.minimum(t0 + step, t)
+        keep = t1 > t0
+        t0, t1, gust, cross_draw = t0[keep], t1[keep], gust[keep], cross_draw[keep]
+        age = t - 0.5 * (t0 + t1)  # age of the puff's centre of emission
+        sig = np.sqrt(
+            sigma0**2
+            + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age
+            + (v.turbulence * speed_px * age) ** 2
+        )
+        cross = v.meander * speed_px * cross_draw * age
+        px = v.x + ux * age + nx * cross
+        py = v.y + uy * age + ny * cross
+        reach = 4.0 * sig
+        near = np.flatnonzero(
+            (px + reach >= c0)
+            & (px - reach <= c0 + w - 1)
+            & (py + reach >= r0)
+            & (py - reach <= r0 + h - 1)
+        )
+        if len(near) == 0:
+            return None
+        age, sig, px, py = age[near], sig[near], px[near], py[near]
+        t0, t1, gust = t0[near], t1[near], gust[near]
+        # line-source normalisation: a steady train of puffs has centreline
+        # optical depth ~ emission_optical_depth near the vent
+        u_norm = max(speed_px, 1.0 / s.gsd)  # px/s; at least 1 m/s so calm air stays finite
+        q = v.emission_optical_depth * u_norm * math.sqrt(2.0 * math.pi) * sigma0  # per s
+        log_rate = v.gustiness * gust - 0.5 * v.gustiness**2
+        if v.pulsation > 0:
+            log_rate = log_rate + v.pulsation * self._pulse(vi, v, 0.5 * (t0 + t1))
+            log_rate -= 0.5 * v.pulsation**2
+        mass = q * (t1 - t0) * np.exp(log_rate) * np.exp(-age / v.fade_s)
+        ash = v.ash_fraction * np.exp(-age / v.ash_fade_s)
+        drawn = np.flatnonzero(mass / (2 * math.pi * sig**2) > 1e-5)
+        if len(drawn) == 0:
+            return None
+        return px[drawn], py[drawn], sig[drawn], mass[drawn], ash[drawn]
+
     def _plume_tau(self, t: float, window: Window) -> tuple[np.ndarray, np.ndarray]:
-        """Attached plumes: ``(tau, tau_ash)`` on ``window`` at time ``t``."""
+        """Attached plumes: ``(tau, tau_ash)`` on ``window`` at time ``t``.
+
+        Each vent's plume is drawn on its own box and textured from its own vent (the
+        texture's amplitude grows with the distance downwind of that vent).
+        """
         s = self.spec
         c0, r0, w, h = window
         tau = np.zeros((h, w), np.float64)
         tau_ash = np.zeros((h, w), np.float64)
         ux, uy = s.wind.velocity_px(s.gsd)  # px/s
         speed_px = math.hypot(ux, uy)
-        nx, ny = (-uy / speed_px, ux / speed_px) if speed_px > 0 else (0.0, 0.0)
         xs = np.arange(c0, c0 + w, dtype=np.float64)
         ys = np.arange(r0, r0 + h, dtype=np.float64)
+        tex = None  # the plume texture on the window (sampled once, when a plume is drawn)
         for vi, v in enumerate(s.vents):
-            start = -v.eruption_age_s
-            if t <= start:
+            train = self._puff_train(vi, v, t, window)
+            if train is None:
                 continue
-            step = self.puff_step_s(v)
-            sigma0 = v.source_sigma_m / s.gsd
-            # puff k carries the emission over [start + k step, start + (k+1) step), clipped at t
-            k_last = math.floor((t - start) / step)
-            k_first = max(0, math.floor((t - start - 8.0 * v.fade_s) / step))
-            k = np.arange(k_first, k_last + 1)
-            t0 = start + k * step
-            t1 = np.minimum(t0 + step, t)
-            keep = t1 > t0
-            k, t0, t1 = k[keep], t0[keep], t1[keep]
-            if len(k) == 0:
-                continue
-            age = t - 0.5 * (t0 + t1)  # age of the puff's centre of emission
-            draws = self._puffs(vi, k)
-            # line-source normalisation: a steady train of puffs has centreline
-            # optical depth ~ emission_optical_depth near the vent
-            u_norm = max(speed_px, 1.0 / s.gsd)  # px/s; at least 1 m/s so calm air stays finite
-            q = v.emission_optical_depth * u_norm * math.sqrt(2.0 * math.pi) * sigma0  # per s
-            log_rate = v.gustiness * draws["gust"] - 0.5 * v.gustiness**2
-            if v.pulsation > 0:
-                log_rate = log_rate + v.pulsation * self._pulse(vi, v, 0.5 * (t0 + t1))
-                log_rate -= 0.5 * v.pulsation**2
-            mass = q * (t1 - t0) * np.exp(log_rate) * np.exp(-age / v.fade_s)
-            sig = np.sqrt(
-                sigma0**2
-                + 2.0 * (v.diffusivity_m2s / s.gsd**2) * age
-                + (v.turbulence * speed_px * age) ** 2
-            )
-            cross = v.meander * speed_px * draws["cross"] * age
-            px = v.x + ux * age + nx * cross
-            py = v.y + uy * age + ny * cross
-            ash = v.ash_fraction * np.exp(-age / v.ash_fade_s)
+            px, py, sig, mass, ash = train
             reach = 4.0 * sig
-            inside = (
-                (px + reach >= c0)
-                & (px - reach <= c0 + w - 1)
-                & (py + reach >= r0)
-                & (py - reach <= r0 + h - 1)
-                & (mass / (2 * math.pi * sig**2) > 1e-5)
-            )
-            for j in np.flatnonzero(inside):
-                # pixels within 4 sigma of the centre (the same ones in any window)
-                a0 = max(math.ceil(px[j] - reach[j]) - c0, 0)
-                a1 = min(math.floor(px[j] + reach[j]) - c0 + 1, w)
-                b0 = max(math.ceil(py[j] - reach[j]) - r0, 0)
-                b1 = min(math.floor(py[j] + reach[j]) - r0 + 1, h)
+            # pixels within 4 sigma of each centre (the same ones in any window)
+            ca0 = np.maximum(np.ceil(px - reach).astype(np.int64) - c0, 0)
+            ca1 = np.minimum(np.floor(px + reach).astype(np.int64) - c0 + 1, w)
+            cb0 = np.maximum(np.ceil(py - reach).astype(np.int64) - r0, 0)
+            cb1 = np.minimum(np.floor(py + reach).astype(np.int64) - r0 + 1, h)
+            x0, x1, y0, y1 = int(ca0.min()), int(ca1.max()), int(cb0.min()), int(cb1.max())
+            if x1 <= x0 or y1 <= y0:
+                continue
+            vt = np.zeros((y1 - y0, x1 - x0), np.float64)  # this vent's plume on its box
+            va = np.zeros_like(vt)
+            for j, (a0, a1, b0, b1) in enumerate(zip(ca0, ca1, cb0, cb1, strict=True)):
+                if a1 <= a0 or b1 <= b0:
+                    continue
                 inv = 0.5 / sig[j] ** 2
                 gx = np.exp(-((xs[a0:a1] - px[j]) ** 2) * inv)
                 gy = np.exp(-((ys[b0:b1] - py[j]) ** 2) * inv) * (mass[j] * inv / math.pi)
                 blob = np.outer(gy, gx)
-                tau[b0:b1, a0:a1] += blob
-                tau_ash[b0:b1, a0:a1] += blob * ash[j]
-        if tau.any() and s.plume_texture > 0:
-            # texture that moves with the flow, developing away from the vent
-            tex = self._sample_shifted("plume", window, ux * t, uy * t).astype(np.float64)
-            amp = np.full((h, w), s.plume_texture)
-            for v in s.vents:
-                # downwind distance from the vent (plain distance in calm air): none upwind
-                rx, ry = xs[None, :] - v.x, ys[:, None] - v.y
+                vt[b0 - y0 : b1 - y0, a0 - x0 : a1 - x0] += blob
+                va[b0 - y0 : b1 - y0, a0 - x0 : a1 - x0] += blob * ash[j]
+            if s.plume_texture > 0 and vt.any():
+                # texture that moves with the flow, developing away from this plume's vent:
+                # the downwind distance from it (plain distance in calm air), none upwind
+                if tex is None:
+                    tex = self._sample_shifted("plume", window, ux * t, uy * t).astype(np.float64)
+                rx, ry = xs[None, x0:x1] - v.x, ys[y0:y1, None] - v.y
                 if speed_px > 0:
                     d = np.maximum((rx * ux + ry * uy) / speed_px, 0.0)
                 else:
                     d = np.hypot(rx, ry)
-                amp = np.minimum(
-                    amp, s.plume_texture * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd)))
-                )
-            mult = np.exp(amp * tex - 0.5 * amp**2)
-            tau *= mult
-            tau_ash *= mult
+                amp = s.plume_texture * (1.0 - np.exp(-d / (3.0 * v.source_sigma_m / s.gsd)))
+                mult = np.exp(amp * tex[y0:y1, x0:x1] - 0.5 * amp**2)
+                vt *= mult
+                va *= mult
+            tau[y0:y1, x0:x1] += vt
+            tau_ash[y0:y1, x0:x1] += va
         return tau.astype(np.float32), tau_ash.astype(np.float32)
 
     def _cloud_tau(
@@ -1090,17 +1195,21 @@ class World:
         off = 0.05 * s.size / math.tan(math.radians(s.sun_elevation_deg))
         shift = (-off * math.sin(az), off * math.cos(az))
         shadow, _ = self._cloud_tau(t, window, volcanic=False, shift=shift)
-        image *= np.exp(-0.6 * shadow)[None]
+        # each layer is skipped where it is zero everywhere (exactly a no-op: x * 1 + c * 0)
+        if shadow.any():
+            image *= np.exp(-0.6 * shadow)[None]
         ptau = tau + vtau
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ash = np.where(ptau > 1e-6, (tau_ash + vash) / np.maximum(ptau, 1e-6), 0.0)
-        colour = np.asarray(ASH_PLUME, np.float32)[:, None, None] * ash[None] + np.asarray(
-            STEAM, np.float32
-        )[:, None, None] * (1.0 - ash[None])
-        trans = np.exp(-ptau)[None]
-        image = image * trans + colour * (1.0 - trans)
-        trans = np.exp(-mtau)[None]
-        image = image * trans + np.asarray(CLOUD, np.float32)[:, None, None] * (1.0 - trans)
+        if ptau.any():
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ash = np.where(ptau > 1e-6, (tau_ash + vash) / np.maximum(ptau, 1e-6), 0.0)
+            colour = np.asarray(ASH_PLUME, np.float32)[:, None, None] * ash[None] + np.asarray(
+                STEAM, np.float32
+            )[:, None, None] * (1.0 - ash[None])
+            trans = np.exp(-ptau)[None]
+            image = image * trans + colour * (1.0 - trans)
+        if mtau.any():
+            trans = np.exp(-mtau)[None]
+            image = image * trans + np.asarray(CLOUD, np.float32)[:, None, None] * (1.0 - trans)
         if noise and s.noise_sigma > 0:
             frame_rng = np.random.default_rng([s.seed, 0xD4, round(t * 1000.0) & 0xFFFFFFFF])
             ox, oy = (int(v) for v in frame_rng.integers(0, s.tile, 2))
