@@ -834,10 +834,6 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
         attached = prediction.attached_mask(result.mask)
 
     def fly_from(ready: float) -> Schedule:  # the kinematics, behind the committed pointings
-        if gate is not None and len(todo) == 0:  # the refinement released nothing this frame
-            start_s = ready - t_k
-            return Schedule(todo, np.zeros(0), np.zeros(0, np.int64), 0, start_s, start_s,
-                            start_s, agility.name)  # fmt: skip
         return schedule_on_prediction(
             todo,
             shape,
