@@ -157,11 +157,13 @@ def test_gate_takes_the_top_k_when_time_is_short():
     cols = np.arange(6)
     vals = np.array([0.3, 0.9, 0.1, 0.8, 0.5, 0.2])
     gate.route(0.0, 2990, rows, cols, vals, 0.0)
-    # the sensor is booked until 2.5 s before the window closes: two pointings fit
-    _, t_out, *_ = gate._window(len(gate.t_lo) - 1)
-    step = gate._step(gate.geometry, gate.agility, np.array([0.0]), np.array([0.0]),
-                      np.array([0.0]))[0]  # fmt: skip
-    out = gate.route(0.1, 2980, rows[:0], cols[:0], vals[:0], t_out - 2.2 * step)
+    # the sensor tracks the plume and is free 3.2 pointings before its window closes;
+    # starting again costs a settle (1 s, no slew): two pointings fit
+    _, t_out, along, cross = gate._window(len(gate.t_lo) - 1)
+    step = gate._step(gate.geometry, gate.agility, np.array([along]), np.array([cross]),
+                      np.array([t_out]))[0]  # fmt: skip
+    gate.booked_at = (along, cross)
+    out = gate.route(0.1, 2980, rows[:0], cols[:0], vals[:0], t_out - 3.2 * step)
     assert sorted(out[:, 1].tolist()) == [1, 3]  # the two best
 
 

@@ -606,8 +606,7 @@ class BlueprintGate:
                 out.append(key)
                 self.done_keys.add(key)
                 del self.pool[j][key]
-        if free_s > self.booked_s:
-            self.booked_s = free_s
+        self.booked_s = max(self.booked_s, free_s)
         out.extend(self._uncap())
         for j in self._due(t_k, top):
             out.extend(self._release(j))
