@@ -645,7 +645,7 @@ class BlueprintGate:
         timer.t, timer.target = self.booked_s, self.booked_at
         start = timer.arrival_one(along, cross, t_in)  # the slew there included
         step = float(self._step(self.geometry, self.agility, np.array([along]),
-                                np.array([cross]), np.array([start]))[0])  # fmt: skip
+                                np.array([cross]), np.array([start]), 1.0)[0])  # fmt: skip
         limit = t_out
         # the next chosen blueprint target (not this one) that needs the time: not yet
         # started, and not seen whole by the look-ahead with nothing on it
