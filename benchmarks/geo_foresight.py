@@ -1,28 +1,22 @@
-"""Geostationary foresight: look-ahead only, GEO blueprint + look-ahead, and the omniscient bound.
+"""Geostationary foresight: look-ahead only, the refinement alone, GEO blueprints, the omniscient one.
 
-Pass-length strips (``long_strip_spec``: ``--length-km`` km, sparse and dense
-vents) are flown with the oracle classifier (``--truth``: the true mask at
-each frame's time, so only the planning differs) and a fixed compute budget
-(deterministic), under each preset, in three ways:
+Pass-length strips (``long_strip_spec``: ``--length-km`` km, ``--passes`` sparse and as
+many dense) are flown with the oracle classifier (the true mask at each frame's time, so
+only the planning differs) and a fixed compute budget (deterministic), under each preset:
 
-* ``lookahead``: today's loop (each frame planned greedily from the look-ahead);
-* ``geo@L``: a blueprint from the GEO stream (2 km, 600 s cadence, latency
-  ``L`` s), refined by the look-ahead (``fly --geo``);
-* ``omniscient``: the blueprint planned on the true plumes at their overpass
-  times (``fly --geo-omniscient``), refined by the same oracle look-ahead.
+* ``lookahead``: today's loop (each frame's plan queued as it comes);
+* ``blind``: the onboard refinement with no blueprint (``fly --geo-blind``: an ablation);
+* ``geo@L``: a blueprint from the GEO stream (2 km, 600 s cadence, latency ``L`` s),
+  refined onboard (``fly --geo``);
+* ``omniscient``: the blueprint planned on the true plumes at their overpass times
+  (``fly --geo-omniscient``), refined by the same refinement;
+* ``reference`` (added by ``--merge``): the better of ``lookahead`` and ``omniscient``
+  on each pass (never below look-ahead only; not an upper bound).
 
-Also times the blueprint alone on a 3000 km dense pass (``--blueprint-km``).
-Writes ``geo_foresight.json`` (rows + machine) and ``geo_foresight.png``.
-
-Command (recorded in docs/results.md, "Geostationary foresight")::
-
-    python benchmarks/geo_foresight.py --passes 3 --length-km 1000 --out docs/benchmarks
-
-Equivalent single pass on the command line::
-
-    dyntarget synth --strip --length-km 1000 --plumes-per-100km 0.2 --scenes 1 --out strips
-    dyntarget fly --scene strips/strip-0000.tif --truth --agility slow --compute-budget-s 0.05 \\
-        --geo --geo-latency-s 300 --out pass
+Strips are shared out over ``--shards`` processes (``--shard`` each); ``--merge`` writes
+``geo_foresight.json`` (rows, summary, machine) and ``geo_foresight.png``.
+``--timing-only`` times the blueprint alone on ``--blueprint-km`` (dense targets).
+Commands: docs/results.md, "Geostationary foresight".
 """
 
 from __future__ import annotations

@@ -20,12 +20,17 @@
   clouds weigh little (and so do detached volcanic clouds: a known cost).
 * **Blueprint** (:func:`dyntarget.geo.plan_blueprint`), computed on the ground
   before the pass from the images usable at pass time 0, and uplinked.
-* **Gate** (:class:`BlueprintGate`): onboard, each frame's plan keeps at most
-  the pointings a target still has in its budget, drops the pointings of
-  targets the blueprint gave up, and flies pointings on plumes the blueprint
-  does not hold out of its reserve.
-* **Omniscient** (:func:`omniscient_targets`): the blueprint planned on the true
-  plumes, each where it is when the satellite is over it, no latency, no noise.
+* **Refinement** (:class:`BlueprintGate`): onboard, every plume pixel the
+  look-ahead finds is pooled under the blueprint target holding it (or a target
+  of the look-ahead's own) and, once the target is seen whole or its window
+  opens, its most valuable pixels are flown, as many as the window holds; the
+  blueprint's budgets cap a target only where the next chosen target needs the
+  time (lifted when the look-ahead finds nothing there).
+* **Omniscient reference** (:func:`omniscient_targets`): the blueprint planned on
+  the true plumes, each where it is when the satellite is over it, no latency,
+  no noise (not an upper bound).
+* **Blind** (``GeoSettings(blind=True)``): the refinement with no blueprint, an
+  ablation.
 """
 
 from __future__ import annotations
