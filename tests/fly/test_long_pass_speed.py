@@ -48,30 +48,30 @@ def test_an_empty_plan_has_empty_windows_and_an_empty_schedule():
     assert len(s.kept) == 0 and s.planned == 0
 
 
-def test_progress_files_are_rewritten_at_most_once_a_second(monkeypatch):
-    clock = [100.0]
-    monkeypatch.setattr(time, "monotonic", lambda: clock[0])
-    wrote = []
-    progress = cli_fly._Progress(wrote.append)
-    for frame in range(24):  # 24 frames 1/8 s apart: 3 s
-        progress(frame)
-        clock[0] += 0.125
-    assert wrote == [0, 8, 16]  # the first frame, then once a second
-
-
-def test_a_slow_rewrite_is_done_less_often(monkeypatch):
+def _frames(monkeypatch, write_s: float, frames: int) -> list[int]:
+    """Frames (1/8 s apart, on a fake clock) after which the progress files were rewritten."""
     clock = [0.0]
     monkeypatch.setattr(time, "monotonic", lambda: clock[0])
-
-    def write(frame):  # each rewrite takes 0.5 s: next one 5 s later (at most 10 % of the time)
-        wrote.append(frame)
-        clock[0] += 0.5
-
     wrote: list[int] = []
+
+    def write(frame):
+        wrote.append(frame)
+        clock[0] += write_s
+
     progress = cli_fly._Progress(write)
-    for frame in range(100):
+    for frame in range(frames):
         progress(frame)
         clock[0] += 0.125
-    # frame 0 at t = 0 (done at 0.5 s); frame k > 0 comes at 0.5 + k / 8 s: frame 36 at 5 s,
-    # its rewrite ends at 5.5 s, and frame 72 comes at 10 s
-    assert wrote == [0, 36, 72]
+    return wrote
+
+
+def test_quick_rewrites_are_done_every_frame_or_so(monkeypatch):
+    # a rewrite of 1/256 s: the next waits 20/256 s, less than a frame
+    assert _frames(monkeypatch, 1 / 256, 10) == list(range(10))
+
+
+def test_slow_rewrites_wait_twenty_times_as_long_as_they_took(monkeypatch):
+    # a rewrite of 1/16 s, after frame 0 at t = 0: the next may come at 20/16 = 1.25 s;
+    # frame k > 0 comes at 1/16 + k/8 s, so frame 10 (1.3125 s) is the first; and so on
+    # (each wait 1.25 s from the rewrite's start: frame 20 at 2.625 s >= 2.5625 s)
+    assert _frames(monkeypatch, 1 / 16, 25) == [0, 10, 20]

@@ -181,12 +181,13 @@ def _fly(args: argparse.Namespace) -> int:
 
 
 class _Progress:
-    """Rewrite the progress files after a frame, at most every :data:`PROGRESS_EVERY_S`.
+    """Rewrite the progress files after a frame, keeping the rewrites to a small share of the time.
 
-    The files hold the whole pass so far, so writing them after every frame costs time
-    growing with the pass (quadratic over a 3000 km pass); writing at most once a second,
-    and not more often than keeps writing under a tenth of the time, keeps them at most a
-    few seconds old. The last frame's are written by ``write_pass`` in any case.
+    The files hold the whole pass so far, so rewriting them after every frame costs time
+    growing with the pass (quadratic over a 3000 km pass). After a rewrite that took
+    ``d`` seconds the next one waits for ``PROGRESS_TIME_FACTOR * d`` seconds: on a short
+    pass (a rewrite of a millisecond) they are rewritten every few frames, on a long one
+    every second or so. The last frame's are written by ``write_pass`` in any case.
     """
 
     def __init__(self, write) -> None:
@@ -199,12 +200,11 @@ class _Progress:
         if now < self.next_at:
             return
         self.write(result)
-        took = time.monotonic() - now
-        self.next_at = now + max(PROGRESS_EVERY_S, 10.0 * took)
+        self.next_at = now + PROGRESS_TIME_FACTOR * (time.monotonic() - now)
 
 
-PROGRESS_EVERY_S = 1.0
-"""Least wall time between two rewrites of ``timeline.csv`` and ``pointings.geojson``."""
+PROGRESS_TIME_FACTOR = 20.0
+"""After a rewrite of the progress files taking ``d`` s, the next waits ``20 d`` (<= 5 % of the time)."""
 
 
 def _remove_progress(out: Path) -> None:
