@@ -1,28 +1,22 @@
-"""Geostationary foresight: look-ahead only, GEO blueprint + look-ahead, and the omniscient bound.
+"""Geostationary foresight: look-ahead only, the refinement alone, GEO blueprints, the omniscient one.
 
-Pass-length strips (``long_strip_spec``: ``--length-km`` km, sparse and dense
-vents) are flown with the oracle classifier (``--truth``: the true mask at
-each frame's time, so only the planning differs) and a fixed compute budget
-(deterministic), under each preset, in three ways:
+Pass-length strips (``long_strip_spec``: ``--length-km`` km, ``--passes`` sparse and as
+many dense) are flown with the oracle classifier (the true mask at each frame's time, so
+only the planning differs) and a fixed compute budget (deterministic), under each preset:
 
-* ``lookahead``: today's loop (each frame planned greedily from the look-ahead);
-* ``geo@L``: a blueprint from the GEO stream (2 km, 600 s cadence, latency
-  ``L`` s), refined by the look-ahead (``fly --geo``);
-* ``omniscient``: the blueprint planned on the true plumes at their overpass
-  times (``fly --geo-omniscient``), refined by the same oracle look-ahead.
+* ``lookahead``: today's loop (each frame's plan queued as it comes);
+* ``blind``: the onboard refinement with no blueprint (``fly --geo-blind``: an ablation);
+* ``geo@L``: a blueprint from the GEO stream (2 km, 600 s cadence, latency ``L`` s),
+  refined onboard (``fly --geo``);
+* ``omniscient``: the blueprint planned on the true plumes at their overpass times
+  (``fly --geo-omniscient``), refined by the same refinement;
+* ``reference`` (added by ``--merge``): the better of ``lookahead`` and ``omniscient``
+  on each pass (never below look-ahead only; not an upper bound).
 
-Also times the blueprint alone on a 3000 km dense pass (``--blueprint-km``).
-Writes ``geo_foresight.json`` (rows + machine) and ``geo_foresight.png``.
-
-Command (recorded in docs/results.md, "Geostationary foresight")::
-
-    python benchmarks/geo_foresight.py --passes 3 --length-km 1000 --out docs/benchmarks
-
-Equivalent single pass on the command line::
-
-    dyntarget synth --strip --length-km 1000 --plumes-per-100km 0.2 --scenes 1 --out strips
-    dyntarget fly --scene strips/strip-0000.tif --truth --agility slow --compute-budget-s 0.05 \\
-        --geo --geo-latency-s 300 --out pass
+Strips are shared out over ``--shards`` processes (``--shard`` each); ``--merge`` writes
+``geo_foresight.json`` (rows, summary, machine) and ``geo_foresight.png``.
+``--timing-only`` times the blueprint alone on ``--blueprint-km`` (dense targets).
+Commands: docs/results.md, "Geostationary foresight".
 """
 
 from __future__ import annotations
@@ -37,8 +31,7 @@ import numpy as np
 
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.geo import GeoSettings, omniscient_targets
-from dyntarget.fly.loop import frame_plan
+from dyntarget.fly.geo import GeoSettings
 from dyntarget.fly.strip import LongStrip, long_strip_spec
 from dyntarget.geo import plan_blueprint
 from dyntarget.io.atomic import write_text
@@ -63,60 +56,94 @@ def _row(result, **kw):
             k: geo.get(k)
             for k in (
                 "blueprint_pointings",
-                "pointings_dropped_given_up",
-                "pointings_dropped_over_budget",
-                "pointings_from_reserve",
+                "targets_released",
+                "targets_released_blueprint",
+                "look_ahead_targets",
+                "pointings_released",
+                "releases_capped_by_blueprint",
             )
         },
     }
 
 
+MODES_DOC = {
+    "lookahead": "look-ahead only (today's loop)",
+    "blind": "the onboard refinement alone (no blueprint)",
+    "geo@L": "GEO blueprint (latency L s) + refinement",
+    "omniscient": "blueprint on the truth + refinement",
+    "reference": "the better of look-ahead only and omniscient, per pass",
+}
+
+
 def run(args) -> dict:
     rows = []
-    for p in range(args.passes):  # sparse and dense alternate: a stopped run has both
-        for density, per100 in DENSITIES.items():
-            seed = 100 * (1 + list(DENSITIES).index(density)) + p
-            spec, window = long_strip_spec(
-                seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
-            )
-            world = LongStrip(spec, window, capacity=4000, frame_capacity=4000)
-            for preset in args.presets:
-                cfg = PassConfig(agility=preset, compute_budget_s=args.budget_s)
-                modes = [("lookahead", None)]
-                lats = args.latencies if preset == "slow" else args.latencies[1:2]
-                modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in lats]
-                modes.append(("omniscient", GeoSettings(omniscient=True)))
-                for mode, geo in modes:
-                    t0 = time.perf_counter()
-                    r = fly_pass(world, None, cfg, geo=geo)
-                    wall = time.perf_counter() - t0
-                    row = _row(
-                        r, strip=spec.id, density=density, vents=len(spec.vents),
-                        preset=preset, mode=mode, wall_s=round(wall, 2),
-                    )  # fmt: skip
-                    rows.append(row)
-                    print(json.dumps(row), flush=True)
-                    Path(args.out, "geo_foresight.partial.json").write_text(json.dumps(rows))
+    jobs = [(p, d) for p in range(args.passes) for d in DENSITIES]  # sparse and dense alternate
+    for n, (p, density) in enumerate(jobs):
+        if n % args.shards != args.shard:
+            continue
+        per100 = DENSITIES[density]
+        seed = 100 * (1 + list(DENSITIES).index(density)) + p
+        spec, window = long_strip_spec(
+            seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
+        )
+        world = LongStrip(spec, window, capacity=4000, frame_capacity=4000)
+        for preset in args.presets:
+            cfg = PassConfig(agility=preset, compute_budget_s=args.budget_s)
+            modes = [("lookahead", None), ("blind", GeoSettings(blind=True))]
+            modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
+            modes.append(("omniscient", GeoSettings(omniscient=True)))
+            for mode, geo in modes:
+                t0 = time.perf_counter()
+                r = fly_pass(world, None, cfg, geo=geo)
+                wall = time.perf_counter() - t0
+                row = _row(
+                    r, strip=spec.id, density=density, vents=len(spec.vents),
+                    preset=preset, mode=mode, wall_s=round(wall, 2),
+                )  # fmt: skip
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+                write_text(
+                    Path(args.out) / f"geo_foresight.part{args.shard}.json", json.dumps(rows)
+                )
     return {"rows": rows}
 
 
-def time_blueprint(km: float, width: int, gsd: float) -> dict:
-    spec, window = long_strip_spec(7, km, width=width, gsd=gsd, plumes_per_100km=1.0)
-    world = LongStrip(spec, window)
-    cfg = PassConfig(agility="slow")
-    frames = frame_plan(world, cfg)
-    targets = omniscient_targets(world, frames, cfg.factor)
-    horizon = frames.n_frames * frames.cadence_s + frames.geometry.look_ahead_m / (
-        frames.geometry.ground_speed
-    )
-    out = {"length_km": km, "targets": len(targets)}
-    for preset in ("slow", "fast"):
-        best = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            bp = plan_blueprint(targets, frames.geometry, get_agility(preset), horizon_s=horizon)
-            best.append(time.perf_counter() - t0)
-        out[preset] = {"blueprint_s_min": round(min(best), 4), "slots": bp.info["slots"]}
+def add_reference(rows: list[dict]) -> list[dict]:
+    """Per pass and preset: the better of look-ahead only and the omniscient blueprint."""
+    out = [r for r in rows if r["mode"] != "reference"]
+    keys = dict.fromkeys((r["strip"], r["preset"]) for r in out)
+    for strip, preset in keys:
+        sub = {r["mode"]: r for r in out if r["strip"] == strip and r["preset"] == preset}
+        if "lookahead" in sub and "omniscient" in sub:
+            best = max(sub["lookahead"], sub["omniscient"], key=lambda r: r["utility"])
+            out.append({**best, "mode": "reference", "from": best["mode"]})
+    return out
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    """One line per density, preset and mode: sums, ratios and per-pass ranges."""
+    out = []
+    groups = dict.fromkeys((r["density"], r["preset"]) for r in rows)
+    for density, preset in groups:
+        sub = [r for r in rows if r["density"] == density and r["preset"] == preset]
+        base = {r["strip"]: r for r in sub if r["mode"] == "lookahead"}
+        ref = {r["strip"]: r for r in sub if r["mode"] == "reference"}
+        for mode in dict.fromkeys(r["mode"] for r in sub):
+            rs = [r for r in sub if r["mode"] == mode and r["strip"] in base]
+            u = sum(r["utility"] for r in rs)
+            ub = sum(base[r["strip"]]["utility"] for r in rs)
+            uref = sum(ref[r["strip"]]["utility"] for r in rs if r["strip"] in ref)
+            per = [r["utility"] / max(base[r["strip"]]["utility"], 1e-9) for r in rs]
+            fewer = sum(r["plumes_observed"] < base[r["strip"]]["plumes_observed"] for r in rs)
+            out.append({
+                "density": density, "preset": preset, "mode": mode, "passes": len(rs),
+                "utility": round(u, 3), "vs_lookahead": round(u / max(ub, 1e-9), 3),
+                "vs_reference": round(u / max(uref, 1e-9), 3) if uref else None,
+                "per_pass_min": round(min(per), 3), "per_pass_max": round(max(per), 3),
+                "plumes_observed": sum(r["plumes_observed"] for r in rs),
+                "plumes_total": sum(r["plumes_total"] for r in rs),
+                "passes_fewer_plumes": fewer,
+            })  # fmt: skip
     return out
 
 
@@ -157,55 +184,73 @@ def figure(rows, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    groups = sorted({(r["density"], r["preset"]) for r in rows}, reverse=True)
-    fig, axes = plt.subplots(1, len(groups), figsize=(4.2 * len(groups), 3.8), sharey=False)
+    groups = [(d, p) for d in DENSITIES for p in ("slow", "fast")
+              if any(r["density"] == d and r["preset"] == p for r in rows)]  # fmt: skip
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.0 * len(groups), 4.0), sharey=False)
     axes = np.atleast_1d(axes)
+    rng = np.random.default_rng(0)
     for ax, (density, preset) in zip(axes, groups, strict=True):
         sub = [r for r in rows if r["density"] == density and r["preset"] == preset]
-        modes = list(dict.fromkeys(r["mode"] for r in sub))
-        strips = list(dict.fromkeys(r["strip"] for r in sub))
+        modes = [m for m in dict.fromkeys(r["mode"] for r in sub) if m != "lookahead"]
         base = {r["strip"]: r["utility"] for r in sub if r["mode"] == "lookahead"}
-        for j, s in enumerate(strips):
-            ys = [
-                next(r["utility"] for r in sub if r["strip"] == s and r["mode"] == m)
-                / max(base[s], 1e-9)
-                for m in modes
-            ]
-            ax.plot(range(len(modes)), ys, "o-", alpha=0.7, label=s if j < 6 else None)
+        for x, m in enumerate(modes):
+            ys = [r["utility"] / max(base[r["strip"]], 1e-9) for r in sub
+                  if r["mode"] == m and r["strip"] in base]  # fmt: skip
+            ax.scatter(x + rng.uniform(-0.15, 0.15, len(ys)), ys, s=12, alpha=0.6)
+            ax.hlines(np.median(ys), x - 0.3, x + 0.3, color="k", lw=2)
         ax.axhline(1.0, color="k", lw=0.8, ls=":")
-        ax.set_xticks(range(len(modes)), modes, rotation=30, ha="right")
-        ax.set_title(f"{density}, {preset}")
-        ax.set_ylabel("utility / look-ahead only")
-    axes[0].legend(fontsize=7)
+        ax.set_xticks(range(len(modes)), modes, rotation=35, ha="right")
+        ax.set_title(f"{density}, {preset} ({len(base)} passes)")
+        ax.set_ylabel("utility / look-ahead only (per pass)")
+    fig.suptitle("Geostationary foresight: utility of each pass relative to look-ahead only "
+                 "(bar: median)", fontsize=10)  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
+def merge(out: Path) -> dict:
+    """Combine the shards' rows (``geo_foresight.part*.json``) with the header."""
+    doc = json.loads((out / "geo_foresight.json.head").read_text())
+    rows = []
+    for f in sorted(out.glob("geo_foresight.part*.json")):
+        rows += json.loads(f.read_text())
+    rows = add_reference(rows)
+    doc["rows"] = rows
+    doc["summary"] = summarise(rows)
+    doc["modes"] = MODES_DOC
+    write_text(out / "geo_foresight.json", json.dumps(doc, indent=1))
+    figure(rows, out / "geo_foresight.png")
+    return doc
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--passes", type=int, default=3, help="strips per density")
+    ap.add_argument("--passes", type=int, default=10, help="strips per density")
     ap.add_argument("--length-km", type=float, default=1000.0)
     ap.add_argument("--width", type=int, default=128, help="strip width, px")
     ap.add_argument("--gsd", type=float, default=16.0, help="strip GSD, m")
     ap.add_argument("--presets", default="slow,fast")
     ap.add_argument("--latencies", default="0,300,900")
     ap.add_argument("--budget-s", type=float, default=0.05)
-    ap.add_argument("--blueprint-km", type=float, default=3000.0, help="0: skip the timing")
+    ap.add_argument("--shard", type=int, default=0, help="this process's share (0-based)")
+    ap.add_argument("--shards", type=int, default=1, help="processes sharing the strips")
     ap.add_argument("--out", default="docs/benchmarks")
     ap.add_argument(
-        "--from-partial",
+        "--merge",
         action="store_true",
-        help="write the JSON and figure from --out's partial rows (a run stopped early)",
+        help="write geo_foresight.json and the figure from --out's shards (run after them)",
     )
     ap.add_argument(
         "--timing-only",
         action="store_true",
-        help="only time the blueprint DP on 31 targets over --blueprint-km (dense: 1 / 100 km)",
+        help="only time the blueprint on --blueprint-km (dense: 1 target / 100 km)",
     )
+    ap.add_argument("--blueprint-km", type=float, default=3000.0)
     args = ap.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     if args.timing_only:
-        Path(args.out).mkdir(parents=True, exist_ok=True)
         doc = {
             "command": f"python benchmarks/geo_foresight.py --timing-only --blueprint-km "
             f"{args.blueprint_km:g}",
@@ -213,33 +258,30 @@ def main() -> None:
             "timing": time_blueprint_synthetic(args.blueprint_km, round(args.blueprint_km / 100)),
         }
         print(json.dumps(doc["timing"]))
-        write_text(Path(args.out) / "geo_blueprint_timing.json", json.dumps(doc, indent=1))
+        write_text(out / "geo_blueprint_timing.json", json.dumps(doc, indent=1))
         return
-    if args.from_partial:
-        doc = json.loads((Path(args.out) / "geo_foresight.json.head").read_text())
-        doc["rows"] = json.loads((Path(args.out) / "geo_foresight.partial.json").read_text())
-        doc["stopped_early"] = True
-        write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))
-        figure(doc["rows"], Path(args.out) / "geo_foresight.png")
+    if args.merge:
+        doc = merge(out)
+        for line in doc["summary"]:
+            print(json.dumps(line))
         return
     args.presets = args.presets.split(",")
     args.latencies = [float(v) for v in args.latencies.split(",")]
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    doc = {
-        "command": "python benchmarks/geo_foresight.py "
-        + f"--passes {args.passes} --length-km {args.length_km:g} --width {args.width} "
-        + f"--gsd {args.gsd:g} --presets {','.join(args.presets)}",
-        "machine": machine(),
-        "blueprint_timing": time_blueprint(args.blueprint_km, args.width, args.gsd)
-        if args.blueprint_km
-        else None,
-    }
-    print(json.dumps(doc["blueprint_timing"]), flush=True)
-    write_text(Path(args.out) / "geo_foresight.json.head", json.dumps(doc))
-    doc |= run(args)
-    doc["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
-    write_text(Path(args.out) / "geo_foresight.json", json.dumps(doc, indent=1))
-    figure(doc["rows"], Path(args.out) / "geo_foresight.png")
+    if args.shard == 0:
+        head = {
+            "command": "python benchmarks/geo_foresight.py "
+            + f"--passes {args.passes} --length-km {args.length_km:g} --width {args.width} "
+            + f"--gsd {args.gsd:g} --presets {','.join(args.presets)} "
+            + f"--latencies {','.join(f'{v:g}' for v in args.latencies)} "
+            + f"--shards {args.shards} (each --shard), then --merge",
+            "machine": machine(),
+        }
+        write_text(out / "geo_foresight.json.head", json.dumps(head))
+    t0 = time.perf_counter()
+    run(args)
+    peak = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+    print(json.dumps({"shard": args.shard, "wall_s": round(time.perf_counter() - t0, 1),
+                      "peak_rss_mb": peak}))  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -41,7 +41,7 @@ def _geo(args: argparse.Namespace):
         for o in ("geo_gsd_m", "geo_cadence_s", "geo_latency_s", "geo_reserve")
         if getattr(args, o) is not None
     ]
-    if not (args.geo or args.geo_omniscient):
+    if not (args.geo or args.geo_omniscient or args.geo_blind):
         if given:
             raise InvalidParameterError(f"--{given[0].replace('_', '-')}: give --geo too")
         return None
@@ -52,7 +52,7 @@ def _geo(args: argparse.Namespace):
         for k in ("gsd_m", "cadence_s", "latency_s", "reserve")
         if getattr(args, f"geo_{k}") is not None
     }
-    return GeoSettings(**kw, omniscient=bool(args.geo_omniscient))
+    return GeoSettings(**kw, omniscient=bool(args.geo_omniscient), blind=bool(args.geo_blind))
 
 
 def _pass_config(args: argparse.Namespace, planner: str, agility: str):
@@ -391,7 +391,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     geo.add_argument(
         "--geo-omniscient",
         action="store_true",
-        help="the bound: the blueprint planned on the true plumes (no latency, no noise)",
+        help="the omniscient reference: the blueprint planned on the true plumes "
+        "(no latency, no noise)",
+    )
+    geo.add_argument(
+        "--geo-blind",
+        action="store_true",
+        help="no blueprint: the onboard refinement alone (an ablation: what GEO adds to it)",
     )
     geo.add_argument("--geo-gsd-m", type=float, help="GEO cell size, m (default 2000)")
     geo.add_argument("--geo-cadence-s", type=float, help="seconds between GEO images (default 600)")

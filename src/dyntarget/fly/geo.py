@@ -20,12 +20,17 @@
   clouds weigh little (and so do detached volcanic clouds: a known cost).
 * **Blueprint** (:func:`dyntarget.geo.plan_blueprint`), computed on the ground
   before the pass from the images usable at pass time 0, and uplinked.
-* **Gate** (:class:`BlueprintGate`): onboard, each frame's plan keeps at most
-  the pointings a target still has in its budget, drops the pointings of
-  targets the blueprint gave up, and flies pointings on plumes the blueprint
-  does not hold out of its reserve.
-* **Omniscient** (:func:`omniscient_targets`): the blueprint planned on the true
-  plumes, each where it is when the satellite is over it, no latency, no noise.
+* **Refinement** (:class:`BlueprintGate`): onboard, every plume pixel the
+  look-ahead finds is pooled under the blueprint target holding it (or a target
+  of the look-ahead's own) and, once the target is seen whole or its window
+  opens, its most valuable pixels are flown, as many as the window holds; the
+  blueprint's budgets cap a target only where the next chosen target needs the
+  time (lifted when the look-ahead finds nothing there).
+* **Omniscient reference** (:func:`omniscient_targets`): the blueprint planned on
+  the true plumes, each where it is when the satellite is over it, no latency,
+  no noise (not an upper bound).
+* **Blind** (``GeoSettings(blind=True)``): the refinement with no blueprint, an
+  ablation.
 """
 
 from __future__ import annotations
@@ -63,6 +68,10 @@ LEAD_STEPS = 8
 OBSERVE_BEFORE_NADIR_S = 20.0
 """A target is taken to be observed this long before the satellite is over it (mid-window)."""
 MAX_RENDER_ROWS = 8192
+MERGE_ROWS = 16
+"""Pooled pointings closer than this many WFOV rows (1 km at 64 m) make one look-ahead target."""
+RELEASE_LEAD_S = 2.0
+"""A target not yet seen whole is released this long before its window opens."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +87,9 @@ class GeoSettings:
     threshold : detection threshold above the background, reflectance.
     reserve : fraction of sensor time the blueprint leaves for the look-ahead's own finds.
     history_s : how far before the pass the GEO archive goes, s.
-    omniscient : plan the blueprint on the true plumes instead (the bound).
+    omniscient : plan the blueprint on the true plumes instead (the omniscient reference).
+    blind : no blueprint at all (no GEO image): the onboard refinement alone, an ablation
+        that tells what the GEO blueprint adds to it.
     """
 
     gsd_m: float = 2000.0
@@ -89,8 +100,11 @@ class GeoSettings:
     reserve: float = 0.1
     history_s: float = 3600.0
     omniscient: bool = False
+    blind: bool = False
 
     def __post_init__(self) -> None:
+        if self.omniscient and self.blind:
+            raise InvalidParameterError("geo: omniscient and blind exclude each other")
         for name, lo, hi in (
             ("gsd_m", 1.0, 50_000.0),
             ("cadence_s", 1e-9, 86_400.0),
@@ -295,8 +309,12 @@ def _targets_from_mask(
     cross_m: np.ndarray,
     margin_rows: float,
     fraction: np.ndarray | None = None,
+    curve: bool = False,
 ) -> list[Target]:
-    """One target per 8-connected component of ``mask`` (rows: along-track)."""
+    """One target per 8-connected component of ``mask`` (rows: along-track).
+
+    ``curve``: each target's gains are its pixels' values, best first (one pointing a pixel).
+    """
     n, comp = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
     out = []
     gsd_w = frames.geometry.wfov_gsd_m
@@ -308,13 +326,15 @@ def _targets_from_mask(
         need = int(np.clip(round(area_px * NEED_FILL), 1, NEED_MAX))
         along = float(np.mean(_along_of_row(frames, rows)))
         value = float(np.mean(value_map[rr, cc]))
+        gains = np.sort(value_map[rr, cc].astype(np.float64))[::-1][:NEED_MAX]
         out.append(
             Target(
                 along,
                 float(np.mean(cross_m[cc])),
                 value,
-                need,
+                len(gains) if curve else need,
                 (float(rows.min() - margin_rows), float(rows.max() + margin_rows)),
+                tuple(float(g) for g in gains) if curve else (),
             )
         )
     return out
@@ -439,31 +459,80 @@ def omniscient_targets(world: Any, frames: Any, factor: int) -> list[Target]:
         mk, tau = coarse.truth(t, (c0 // factor, r0 // factor + a, ww, b - a))
         label[a:b], value[a:b] = mk, 1.0 - np.exp(-tau)
     cross = (np.arange(ww) - (ww - 1) / 2.0) * gw
-    return _targets_from_mask(label, value, np.arange(hw, dtype=float), frames, gw, cross, 2.0)
+    return _targets_from_mask(
+        label, value, np.arange(hw, dtype=float), frames, gw, cross, 2.0, curve=True
+    )
 
 
 class BlueprintGate:
-    """Onboard refinement within a blueprint: budgets per target, a reserve for new plumes.
+    """Onboard refinement within a blueprint: pool each target's pointings, fly its best ones.
+
+    Every pointing the look-ahead plans on a plume is *pooled* with its value
+    (the look-ahead's red reflectance at the pixel: the intensity utility's own
+    proxy) under the blueprint target holding its row, or under a target of the
+    look-ahead's own (rows within :data:`MERGE_ROWS` of each other) when no
+    chosen blueprint target holds it. A target is *released* once the
+    look-ahead has seen all of it (the frame's top row has passed its first
+    row) or its field-of-regard window opens within :data:`RELEASE_LEAD_S`,
+    whichever is first: its ``k`` most valuable pooled pointings are flown, in
+    along-track serpentine order (short slews). ``k`` fills the time from when
+    the sensor is free (or the window opens) to the window's end, at the
+    target's :func:`~dyntarget.geo.blueprint.step_s`; the blueprint's budgets
+    bind only as caps where the next chosen target's planned start needs the
+    time (a chosen target keeps at least its budget), and a released target
+    gets at least one pointing (the plume is observed). Pointings pooled
+    after a release join it at once when at least as valuable as its worst
+    released one.
 
     Parameters
     ----------
     blueprint : dyntarget.geo.Blueprint
         Its targets' ``span`` are strip WFOV rows.
+    frames : the pass's FramePlan (rows -> ground, windows).
+    agility : the preset.
     """
 
-    def __init__(self, blueprint: Blueprint) -> None:
-        self.blueprint = blueprint
-        self.left = blueprint.budget.astype(np.int64).copy()
-        self.reserve_left = int(blueprint.reserve)
+    def __init__(self, blueprint: Blueprint, frames: Any, agility: Any) -> None:
+        from dyntarget.geo.blueprint import step_s
+        from dyntarget.schedule import Timer, visibility_windows
+
+        self.blueprint, self.frames, self.agility = blueprint, frames, agility
+        self.geometry = replace(frames.geometry, start_s=0.0)
+        n = len(blueprint.targets)
         spans = np.array([t.span for t in blueprint.targets], np.float64).reshape(-1, 2)
         self.lo, self.hi = spans[:, 0], spans[:, 1]
-        self.mid = spans.mean(axis=1) if len(spans) else np.zeros(0)
-        self.dropped_given_up = 0
-        self.dropped_budget = 0
-        self.from_reserve = 0
+        self.mid = spans.mean(axis=1) if n else np.zeros(0)
+        self.chosen = blueprint.budget > 0
+        self._step = step_s
+        self._windows = visibility_windows
+        self._timer = Timer
+        # targets: the blueprint's, then the look-ahead's own, appended as found
+        self.t_lo: list[float] = [float(v) for v in self.lo]
+        self.t_hi: list[float] = [float(v) for v in self.hi]
+        self.budget: list[int] = [int(b) for b in blueprint.budget]
+        self.planned_start: list[float] = [
+            float(s) if b > 0 else math.inf
+            for s, b in zip(blueprint.start_s, blueprint.budget, strict=True)
+        ]
+        self.pool: list[dict[tuple[int, int], float]] = [{} for _ in range(n)]
+        self.released: list[float | None] = [None] * n  # the worst value released
+        self.done_keys: set[tuple[int, int]] = set()
+        self.booked_s = 0.0
+        self.booked_at: tuple[float, float] | None = None  # what the sensor tracks then
+        self.top = frames.wfov_shape[0]
+        self.stats = {
+            "targets_released": 0,
+            "targets_released_blueprint": 0,
+            "look_ahead_targets": 0,
+            "pointings_released": 0,
+            "pointings_pooled": 0,
+            "releases_capped_by_blueprint": 0,
+            "caps_lifted": 0,
+        }
+        self.cap_by: dict[int, int] = {}
 
     def target_of(self, rows: np.ndarray) -> np.ndarray:
-        """The blueprint target holding each strip WFOV row (nearest centre; -1: none).
+        """The chosen blueprint target holding each strip WFOV row (nearest centre; -1: none).
 
         Parameters
         ----------
@@ -473,75 +542,171 @@ class BlueprintGate:
         Returns
         -------
         numpy.ndarray
-            Target index per row, -1 outside every target.
+            Target index per row, -1 outside every chosen target.
         """
         rows = np.asarray(rows, np.float64)
-        if len(self.lo) == 0:
+        if not self.chosen.any():
             return np.full(len(rows), -1, np.int64)
         inside = (rows[:, None] >= self.lo[None]) & (rows[:, None] <= self.hi[None])
+        inside &= self.chosen[None]
         d = np.where(inside, np.abs(rows[:, None] - self.mid[None]), np.inf)
         best = d.argmin(axis=1)
         return np.where(np.isfinite(d.min(axis=1)), best, -1)
 
-    def filter(self, rows: np.ndarray) -> np.ndarray:
-        """Which of a plan's pointings (strip WFOV rows, plan order) may be flown.
+    def _own_target(self, r: int) -> int:
+        """The look-ahead's own target for row ``r`` (merged when close), created if none."""
+        nb = len(self.blueprint.targets)
+        for i in range(len(self.t_lo) - 1, nb - 1, -1):
+            if self.t_lo[i] - MERGE_ROWS <= r <= self.t_hi[i] + MERGE_ROWS:
+                self.t_lo[i], self.t_hi[i] = min(self.t_lo[i], r), max(self.t_hi[i], r)
+                return i
+        self.t_lo.append(float(r))
+        self.t_hi.append(float(r))
+        self.budget.append(0)
+        self.planned_start.append(math.inf)
+        self.pool.append({})
+        self.released.append(None)
+        self.stats["look_ahead_targets"] += 1
+        return len(self.t_lo) - 1
+
+    def route(
+        self,
+        t_k: float,
+        top: int,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        values: np.ndarray,
+        free_s: float,
+    ) -> np.ndarray:
+        """Pool a frame's pointings and return those to fly now (strip rows and columns).
 
         Parameters
         ----------
-        rows : numpy.ndarray
-            Strip WFOV row of each pointing.
+        t_k : the frame's acquisition time, pass seconds.
+        top : its top strip WFOV row.
+        rows, cols : strip WFOV row and column of each planned pointing (not covered).
+        values : each one's value (the look-ahead's red reflectance there).
+        free_s : when the sensor is free of what it has committed, pass seconds.
 
         Returns
         -------
         numpy.ndarray
-            Boolean keep mask.
+            ``(m, 2)`` strip ``(row, col)`` of the pointings to fly, in order.
         """
+        out: list[tuple[int, int]] = []
+        self.top = top
         tgt = self.target_of(rows)
-        keep = np.zeros(len(tgt), bool)
-        used = np.zeros(len(self.left), np.int64)
-        reserve = 0
-        for n, i in enumerate(tgt):
-            if i < 0:
-                if reserve < self.reserve_left:
-                    keep[n], reserve = True, reserve + 1
-            elif self.blueprint.budget[i] == 0:
-                self.dropped_given_up += 1
-            elif used[i] < self.left[i]:
-                keep[n] = True
-                used[i] += 1
-            else:
-                self.dropped_budget += 1
-        return keep
+        for r, c, v, i in zip(
+            rows.tolist(), cols.tolist(), values.tolist(), tgt.tolist(), strict=True
+        ):
+            key = (int(r), int(c))
+            if key in self.done_keys:
+                continue
+            j = i if i >= 0 else self._own_target(int(r))
+            if key not in self.pool[j]:
+                self.stats["pointings_pooled"] += 1
+            self.pool[j][key] = float(v)
+            worst = self.released[j]
+            if worst is not None and v >= worst:  # a late find on a released target
+                out.append(key)
+                self.done_keys.add(key)
+                del self.pool[j][key]
+        self.booked_s = max(self.booked_s, free_s)
+        out.extend(self._uncap())
+        for j in self._due(t_k, top):
+            out.extend(self._release(j))
+        return np.array(out, np.int64).reshape(-1, 2)
 
-    def spend(self, rows: np.ndarray) -> None:
-        """Count flown pointings (strip WFOV rows) against the budgets and the reserve.
+    def _window(self, j: int) -> tuple[float, float, float, float]:
+        """``(t_in, t_out, along, cross)`` of target ``j``'s pooled pointings' centre."""
+        keys = np.array(list(self.pool[j].keys()), np.float64).reshape(-1, 2)
+        if len(keys) == 0:
+            r = (self.t_lo[j] + self.t_hi[j]) / 2.0
+            keys = np.array([[r, (self.frames.wfov_shape[1] - 1) / 2.0]])
+        along = _along_of_row(self.frames, keys[:, 0])
+        cross = (keys[:, 1] - (self.frames.wfov_shape[1] - 1) / 2.0) * self.geometry.wfov_gsd_m
+        t_in, t_out = self._windows(self.geometry, self.agility, along, cross)
+        return float(t_in.max()), float(t_out.min()), float(along.mean()), float(cross.mean())
 
-        Parameters
-        ----------
-        rows : numpy.ndarray
-            Strip WFOV row of each flown pointing.
-        """
-        for i in self.target_of(rows):
-            if i < 0:
-                self.reserve_left -= 1
-                self.from_reserve += 1
-            else:
-                self.left[i] -= 1
+    def _due(self, t_k: float, top: int) -> list[int]:
+        due = []
+        for j in range(len(self.t_lo)):
+            if self.released[j] is not None or not self.pool[j]:
+                continue
+            seen = top <= self.t_lo[j] - MERGE_ROWS  # the look-ahead is past its first row
+            if seen or self._window(j)[0] - t_k <= RELEASE_LEAD_S:
+                due.append(j)
+        return sorted(due, key=lambda j: -self.t_hi[j])  # nearest to nadir first
+
+    def _refuted(self, i: int) -> bool:
+        """Whether the look-ahead has seen all of target ``i`` and found nothing on it."""
+        return (
+            self.released[i] is None and not self.pool[i] and self.top <= self.t_lo[i] - MERGE_ROWS
+        )
+
+    def _release(self, j: int, more: bool = False) -> list[tuple[int, int]]:
+        t_in, t_out, along, cross = self._window(j)
+        timer = self._timer(self.geometry, self.agility)  # the loop's kinematics
+        timer.t, timer.target = self.booked_s, self.booked_at
+        start = timer.arrival_one(along, cross, t_in)  # the slew there included
+        step = float(self._step(self.geometry, self.agility, np.array([along]),
+                                np.array([cross]), np.array([start]), 1.0)[0])  # fmt: skip
+        limit = t_out
+        # the next chosen blueprint target (not this one) that needs the time: not yet
+        # started, and not seen whole by the look-ahead with nothing on it
+        nxt = [(s, i) for i, s in enumerate(self.planned_start)
+               if i != j and self.released[i] is None and start < s < limit
+               and not self._refuted(i)]  # fmt: skip
+        if nxt:
+            own = start + (0 if more else self.budget[j]) * step  # a chosen target keeps its budget
+            s_next, i_next = min(nxt)
+            capped = max(s_next, own)
+            if capped < limit:
+                limit = capped
+                self.cap_by[j] = i_next
+                self.stats["releases_capped_by_blueprint"] += 1
+        k = int((limit - start) / step) if limit > start else 0
+        k = k if more else max(1, k)  # a new target gets at least one pointing
+        pool = self.pool[j]
+        best = sorted(pool.items(), key=lambda kv: -kv[1])[:k]
+        if not more or best:
+            self.released[j] = best[-1][1] if best else -math.inf
+        keys = sorted(
+            (kv[0] for kv in best), key=lambda rc: (-rc[0], rc[1] if rc[0] % 2 else -rc[1])
+        )
+        for key in keys:
+            del pool[key]
+            self.done_keys.add(key)
+        if keys:
+            self.booked_s = start + len(keys) * step
+            self.booked_at = (along, cross)
+        self.stats["targets_released"] += int(not more)
+        self.stats["targets_released_blueprint"] += int(
+            not more and j < len(self.blueprint.targets)
+        )
+        self.stats["pointings_released"] += len(keys)
+        return keys
+
+    def _uncap(self) -> list[tuple[int, int]]:
+        """More pointings for targets capped by a blueprint target the look-ahead refuted since."""
+        out: list[tuple[int, int]] = []
+        for j, i in list(self.cap_by.items()):
+            if self._refuted(i):
+                del self.cap_by[j]
+                self.stats["caps_lifted"] += 1
+                out.extend(self._release(j, more=True))
+        return out
 
     def report(self) -> dict[str, Any]:
-        """What the gate did (for summary.json).
+        """What the refinement did (for summary.json).
 
         Returns
         -------
         dict
-            Pointings dropped (given up, over budget), taken from the reserve, reserve left.
+            Targets released (all, the blueprint's), the look-ahead's own targets,
+            pointings pooled and released, releases capped by the blueprint.
         """
-        return {
-            "pointings_dropped_given_up": self.dropped_given_up,
-            "pointings_dropped_over_budget": self.dropped_budget,
-            "pointings_from_reserve": self.from_reserve,
-            "reserve_left": self.reserve_left,
-        }
+        return dict(self.stats)
 
 
 def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
@@ -563,8 +728,14 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
     settings.check_against(frames.geometry.wfov_gsd_m)
     agility = get_agility(config.agility)
     t0 = time.perf_counter()
-    if settings.omniscient:
-        targets, info = omniscient_targets(world, frames, config.factor), {"images": "truth"}
+    if settings.blind:
+        targets, info = [], {"images": "none: no blueprint (the refinement alone)"}
+    elif settings.omniscient:
+        cache = world.__dict__.setdefault("_geo_truth_targets", {})  # reused across presets
+        tkey = (config.factor, frames.frame_px, frames.step, frames.geometry)
+        if tkey not in cache:
+            cache[tkey] = omniscient_targets(world, frames, config.factor)
+        targets, info = cache[tkey], {"images": "truth"}
     else:
         streams = world.__dict__.setdefault("_geo_streams", {})  # the same images, reused
         key = (settings.gsd_m, settings.noise)
@@ -596,4 +767,4 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
         "blueprint_s": round(t_bp, 4),
         "slots": bp.info.get("slots", 0),
     }
-    return BlueprintGate(bp), doc
+    return BlueprintGate(bp, frames, agility), doc

@@ -817,9 +817,18 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
-    if gate is not None and len(keep):  # refine within the blueprint: budgets, reserve
-        keep = keep[gate.filter(rows[keep] + top)]
-    todo = Trajectory(traj.points[keep], np.zeros(len(keep)), traj.planner)
+    todo_points, todo_part = traj.points[keep], traj.part[keep]
+    if gate is not None:  # refine within the blueprint: pool every plume pixel, fly the best
+        on = result.mask if result.predicted_mask is None else result.predicted_mask
+        pr, pc = np.nonzero(on & ~state.covered[top : top + shape[0]])
+        released = gate.route(
+            t_k, top, pr + top, pc, image[2, pr, pc],
+            max(state.timer_t, start + (config.compute_budget_s or 0.0)),
+        )  # fmt: skip
+        todo_points = np.stack([released[:, 1], released[:, 0] - top], axis=1).astype(np.float64)
+        todo_part = np.full(len(released), -1, np.int64)
+        keep = keep[:0]  # no pointing of this frame's plan is flown as planned
+    todo = Trajectory(todo_points, np.zeros(len(todo_points)), traj.planner)
     attached = None
     if prediction is not None and prediction.motion.regime == "mixed":
         attached = prediction.attached_mask(result.mask)
@@ -852,11 +861,9 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
     sched_t, points = flown.times, flown.trajectory.points
     assert sched_t is not None  # a scheduled trajectory is timed
     met = None if deadline is None else (ready - t_k) <= deadline
-    flown_local = keep[flown.kept]
-    if gate is not None and len(flown_local):
-        gate.spend(rows[flown_local] + top)
+    flown_local = keep[flown.kept[flown.kept < len(keep)]]  # of this frame's plan
     state.busy_until = ready
-    if len(flown_local):
+    if len(flown.kept):
         state.timer_t = flown.end_s + t_k
         assert flown.end_target is not None  # set whenever a pointing was kept
         along, cross = flown.end_target
@@ -866,7 +873,7 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
     new_plumes = 0
     fl = state.flown
     part_of = {}
-    for j, (x, y), t_local in zip(flown_local, points, sched_t, strict=True):
+    for j, (x, y), t_local in zip(flown.kept, points, sched_t, strict=True):
         r, c = int(np.floor(y + 0.5)) + top, int(np.floor(x + 0.5))
         t_pass = t_k + float(t_local)
         pl = it = gr = 0.0
@@ -885,7 +892,7 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
         if pid and pid not in state.plumes_seen:
             state.plumes_seen.add(pid)
             new_plumes += 1
-        p = int(traj.part[j])
+        p = int(todo_part[j])
         if p not in part_of:
             part_of[p] = state.parts
             state.parts += 1
@@ -912,7 +919,7 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
         "; ".join(result.path),
         planned,
         int(np.count_nonzero(skip)),
-        len(flown_local),
+        len(flown.kept),
         plume_sum,
         inten_sum,
         grad_sum,
