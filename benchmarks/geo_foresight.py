@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.fly.geo import GeoSettings
@@ -77,7 +78,7 @@ MODES_DOC = {
 
 def run(args) -> dict:
     rows = []
-    jobs = [(p, d) for p in range(args.passes) for d in DENSITIES]  # sparse and dense alternate
+    jobs = [(p, d) for p in range(args.passes) for d in args.densities]  # they alternate
     for n, (p, density) in enumerate(jobs):
         if n % args.shards != args.shard:
             continue
@@ -88,7 +89,11 @@ def run(args) -> dict:
         )
         world = LongStrip(spec, window, capacity=4000, frame_capacity=4000)
         for preset in args.presets:
-            cfg = PassConfig(agility=preset, compute_budget_s=args.budget_s)
+            cfg = PassConfig(
+                agility=preset,
+                compute_budget_s=args.budget_s,
+                look_ahead_m=args.look_ahead_km * 1e3,
+            )
             modes = [("lookahead", None), ("blind", GeoSettings(blind=True))]
             modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
             modes.append(("omniscient", GeoSettings(omniscient=True)))
@@ -233,6 +238,13 @@ def main() -> None:
     ap.add_argument("--presets", default="slow,fast")
     ap.add_argument("--latencies", default="0,300,900")
     ap.add_argument("--budget-s", type=float, default=0.05)
+    ap.add_argument("--densities", default="sparse,dense", help="of: " + ",".join(DENSITIES))
+    ap.add_argument(
+        "--look-ahead-km",
+        type=float,
+        default=defaults.LOOK_AHEAD_M / 1e3,
+        help="how far ahead of nadir the look-ahead frames are (default: the project's)",
+    )
     ap.add_argument("--shard", type=int, default=0, help="this process's share (0-based)")
     ap.add_argument("--shards", type=int, default=1, help="processes sharing the strips")
     ap.add_argument("--out", default="docs/benchmarks")
@@ -267,12 +279,14 @@ def main() -> None:
         return
     args.presets = args.presets.split(",")
     args.latencies = [float(v) for v in args.latencies.split(",")]
+    args.densities = [d for d in args.densities.split(",") if d in DENSITIES]
     if args.shard == 0:
         head = {
             "command": "python benchmarks/geo_foresight.py "
             + f"--passes {args.passes} --length-km {args.length_km:g} --width {args.width} "
             + f"--gsd {args.gsd:g} --presets {','.join(args.presets)} "
             + f"--latencies {','.join(f'{v:g}' for v in args.latencies)} "
+            + f"--densities {','.join(args.densities)} --look-ahead-km {args.look_ahead_km:g} "
             + f"--shards {args.shards} (each --shard), then --merge",
             "machine": machine(),
         }
