@@ -8,6 +8,8 @@ only the planning differs) and a fixed compute budget (deterministic), under eac
 * ``blind``: the onboard refinement with no blueprint (``fly --geo-blind``: an ablation);
 * ``geo@L``: a blueprint from the GEO stream (2 km, 600 s cadence, latency ``L`` s),
   refined onboard (``fly --geo``);
+* ``geo@L no staging`` / ``geo@L brightness`` (``--ablate``): GEO without sending the
+  idle sensor ahead, and GEO detected by brightness instead of unmixing;
 * ``omniscient``: the blueprint planned on the true plumes at their overpass times
   (``fly --geo-omniscient``), refined by the same refinement;
 * ``reference`` (added by ``--merge``): the better of ``lookahead`` and ``omniscient``
@@ -96,6 +98,12 @@ def run(args) -> dict:
             )
             modes = [("lookahead", None), ("blind", GeoSettings(blind=True))]
             modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
+            if args.ablate:  # GEO at the middle latency without staging, and by brightness
+                lat = args.latencies[len(args.latencies) // 2]
+                modes += [
+                    (f"geo@{lat:g} no staging", GeoSettings(latency_s=lat, stage=False)),
+                    (f"geo@{lat:g} brightness", GeoSettings(latency_s=lat, detection="brightness")),
+                ]
             modes.append(("omniscient", GeoSettings(omniscient=True)))
             for mode, geo in modes:
                 t0 = time.perf_counter()
@@ -233,8 +241,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--passes", type=int, default=10, help="strips per density")
     ap.add_argument("--length-km", type=float, default=1000.0)
-    ap.add_argument("--width", type=int, default=128, help="strip width, px")
-    ap.add_argument("--gsd", type=float, default=16.0, help="strip GSD, m")
+    ap.add_argument("--width", type=int, default=256, help="strip width, px")
+    ap.add_argument("--gsd", type=float, default=32.0, help="strip GSD, m")
     ap.add_argument("--presets", default="slow,fast")
     ap.add_argument("--latencies", default="0,300,900")
     ap.add_argument("--budget-s", type=float, default=0.05)
@@ -244,6 +252,11 @@ def main() -> None:
         type=float,
         default=defaults.LOOK_AHEAD_M / 1e3,
         help="how far ahead of nadir the look-ahead frames are (default: the project's)",
+    )
+    ap.add_argument(
+        "--ablate",
+        action="store_true",
+        help="also GEO at the middle latency without staging, and with brightness detection",
     )
     ap.add_argument("--shard", type=int, default=0, help="this process's share (0-based)")
     ap.add_argument("--shards", type=int, default=1, help="processes sharing the strips")

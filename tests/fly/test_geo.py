@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -212,6 +213,8 @@ def test_no_geo_image_in_time_degrades_to_look_ahead_only():
         (["--geo", "--geo-gsd-m", "20"], "not coarser"),
         (["--geo"], "no world to render"),
         (["--geo-omniscient", "--geo-blind"], "exclude each other"),
+        (["--geo-no-stage"], "--geo-no-stage: give --geo too"),
+        (["--geo-detection", "unmix"], "--geo-detection: give --geo too"),
     ],
 )
 def test_cli_bad_geo_values_exit_2(tmp_path, capsys, opts, message):
@@ -225,3 +228,97 @@ def test_cli_bad_geo_values_exit_2(tmp_path, capsys, opts, message):
     assert main([*base, *opts, "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def test_unmix_recovers_cloud_and_plume_fractions_built_by_hand():
+    from dyntarget.geo import unmix
+    from dyntarget.synth.volcano import ASH_PLUME, CLOUD, STEAM
+
+    members = np.array([CLOUD, ASH_PLUME, STEAM])
+    ground = np.array([0.05, 0.08, 0.06, 0.30])  # vegetation: bright in the NIR
+    bg = np.repeat(ground[:, None, None], 3, axis=2)
+    img = bg.copy()
+    # cell 0: 30 % cloud; cell 1: 20 % ash + 10 % steam; cell 2: clear
+    img[:, 0, 0] = ground + 0.3 * (np.array(CLOUD) - ground)
+    img[:, 0, 1] = ground + 0.2 * (np.array(ASH_PLUME) - ground) + 0.1 * (np.array(STEAM) - ground)
+    f = unmix(img, bg, members)
+    assert f[:, 0, 0] == pytest.approx([0.3, 0.0, 0.0], abs=1e-9)
+    assert f[:, 0, 1] == pytest.approx([0.0, 0.2, 0.1], abs=1e-9)
+    assert f[:, 0, 2] == pytest.approx([0.0, 0.0, 0.0], abs=1e-12)
+
+
+def test_plume_field_ignores_a_cloud_that_brightness_takes_for_a_plume():
+    from dyntarget.fly.geo import CONTRAST, plume_field
+    from dyntarget.synth.volcano import ASH_PLUME, CLOUD
+
+    ground = np.array([0.05, 0.08, 0.06, 0.30])
+    bg = np.repeat(ground[:, None, None], 2, axis=2)
+    img = bg.copy()
+    img[:, 0, 0] = ground + 0.2 * (np.array(CLOUD) - ground)  # a fifth of the cell cloudy
+    img[:, 0, 1] = ground + 0.4 * (np.array(ASH_PLUME) - ground)  # 40 % ash
+    unmixed = plume_field(img, bg, GeoSettings())
+    bright = plume_field(img, bg, GeoSettings(detection="brightness"))
+    # brightness: the cloud's anomaly (0.2 x (0.8075 - 0.1225) = 0.137) beats the ash's
+    assert bright[0, 0] == pytest.approx(0.2 * (np.mean(CLOUD) - ground.mean()))
+    assert bright[0, 0] > bright[0, 1]
+    # unmixed: no plume under the cloud, the ash cell at 0.4 x CONTRAST
+    assert unmixed[0, 0] == pytest.approx(0.0, abs=1e-9)
+    assert unmixed[0, 1] == pytest.approx(0.4 * CONTRAST)
+    with pytest.raises(InvalidParameterError, match="detection"):
+        GeoSettings(detection="classifier")
+
+
+def _staging_gate(look_ahead_m, stage=True):
+    """A strip 8000 WFOV rows long seen 16 rows a frame; one chosen target on rows 990-1010."""
+    from dyntarget.fly.loop import FramePlan
+
+    g = OrbitGeometry(wfov_gsd_m=64.0, look_ahead_m=look_ahead_m)
+    tops = tuple(range(8000 - 32, -1, -16))
+    frames = FramePlan((8000, 32), 32, 16, 16 * 64.0 / g.ground_speed, tops, g)
+    bp = Blueprint([Target(0.0, 0.0, 1.0, 10, (990.0, 1010.0))], np.array([10]),
+                   np.array([0.0]), np.array([np.nan]), 0, 0.0, 1.0)  # fmt: skip
+    return BlueprintGate(bp, frames, get_agility("slow"), stage=stage), frames
+
+
+def _fly_idle(gate, frames):
+    """Route every frame with nothing seen until the look-ahead reaches the target."""
+    sent = []
+    for k, top in enumerate(frames.tops):
+        if top <= 1010:
+            break
+        t_k = frames.acquired_s(k)
+        out = gate.route(t_k, top, np.zeros(0, int), np.zeros(0, int), np.zeros(0), t_k)
+        sent += [(k, tuple(rc)) for rc in out.tolist()]
+    return sent
+
+
+def test_idle_sensor_is_sent_ahead_just_in_time_for_a_target_the_look_ahead_sees_too_late():
+    # look-ahead 150 km: the target (about 600 km ahead at t = 0) enters the slow
+    # preset's 30-degree field of regard ~290 km ahead of nadir, before any frame shows it
+    gate, frames = _staging_gate(150e3)
+    sent = _fly_idle(gate, frames)
+    assert len(sent) == 1 and sent[0][1] == (1000, 16)  # one pointing, the target's centre
+    k = sent[0][0]
+    # flown through the loop's scheduler: from frame k the sensor (idle at nadir) is on the
+    # target when its window opens; from frame k + 1 it would be late
+    g = frames.geometry
+
+    def start(kk):
+        traj = Trajectory(np.array([[16.0, 1000.0 - (8000 - 32)]]), np.zeros(1), "anchor")
+        sch = schedule(traj, (32, 32), replace(g, start_s=frames.acquired_s(kk)), "slow")
+        return float(sch.times[0])
+
+    from dyntarget.schedule import visibility_windows
+
+    along, cross = g.ground(np.array([[16.0, 1000.0 - (8000 - 32)]]), (32, 32))
+    t_in = float(visibility_windows(g, get_agility("slow"), along, cross)[0][0])
+    assert start(k) == pytest.approx(t_in, abs=1e-6)
+    assert start(k + 1) > t_in
+    assert gate.stats["staged"] == 1
+
+
+def test_no_staging_when_the_look_ahead_sees_the_target_in_time_or_when_ablated():
+    gate, frames = _staging_gate(500e3)  # seen whole ~30 s before its window opens
+    assert _fly_idle(gate, frames) == []
+    gate, frames = _staging_gate(150e3, stage=False)
+    assert _fly_idle(gate, frames) == []

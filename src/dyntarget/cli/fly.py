@@ -38,8 +38,15 @@ def _geo(args: argparse.Namespace):
     """The GEO settings of ``--geo`` (``None`` without it); bad values: one line, exit 2."""
     given = [
         o
-        for o in ("geo_gsd_m", "geo_cadence_s", "geo_latency_s", "geo_reserve")
-        if getattr(args, o) is not None
+        for o in (
+            "geo_gsd_m",
+            "geo_cadence_s",
+            "geo_latency_s",
+            "geo_reserve",
+            "geo_detection",
+            "geo_no_stage",
+        )
+        if getattr(args, o) not in (None, False)
     ]
     if not (args.geo or args.geo_omniscient or args.geo_blind):
         if given:
@@ -49,9 +56,11 @@ def _geo(args: argparse.Namespace):
 
     kw = {
         k: getattr(args, f"geo_{k}")
-        for k in ("gsd_m", "cadence_s", "latency_s", "reserve")
+        for k in ("gsd_m", "cadence_s", "latency_s", "reserve", "detection")
         if getattr(args, f"geo_{k}") is not None
     }
+    if args.geo_no_stage:
+        kw["stage"] = False
     return GeoSettings(**kw, omniscient=bool(args.geo_omniscient), blind=bool(args.geo_blind))
 
 
@@ -405,6 +414,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--geo-latency-s",
         type=float,
         help="an image taken at t is usable from t + latency (default 300)",
+    )
+    geo.add_argument(
+        "--geo-detection",
+        choices=["unmix", "brightness"],
+        help="how GEO cells are tested for plume: the plume fraction of a four-band "
+        "unmixing into cloud, ash and steam (default), or brightness above the clear sky "
+        "(takes meteorological clouds for plumes)",
+    )
+    geo.add_argument(
+        "--geo-no-stage",
+        action="store_true",
+        help="never send the idle sensor ahead to a blueprint target the look-ahead has "
+        "not seen yet (an ablation)",
     )
     geo.add_argument(
         "--geo-reserve",

@@ -7,10 +7,16 @@
   of the four bands), plus the imager's own Gaussian noise (``noise``,
   reflectance). Images are taken every ``cadence_s`` (at multiples of it, pass
   time 0 being one) and an image taken at ``t`` is usable from ``t + latency_s``.
-* **Detection** (:func:`dyntarget.geo.detect`): brightness above the clear-sky
-  background (the same ground without plume or cloud: a clear-day composite)
-  by ``threshold`` on GEO cells — not the look-ahead's classifiers. It takes
-  meteorological clouds for plumes too.
+* **Detection** (``detection``), on GEO cells — not the look-ahead's classifiers:
+  ``"unmix"`` (default, :func:`dyntarget.geo.unmix`): each cell's four-band
+  anomaly over the clear-sky background (the same ground without plume or cloud:
+  a clear-day composite) is split by non-negative least squares into cover
+  fractions of meteorological cloud, ash and steam, on the synthetic world's own
+  end-member spectra (what a real GEO ash product does with its split-window and
+  visible tests); the plume fraction times :data:`CONTRAST` above ``threshold``
+  counts. ``"brightness"`` (:func:`dyntarget.geo.detect`): the band-mean
+  brightness above the background by ``threshold``; it takes meteorological
+  clouds for plumes too.
 * **Nowcast** (:func:`dyntarget.geo.nowcast`, pysteps): the anomaly of the last
   usable images (up to three) carried to when the satellite will be over each
   GEO row, then thresholded again; each connected detection over the strip is
@@ -43,7 +49,7 @@ import cv2
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint
+from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint, unmix
 from dyntarget.scene import block_mean
 from dyntarget.schedule import get_agility
 
@@ -70,8 +76,13 @@ OBSERVE_BEFORE_NADIR_S = 20.0
 MAX_RENDER_ROWS = 8192
 MERGE_ROWS = 16
 """Pooled pointings closer than this many WFOV rows (1 km at 64 m) make one look-ahead target."""
+DETECTIONS = ("unmix", "brightness")
+"""How GEO cells are tested for plume (:class:`GeoSettings` ``detection``)."""
 RELEASE_LEAD_S = 2.0
 """A target not yet seen whole is released this long before its window opens."""
+STAGE_SLACK_S = 5.0
+"""The idle sensor is sent ahead to a blueprint target only when waiting for the look-ahead
+to see it would lose more than this much of its window, seconds."""
 
 
 @dataclass(frozen=True)
@@ -90,6 +101,10 @@ class GeoSettings:
     omniscient : plan the blueprint on the true plumes instead (the omniscient reference).
     blind : no blueprint at all (no GEO image): the onboard refinement alone, an ablation
         that tells what the GEO blueprint adds to it.
+    detection : ``"unmix"`` (plume fraction from four-band spectral unmixing) or
+        ``"brightness"`` (band-mean brightness above the background).
+    stage : let the idle sensor slew ahead to the next chosen blueprint target the
+        look-ahead has not seen yet (:meth:`BlueprintGate.route`); ``False``: an ablation.
     """
 
     gsd_m: float = 2000.0
@@ -101,10 +116,16 @@ class GeoSettings:
     history_s: float = 3600.0
     omniscient: bool = False
     blind: bool = False
+    stage: bool = True
+    detection: str = "unmix"
 
     def __post_init__(self) -> None:
         if self.omniscient and self.blind:
             raise InvalidParameterError("geo: omniscient and blind exclude each other")
+        if self.detection not in DETECTIONS:
+            raise InvalidParameterError(
+                f"geo detection: expected one of {', '.join(DETECTIONS)}, got {self.detection!r}"
+            )
         for name, lo, hi in (
             ("gsd_m", 1.0, 50_000.0),
             ("cadence_s", 1e-9, 86_400.0),
@@ -213,12 +234,12 @@ class GeoStream:
         self._images: dict[float, np.ndarray] = {}
 
     def background(self) -> np.ndarray:
-        """The clear-sky brightness of every GEO cell (no plume, no cloud, no noise).
+        """The clear-sky reflectance of every GEO cell (no plume, no cloud, no noise).
 
         Returns
         -------
         numpy.ndarray
-            ``(rows, cols)`` brightness.
+            ``(bands, rows, cols)`` reflectance.
         """
         if self._background is None:
             self._background = self._render(self._clear, 0.0)
@@ -228,16 +249,19 @@ class GeoStream:
         m = self.m
         nrow, ncol = self.cells
         cx, cy = self.cell0
-        out = np.empty((nrow, ncol), np.float32)
+        out: np.ndarray | None = None
         step = max(1, MAX_RENDER_ROWS // m)
         for a in range(0, nrow, step):
             b = min(nrow, a + step)
             f = world.render(t, (cx * m, (cy + a) * m, ncol * m, (b - a) * m), noise=False)
-            out[a:b] = block_mean(f.image.mean(axis=0, keepdims=True), m)[0]
+            if out is None:
+                out = np.empty((f.image.shape[0], nrow, ncol), np.float32)
+            out[:, a:b] = block_mean(f.image, m)
+        assert out is not None  # at least one GEO row
         return out
 
     def image(self, t: float) -> np.ndarray:
-        """The GEO brightness image taken at ``t`` (pass seconds), noise included.
+        """The GEO image taken at ``t`` (pass seconds), noise included (every band).
 
         Parameters
         ----------
@@ -247,7 +271,8 @@ class GeoStream:
         Returns
         -------
         numpy.ndarray
-            ``(rows, cols)`` brightness on GEO cells (row 0: the strip's top, as the strip).
+            ``(bands, rows, cols)`` reflectance on GEO cells (row 0: the strip's top, as
+            the strip).
         """
         hit = self._images.get(t)
         if hit is not None:
@@ -340,6 +365,32 @@ def _targets_from_mask(
     return out
 
 
+def plume_field(image: np.ndarray, background: np.ndarray, settings: GeoSettings) -> np.ndarray:
+    """The plume anomaly of one GEO image (reflectance units; ``threshold`` applies to it).
+
+    ``"unmix"``: the ash + steam cover fraction (:func:`dyntarget.geo.unmix` against
+    meteorological cloud, ash and steam) times :data:`CONTRAST`; ``"brightness"``:
+    the band-mean brightness above the background (:func:`dyntarget.geo.detect`).
+
+    Parameters
+    ----------
+    image, background : numpy.ndarray
+        ``(bands, rows, cols)`` GEO reflectance, and the clear-sky one.
+    settings : GeoSettings
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(rows, cols)`` anomaly, ``>= 0``.
+    """
+    if settings.detection == "brightness":
+        return detect(image.mean(axis=0), settings.threshold, background.mean(axis=0))[1]
+    from dyntarget.synth.volcano import ASH_PLUME, CLOUD, STEAM
+
+    f = unmix(image, background, np.array([CLOUD, ASH_PLUME, STEAM], np.float64))
+    return CONTRAST * (f[1] + f[2])
+
+
 def geo_targets(
     stream: GeoStream, frames: Any, factor: int, t_plan: float = 0.0
 ) -> tuple[list[Target], dict[str, Any]]:
@@ -362,7 +413,7 @@ def geo_targets(
     if not times:
         return [], {**info, "note": "no GEO image usable before the pass: look-ahead only"}
     bg = stream.background()
-    fields = [detect(stream.image(t), s.threshold, bg)[1] for t in times]
+    fields = [plume_field(stream.image(t), bg, s) for t in times]
     nrow = stream.cells[0]
     row_w = stream.strip_rows(np.arange(nrow)) / factor
     v = frames.geometry.ground_speed
@@ -492,7 +543,7 @@ class BlueprintGate:
     agility : the preset.
     """
 
-    def __init__(self, blueprint: Blueprint, frames: Any, agility: Any) -> None:
+    def __init__(self, blueprint: Blueprint, frames: Any, agility: Any, stage: bool = True) -> None:
         from dyntarget.geo.blueprint import step_s
         from dyntarget.schedule import Timer, visibility_windows
 
@@ -530,6 +581,10 @@ class BlueprintGate:
             "caps_lifted": 0,
         }
         self.cap_by: dict[int, int] = {}
+        self.stage = stage
+        self.staged = np.zeros(n, bool)
+        self.staged_at = np.full(n, math.inf)  # when the sensor is at a staged target's anchor
+        self.stats["staged"] = 0
 
     def target_of(self, rows: np.ndarray) -> np.ndarray:
         """The chosen blueprint target holding each strip WFOV row (nearest centre; -1: none).
@@ -615,7 +670,75 @@ class BlueprintGate:
         out.extend(self._uncap())
         for j in self._due(t_k, top):
             out.extend(self._release(j))
+        out.extend(self._stage(t_k))
         return np.array(out, np.int64).reshape(-1, 2)
+
+    def _stage(self, t_k: float) -> list[tuple[int, int]]:  # noqa: PLR0911  (one test a return)
+        """Send the idle sensor ahead to the next chosen target the look-ahead has not seen.
+
+        The sensor is idle when nothing pooled waits for release. The next chosen
+        blueprint target (earliest planned start) the look-ahead has found nothing on
+        yet, and not refuted, gets one pointing at its centre, queued at the last
+        frame from which the sensor would still be there when its window opens
+        (waiting one more frame would make it late): the slew starts before the
+        look-ahead can see the plume, and the pointing holds the sensor there.
+        """
+        if not self.stage or not self.chosen.any():
+            return []
+        if any(p and self.released[j] is None for j, p in enumerate(self.pool)):
+            return []  # pooled pointings wait for their release: not idle
+        t_next = t_k + self.frames.cadence_s
+        if self.booked_s > t_next:
+            return []  # busy beyond the next frame: decide then
+        nb = len(self.blueprint.targets)
+        open_ = [(self.planned_start[i], i) for i in range(nb)
+                 if self.chosen[i] and self.released[i] is None and not self._refuted(i)]  # fmt: skip
+        if not open_:
+            return []
+        i = min(open_)[1]  # the next one the blueprint visits, not yet observed nor refuted
+        if self.staged[i] or self.pool[i]:
+            return []  # already staged, or the look-ahead has found it: its release comes
+        hw, ww = self.frames.wfov_shape
+        row = int(np.clip(round((self.t_lo[i] + self.t_hi[i]) / 2.0), 0, hw - 1))
+        t = self.blueprint.targets[i]
+        col = int(np.clip(round(t.cross_m / self.geometry.wfov_gsd_m + (ww - 1) / 2.0), 0, ww - 1))
+        along = float(_along_of_row(self.frames, np.array([row]))[0])
+        cross = (col - (ww - 1) / 2.0) * self.geometry.wfov_gsd_m
+        w_in, w_out = self._windows(self.geometry, self.agility, np.array([along]),
+                                    np.array([cross]))  # fmt: skip
+        t_in, t_out = float(w_in[0]), float(w_out[0])
+        if not t_in < t_out or t_out <= t_next:
+            self.staged[i] = True  # never or no longer reachable: not staged
+            return []
+        timer = self._timer(self.geometry, self.agility)
+        timer.t, timer.target = max(self.booked_s, t_next), self.booked_at
+        if timer.arrival_one(along, cross, t_in) <= t_in:
+            return []  # still in time from the next frame: wait
+        # would the look-ahead itself be in time? its release comes when it has seen the
+        # target whole, or its window opens: if the sensor can still be there then with
+        # no more than STAGE_SLACK_S of the window lost, wait for the look-ahead's word
+        tops = np.asarray(self.frames.tops)
+        whole = np.flatnonzero(tops <= self.t_lo[i] - MERGE_ROWS)
+        first = np.flatnonzero(tops <= self.t_hi[i])
+        if len(whole) and len(first):
+            t_whole = self.frames.acquired_s(int(whole[0]))
+            t_first = self.frames.acquired_s(int(first[0]))
+            t_rel = min(t_whole, max(t_first, t_in - RELEASE_LEAD_S))
+            timer.t = max(self.booked_s, t_rel + self.frames.cadence_s)
+            if timer.arrival_one(along, cross, t_in) <= t_in + STAGE_SLACK_S:
+                return []
+        timer.t = self.booked_s
+        start = timer.arrival_one(along, cross, t_in)
+        self.staged[i] = True
+        key = (row, col)
+        if key in self.done_keys or start >= t_out:
+            return []
+        self.done_keys.add(key)
+        self.staged_at[i] = start
+        self.booked_s = start + self.agility.dwell_s
+        self.booked_at = (along, cross)
+        self.stats["staged"] += 1
+        return [key]
 
     def _window(self, j: int) -> tuple[float, float, float, float]:
         """``(t_in, t_out, along, cross)`` of target ``j``'s pooled pointings' centre."""
@@ -654,19 +777,23 @@ class BlueprintGate:
         limit = t_out
         # the next chosen blueprint target (not this one) that needs the time: not yet
         # started, and not seen whole by the look-ahead with nothing on it
+        # a target the sensor was sent ahead to (staged) needs it from its anchor on, and
+        # keeps it: nothing else is flown that would make the sensor leave it
         nxt = [(s, i) for i, s in enumerate(self.planned_start)
-               if i != j and self.released[i] is None and start < s < limit
-               and not self._refuted(i)]  # fmt: skip
+               if i != j and self.released[i] is None and not self._refuted(i)
+               and (start < s < limit or self._anchor(i) < limit)]  # fmt: skip
+        held = False
         if nxt:
             own = start + (0 if more else self.budget[j]) * step  # a chosen target keeps its budget
-            s_next, i_next = min(nxt)
+            s_next, i_next = min((min(s, self._anchor(i)), i) for s, i in nxt)
+            held = math.isfinite(self._anchor(i_next))
             capped = max(s_next, own)
             if capped < limit:
                 limit = capped
                 self.cap_by[j] = i_next
                 self.stats["releases_capped_by_blueprint"] += 1
         k = int((limit - start) / step) if limit > start else 0
-        k = k if more else max(1, k)  # a new target gets at least one pointing
+        k = k if more or held else max(1, k)  # a new target gets at least one pointing
         pool = self.pool[j]
         best = sorted(pool.items(), key=lambda kv: -kv[1])[:k]
         if not more or best:
@@ -686,6 +813,10 @@ class BlueprintGate:
         )
         self.stats["pointings_released"] += len(keys)
         return keys
+
+    def _anchor(self, i: int) -> float:
+        """When the sensor is at target ``i``'s anchor (``inf``: not staged)."""
+        return float(self.staged_at[i]) if i < len(self.staged_at) else math.inf
 
     def _uncap(self) -> list[tuple[int, int]]:
         """More pointings for targets capped by a blueprint target the look-ahead refuted since."""
@@ -767,4 +898,4 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
         "blueprint_s": round(t_bp, 4),
         "slots": bp.info.get("slots", 0),
     }
-    return BlueprintGate(bp, frames, agility), doc
+    return BlueprintGate(bp, frames, agility, stage=settings.stage), doc

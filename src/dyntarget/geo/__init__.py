@@ -5,6 +5,9 @@ A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
 * :func:`detect` — plume candidates on a coarse GEO image: a brightness threshold
   above the image's background (the median), on coarse pixels. It cannot tell a
   plume from a meteorological cloud (both are bright): clouds are false targets.
+* :func:`unmix` — per-cell cover fractions of end-member spectra (cloud, ash,
+  steam) over the clear-sky background, by non-negative least squares: the plume
+  fraction tells a plume from a cloud as bright.
 * :func:`nowcast` — the GEO field carried to future times with pysteps
   (dense Lucas-Kanade motion from the last images, semi-Lagrangian
   extrapolation); needs the ``[geo]`` extra (pysteps).
@@ -18,6 +21,6 @@ the pass and uplinked; the onboard loop only refines within it
 """
 
 from dyntarget.geo.blueprint import Blueprint, Target, plan_blueprint
-from dyntarget.geo.nowcast import detect, nowcast
+from dyntarget.geo.nowcast import detect, nowcast, unmix
 
-__all__ = ["Blueprint", "Target", "detect", "nowcast", "plan_blueprint"]
+__all__ = ["Blueprint", "Target", "detect", "nowcast", "plan_blueprint", "unmix"]

@@ -58,6 +58,62 @@ def detect(
     return anomaly > threshold, anomaly
 
 
+def unmix(image: np.ndarray, background: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """Per-cell cover fractions of end-member spectra over a known background (non-negative).
+
+    Each cell's spectrum is taken as the linear mixture
+    ``background + sum_k f_k (members[k] - background)`` (a layer of cover ``f_k``
+    and reflectance ``members[k]`` over the ground), and the fractions ``f >= 0``
+    are found by non-negative least squares (:func:`scipy.optimize.nnls`), cell
+    by cell. The fraction of plume end-members is what tells a plume from a
+    meteorological cloud of the same brightness.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(B, H, W)`` reflectance on the GEO grid.
+    background : numpy.ndarray
+        ``(B, H, W)`` clear-sky reflectance of the same cells.
+    members : numpy.ndarray
+        ``(K, B)`` end-member reflectance spectra (``K <= B``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K, H, W)`` fractions, ``>= 0``.
+
+    Examples
+    --------
+    >>> bg = np.full((4, 1, 2), 0.1)
+    >>> members = np.array([[0.8, 0.8, 0.8, 0.8], [0.3, 0.26, 0.22, 0.27]])
+    >>> img = bg.copy(); img[:, 0, 0] += 0.5 * (members[0] - 0.1)  # half a cloud
+    >>> img[:, 0, 1] += 0.2 * (members[1] - 0.1)  # a fifth of an ash plume
+    >>> np.round(unmix(img, bg, members)[:, 0], 3).tolist()
+    [[0.5, 0.0], [0.0, 0.2]]
+    """
+    from scipy.optimize import nnls
+
+    img = np.asarray(image, np.float64)
+    ref = np.asarray(background, np.float64)
+    m = np.asarray(members, np.float64)
+    if img.ndim != 3 or ref.shape != img.shape:
+        raise InvalidParameterError(
+            f"unmix: expected (bands, H, W) image and background of one shape, "
+            f"got {img.shape} and {ref.shape}"
+        )
+    if m.ndim != 2 or m.shape[1] != img.shape[0] or m.shape[0] > m.shape[1]:
+        raise InvalidParameterError(
+            f"unmix: expected (K, {img.shape[0]}) end-members with K <= bands, got {m.shape}"
+        )
+    b, h, w = img.shape
+    d = (img - ref).reshape(b, -1).T  # (cells, bands)
+    g = ref.reshape(b, -1).T
+    out = np.zeros((h * w, m.shape[0]))
+    for i in range(h * w):
+        out[i] = nnls((m - g[i]).T, d[i])[0]
+    return out.T.reshape(m.shape[0], h, w)
+
+
 def nowcast(
     fields: list[np.ndarray], interval_s: float, leads_s: list[float]
 ) -> tuple[np.ndarray, np.ndarray]:
