@@ -146,7 +146,9 @@ def summarise(rows: list[dict]) -> list[dict]:
             u = sum(r["utility"] for r in rs)
             ub = sum(base[r["strip"]]["utility"] for r in rs)
             uref = sum(ref[r["strip"]]["utility"] for r in rs if r["strip"] in ref)
-            per = [r["utility"] / max(base[r["strip"]]["utility"], 1e-9) for r in rs]
+            # per-pass ratios only where look-ahead only scored (0 / 0 says nothing)
+            per = [r["utility"] / base[r["strip"]]["utility"] for r in rs
+                   if base[r["strip"]]["utility"] > 0] or [float("nan")]  # fmt: skip
             fewer = sum(r["plumes_observed"] < base[r["strip"]]["plumes_observed"] for r in rs)
             out.append({
                 "density": density, "preset": preset, "mode": mode, "passes": len(rs),
@@ -207,13 +209,14 @@ def figure(rows, path: Path) -> None:
         modes = [m for m in dict.fromkeys(r["mode"] for r in sub) if m != "lookahead"]
         base = {r["strip"]: r["utility"] for r in sub if r["mode"] == "lookahead"}
         for x, m in enumerate(modes):
-            ys = [r["utility"] / max(base[r["strip"]], 1e-9) for r in sub
-                  if r["mode"] == m and r["strip"] in base]  # fmt: skip
+            ys = [r["utility"] / base[r["strip"]] for r in sub
+                  if r["mode"] == m and base.get(r["strip"], 0) > 0]  # fmt: skip
             ax.scatter(x + rng.uniform(-0.15, 0.15, len(ys)), ys, s=12, alpha=0.6)
             ax.hlines(np.median(ys), x - 0.3, x + 0.3, color="k", lw=2)
         ax.axhline(1.0, color="k", lw=0.8, ls=":")
         ax.set_xticks(range(len(modes)), modes, rotation=35, ha="right")
-        ax.set_title(f"{density}, {preset} ({len(base)} passes)")
+        scored = sum(v > 0 for v in base.values())
+        ax.set_title(f"{density}, {preset} ({scored} passes)")
         ax.set_ylabel("utility / look-ahead only (per pass)")
     fig.suptitle("Geostationary foresight: utility of each pass relative to look-ahead only "
                  "(bar: median)", fontsize=10)  # fmt: skip
@@ -300,6 +303,7 @@ def main() -> None:
             + f"--gsd {args.gsd:g} --presets {','.join(args.presets)} "
             + f"--latencies {','.join(f'{v:g}' for v in args.latencies)} "
             + f"--densities {','.join(args.densities)} --look-ahead-km {args.look_ahead_km:g} "
+            + ("--ablate " if args.ablate else "")
             + f"--shards {args.shards} (each --shard), then --merge",
             "machine": machine(),
         }

@@ -32,6 +32,9 @@
   opens, its most valuable pixels are flown, as many as the window holds; the
   blueprint's budgets cap a target only where the next chosen target needs the
   time (lifted when the look-ahead finds nothing there).
+* **Staging** (:meth:`BlueprintGate.route`): the idle sensor is sent ahead, just in
+  time, to the next chosen blueprint target the look-ahead would see too late
+  (``stage``); the staged target then holds the sensor until released or refuted.
 * **Omniscient reference** (:func:`omniscient_targets`): the blueprint planned on
   the true plumes, each where it is when the satellite is over it, no latency,
   no noise (not an upper bound).
