@@ -544,6 +544,8 @@ class BlueprintGate:
         Its targets' ``span`` are strip WFOV rows.
     frames : the pass's FramePlan (rows -> ground, windows).
     agility : the preset.
+    stage : send the idle sensor ahead to blueprint targets the look-ahead would see too
+        late (:meth:`route`; ``GeoSettings.stage``).
     """
 
     def __init__(self, blueprint: Blueprint, frames: Any, agility: Any, stage: bool = True) -> None:
