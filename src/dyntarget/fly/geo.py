@@ -588,6 +588,7 @@ class BlueprintGate:
         self.cap_by: dict[int, int] = {}
         self.stage = stage
         self.staged = np.zeros(n, bool)
+        self.frame_tops = np.asarray(frames.tops)  # each frame's top row (when a row is seen)
         self.staged_at = np.full(n, math.inf)  # when the sensor is at a staged target's anchor
         self.stats["staged"] = 0
 
@@ -707,11 +708,7 @@ class BlueprintGate:
         row = int(np.clip(round((self.t_lo[i] + self.t_hi[i]) / 2.0), 0, hw - 1))
         t = self.blueprint.targets[i]
         col = int(np.clip(round(t.cross_m / self.geometry.wfov_gsd_m + (ww - 1) / 2.0), 0, ww - 1))
-        along = float(_along_of_row(self.frames, np.array([row]))[0])
-        cross = (col - (ww - 1) / 2.0) * self.geometry.wfov_gsd_m
-        w_in, w_out = self._windows(self.geometry, self.agility, np.array([along]),
-                                    np.array([cross]))  # fmt: skip
-        t_in, t_out = float(w_in[0]), float(w_out[0])
+        t_in, t_out, along, cross = self._window(i, np.array([[row, col]], np.float64))
         if not t_in < t_out or t_out <= t_next:
             self.staged[i] = True  # never or no longer reachable: not staged
             return []
@@ -722,9 +719,8 @@ class BlueprintGate:
         # would the look-ahead itself be in time? its release comes when it has seen the
         # target whole, or its window opens: if the sensor can still be there then with
         # no more than STAGE_SLACK_S of the window lost, wait for the look-ahead's word
-        tops = np.asarray(self.frames.tops)
-        whole = np.flatnonzero(tops <= self.t_lo[i] - MERGE_ROWS)
-        first = np.flatnonzero(tops <= self.t_hi[i])
+        whole = np.flatnonzero(self.frame_tops <= self.t_lo[i] - MERGE_ROWS)
+        first = np.flatnonzero(self.frame_tops <= self.t_hi[i])
         if len(whole) and len(first):
             t_whole = self.frames.acquired_s(int(whole[0]))
             t_first = self.frames.acquired_s(int(first[0]))
@@ -745,9 +741,13 @@ class BlueprintGate:
         self.stats["staged"] += 1
         return [key]
 
-    def _window(self, j: int) -> tuple[float, float, float, float]:
-        """``(t_in, t_out, along, cross)`` of target ``j``'s pooled pointings' centre."""
-        keys = np.array(list(self.pool[j].keys()), np.float64).reshape(-1, 2)
+    def _window(self, j: int, keys: np.ndarray | None = None) -> tuple[float, float, float, float]:
+        """``(t_in, t_out, along, cross)`` of target ``j``'s pooled pointings' centre.
+
+        ``keys``: these strip ``(row, col)`` instead of the pooled ones.
+        """
+        if keys is None:
+            keys = np.array(list(self.pool[j].keys()), np.float64).reshape(-1, 2)
         if len(keys) == 0:
             r = (self.t_lo[j] + self.t_hi[j]) / 2.0
             keys = np.array([[r, (self.frames.wfov_shape[1] - 1) / 2.0]])
