@@ -73,6 +73,7 @@ def library_from(source: Path, isa: str, where: Path) -> Path:
     flags = [f for f in compiled.FLAGS if f != "-march=native"] + list(compiled.ISA_FLAGS[isa])
     out = where / f"before-{isa}.so"
     subprocess.run([*shlex.split(cc), *flags, str(source), "-o", str(out)], check=True)
+    out.with_name(out.name + ".sha256").write_text(compiled._sha256(out) + "\n")
     return out
 
 

@@ -1,4 +1,5 @@
-"""Forest kernels built ahead of time into the model directory, and loaded only if bound.
+"""Forest kernels built ahead of time into the model directory: shipped, installed, never
+loaded from the model directory itself (issue 42: a model directory is data, never code).
 
 The expected probabilities are scikit-learn's own ``predict_proba`` (a different
 implementation); the ELF check reads the header bytes by hand (``e_machine`` at offset 18).
@@ -63,17 +64,38 @@ def test_the_manifest_binds_each_artefact_to_its_bytes_and_its_forest(trained):
         assert k["forest_sha256"] == forest_sha
 
 
+def test_a_shipped_kernel_is_never_loaded_from_the_model_directory(
+    trained, flight, monkeypatch, capsys
+):
+    """A model directory is data: its libraries are named on stderr (once), never dlopened."""
+    _, model_dir, targets = trained
+    before = set(compiled._LOADED)
+    assert compiled.fast_predictor(_packed(model_dir)) is None  # no compiler, nothing installed
+    assert compiled.fast_predictor(_packed(model_dir)) is None
+    assert set(compiled._LOADED) == before
+    with open("/proc/self/maps") as maps:
+        assert str(model_dir) not in maps.read()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert "not loaded from a model directory" in err[0] and compiled.cpu_class() in err[0]
+    assert all(f"forest-kernel-{t}.so" in err[0] for t in targets)
+    if "aarch64" in targets and compiled._arch() != "aarch64":  # the other architecture, said
+        assert f"forest-kernel-aarch64.so (for aarch64, this CPU is {compiled._arch()})" in err[0]
+
+
 @pytest.mark.parametrize("target", X86)
-def test_every_x86_artefact_equals_scikit_learn_bit_for_bit(
+def test_every_installed_x86_kernel_equals_scikit_learn_bit_for_bit(
     trained, tiny_scenes, target, flight, monkeypatch
 ):
     model, model_dir, targets = trained
     isa = compiled.TARGETS[target][0]
     if target not in targets or not compiled.cpu_runs(isa):
         pytest.skip(f"this CPU does not run {target} ({isa})")
+    installed = compiled.install_kernel(model_dir / f"forest-kernel-{target}.so")
+    assert installed.parent == compiled.cache_dir() and installed.name.endswith("-installed.so")
     monkeypatch.setenv(compiled.ISA_ENV, isa)
     predict = compiled.fast_predictor(_packed(model_dir))
-    assert predict.source == model_dir / f"forest-kernel-{target}.so"  # the artefact, no build
+    assert predict.source == installed  # the installed copy, no build
     assert predict.isa == isa
     x = _pixels(tiny_scenes)
     expected = model.estimator.predict_proba(x)[:, 1].astype(np.float32)
@@ -86,36 +108,34 @@ def test_every_x86_artefact_equals_scikit_learn_bit_for_bit(
     )
 
 
-def test_the_chosen_artefact_follows_the_forced_path(trained, flight, monkeypatch):
+def test_the_installed_kernel_follows_the_forced_path(trained, flight, monkeypatch):
     _, model_dir, targets = trained
     runnable = [t for t in targets if compiled.cpu_runs(compiled.TARGETS[t][0])]
     if not runnable:
         pytest.skip("no artefact for this CPU")
-    best = next(t for t in ("x86-64-v4", "x86-64-v3", "aarch64", "x86-64") if t in runnable)
-    assert compiled.fast_predictor(_packed(model_dir)).source.name == f"forest-kernel-{best}.so"
+    libs = {t: compiled.install_kernel(model_dir / f"forest-kernel-{t}.so") for t in runnable}
+    best = next(t for t in ("x86-64-v4", "x86-64-v3", "aarch64") if t in runnable)
+    assert compiled.fast_predictor(_packed(model_dir)).source == libs[best]
     for target in runnable:
         monkeypatch.setenv(compiled.ISA_ENV, compiled.TARGETS[target][0])
-        chosen = compiled.fast_predictor(_packed(model_dir))
-        assert chosen.source.name == f"forest-kernel-{target}.so"
+        assert compiled.fast_predictor(_packed(model_dir)).source == libs[target]
     monkeypatch.setenv(compiled.ISA_ENV, "off")
     assert compiled.fast_predictor(_packed(model_dir)) is None
 
 
-def test_a_tampered_artefact_is_refused_and_the_fallback_said_once(
-    trained, tmp_path, flight, monkeypatch, capsys
+def test_a_tampered_installed_kernel_is_refused_and_the_fallback_said_once(
+    trained, flight, monkeypatch, capsys
 ):
-    _, model_dir, _ = trained
-    copy = tmp_path / "rf"
-    copy.mkdir()
-    for f in model_dir.iterdir():
-        (copy / f.name).write_bytes(f.read_bytes())
-    for lib in compiled.kernel_files(copy):
+    _, model_dir, targets = trained
+    runnable = [t for t in targets if compiled.cpu_runs(compiled.TARGETS[t][0])]
+    if not runnable:
+        pytest.skip("no artefact for this CPU")
+    for target in runnable:
+        lib = compiled.install_kernel(model_dir / f"forest-kernel-{target}.so")
         data = bytearray(lib.read_bytes())
-        data[len(data) // 2] ^= 1  # one bit
+        data[len(data) // 2] ^= 1  # one bit, after the install
         lib.write_bytes(bytes(data))
-    packed = _packed(copy)
-    predictor, why = compiled.artefact_predictor(packed)
-    assert predictor is None and "SHA-256 is not the manifest's" in why
+    packed = _packed(model_dir)
     assert compiled.fast_predictor(packed) is None  # no compiler either: scikit-learn predicts
     assert compiled.fast_predictor(packed) is None
     err = capsys.readouterr().err.strip().splitlines()
@@ -123,23 +143,21 @@ def test_a_tampered_artefact_is_refused_and_the_fallback_said_once(
     assert compiled.cpu_class() in err[0] and "C compiler" in err[0]
 
 
-def test_an_artefact_built_for_another_forest_is_refused(trained, tiny_scenes, tmp_path, flight):
+def test_a_kernel_for_another_architecture_is_not_installed(trained, flight, tmp_path):
+    from dyntarget.errors import InvalidParameterError
+
     _, model_dir, targets = trained
-    other = tmp_path / "other"
-    make_classifier("random-forest", seed=1, max_pixels_per_class=500).fit(tiny_scenes[:2]).save(
-        other
-    )
-    manifest = json.loads((model_dir / compiled.MANIFEST_FILE).read_text())
-    for k in manifest["kernels"]:  # the library and its entry, copied beside another forest
-        (other / k["file"]).write_bytes((model_dir / k["file"]).read_bytes())
-    mine = json.loads((other / compiled.MANIFEST_FILE).read_text())
-    mine["kernels"] = manifest["kernels"]
-    (other / compiled.MANIFEST_FILE).write_text(json.dumps(mine))
-    predictor, why = compiled.artefact_predictor(_packed(other))
-    runnable = [t for t in targets if compiled.cpu_runs(compiled.TARGETS[t][0])]
-    if not runnable:
-        pytest.skip("no artefact for this CPU")
-    assert predictor is None and "built for another forest.npz" in why
+    foreign = [t for t in targets if compiled.TARGETS[t][1] != compiled._arch()]
+    if not foreign:
+        pytest.skip("no cross-compiled artefact here")
+    lib = model_dir / f"forest-kernel-{foreign[0]}.so"
+    with pytest.raises(InvalidParameterError, match=f"built for {compiled.TARGETS[foreign[0]][1]}"):
+        compiled.install_kernel(lib)
+    assert not compiled.cache_dir().exists() or not list(compiled.cache_dir().glob("*.so"))
+    junk = tmp_path / "forest-kernel-x86-64.so"
+    junk.write_bytes(b"#!/bin/sh\necho not a library\n")
+    with pytest.raises(InvalidParameterError, match="not an ELF shared library"):
+        compiled.install_kernel(junk)
 
 
 def test_the_cross_compiled_aarch64_artefact_is_an_aarch64_elf(trained):

@@ -130,7 +130,11 @@ def read_bytes(path: str | os.PathLike[str], *, max_bytes: int, what: str = "") 
         st = os.fstat(f.fileno())
         if not stat.S_ISREG(st.st_mode):
             raise DataFileError(f"{name}: {_kind(st.st_mode)}, not a regular file")
-        data = f.read(max_bytes + 1)
+        # read what the file holds (plus one byte, to see it grow), not max_bytes: a read
+        # of n bytes allocates n first, so a 16-byte file read with a 1 GB limit cost 1 GB
+        data = f.read(min(max_bytes, st.st_size) + 1)
+        if len(data) > st.st_size and len(data) <= max_bytes:  # grew while read
+            data += f.read(max_bytes + 1 - len(data))
     if len(data) > max_bytes:
         raise DataFileError(f"{name}: more than the {max_bytes:,} bytes accepted for it")
     return data

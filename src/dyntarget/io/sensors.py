@@ -246,6 +246,100 @@ def read_band_files(
     )
 
 
+NPZ_ARRAYS = ("image", "red", "green", "blue", "nir", "label")
+"""The arrays of a scene ``.npz`` that are read (any others are ignored, unread)."""
+
+MAX_NPZ_MEMBERS = 64
+"""Most members a scene ``.npz`` may list."""
+
+MAX_NPZ_BYTES = 4 * 4 * scene_io.MAX_PIXELS
+"""Largest array of a scene ``.npz`` (4 GiB, four float32 bands of the largest image), as its
+header declares it, checked before anything is decompressed."""
+
+
+def npz_headers(path: str | os.PathLike[str]) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """The shape and dtype of each array :func:`read_npz` reads, from the headers alone.
+
+    Checks the member count (:data:`MAX_NPZ_MEMBERS`), each array's declared size
+    (:data:`MAX_NPZ_BYTES`), dtype (numbers only) and pixels per band (``MAX_PIXELS``)
+    before any array is decompressed or allocated.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.npz`` file.
+
+    Returns
+    -------
+    dict
+        ``name -> (shape, dtype)`` for the members of :data:`NPZ_ARRAYS` present.
+
+    Raises
+    ------
+    DataFileError
+        An unreadable archive or header, or an array beyond a limit (the limit named).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     np.savez(f"{tmp}/s.npz", image=np.zeros((4, 2, 3), np.float32))
+    ...     npz_headers(f"{tmp}/s.npz")["image"][0]
+    (4, 2, 3)
+    """
+    import zipfile
+
+    path = Path(path)
+    out: dict[str, tuple[tuple[int, ...], np.dtype]] = {}
+    total = 0
+    try:
+        with zipfile.ZipFile(path) as archive:
+            infos = archive.infolist()
+            if len(infos) > MAX_NPZ_MEMBERS:
+                raise DataFileError(
+                    f"{path}: {len(infos):,} members, more than the {MAX_NPZ_MEMBERS} a "
+                    "scene .npz may hold"
+                )
+            for info in infos:
+                name = info.filename.removesuffix(".npy")
+                if name not in NPZ_ARRAYS:
+                    continue
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    read_header = (
+                        np.lib.format.read_array_header_1_0
+                        if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0
+                    )
+                    shape, _, dtype = read_header(member, max_header_size=4096)
+                if dtype.kind not in "biuf" or dtype.hasobject:
+                    raise DataFileError(
+                        f"{path}: not a readable .npz file ({name} holds {dtype}, not numbers)"
+                    )
+                size = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                band = int(np.prod(shape[-2:], dtype=object)) if len(shape) >= 2 else 0
+                if len(shape) > 3 or band > scene_io.MAX_PIXELS or size > MAX_NPZ_BYTES:
+                    raise DataFileError(
+                        f"{path}: {name} declares shape {shape} of {dtype} ({size:,} bytes), "
+                        f"beyond the limits of a scene .npz ({scene_io.MAX_PIXELS:,} px per "
+                        f"band, {MAX_NPZ_BYTES:,} bytes per array, 3 dimensions)"
+                    )
+                out[name] = (tuple(shape), dtype)
+                total += size
+                if total > MAX_NPZ_BYTES + 8 * scene_io.MAX_PIXELS:  # four bands and a label
+                    raise DataFileError(
+                        f"{path}: its arrays declare {total:,} bytes, more than the "
+                        f"{MAX_NPZ_BYTES + 8 * scene_io.MAX_PIXELS:,} a scene .npz may hold"
+                    )
+    except DataFileError:
+        raise
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise DataFileError(
+            f"{path}: not a readable .npz file ({scene_io._first_line(exc)})"
+        ) from None
+    return out
+
+
 def read_npz(
     path: str | os.PathLike[str], *, scale: float | None = None, offset: float = 0.0
 ) -> Scene:
@@ -269,9 +363,10 @@ def read_npz(
     from dyntarget.io.safeopen import check_regular
 
     check_regular(path)  # a FIFO would block np.load
+    wanted = npz_headers(path)  # sizes from the headers, before anything is allocated
     try:
         with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
+            arrays = {k: z[k] for k in z.files if k in wanted}
     except (ValueError, OSError, EOFError) as exc:
         raise DataFileError(
             f"{path}: not a readable .npz file ({scene_io._first_line(exc)})"

@@ -4,19 +4,21 @@ scikit-learn walks each tree one pixel at a time through 64-byte node records. H
 fitted forest is *packed* into a few flat arrays (:func:`pack_forest`) and walked by a
 small C kernel (``_forest.c``, shipped with the package) that moves 16 pixels down a tree
 at once with AVX-512 where the CPU has it, reads the first five levels of every tree from
-registers and stops a group of pixels as soon as all of them sit on leaves. The kernel is
-built ahead of time for named targets by ``dyntarget export-onnx --targets
-x86-64-v3,x86-64-v4,aarch64`` (:func:`build_kernels`: ``cc -march=x86-64-v3`` etc., the
-Debian cross compiler for aarch64) into the model directory, where ``forest.json``
-(:func:`write_manifest`) records each library's SHA-256 and that of the ``forest.npz`` it
-is for; :func:`fast_predictor` loads the best one this CPU runs only if both hashes match
-(:func:`artefact_predictor`), so nothing compiles on a flight computer. Where none fits,
-the kernel is compiled with the C compiler found on the PATH (``cc -O2`` with the
-``-march=x86-64-v4``/``-v3`` level of the widest path the CPU's CPUID reports, else
-``-march=native``; 0.1-2.8 s, docs/performance.md) and cached under :func:`cache_dir`, keyed by a SHA-256 of
-its source, the flags and the CPU's model and feature flags; a cached build serves without a compiler.
-Either fallback is said once on stderr. The forest itself is data, so one library serves
-every forest.
+registers and stops a group of pixels as soon as all of them sit on leaves.
+
+Trust: a model directory is data, never code. The kernel is loaded only from this user's
+own cache (:func:`cache_dir`, ``0700``, this user's alone): compiled there with the C
+compiler found on the PATH (``cc -O2`` with the ``-march=x86-64-v4``/``-v3`` level of the
+widest path the CPU's CPUID reports, else ``-march=native``; 0.1-2.8 s,
+docs/performance.md), named after a SHA-256 of its source, flags and compiler, with its
+own SHA-256 recorded beside it; or put there by :func:`install_kernel`, the deliberate
+act that gives a machine without a compiler a kernel built elsewhere
+(``dyntarget export-onnx --targets x86-64-v3,x86-64-v4,aarch64`` builds them with
+:func:`build_kernels`, ``cc -march=x86-64-v3`` etc. and the Debian cross compiler for
+aarch64). A library is checked (owner, mode, architecture, SHA-256) and loaded through the
+same file descriptor (:func:`_load`). Libraries found in a model directory are never loaded
+(:func:`shipped_kernels` says so). Where no kernel can be had, a slower backend predicts
+and stderr says why, once. The forest itself is data, so one library serves every forest.
 
 Layout (per tree, trees one after another): nodes in breadth-first order with the two
 children of a node next to each other, so a pixel goes from node ``k`` to
@@ -72,9 +74,19 @@ MAX_DEPTH = 64
 COMPILE_TIMEOUT_S = 300
 """Longest a compile of the kernel may take before the compiler is taken as broken."""
 
-MAX_NODES = 1 << 27
-"""Most nodes a packed forest may hold (every node index, shifted by up to 3 feature bits,
-stays a positive int32)."""
+MAX_NODES = 1 << 24
+"""Most nodes a packed forest may hold (16.8 million: 268 MB of arrays; every node index,
+shifted by up to 3 feature bits, stays a positive int32)."""
+
+MAX_TREES = 10_000
+"""Most trees a packed forest may hold."""
+
+MAX_STEPS = 65_536
+"""Most levels summed over a forest's trees: the nodes one pixel passes (its work; a
+50-tree forest 14 deep, the project's default, passes 700)."""
+
+MAX_FOREST_BYTES = (MAX_NODES + PAD) * 16 + MAX_TREES * 4 + 65_536
+"""Largest ``forest.npz`` read (its members at their limits, headers included)."""
 
 FLAGS = ("-O2", "-march=native", "-std=c11", "-shared", "-fPIC")
 """Compiler flags of the kernel; ``-march=native`` is replaced by the x86-64 level of the
@@ -295,6 +307,13 @@ def pack_forest(estimator) -> PackedForest:
     total = sum(tree.tree_.node_count for tree in estimator.estimators_)
     if total > MAX_NODES:
         raise InvalidParameterError(f"estimator: {total} nodes are too many for the kernel")
+    trees = len(estimator.estimators_)
+    steps = sum(tree.tree_.max_depth for tree in estimator.estimators_)
+    if trees > MAX_TREES or steps > MAX_STEPS:
+        raise InvalidParameterError(
+            f"estimator: {trees} trees {steps} levels deep in all; the kernel takes up to "
+            f"{MAX_TREES} trees and {MAX_STEPS} levels in all"
+        )
     threshold = np.zeros(total + PAD, np.float32)
     code = np.zeros(total + PAD, np.int32)
     value = np.zeros(total, np.float64)
@@ -429,35 +448,70 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
     expected = {"threshold": np.float32, "code": np.int32, "value": np.float64,
                 "roots": np.int32, "depth": np.int64, "features": np.int64,
                 "fshift": np.int64, "model_sha256": np.uint8}  # fmt: skip
-    limit = (MAX_NODES + PAD) * 8 + 4096  # the largest member a forest can need, header included
+    most = {"threshold": MAX_NODES + PAD, "code": MAX_NODES + PAD, "value": MAX_NODES,
+            "roots": MAX_TREES, "depth": 1, "features": 1, "fshift": 1,
+            "model_sha256": 32}  # fmt: skip
+    limit = MAX_FOREST_BYTES
     try:
         size = os.stat(path).st_size
     except OSError as exc:
         raise fail(f"unreadable: {exc}") from None
-    if size > 9 * limit:
-        raise fail(f"{size} bytes are beyond any forest's size")
+    if size > limit:
+        raise fail(f"{size:,} bytes, more than the {limit:,} a forest may hold")
+    from dyntarget.errors import DataFileError
+    from dyntarget.io.safeopen import read_bytes
+
     try:
-        raw = path.read_bytes()  # read once: what is checked is what was hashed
-        with zipfile.ZipFile(io.BytesIO(raw)) as archive:
-            members = {i.filename: i.file_size for i in archive.infolist()}
-    except (OSError, zipfile.BadZipFile, ValueError) as exc:
+        raw = read_bytes(path, max_bytes=limit)  # read once: what is checked is what was hashed
+        archive = zipfile.ZipFile(io.BytesIO(raw))
+        infos = archive.infolist()
+    except (OSError, DataFileError, zipfile.BadZipFile, ValueError) as exc:
         raise fail(f"unreadable: {exc}") from None
     names = {f"{name}.npy" for name in expected}
-    if set(members) != names:
+    if len(infos) != len(names) or {i.filename for i in infos} != names:
+        shown = sorted(i.filename for i in infos[:20])
         raise fail(
-            f"members {sorted(members)}, expected {sorted(names)}; "
+            f"members {shown}{' ...' if len(infos) > 20 else ''}, expected {sorted(names)}; "
             "a forest.npz of dyntarget's is rewritten by 'dyntarget export-onnx'"
         )
-    if max(members.values()) > limit:
-        raise fail(f"a member of {max(members.values())} bytes is beyond any forest's size")
+    for info in infos:  # from the headers, before anything is read or allocated
+        name = info.filename[:-4]
+        if info.compress_type != zipfile.ZIP_STORED or info.file_size != info.compress_size:
+            raise fail(f"{name} is compressed; a forest's members are stored")
+        try:
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                read_header = (
+                    np.lib.format.read_array_header_1_0
+                    if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0
+                )
+                shape, _, dtype = read_header(member, max_header_size=1024)
+                offset = member.tell()
+        except Exception as exc:  # numpy raises several types on a broken header
+            raise fail(f"{name}: unreadable array header ({exc})") from None
+        count = int(np.prod(shape, dtype=object))
+        if dtype != expected[name]:
+            raise fail(f"{name} is not {np.dtype(expected[name]).name}")
+        if len(shape) > 1:
+            raise fail(f"{name}: arrays must be one-dimensional")
+        if most[name] == 1 and shape != ():
+            raise fail("depth, features and fshift must be single numbers")
+        if count > most[name]:
+            raise fail(
+                f"{name} holds {count:,} values, more than the {most[name]:,} a forest may "
+                f"have ({MAX_NODES:,} nodes, {MAX_TREES:,} trees)"
+            )
+        if offset + count * dtype.itemsize != info.file_size:
+            raise fail(f"{name}: its header declares {count:,} values, not what it holds")
     try:
         with np.load(io.BytesIO(raw), allow_pickle=False) as npz:
             data = {k: npz[k] for k in expected}
     except Exception as exc:  # numpy raises several types on a corrupt archive
         raise fail(f"unreadable: {exc}") from None
-    for name, dtype in expected.items():
-        if data[name].dtype != dtype:
-            raise fail(f"{name} is not {np.dtype(dtype).name}")
+    for name, want in expected.items():
+        if data[name].dtype != want:
+            raise fail(f"{name} is not {np.dtype(want).name}")
     threshold, code, value, roots = (data[n] for n in ("threshold", "code", "value", "roots"))
     if any(data[n].ndim != 0 for n in ("depth", "features", "fshift")):
         raise fail("depth, features and fshift must be single numbers")
@@ -515,6 +569,12 @@ def load_forest(path: str | os.PathLike[str], *, model_sha256: str | None = None
         raise fail("a node is not reached from its tree's root")
     if depth != deepest:
         raise fail(f"declared depth {depth}, the trees are {deepest} deep")
+    steps = int(np.maximum.reduceat(level, starts).sum())  # nodes a pixel passes, all trees
+    if steps > MAX_STEPS:
+        raise fail(
+            f"{len(starts):,} trees {steps:,} levels deep in all, more than the {MAX_STEPS:,} "
+            "a forest may have (the work per pixel)"
+        )
     return PackedForest(
         threshold=threshold,
         code=code,
@@ -628,6 +688,28 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _private_group(gid: int) -> bool:
+    """Whether group ``gid`` is this user's own private group (named after the user, no members)."""
+    try:
+        import grp
+        import pwd
+
+        me = pwd.getpwuid(os.getuid())
+        group = grp.getgrgid(gid)
+    except (ImportError, KeyError, AttributeError):
+        return False
+    return gid == me.pw_gid and group.gr_name == me.pw_name and not group.gr_mem
+
+
+def _private_stat(st: os.stat_result) -> str | None:
+    """Why a file of this ``stat`` is not this user's alone (``None`` when it is)."""
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return f"is owned by another user (uid {st.st_uid})"
+    if st.st_mode & 0o002 or (st.st_mode & 0o020 and not _private_group(st.st_gid)):
+        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
 def _private(path: Path) -> str | None:
     """Why ``path`` is not ours alone (``None`` when it is): owner, mode, kind."""
     try:
@@ -636,11 +718,7 @@ def _private(path: Path) -> str | None:
         return f"cannot be read ({exc.strerror})"
     if stat.S_ISLNK(st.st_mode):
         return "is a symbolic link"
-    if hasattr(os, "getuid") and st.st_uid != os.getuid():
-        return f"is owned by another user (uid {st.st_uid})"
-    if st.st_mode & 0o022:
-        return f"is writable by others (mode {stat.S_IMODE(st.st_mode):o})"
-    return None
+    return _private_stat(st)
 
 
 def _check_private(where: Path) -> None:
@@ -651,22 +729,95 @@ def _check_private(where: Path) -> None:
         raise MissingExtraError(f"the forest-kernel cache {where} {why}: not used")
 
 
-def _trusted(lib: Path) -> bool:
-    """Whether ``lib`` is a kernel this user's dyntarget built: ours alone, and its hash recorded.
-
-    A library that is there but fails a check is never loaded (it is rebuilt where a
-    compiler is, else the kernel is not used).
-    """
-    if not os.path.lexists(lib):
-        return False
+def _recorded(lib: Path) -> str | None:
+    """The SHA-256 recorded beside ``lib`` when dyntarget built or installed it (``None``: none)."""
     digest = _digest_path(lib)
-    if _private(lib) is not None or not stat.S_ISREG(os.lstat(lib).st_mode):
+    try:
+        st = os.lstat(digest)
+    except OSError:
+        return None
+    if not stat.S_ISREG(st.st_mode) or _private_stat(st) is not None or st.st_size > 128:
+        return None
+    try:
+        return digest.read_text(errors="replace").strip()
+    except OSError:
+        return None
+
+
+def _trusted(lib: Path) -> bool:
+    """Whether ``lib`` looks like a kernel this user's dyntarget built: ours alone, hash recorded.
+
+    A first look by path, to pick a library; what is loaded is checked again, and hashed,
+    on the one descriptor it is loaded through (:func:`_load`). A library that is there but
+    fails a check is never loaded (it is rebuilt where a compiler is, else the kernel is not
+    used).
+    """
+    if not os.path.lexists(lib) or _private(lib) is not None:
         return False
-    if _private(digest) is not None or not stat.S_ISREG(os.lstat(digest).st_mode):
+    if not stat.S_ISREG(os.lstat(lib).st_mode):
         return False
-    if os.lstat(digest).st_size > 128:
-        return False
-    return digest.read_text(errors="replace").strip() == _sha256(lib)
+    recorded = _recorded(lib)
+    return recorded is not None and recorded == _sha256(lib)
+
+
+_ELF_MACHINES = {62: "x86_64", 183: "aarch64", 3: "i386", 40: "arm", 243: "riscv64"}
+
+
+def elf_arch(head: bytes) -> str | None:
+    """The architecture an ELF shared library was built for, from its header.
+
+    Parameters
+    ----------
+    head : bytes
+        The file's first 20 bytes (or more).
+
+    Returns
+    -------
+    str or None
+        ``"x86_64"``, ``"aarch64"``, ... (``"machine N"`` for another), ``None`` when the
+        bytes are not a little-endian ELF shared object.
+
+    Examples
+    --------
+    >>> elf_arch(b"\\x7fELF\\x02\\x01" + bytes(10) + (3).to_bytes(2, "little") + (183).to_bytes(2, "little"))
+    'aarch64'
+    >>> elf_arch(b"MZ") is None
+    True
+    """
+    if len(head) < 20 or head[:4] != b"\x7fELF" or head[5] != 1:
+        return None
+    if int.from_bytes(head[16:18], "little") != 3:  # ET_DYN
+        return None
+    machine = int.from_bytes(head[18:20], "little")
+    return _ELF_MACHINES.get(machine, f"machine {machine}")
+
+
+def _source_key(source: bytes, flags: list[str]) -> str:
+    """The part of a cached kernel's name fixed by what it is built from, but the compiler:
+    the source, the flags and, for ``-march=native``, this CPU (model and feature flags)."""
+    where = _cpu() if "-march=native" in flags else _arch()
+    key = b"\0".join([source, " ".join(flags).encode(), where.encode()])
+    return hashlib.sha256(key).hexdigest()[:24]
+
+
+def _compiler_key(cc: str) -> str:
+    """The part of a cached kernel's name fixed by the compiler: its resolved path, size
+    and modification time (an upgraded compiler builds anew), and the arguments ``$CC`` gives."""
+    words = shlex.split(cc)
+    real = os.path.realpath(words[0])
+    try:
+        st = os.stat(real)
+        ident = f"{real}\0{st.st_size}\0{st.st_mtime_ns}\0{' '.join(words[1:])}"
+    except OSError:
+        ident = cc
+    return hashlib.sha256(ident.encode()).hexdigest()[:12]
+
+
+INSTALLED = "installed"
+"""The compiler part of the name of a kernel put in the cache by :func:`install_kernel`."""
+
+MAX_LIBRARY_BYTES = 16 << 20
+"""Largest kernel library read (the kernel is about 50 kB)."""
 
 
 def build_library(
@@ -676,6 +827,12 @@ def build_library(
     isa: str | None = None,
 ) -> Path:
     """Compile the kernel for this machine (once; later calls find it in the cache).
+
+    The cache (:func:`cache_dir`, created ``0700``) must be this user's alone; a library is
+    named ``forest-kernel-SOURCE-COMPILER.so`` after a SHA-256 of what it was built from
+    (the kernel's source, the flags, for ``-march=native`` this CPU, and the compiler) and
+    has its own SHA-256 recorded beside it. Without a compiler, a library of the same
+    source and flags built here earlier, or put here by :func:`install_kernel`, serves.
 
     Parameters
     ----------
@@ -713,18 +870,27 @@ def build_library(
         first = [*base, *ISA_FLAGS[best]]
     else:
         first = base if portable else list(FLAGS)
-    builds = []  # (flags, library), the preferred first; the baseline build as a fallback
-    for flags in (first, base)[: 2 if not portable else 1]:
-        key = b"\0".join([source, " ".join(flags).encode(), _cpu().encode()])
-        builds.append((flags, where / f"forest-kernel-{hashlib.sha256(key).hexdigest()[:24]}.so"))
+    wanted = [first, base][: 2 if not portable else 1]  # the preferred first; the baseline
     cc = compiler()
     if where.exists() or os.path.lexists(where):
         _check_private(where)  # nothing is loaded from, or built into, a folder others can write
-    for flags, lib in builds:  # a cached build serves without a compiler (e.g. shipped)
-        if (cc is None or flags is builds[0][0]) and _trusted(lib):
-            return lib
-    if cc is None:
-        raise MissingExtraError("the compiled forest needs a C compiler (cc or gcc) on the PATH")
+    if cc is None:  # a build of the same source and flags (any compiler), or an installed one
+        lookups = list(wanted)
+        if not isa and not portable:  # also a named level this CPU runs (installed kernels)
+            named = [i for i in _PREFERENCE if i in ISA_FLAGS and i != "portable" and cpu_runs(i)]
+            lookups[1:1] = [[*base, *ISA_FLAGS[i]] for i in named]
+        for flags in lookups:
+            for lib in sorted(where.glob(f"forest-kernel-{_source_key(source, flags)}-*.so")):
+                if _trusted(lib):
+                    return lib
+        raise MissingExtraError(
+            "the compiled forest needs a C compiler (cc or gcc) on the PATH, or a kernel "
+            "installed into this user's cache ('dyntarget install-kernel')"
+        )
+    ckey = _compiler_key(cc)
+    builds = [(f, where / f"forest-kernel-{_source_key(source, f)}-{ckey}.so") for f in wanted]
+    if _trusted(builds[0][1]):
+        return builds[0][1]
     for flags, lib in builds:
         if _trusted(lib):
             return lib
@@ -742,32 +908,173 @@ def build_library(
             except (OSError, subprocess.SubprocessError) as exc:
                 raise MissingExtraError(f"the C compiler {cc} does not run ({exc})") from None
             if done.returncode == 0:
-                os.chmod(part, 0o755)
-                digest = Path(tmp) / "digest"
-                digest.write_text(_sha256(part) + "\n")
-                os.chmod(digest, 0o644)
-                os.replace(part, lib)  # atomic: a reader never sees half a library
-                os.replace(digest, _digest_path(lib))  # the hash of what we built
+                _publish(part, lib)
                 return lib
         error = done.stderr.decode(errors="replace").strip().splitlines()
     raise MissingExtraError(f"the forest kernel does not compile with {cc}: {error[-1:]}")
 
 
+def _publish(part: Path, lib: Path) -> None:
+    """Move the library ``part`` (in a private temporary folder) to ``lib`` with its hash."""
+    os.chmod(part, 0o755)
+    digest = part.with_name("digest")
+    digest.write_text(_sha256(part) + "\n")
+    os.chmod(digest, 0o644)
+    os.replace(part, lib)  # atomic: a reader never sees half a library
+    os.replace(digest, _digest_path(lib))  # the hash of what we built
+
+
+def install_kernel(
+    library: str | os.PathLike[str],
+    *,
+    target: str | None = None,
+    directory: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Copy a kernel built elsewhere (``export-onnx --targets``) into this user's cache.
+
+    The deliberate act that lets a machine without a compiler (a flight computer) run the
+    kernel: a library is never loaded from a model directory, only from the cache, and
+    this copies the bytes read (through one descriptor) into it, under the name a build of
+    the same source and flags would have (:func:`build_library`), with their SHA-256. The
+    library must be an ELF shared object for this machine's architecture and ``target``.
+
+    Parameters
+    ----------
+    library : path
+        The library, e.g. ``MODEL/forest-kernel-aarch64.so``.
+    target : str, optional
+        A key of :data:`TARGETS`; default: from the file name (``forest-kernel-TARGET.so``).
+    directory : path, optional
+        Cache directory (default :func:`cache_dir`).
+
+    Returns
+    -------
+    pathlib.Path
+        The installed library in the cache.
+
+    Raises
+    ------
+    InvalidParameterError
+        An unknown target, a file that is not a library, or a library for another
+        architecture than the target's or this machine's (one line naming both).
+    """
+    from dyntarget.io.safeopen import read_bytes
+
+    library = Path(library)
+    if target is None:
+        stem = library.name.removeprefix("forest-kernel-").removesuffix(".so")
+        target = stem if stem in TARGETS and library.name.startswith("forest-kernel-") else None
+        if target is None:
+            raise InvalidParameterError(
+                f"{library}: name the target ({', '.join(TARGETS)}); the file name does not"
+            )
+    if target not in TARGETS:
+        raise InvalidParameterError(f"target {target!r}: expected one of {', '.join(TARGETS)}")
+    _, arch, flags = TARGETS[target]
+    data = read_bytes(library, max_bytes=MAX_LIBRARY_BYTES, what="kernel library")
+    found = elf_arch(data[:20])
+    if found is None:
+        raise InvalidParameterError(f"{library}: not an ELF shared library")
+    if found != arch or arch != _arch():
+        raise InvalidParameterError(
+            f"{library}: a library built for {found}; target {target} is {arch} and this "
+            f"machine is {_arch()}: not installed"
+        )
+    source = files("dyntarget.perceive").joinpath("_forest.c").read_bytes()
+    base = [f for f in FLAGS if f != "-march=native"]
+    where = Path(directory) if directory is not None else cache_dir()
+    lib = where / f"forest-kernel-{_source_key(source, [*base, *flags])}-{INSTALLED}.so"
+    where.mkdir(mode=0o700, parents=True, exist_ok=True)
+    _check_private(where)
+    with tempfile.TemporaryDirectory(dir=where) as tmp:
+        part = Path(tmp) / lib.name
+        part.write_bytes(data)
+        _publish(part, lib)
+    return lib
+
+
+def _between_check_and_load(fd: int, lib: Path) -> None:
+    """Called after a library is checked on descriptor ``fd`` and before it is loaded from
+    that descriptor (a no-op; tests replace ``lib`` on disk here to show the swap is not run)."""
+
+
+def _read_fd(fd: int, limit: int) -> bytes:
+    chunks: list[bytes] = []
+    total = 0
+    while True:
+        block = os.read(fd, 1 << 20)
+        if not block:
+            return b"".join(chunks)
+        chunks.append(block)
+        total += len(block)
+        if total > limit:
+            raise MissingExtraError(f"a kernel library of more than {limit:,} bytes")
+
+
 def _load(lib: Path) -> ctypes.CDLL:
+    """``dlopen`` the kernel ``lib`` of the cache, checked and hashed on the descriptor loaded.
+
+    The file is opened once (no link followed); on that descriptor its owner (this user),
+    mode (not writable by others), kind (a regular file), architecture (ELF header) and
+    SHA-256 (the one recorded when it was built or installed) are checked; then the library
+    is loaded from ``/proc/self/fd/N``, the same open file, so a file swapped in at the path
+    after the check is not what runs. The descriptor stays open while the library is loaded
+    (the loader knows it by that name). Where there is no ``/proc/self/fd`` (not Linux),
+    nothing is loaded: one ``MissingExtraError``, and the slower backends predict.
+    """
     with _LOCK:
-        if str(lib) not in _LOADED:
-            dll = ctypes.CDLL(str(lib))
-            i32, i64, ptr = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
-            try:
-                predict, abi = dll.dt_forest_predict, dll.dt_forest_abi
-            except AttributeError:
-                raise MissingExtraError(f"{lib}: not a forest kernel (symbols missing)") from None
-            predict.argtypes = [ptr, i64, i32, i32, i32, ptr, ptr, ptr, ptr, ptr, i32, ptr]
-            predict.restype = ctypes.c_int
-            if abi() != 2:
-                raise MissingExtraError(f"{lib}: a forest kernel of another ABI")
-            _LOADED[str(lib)] = dll
-        return _LOADED[str(lib)]
+        _check_private(lib.parent)  # a folder others can write could swap the record too
+        recorded = _recorded(lib)
+        if recorded is None:
+            raise MissingExtraError(f"{lib}: no SHA-256 recorded when it was built: not loaded")
+        flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+        try:
+            fd = os.open(lib, flags)
+        except OSError as exc:
+            raise MissingExtraError(f"{lib}: cannot be opened ({exc.strerror})") from None
+        keep = False
+        try:
+            st = os.fstat(fd)
+            why = "is not a regular file" if not stat.S_ISREG(st.st_mode) else _private_stat(st)
+            if why is not None:
+                raise MissingExtraError(f"{lib} {why}: not loaded")
+            data = _read_fd(fd, MAX_LIBRARY_BYTES)
+            digest = hashlib.sha256(data).hexdigest()
+            if digest != recorded:
+                raise MissingExtraError(
+                    f"{lib}: its SHA-256 is not the one recorded when it was built: not loaded"
+                )
+            arch = elf_arch(data[:20])
+            if arch != _arch():
+                raise MissingExtraError(
+                    f"{lib}: a library built for {arch or 'no known architecture'}, this "
+                    f"machine is {_arch()}: not loaded"
+                )
+            if digest in _LOADED:
+                return _LOADED[digest]
+            proc = f"/proc/self/fd/{fd}"
+            if not os.path.exists(proc):
+                raise MissingExtraError(
+                    "this system has no /proc/self/fd to load the kernel through the "
+                    "descriptor it was checked on: the kernel is not used"
+                )
+            _between_check_and_load(fd, lib)
+            dll = ctypes.CDLL(proc)
+            keep = True  # the loader names the library by this descriptor's number
+        finally:
+            if not keep:
+                os.close(fd)
+        i32, i64, ptr = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
+        try:
+            predict, abi = dll.dt_forest_predict, dll.dt_forest_abi
+        except AttributeError:
+            raise MissingExtraError(f"{lib}: not a forest kernel (symbols missing)") from None
+        predict.argtypes = [ptr, i64, i32, i32, i32, ptr, ptr, ptr, ptr, ptr, i32, ptr]
+        predict.restype = ctypes.c_int
+        if abi() != 2:
+            raise MissingExtraError(f"{lib}: a forest kernel of another ABI")
+        _LOADED[digest] = dll
+        return dll
 
 
 MANIFEST_FILE = "forest.json"
@@ -1079,6 +1386,7 @@ def write_manifest(model_dir: str | os.PathLike[str], kernels: list[dict] | None
     from dyntarget.io.atomic import write_text
 
     model_dir = Path(model_dir)
+    path = check_manifest_readable(model_dir)  # nothing rewrites a file it could not read
     if kernels is None:
         kernels = (read_manifest(model_dir) or {}).get("kernels", [])
     skops = model_dir / "model.skops"
@@ -1089,8 +1397,46 @@ def write_manifest(model_dir: str | os.PathLike[str], kernels: list[dict] | None
         "model_skops_sha256": _sha256(skops) if skops.is_file() else None,
         "kernels": kernels,
     }
-    path = model_dir / MANIFEST_FILE
     write_text(path, json.dumps(manifest, indent=2) + "\n")
+    return path
+
+
+def check_manifest_readable(model_dir: str | os.PathLike[str]) -> Path:
+    """Refuse to go on where ``forest.json`` is there but cannot be read (it is never rewritten).
+
+    Parameters
+    ----------
+    model_dir : path
+        A model directory.
+
+    Returns
+    -------
+    pathlib.Path
+        The manifest's path (absent, or readable).
+
+    Raises
+    ------
+    dyntarget.errors.DataFileError
+        One line naming the file and why it cannot be read.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_manifest_readable(tmp).name
+    'forest.json'
+    """
+    from dyntarget.errors import DataFileError
+
+    path = Path(model_dir) / MANIFEST_FILE
+    if os.path.lexists(path):
+        try:
+            with open(path, "rb"):
+                pass
+        except OSError as exc:
+            raise DataFileError(
+                f"{path}: cannot be read ({exc.strerror}); it is not rewritten"
+            ) from None
     return path
 
 
@@ -1157,86 +1503,36 @@ def bound_forest(model_dir: str | os.PathLike[str]) -> tuple[PackedForest | None
     return packed, ""
 
 
-def _artefact_ok(lib: Path) -> str | None:
-    """Why the exported library ``lib`` may not be loaded (``None``: it may)."""
-    try:
-        st = os.lstat(lib)
-    except OSError:
-        return "missing"
-    if not stat.S_ISREG(st.st_mode):
-        return "not a regular file"
-    if hasattr(os, "getuid") and st.st_uid not in (os.getuid(), 0):
-        return f"owned by another user (uid {st.st_uid})"
-    if st.st_mode & 0o022:
-        return f"writable by others (mode {stat.S_IMODE(st.st_mode):o})"
-    return None
-
-
-def artefact_predictor(
-    packed: PackedForest, *, isa: str | None = None
-) -> tuple[Callable[[np.ndarray], np.ndarray] | None, str]:
-    """The best kernel exported beside ``packed``'s ``forest.npz`` that this CPU runs.
-
-    A library is loaded only if its SHA-256 and that of the forest it was built for equal
-    the manifest's, the forest being this one (the bytes :func:`load_forest` read).
+def shipped_kernels(packed: PackedForest) -> str:
+    """What a model directory ships as kernel libraries, which are never loaded from it.
 
     Parameters
     ----------
     packed : PackedForest
-        A forest read by :func:`load_forest`.
-    isa : str, optional
-        Only a library of this path (a forced path).
+        A forest read by :func:`load_forest` (its folder is looked at).
 
     Returns
     -------
-    callable or None
-        As :func:`forest_predictor`'s (with ``source``: the library), or ``None``.
     str
-        What was missing, when ``None`` (empty when the folder exports no kernel).
+        Empty when the folder holds no ``forest-kernel-TARGET.so``; else one clause naming
+        them (and those built for another architecture) and how to install one.
     """
     if packed.source is None:
-        return None, ""
-    manifest = read_manifest(packed.source.parent)
-    if manifest is None or not manifest["kernels"]:
-        return None, ""
-    entries = [k for k in manifest["kernels"] if isinstance(k, dict) and k.get("isa") in ISAS]
-    entries.sort(key=lambda k: _PREFERENCE.index(k["isa"]))
-    missing: list[str] = []
-    refused: list[str] = []  # said even when a lesser kernel runs
-    for entry in entries:
-        name, target = str(entry.get("file", "")), entry.get("target")
-        if isa is not None and entry["isa"] != isa:
-            missing.append(f"{target}: not the forced {isa} path")
-            continue
-        if entry.get("arch") != _arch() or not cpu_runs(entry["isa"]):
-            missing.append(f"{target}: not for this CPU")
-            continue
-        lib = packed.source.parent / name
-        if Path(name).name != name or not name.endswith(".so"):
-            missing.append(f"{target}: a file name that is not a library's")
-            continue
-        why = _artefact_ok(lib)
-        if why is None and entry.get("forest_sha256") != packed.sha256:
-            why = f"built for another {FOREST_FILE}"
-        if why is None and _sha256(lib) != entry.get("sha256"):
-            why = "its SHA-256 is not the manifest's (changed since export)"
-        if why is not None:
-            missing.append(f"{target} ({name}): {why}")
-            refused.append(f"dyntarget: {lib} is not loaded: {why}")
-            continue
-        try:
-            predictor = forest_predictor(packed, library=lib)
-        except (MissingExtraError, OSError) as exc:
-            missing.append(f"{target}: {exc}")
-            continue
-        if predictor.isa != entry["isa"]:  # type: ignore[attr-defined]
-            missing.append(f"{target}: runs the {predictor.isa} path")  # type: ignore[attr-defined]
-            continue
-        for line in refused:
-            _say_once(f"{line}; the {target} kernel runs instead")
-        return predictor, ""
-    listed = ", ".join(str(k.get("target")) for k in entries) or "none"
-    return None, f"exported kernels ({listed}) none usable: {'; '.join(missing)}"
+        return ""
+    libs = kernel_files(packed.source.parent)
+    if not libs:
+        return ""
+    names = []
+    for lib in libs:
+        arch = TARGETS[lib.name.removeprefix("forest-kernel-").removesuffix(".so")][1]
+        names.append(
+            lib.name + ("" if arch == _arch() else f" (for {arch}, this CPU is {_arch()})")
+        )
+    return (
+        f"{packed.source.parent} ships {', '.join(names)}, not loaded from a model directory "
+        "(a model is data, never code; 'dyntarget install-kernel FILE' installs one into "
+        "this user's cache, docs/reliability.md)"
+    )
 
 
 def compile_forest(
@@ -1285,14 +1581,13 @@ def fast_predictor(
 ) -> Callable[[np.ndarray], np.ndarray] | None:
     """The kernel's predictor where it is the faster path, else ``None``.
 
-    In this order: a kernel exported beside the forest's ``forest.npz`` for this CPU
-    (:func:`artefact_predictor`, hashes checked); else the kernel built here (or found in
-    the cache) where it runs a path measured faster than the backend ``against`` (AVX2 or
-    AVX-512 against scikit-learn; also SSE2 against ONNX Runtime); else ``None``, which
-    says to use that backend. Where the folder exports kernels but none fits, or the
-    kernel cannot be built, one line on stderr (once per process) names the CPU class and
-    what was missing. The policy of ``RandomForest``'s ``"auto"`` backend and of a
-    forest's ONNX twin.
+    The kernel built here or found in this user's cache (:func:`build_library`: built
+    with the C compiler, or installed by :func:`install_kernel`) where it runs a path
+    measured faster than the backend ``against`` (AVX2 or AVX-512 against scikit-learn;
+    also SSE2 against ONNX Runtime); else ``None``, which says to use that backend. A
+    library in the model directory is never loaded (:func:`shipped_kernels`). Where the
+    kernel cannot be had, one line on stderr (once per process) names the CPU class and
+    why. The policy of ``RandomForest``'s ``"auto"`` backend and of a forest's ONNX twin.
 
     Parameters
     ----------
@@ -1306,31 +1601,35 @@ def fast_predictor(
     -------
     callable or None
         As :func:`forest_predictor`'s, or ``None``.
+
+    Raises
+    ------
+    InvalidParameterError
+        :data:`ISA_ENV` holds a value that is not a path (:func:`forced_isa`).
+    MissingExtraError
+        A forced path that cannot be had here (no silent fallback).
     """
     fast = FASTER_THAN_ONNXRUNTIME if against == "onnxruntime" else FAST_ISAS
     forced = forced_isa()
     if forced == "off":
         return None
-    exported, missing = artefact_predictor(packed, isa=forced)
-    if exported is not None:
-        return exported
     if forced is not None:  # the user asked for this path: no silent fallback
         return forest_predictor(packed, isa=forced)
+    shipped = shipped_kernels(packed)
     try:
         predictor = forest_predictor(packed)
     except (MissingExtraError, OSError) as exc:  # no compiler, an unwritable or unsafe cache
-        why = f"{missing}; {exc}" if missing else str(exc)
+        why = f"{exc}; {shipped}" if shipped else str(exc)
         _say_once(
             f"dyntarget: the forest kernel is not used on this CPU ({cpu_class()}): {why}; "
             "a slower backend predicts"
         )
         return None
     runs = predictor.isa in fast  # type: ignore[attr-defined]
-    if missing:
-        state = "runs" if runs else f"is not used, {against} predicts"
+    if shipped and not runs:
         _say_once(
-            f"dyntarget: {missing}; on this CPU ({cpu_class()}) the kernel built here "
-            f"({predictor.isa} path) {state}"  # type: ignore[attr-defined]
+            f"dyntarget: {shipped}; on this CPU ({cpu_class()}) the kernel built here "
+            f"({predictor.isa} path) is not used, {against} predicts"  # type: ignore[attr-defined]
         )
     return predictor if runs else None
 
@@ -1356,7 +1655,9 @@ def forest_predictor(
     isa : str, optional
         Force a code path (a key of :data:`ISA_FLAGS`; default :func:`forced_isa`).
     library : pathlib.Path, optional
-        A kernel library already checked (:func:`artefact_predictor`) instead of a build.
+        A kernel this user built elsewhere (e.g. a benchmark's older kernel) instead of
+        the cache's: loaded under the same rules (:func:`_load`: a folder and a file of this
+        user's alone, its SHA-256 recorded beside it as ``<name>.so.sha256``).
 
     Returns
     -------

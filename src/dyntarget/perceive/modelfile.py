@@ -15,12 +15,21 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import stat
 from pathlib import Path
 from typing import Any
 
 from dyntarget.errors import DataFileError, InvalidParameterError, ModelFileError
 from dyntarget.perceive.base import CLASSIFIERS, Classifier
 from dyntarget.scene import BANDS
+
+TRUST_ENV = "DYNTARGET_TRUST_WRITABLE_MODELS"
+"""Set to ``1`` to load a model that other users can change (:func:`check_model_permissions`);
+``0`` or unset: refused."""
+
+MODEL_FILES = ("metadata.json", "model.skops", "model.safetensors", "params.json",
+               "model.onnx", "model.int8.onnx", "forest.npz", "forest.json")  # fmt: skip
+"""The files of a model directory that are read (each checked like the directory)."""
 
 MODEL_FORMAT = "dyntarget-model"
 MODEL_FORMAT_VERSION = 1
@@ -65,6 +74,10 @@ def write_model_dir(classifier: Classifier, path: str | os.PathLike[str]) -> Pat
             "training": classifier.training,
         }
         (tmp / METADATA).write_text(json.dumps(meta, indent=2, sort_keys=True), encoding="utf-8")
+        for item in [tmp, *tmp.iterdir()]:  # writable by its user alone, whatever the umask:
+            mode = stat.S_IMODE(item.lstat().st_mode)  # a model others can change is refused
+            if not item.is_symlink() and mode & 0o022:
+                item.chmod(mode & ~0o022)
         if path.exists():
             old = path.with_name(f".{path.name}.old-{os.getpid()}")
             path.rename(old)
@@ -76,6 +89,99 @@ def write_model_dir(classifier: Classifier, path: str | os.PathLike[str]) -> Pat
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return path
+
+
+def trust_writable_models() -> bool:
+    """Whether :data:`TRUST_ENV` lets models that others can change load (``1``; ``0``/unset: no).
+
+    Returns
+    -------
+    bool
+        ``True`` when the variable is ``1``.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        Any other value (one line naming the allowed ones).
+
+    Examples
+    --------
+    >>> trust_writable_models() if TRUST_ENV not in os.environ else False
+    False
+    """
+    value = os.environ.get(TRUST_ENV, "").strip()
+    if value not in ("", "0", "1"):
+        raise InvalidParameterError(f"{TRUST_ENV}={value!r}: expected 0 or 1")
+    return value == "1"
+
+
+def _others_can_change(st: os.stat_result, *, ancestor: bool) -> str | None:
+    """Why another user can change a file or folder of this ``stat`` (``None``: none can)."""
+    from dyntarget.perceive.compiled import _private_group
+
+    if st.st_uid not in (os.getuid(), 0):
+        return f"owned by another user (uid {st.st_uid})"
+    if ancestor and stat.S_ISDIR(st.st_mode) and st.st_mode & stat.S_ISVTX:
+        return None  # a sticky shared folder (/tmp): others cannot rename what is ours
+    mode = stat.S_IMODE(st.st_mode)
+    if mode & 0o002:
+        return f"writable by others (mode {mode:o})"
+    if mode & 0o020 and not _private_group(st.st_gid):
+        return f"writable by its group (mode {mode:o}, gid {st.st_gid})"
+    return None
+
+
+def check_model_permissions(path: str | os.PathLike[str]) -> None:
+    """Refuse a model that another user can change: a model is data others must not swap.
+
+    The model directory, each of its :data:`MODEL_FILES` that is there, and every folder
+    above it must be owned by this user or root and writable by no one else (group
+    write is allowed for this user's own private group); a sticky folder above the model's
+    own (``/tmp``) is fine. Not checked where the OS has no user ids, or when
+    :data:`TRUST_ENV` is ``1``.
+
+    Parameters
+    ----------
+    path : path
+        The model directory.
+
+    Raises
+    ------
+    dyntarget.errors.ModelFileError
+        One line naming the path, its owner or mode, and the opt-in.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_model_permissions(tmp)  # made 0700 by tempfile, under sticky /tmp
+    """
+    if not hasattr(os, "getuid") or trust_writable_models():
+        return
+    path = Path(os.path.abspath(path))
+    places: list[tuple[Path, bool]] = [(path, False)]
+    places += [(path / name, False) for name in MODEL_FILES]
+    for chain in (path, Path(os.path.realpath(path))):
+        places += [(parent, True) for parent in chain.parents]
+    seen: set[Path] = set()
+    for place, ancestor in places:
+        if place in seen:
+            continue
+        seen.add(place)
+        try:
+            st = os.stat(place)
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            raise ModelFileError(f"{place}: cannot be checked ({exc.strerror})") from None
+        why = _others_can_change(st, ancestor=ancestor)
+        if why is None and os.path.islink(place):
+            why = _others_can_change(os.lstat(place), ancestor=ancestor)
+        if why is not None:
+            raise ModelFileError(
+                f"{place}: {why}; a model others can change is not loaded "
+                f"({TRUST_ENV}=1 loads it anyway)"
+            )
 
 
 def _read_json(path: Path) -> Any:
@@ -108,6 +214,10 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     meta_path = path / METADATA
     if not path.is_dir():
         raise DataFileError(f"{path}: not a model directory")
+    check_model_permissions(path)
+    from dyntarget.perceive.compiled import forced_isa
+
+    forced_isa()  # every environment switch checked with its allowed values, on every path
     if not meta_path.is_file():
         raise ModelFileError(f"{path}: no {METADATA}; not a dyntarget model")
     try:

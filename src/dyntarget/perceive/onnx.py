@@ -69,10 +69,11 @@ class OnnxClassifier:
         onnxruntime intra-op threads (default: the cores this process may use).
     forest : dyntarget.perceive.compiled.PackedForest or None
         A random forest's packed arrays (``forest.npz``): pixels then go through
-        dyntarget's forest kernel where a kernel exported beside it fits the CPU, or one
-        built here runs a path faster than ONNX Runtime
-        (:func:`dyntarget.perceive.compiled.fast_predictor`), and through ``model.onnx``
-        otherwise, said once on stderr. :attr:`backend` says which ran.
+        dyntarget's forest kernel where the one of this user's cache (built here, or
+        installed) runs a path faster than ONNX Runtime
+        (:func:`dyntarget.perceive.compiled.fast_predictor`; then onnxruntime is not even
+        imported), and through ``model.onnx`` otherwise, said once on stderr.
+        :attr:`backend` says which ran.
     say_fallback : bool
         Say on stderr (once per process) when a random forest runs on ONNX Runtime's
         tree ensemble; ``False`` where that was asked for (``load_onnx(kernel=False)``).
@@ -93,23 +94,12 @@ class OnnxClassifier:
     ) -> None:
         self.forest, self._kernel, self._say = forest, None, say_fallback
         self.backend = "onnxruntime"  # "forest kernel" once a forest has predicted on it
-        ort = _require("onnxruntime", "onboard")
-        options = ort.SessionOptions()
-        options.log_severity_level = 3
-        # one pool of intra-op threads, one per core; no inter-op pool on top of it
-        options.intra_op_num_threads = threads or available_cores()
-        options.inter_op_num_threads = 1
-        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        try:
-            self.session = ort.InferenceSession(
-                str(path), sess_options=options, providers=["CPUExecutionProvider"]
-            )
-        except Exception as exc:  # onnxruntime raises its own types on a corrupt file
-            raise ModelFileError(f"{path}: not a readable ONNX model ({exc})") from None
-        check_onnx_session(self.session, kind, tile=int(tile), where=path)
         self.name, self.kind, self.tile, self.path = name, kind, int(tile), path
-        self.input = self.session.get_inputs()[0].name
+        self._threads, self._session = threads, None
         self.stitching = None
+        if self._forest_kernel() is not None:
+            return  # the kernel predicts: onnxruntime is not imported (started when needed)
+        self.session  # noqa: B018 (opened and checked now: a broken model fails at load)
         if kind == "unet":
             from dyntarget.perceive.unet import Stitching
 
@@ -120,6 +110,44 @@ class OnnxClassifier:
             self.stitching = Stitching.for_architecture(
                 cls.architecture, levels=cls.levels, width=width, tile=tile, stitch=stitch
             )
+
+    @property
+    def session(self):
+        """The ONNX Runtime session of ``model.onnx``, opened and checked on first use.
+
+        Returns
+        -------
+        onnxruntime.InferenceSession
+            One intra-op thread per core, no inter-op pool.
+        """
+        if self._session is None:
+            ort = _require("onnxruntime", "onboard")
+            options = ort.SessionOptions()
+            options.log_severity_level = 3
+            # one pool of intra-op threads, one per core; no inter-op pool on top of it
+            options.intra_op_num_threads = self._threads or available_cores()
+            options.inter_op_num_threads = 1
+            options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+            try:
+                session = ort.InferenceSession(
+                    str(self.path), sess_options=options, providers=["CPUExecutionProvider"]
+                )
+            except Exception as exc:  # onnxruntime raises its own types on a corrupt file
+                raise ModelFileError(f"{self.path}: not a readable ONNX model ({exc})") from None
+            check_onnx_session(session, self.kind, tile=self.tile, where=self.path)
+            self._session = session
+        return self._session
+
+    @property
+    def input(self) -> str:
+        """The name of the model's input.
+
+        Returns
+        -------
+        str
+            From the session.
+        """
+        return str(self.session.get_inputs()[0].name)
 
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
         """Plume probability ``float32 (H, W)`` in 0..1 for a ``(4, H, W)`` image.
@@ -185,8 +213,8 @@ class OnnxClassifier:
             compiled._say_once(
                 f"dyntarget: {self.path.parent}: no forest kernel runs this random forest on "
                 f"this CPU ({compiled.cpu_class()}); ONNX Runtime's tree ensemble predicts, "
-                "slower than scikit-learn (docs/performance.md; 'dyntarget export-onnx' builds "
-                "the kernel for every CPU class it has a compiler for)"
+                "slower than scikit-learn (docs/performance.md; a C compiler builds the "
+                "kernel here, or 'dyntarget install-kernel' installs one built elsewhere)"
             )
 
     def work_units(self, shape: tuple[int, int]) -> float:
@@ -272,6 +300,10 @@ def load_onnx(
     if kind == "unet" and (isinstance(width, bool) or not isinstance(width, int) or width < 1):
         raise ModelFileError(f"{model_dir}: metadata config width {width!r} is not a width")
     forest = None
+    if name == "random-forest":
+        from dyntarget.perceive.compiled import forced_isa
+
+        forced_isa()  # a DYNTARGET_FOREST_ISA that names no path is one line, on every path
     if kernel and name == "random-forest":
         from dyntarget.perceive.compiled import FOREST_FILE, load_forest
 

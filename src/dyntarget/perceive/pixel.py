@@ -425,8 +425,9 @@ class RandomForest(PixelClassifier):
         """The packed forest where ``forest.npz`` is bound to ``model.skops`` (no scikit-learn
         is imported: the estimator is read on first use), else ``model.skops``; an older
         model directory gets its ``forest.npz`` written now where it can be."""
-        from dyntarget.perceive.compiled import bound_forest
+        from dyntarget.perceive.compiled import bound_forest, forced_isa
 
+        forced_isa()  # a DYNTARGET_FOREST_ISA that names no path is one line, on every path
         packed, why = bound_forest(directory)
         if packed is not None and packed.features == 4:
             self._estimator, self._packed, self._lazy_dir = None, packed, directory
@@ -439,7 +440,7 @@ class RandomForest(PixelClassifier):
                 return
             except OSError as exc:
                 print(
-                    f"dyntarget: {directory} has no packed forest and it cannot be written "
+                    f"dyntarget: {directory}: {why}, and the packed forest cannot be bound "
                     f"({exc}); scikit-learn is loaded to predict ('dyntarget train' or "
                     "'dyntarget export-onnx' writes it)",
                     file=sys.stderr,
@@ -459,10 +460,10 @@ class RandomForest(PixelClassifier):
         Parameters
         ----------
         backend : {"auto", "sklearn", "compiled"}
-            ``"compiled"`` runs the kernel (a library exported into the model directory, or
-            built once per machine with the C compiler on the PATH, then cached);
-            ``"auto"`` runs it where an exported library fits the CPU or the build runs
-            AVX2 or AVX-512 (the cases measured faster), scikit-learn otherwise
+            ``"compiled"`` runs the kernel (built once per machine with the C compiler on
+            the PATH, or installed with ``dyntarget install-kernel``, in this user's cache;
+            never a library in the model directory); ``"auto"`` runs it where that kernel
+            runs AVX2 or AVX-512 (the cases measured faster), scikit-learn otherwise
             (:func:`~dyntarget.perceive.compiled.fast_predictor`).
 
         Returns
@@ -492,6 +493,9 @@ class RandomForest(PixelClassifier):
         callable
             ``(n, 4) float32 -> (n,)`` plume probability.
         """
+        from dyntarget.perceive.compiled import forced_isa
+
+        forced_isa()  # validated on every backend: a bad value is never ignored silently
         if self.backend == "sklearn":
             return super().chunk_predictor()
         key = self._packed if self._estimator is None else self._estimator

@@ -171,6 +171,47 @@ def check_tree(tree: Any, where: Any = "tree") -> None:
         raise _fail(where, "tree holds a NaN or infinite threshold")
 
 
+def _tree_depth(tree: Any) -> int:
+    """The depth of a tree :func:`check_tree` passed, from its child arrays (not its claim):
+    each node's distance to the root by pointer jumping (a few passes, even for a chain)."""
+    left = np.asarray(tree.children_left, np.int64)
+    right = np.asarray(tree.children_right, np.int64)
+    inner = np.flatnonzero(left != TREE_LEAF)
+    parent = np.full(len(left), -1, np.int64)
+    parent[left[inner]] = inner
+    parent[right[inner]] = inner
+    dist, jump = (parent >= 0).astype(np.int64), parent
+    while (jump >= 0).any():
+        live = np.flatnonzero(jump >= 0)
+        dist, jump = dist.copy(), jump.copy()
+        hop = jump[live]
+        dist[live] += dist[hop]
+        jump[live] = jump[hop]
+    return int(dist.max())
+
+
+def _check_forest_size(where: Any, trees: list[Any]) -> None:
+    """Refuse a forest beyond :data:`~dyntarget.perceive.compiled.MAX_TREES` trees,
+    ``MAX_NODES`` nodes or ``MAX_STEPS`` levels in all (the work per pixel)."""
+    from dyntarget.perceive.compiled import MAX_NODES, MAX_STEPS, MAX_TREES
+
+    if len(trees) > MAX_TREES:
+        raise _fail(where, f"{len(trees):,} trees, more than the {MAX_TREES:,} a model may hold")
+    nodes = steps = 0
+    for i, tree in enumerate(trees):
+        t = getattr(tree, "tree_", tree)
+        nodes += int(t.node_count)
+        if nodes > MAX_NODES:
+            raise _fail(where, f"more than the {MAX_NODES:,} nodes a model may hold (tree {i})")
+        steps += _tree_depth(t)
+        if steps > MAX_STEPS:
+            raise _fail(
+                where,
+                f"trees more than {MAX_STEPS:,} levels deep in all (tree {i}): more work per "
+                "pixel than a model may ask",
+            )
+
+
 def _check_tree_estimator(est: Any, where: Any) -> None:
     _check_classes(where, est)
     _check_n_features(where, est)
@@ -250,6 +291,7 @@ def check_estimator(est: Any, where: Any = "model") -> None:
         return
     if kind is DecisionTreeClassifier:
         _check_tree_estimator(est, where)
+        _check_forest_size(where, [est])
         return
     if kind is RandomForestClassifier:
         _check_classes(where, est)
@@ -257,10 +299,17 @@ def check_estimator(est: Any, where: Any = "model") -> None:
         trees = getattr(est, "estimators_", None)
         if not isinstance(trees, list) or not trees:
             raise _fail(where, "random forest holds no trees")
+        from dyntarget.perceive.compiled import MAX_TREES
+
+        if len(trees) > MAX_TREES:  # before any tree is looked at
+            raise _fail(
+                where, f"{len(trees):,} trees, more than the {MAX_TREES:,} a model may hold"
+            )
         for i, tree in enumerate(trees):
             if type(tree) is not DecisionTreeClassifier:
                 raise _fail(where, f"random forest member {i} is a {type(tree).__name__}")
             _check_tree_estimator(tree, f"{where} (tree {i})")
+        _check_forest_size(where, trees)
         return
     _check_classes(where, est)
     _check_n_features(where, est)
