@@ -5,7 +5,8 @@ A classifier maps a 4-band image ``(4, H, W)`` to a plume probability
 :data:`CLASSIFIERS` and passes the same contract test. :class:`Predictor` is what
 planning needs of one: the native classifiers (:class:`Classifier`) and their ONNX
 twins (:class:`dyntarget.perceive.onnx.OnnxClassifier`) both satisfy it. Model
-directories are :mod:`dyntarget.perceive.modelfile`.
+directories are :mod:`dyntarget.perceive.modelfile`; the registry itself is
+:mod:`dyntarget.perceive.names` (so that reading a model directory needs no classifier).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError, ModelFileError
-from dyntarget.registry import Registry
+from dyntarget.perceive.modelfile import read_metadata, write_model_dir
+from dyntarget.perceive.names import CLASSIFIERS
 from dyntarget.scene import Scene, check_image
 
 TRAIN_THREADS = 1
@@ -255,8 +257,6 @@ class Classifier(ABC):
         pathlib.Path
             ``path``.
         """
-        from dyntarget.perceive.modelfile import write_model_dir
-
         return write_model_dir(self, path)
 
     @abstractmethod
@@ -284,8 +284,6 @@ class Classifier(ABC):
         dyntarget.errors.ModelFileError
             When the directory holds another classifier or its metadata does not fit this one.
         """
-        from dyntarget.perceive.modelfile import read_metadata
-
         meta = read_metadata(path)
         if meta["classifier"] != cls.name:
             raise ModelFileError(f"{path}: holds a {meta['classifier']!r} model, not {cls.name!r}")
@@ -299,32 +297,6 @@ class Classifier(ABC):
         model.fitted = True
         model.training = meta.get("training", {})
         return model
-
-
-CLASSIFIERS: Registry[type[Classifier]] = Registry(
-    "classifier",
-    order=(  # the paper's Table 1 order
-        "band-threshold",
-        "naive-bayes",
-        "logistic-regression",
-        "decision-tree",
-        "random-forest",
-        "mlp",
-        "unet-xception",
-        "unet-uavsar",
-    ),
-)
-for _name, _target in (  # lazy: the module is imported when the classifier is first used
-    ("band-threshold", "dyntarget.perceive.threshold:BandThreshold"),
-    ("naive-bayes", "dyntarget.perceive.pixel:NaiveBayes"),
-    ("logistic-regression", "dyntarget.perceive.pixel:LogisticRegressionClassifier"),
-    ("decision-tree", "dyntarget.perceive.pixel:DecisionTree"),
-    ("random-forest", "dyntarget.perceive.pixel:RandomForest"),
-    ("mlp", "dyntarget.perceive.pixel:MLP"),
-    ("unet-xception", "dyntarget.perceive.unet:XceptionUNetClassifier"),
-    ("unet-uavsar", "dyntarget.perceive.unet:UavsarUNetClassifier"),
-):
-    CLASSIFIERS.register_lazy(_name, _target)
 
 
 def make_classifier(name: str, **kwargs: Any) -> Classifier:

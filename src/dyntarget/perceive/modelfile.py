@@ -17,11 +17,14 @@ import os
 import shutil
 import stat
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dyntarget.errors import DataFileError, InvalidParameterError, ModelFileError
-from dyntarget.perceive.base import CLASSIFIERS, Classifier
+from dyntarget.perceive.names import CLASSIFIERS
 from dyntarget.scene import BANDS
+
+if TYPE_CHECKING:
+    from dyntarget.perceive.base import Classifier
 
 TRUST_ENV = "DYNTARGET_TRUST_WRITABLE_MODELS"
 """Set to ``1`` to load a model that other users can change (:func:`check_model_permissions`);
