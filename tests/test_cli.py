@@ -48,9 +48,21 @@ def test_bad_argument_exit_2_no_traceback(tmp_path, capsys):
 
 
 def test_library_error_exit_2_one_line(tmp_path, capsys):
-    code, _, err = run(capsys, "synth", "--scenes", 1, "--size", 4, "--out", tmp_path, "--quiet")
+    args = ("synth", "--strip", "--scenes", 1, "--size", 16, "--out", tmp_path, "--quiet")
+    code, _, err = run(capsys, *args)
     assert code == 2
-    assert err.strip().splitlines() == ["dyntarget: error: size: expected an integer >= 16, got 4"]
+    assert err.strip().splitlines() == [
+        "dyntarget: error: width: expected an integer >= 32, got 16"
+    ]
+
+
+def test_option_error_exit_2_one_line_naming_the_option(tmp_path, capsys):
+    code, _, err = run(capsys, "synth", "--scenes", 1, "--gsd", "nan", "--out", tmp_path)
+    assert code == 2
+    assert err.strip().splitlines() == [
+        "dyntarget: error: argument --gsd: expected metres in (0, 10000] (a finite number), "
+        "got 'nan' (see 'dyntarget synth --help')"
+    ]
 
 
 def test_classifiers_lists_eight(capsys):

@@ -124,7 +124,8 @@ def test_sigterm_mid_pass_leaves_complete_outputs(tmp_path):
     deadline = time.monotonic() + 120
     timeline = out / "timeline.csv"
     while time.monotonic() < deadline:
-        if timeline.exists() and len(timeline.read_text().splitlines()) >= 4:
+        staged = list(out.glob(".partial-*/timeline.csv"))  # the pass is staged until written
+        if staged and len(staged[0].read_text().splitlines()) >= 4:
             break
         if proc.poll() is not None:
             pytest.fail(f"fly ended before it was stopped: {proc.stderr.read()}")

@@ -208,8 +208,8 @@ def test_no_geo_image_in_time_degrades_to_look_ahead_only():
     ("opts", "message"),
     [
         (["--geo-latency-s", "10"], "give --geo"),
-        (["--geo", "--geo-latency-s", "-5"], "latency_s"),
-        (["--geo", "--geo-cadence-s", "0"], "cadence_s: expected > 0"),
+        (["--geo", "--geo-latency-s", "-5"], "--geo-latency-s: expected seconds in 0..86400"),
+        (["--geo", "--geo-cadence-s", "0"], "--geo-cadence-s: expected seconds in (0, 86400]"),
         (["--geo", "--geo-gsd-m", "20"], "not coarser"),
         (["--geo"], "no world to render"),
         (["--geo-omniscient", "--geo-blind"], "exclude each other"),

@@ -9,9 +9,17 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from pathlib import Path
 from typing import Any, NoReturn
 
-from dyntarget import defaults
+from dyntarget.cli.options import (  # re-exported: defined once, in cli/options.py
+    SCHEDULER_HELP,
+    positive_float,
+    positive_int,
+    scheduler_address,
+)
+
+__all__ = ["SCHEDULER_HELP", "positive_float", "positive_int", "scheduler_address"]
 
 EXIT_OK, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2
 EXIT_NOTHING_FEASIBLE = 3
@@ -20,43 +28,10 @@ written, with no pointing; the reason is on stderr)."""
 
 
 class Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # argparse exits 2 as well; keep its one line
-        self.print_usage(sys.stderr)
-        self.exit(EXIT_USAGE, f"dyntarget: error: {message}\n")
+    """argparse with one line for a usage error: ``dyntarget: error: ...`` and exit 2."""
 
-
-SCHEDULER_HELP = (
-    "run the tasks on dask.distributed: local (threads), processes (one worker process per "
-    "core) or a scheduler address tcp://HOST:PORT (default: one by one in this process)"
-)
-
-
-def scheduler_address(text: str) -> str:
-    if text in ("local", "processes") or "://" in text:
-        return text
-    raise argparse.ArgumentTypeError(
-        f"expected local, processes or a scheduler address like tcp://HOST:PORT, got {text!r}"
-    )
-
-
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
-    return value
+    def error(self, message: str) -> NoReturn:  # argparse exits 2 as well; one line, no usage
+        self.exit(EXIT_USAGE, f"dyntarget: error: {message} (see '{self.prog} --help')\n")
 
 
 def preset_names() -> list[str]:
@@ -105,10 +80,17 @@ def load_labelled(data: str) -> list:
 def show_result(out: str, name: str, result: dict, columns: list[str]) -> None:
     """Write an evaluation's table (md, csv, json), print it, say where it went."""
     from dyntarget.evaluate.tables import markdown_table, write_result
+    from dyntarget.fly.staging import staged
 
-    paths = write_result(out, name, result, columns)
+    with staged(out, stale=_table_files(name)) as stage:  # the table's files move in together
+        paths = write_result(stage, name, result, columns)
     print(markdown_table(result["rows"], columns))
-    log("wrote " + ", ".join(str(p) for p in paths.values()))
+    log("wrote " + ", ".join(str(Path(out) / p.name) for p in paths.values()))
+
+
+def _table_files(stem: str) -> tuple[str, ...]:
+    """The files of one evaluation table (:func:`dyntarget.evaluate.tables.write_table`)."""
+    return tuple(f"{stem}{suffix}" for suffix in (".md", ".csv", ".json", ".timing.json"))
 
 
 def plan_config(args: argparse.Namespace):
@@ -119,68 +101,23 @@ def plan_config(args: argparse.Namespace):
 
 def add_evaluation_options(q: argparse.ArgumentParser, *, trains: bool = True) -> None:
     """Options the evaluations share; with ``trains``, those of training classifiers too."""
-    q.add_argument("--data", required=True, help="scene directory with labels")
-    q.add_argument("--out", required=True, help="output folder for the table (md, csv, json)")
-    q.add_argument(
-        "--factor",
-        type=positive_int,
-        default=defaults.FACTOR,
-        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
-    )
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
+    from dyntarget.cli import options as o
+
+    o.DATA.add(q)
+    o.OUT.add(q, help="output folder for the table (md, csv, json)")
+    o.FACTOR.add(q)
+    o.QUIET.add(q)
+    o.SCHEDULER.add(q)
     if trains:
-        q.add_argument("--models", help="folder to keep trained models in and reuse them from")
-        q.add_argument(
-            "--folds",
-            type=positive_int,
-            default=defaults.FOLDS,
-            help=f"number of folds (default {defaults.FOLDS})",
-        )
-        q.add_argument(
-            "--epochs",
-            type=positive_int,
-            default=defaults.EPOCHS,
-            help=f"U-Net epochs (default {defaults.EPOCHS})",
-        )
-        q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        o.MODELS.add(q)
+        o.FOLDS.add(q)
+        o.EPOCHS.add(q)
+        o.SEED.add(q)
 
 
 def name_lists(**lists: str | None) -> dict[str, Any]:
     """Comma-separated CLI lists that were given, as keyword arguments of a config."""
     return {key: tuple(text.split(",")) for key, text in lists.items() if text}
-
-
-def add_orbit_options(p, *, look_ahead_type=float) -> None:
-    """``--altitude-km`` and ``--look-ahead-km`` (defaults from :mod:`dyntarget.defaults`).
-
-    ``p`` is a parser or an argument group; ``look_ahead_type`` parses the look-ahead
-    (``positive_float`` where a negative look-ahead makes no sense, as for a pass).
-    """
-    from dyntarget import defaults
-
-    p.add_argument(
-        "--altitude-km",
-        type=positive_float,
-        default=defaults.ALTITUDE_M / 1e3,
-        help=f"orbit altitude (default {defaults.ALTITUDE_M / 1e3:g})",
-    )
-    p.add_argument(
-        "--look-ahead-km",
-        type=look_ahead_type,
-        default=defaults.LOOK_AHEAD_M / 1e3,
-        help="ground distance from nadir to the WFOV scene centre at acquisition "
-        f"(default {defaults.LOOK_AHEAD_M / 1e3:g})",
-    )
-
-
-def add_plan_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--step", type=positive_float, help="pixels between pointings (default 1%% of the width)"
-    )
-    p.add_argument(
-        "--width", type=positive_float, help="pixels between transects (default 2 x step)"
-    )
 
 
 def writes(
@@ -231,15 +168,40 @@ def writes(
                 )
                 check(value, what=flag)
                 writable_dir(value, what=flag)  # a PermissionError now, not after the work
-            with contextlib.ExitStack() as stack:
-                for kind, name, value in given:
-                    if kind == "dir":
-                        stack.enter_context(output_dir(value, what="--" + name.replace("_", "-")))
-                return fn(args)
+            empty = [Path(v) for k, _, v in given if k == "dir" and _is_empty_dir(Path(v))]
+            try:
+                with contextlib.ExitStack() as stack:
+                    for kind, name, value in given:
+                        if kind == "dir":
+                            flag = "--" + name.replace("_", "-")
+                            stack.enter_context(output_dir(value, what=flag))
+                    return fn(args)
+            except BaseException:
+                for d in empty:  # a refusal leaves an empty folder it was given empty
+                    _unclaim(d)
+                raise
 
         return run
 
     return decorate
+
+
+def _is_empty_dir(path: Path) -> bool:
+    try:
+        return path.is_dir() and not path.is_symlink() and not any(path.iterdir())
+    except OSError:
+        return False
+
+
+def _unclaim(path: Path) -> None:
+    """Remove the marker from a folder that holds nothing else (it was given empty)."""
+    from dyntarget.io.outputs import MARKER
+
+    try:
+        if [p.name for p in path.iterdir()] == [MARKER]:
+            (path / MARKER).unlink()
+    except OSError:
+        pass
 
 
 EARTH_RADIUS_M = 6_371_000.0

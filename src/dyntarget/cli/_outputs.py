@@ -11,13 +11,9 @@ _OUTPUT_FLAGS = ("--out", "--figure", "--polygons", "--html")
 def add_output_options(p: argparse.ArgumentParser) -> None:
     """``--crs``, ``--acquired``, ``--polygons``, ``--html`` (see docs/outputs.md)."""
     g = p.add_argument_group("outputs (fields and units: docs/outputs.md)")
-    g.add_argument(
-        "--crs",
-        choices=["rfc7946", "native"],
-        default="rfc7946",
-        help="GeoJSON coordinates: rfc7946 = WGS 84 lon/lat, no 'crs' member (default); "
-        "native = the image's CRS with the legacy 'crs' member GDAL/QGIS read",
-    )
+    from dyntarget.cli.options import CRS
+
+    CRS.add(g)
     g.add_argument(
         "--acquired",
         metavar="ISO-8601",

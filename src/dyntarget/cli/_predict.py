@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 
+from dyntarget.cli import options as o
 from dyntarget.cli._common import log
 
 
@@ -20,23 +21,20 @@ def add_predict_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--previous-mask", help="plume mask of --previous (with --mask; --model classifies it)"
     )
-    g.add_argument("--interval-s", type=float, help="seconds from --previous to the image")
+    g.add_argument(
+        "--interval-s",
+        type=o.float_range(o.MIN_INTERVAL_S, o.MAX_SECONDS, "seconds"),
+        help="seconds from --previous to the image",
+    )
     g.add_argument(
         "--lead-s",
-        type=float,
+        type=o.seconds,
         help="plan for the plume this many seconds after the image was taken "
         "(with --agility each pointing is moved on to its own scheduled time)",
     )
-    g.add_argument("--wind-mps", type=float, help="wind speed prior, m/s")
-    g.add_argument(
-        "--wind-from-deg",
-        type=float,
-        help="direction the wind blows FROM, degrees clockwise from north (meteorological)",
-    )
-    g.add_argument(
-        "--ground",
-        choices=["auto", "fixed", "moving"],
-        default="auto",
+    o.add_wind_options(g)
+    o.GROUND.add(
+        g,
         help="with --previous: is the background a fixed ground (its shift is misregistration, "
         "removed) or moving itself (weather, radar, a plume over moving cloud)? auto "
         "(default) decides from the frames and says so",
@@ -117,6 +115,7 @@ def _read_previous(args: argparse.Namespace, wfov):
         raise InvalidSceneError(
             f"--previous {args.previous}: CRS {prev.crs} does not match the image's {wfov.crs}"
         )
+    _check_same_grid(args.previous, prev.transform, wfov.transform)
     if args.previous_mask is not None:
         prev = read_any([args.previous], label=args.previous_mask, **options)
     return prev
@@ -150,6 +149,43 @@ def _check_previous_header(args: argparse.Namespace, wfov) -> None:
         raise InvalidParameterError(
             f"--interval-s {args.interval_s:g}: the files' times are {dt:g} s apart "
             f"({then.isoformat()} -> {now.isoformat()}); give --interval-s {dt:g}"
+        )
+
+
+def _check_same_grid(previous: str, then, now) -> None:
+    """Refuse a previous frame on another grid: other pixel size, rotation or origin.
+
+    Two looks are differenced pixel by pixel, so both must map pixel ``(col, row)`` to the
+    same ground point (to a thousandth of a pixel).
+    """
+    from dyntarget.errors import InvalidSceneError
+
+    if then is None and now is None:
+        return
+    if then is None or now is None:
+        which = "it has no georeferencing" if then is None else "the image has none"
+        raise InvalidSceneError(
+            f"--previous {previous}: {which} and the other has; frames must share a grid"
+        )
+    scale = max(abs(now.a), abs(now.b), abs(now.d), abs(now.e)) or 1.0
+    if (
+        max(abs(then.a - now.a), abs(then.b - now.b), abs(then.d - now.d), abs(then.e - now.e))
+        > 1e-6 * scale
+    ):
+        if abs(then.b) + abs(then.d) > 1e-9 * scale or abs(now.b) + abs(now.d) > 1e-9 * scale:
+            what = "rotated or sheared against the image's"
+        else:
+            what = f"{abs(then.a):g} x {abs(then.e):g} pixels, the image's {abs(now.a):g} x {abs(now.e):g}"
+        raise InvalidSceneError(
+            f"--previous {previous}: another grid ({what}); frames must share a grid"
+        )
+    inv = ~now
+    dx = inv.a * then.c + inv.b * then.f + inv.c  # the previous origin in the image's pixels
+    dy = inv.d * then.c + inv.e * then.f + inv.f
+    if max(abs(dx), abs(dy)) > 1e-3:
+        raise InvalidSceneError(
+            f"--previous {previous}: its grid is shifted by ({dx:+.3f}, {dy:+.3f}) px from the "
+            "image's; frames must share a grid"
         )
 
 

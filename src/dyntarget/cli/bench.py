@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dyntarget.cli._common import EXIT_OK, log, positive_int, writes
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, log, writes
 
 
 @writes(files=("out", "markdown"))
@@ -39,14 +40,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "bench", help="latency and peak memory of every stage, classifier and planner"
     )
     p.add_argument("--sizes", help="comma-separated WFOV sizes in px (default 256,512,1024,2048)")
-    p.add_argument("--classifiers", help="comma-separated subset (default: all)")
-    p.add_argument("--planners", help="comma-separated subset (default: all)")
+    o.CLASSIFIERS.add(p)
+    o.PLANNERS.add(p)
     p.add_argument(
-        "--repeats", type=positive_int, default=5, help="timed runs after a warm-up (default 5)"
+        "--repeats",
+        type=o.int_range(1, 1000, "a number of runs"),
+        default=5,
+        help="timed runs after a warm-up (default 5)",
     )
-    p.add_argument("--out", default="bench.json", help="JSON results (default bench.json)")
+    o.OUT.add(p, required=False, default="bench.json", help="JSON results (default bench.json)")
     p.add_argument("--markdown", help="also write the Markdown tables here")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.QUIET.add(p)
     p.add_argument(
         "--variants",
         help="extra rows: comma-separated unet-uavsar:blend, unet-xception:blend, "

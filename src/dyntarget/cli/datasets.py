@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from dyntarget.cli import options as o
 from dyntarget.cli._common import EXIT_OK, Parser, log, writes
 
 
@@ -48,16 +49,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("name", help="dataset name (see 'dyntarget datasets list')")
     q.add_argument("--to", required=True, help="download folder")
     q.add_argument("--url", help="record API address (default: the Zenodo record)")
-    q.add_argument("--quiet", action="store_true", help="no progress bars")
+    o.QUIET.add(q, help="no progress bars")
     q.set_defaults(func=cmd_datasets_fetch)
     q = ds.add_parser("prepare", help="convert a downloaded dataset into a scene directory")
     q.add_argument("name", help="dataset name")
     q.add_argument(
         "--from", dest="source", required=True, help="folder with the downloaded archives"
     )
-    q.add_argument("--out", required=True, help="scene directory to write")
+    o.OUT.add(q, help="scene directory to write")
     q.add_argument(
         "--negatives", action="store_true", help="add as many plume-free images as labelled ones"
     )
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.QUIET.add(q)
     q.set_defaults(func=cmd_datasets_prepare)

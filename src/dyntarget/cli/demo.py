@@ -7,15 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-from dyntarget import defaults
-from dyntarget.cli._common import (
-    EXIT_OK,
-    SCHEDULER_HELP,
-    load_labelled,
-    positive_int,
-    scheduler_address,
-    writes,
-)
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, load_labelled, writes
 from dyntarget.cli.synth import cmd_synth
 
 
@@ -119,54 +112,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "reproduce", help="both of the paper's tables at its settings, beside its numbers"
     )
-    p.add_argument(
-        "--data", required=True, help="scene directory with labels (e.g. from 'dyntarget synth')"
-    )
-    p.add_argument("--out", required=True, help="output folder (tables, figures, report.md)")
-    p.add_argument(
-        "--models", help="folder for trained models (default OUT/models); reused when present"
-    )
-    p.add_argument(
-        "--folds",
-        type=positive_int,
-        default=defaults.FOLDS,
-        help=f"number of folds (default {defaults.FOLDS}, as the paper)",
-    )
-    p.add_argument(
-        "--epochs",
-        type=positive_int,
-        default=defaults.EPOCHS,
-        help=f"U-Net epochs (default {defaults.EPOCHS}, as the paper)",
-    )
-    p.add_argument(
-        "--factor",
-        type=positive_int,
-        default=defaults.FACTOR,
-        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
-    )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    o.DATA.add(p, help="scene directory with labels (e.g. from 'dyntarget synth')")
+    o.OUT.add(p, help="output folder (tables, figures, report.md)")
+    o.MODELS.add(p, help="folder for trained models (default OUT/models); reused when present")
+    o.FOLDS.add(p, help="number of folds (default %(default)s, as the paper)")
+    o.EPOCHS.add(p, help="U-Net epochs (default %(default)s, as the paper)")
+    o.FACTOR.add(p)
+    o.SEED.add(p)
+    o.SCHEDULER.add(p)
+    o.QUIET.add(p, help="no progress bars")
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser(
         "demo", help="the main job on built-in synthetic data: both tables, figures, report"
     )
-    p.add_argument("--out", default="out", help="output folder (default ./out)")
-    p.add_argument("--scenes", type=positive_int, default=38, help="number of scenes (default 38)")
-    p.add_argument(
-        "--size", type=positive_int, default=512, help="scene size in pixels (default 512)"
-    )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument(
-        "--factor",
-        type=positive_int,
-        default=defaults.FACTOR,
-        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
-    )
+    o.OUT.add(p, required=False, default="out", help="output folder (default ./out)")
+    o.SCENES.add(p)
+    o.SIZE.add(p)
+    o.SEED.add(p)
+    o.FACTOR.add(p)
     p.add_argument("--unets", action="store_true", help="also train the two U-Nets (slower)")
-    p.add_argument(
-        "--epochs", type=positive_int, default=5, help="U-Net epochs with --unets (default 5)"
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    o.EPOCHS.add(p, default=5, help="U-Net epochs with --unets (default 5)")
+    o.QUIET.add(p, help="no progress bars")
     p.set_defaults(func=cmd_demo)

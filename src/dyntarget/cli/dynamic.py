@@ -7,18 +7,8 @@ import json
 import time
 from pathlib import Path
 
-from dyntarget.cli._common import (
-    EXIT_OK,
-    SCHEDULER_HELP,
-    add_orbit_options,
-    add_plan_options,
-    log,
-    name_lists,
-    plan_config,
-    positive_int,
-    scheduler_address,
-    writes,
-)
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, log, name_lists, plan_config, writes
 
 
 def _latencies(text: str) -> tuple[float, ...]:
@@ -94,19 +84,25 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
                 f"\nMode {mode}, all winds:\n",
                 markdown_table(*latency_table(records, mode=mode)),
             ]
-    paths = [
-        write_text(out / "dynamic.csv", csv_text(result["rows"], DYNAMIC_COLUMNS)),
-        write_text(out / "dynamic.md", "".join(sections)),
-        write_text(out / "dynamic.json", json.dumps(result, indent=1) + "\n"),
-        write_text(out / "dynamic.timing.json", json.dumps({"seconds": seconds}) + "\n"),
-    ]
-    winds = [None, "8-12"] if "8-12" in bins and len(bins) > 1 else [None]
-    for mode in config.modes:
-        name = "dynamic.png" if mode == "static" else f"dynamic-{mode}.png"
-        paths.append(latency_figure(records, out / name, winds=winds, mode=mode))
+    from dyntarget.defaults import DYNAMIC_MODES
+    from dyntarget.fly.staging import staged
+
+    figures = ["dynamic.png", *(f"dynamic-{m}.png" for m in DYNAMIC_MODES if m != "static")]
+    stale = ("dynamic.csv", "dynamic.md", "dynamic.json", "dynamic.timing.json", *figures)
+    with staged(out, stale=stale) as stage:  # the tables and figures move in together
+        paths = [
+            write_text(stage / "dynamic.csv", csv_text(result["rows"], DYNAMIC_COLUMNS)),
+            write_text(stage / "dynamic.md", "".join(sections)),
+            write_text(stage / "dynamic.json", json.dumps(result, indent=1) + "\n"),
+            write_text(stage / "dynamic.timing.json", json.dumps({"seconds": seconds}) + "\n"),
+        ]
+        winds = [None, "8-12"] if "8-12" in bins and len(bins) > 1 else [None]
+        for mode in config.modes:
+            name = "dynamic.png" if mode == "static" else f"dynamic-{mode}.png"
+            paths.append(latency_figure(records, stage / name, winds=winds, mode=mode))
     print("".join(sections[1:3]))
     log(f"dynamic evaluation of {len(sequences)} sequences took {seconds:.0f} s")
-    log("wrote " + ", ".join(str(p) for p in paths))
+    log("wrote " + ", ".join(str(out / p.name) for p in paths if p is not None))
     return EXIT_OK
 
 
@@ -132,21 +128,17 @@ def register_evaluation(ev: argparse._SubParsersAction) -> None:
             "wind bin), dynamic.json (per-scene records) and dynamic.png (ratio plume vs latency)."
         ),
     )
-    q.add_argument(
-        "--data", required=True, help="sequence directory (sub-folders with sequence.json)"
-    )
-    q.add_argument("--out", required=True, help="output folder")
-    q.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
-    q.add_argument("--models", help="folder to keep trained models in and reuse them from")
-    q.add_argument("--folds", type=positive_int, default=5, help="number of folds (default 5)")
-    q.add_argument("--epochs", type=positive_int, default=50, help="U-Net epochs (default 50)")
-    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    q.add_argument(
-        "--classifiers",
+    o.DATA.add(q, help="sequence directory (sub-folders with sequence.json)")
+    o.OUT.add(q)
+    o.FACTOR.add(q, default=4)
+    o.QUIET.add(q)
+    o.SCHEDULER.add(q)
+    o.MODELS.add(q)
+    o.FOLDS.add(q, default=5)
+    o.EPOCHS.add(q, default=50)
+    o.SEED.add(q)
+    o.CLASSIFIERS.add(
+        q,
         help="axis: comma-separated classifiers trained per fold (default mlp, a good "
         "per-pixel classifier; unet-uavsar is better and slower)",
     )
@@ -155,7 +147,7 @@ def register_evaluation(ev: argparse._SubParsersAction) -> None:
         action="store_true",
         help="leave out planning on the decision frame's true mask (classifier 'true-mask')",
     )
-    q.add_argument("--planners", help="axis: comma-separated planners (default: all six)")
+    o.PLANNERS.add(q, help="axis: comma-separated planners (default: all six)")
     q.add_argument(
         "--modes",
         help=f"axis: comma-separated modes (default static; available: {', '.join(MODES)})",
@@ -168,18 +160,15 @@ def register_evaluation(ev: argparse._SubParsersAction) -> None:
         + ",".join(f"{v:g}" for v in DEFAULT_LATENCIES)
         + ")",
     )
-    q.add_argument(
-        "--agility",
+    o.AGILITY.add(
+        q,
         default="unlimited",
         choices=list(AGILITY),
         help="NFOV agility preset for timing the pointings (default unlimited: all at the latency)",
     )
-    add_orbit_options(q)
-    q.add_argument(
-        "--truth-step-s",
-        type=float,
-        default=1.0,
-        help="pointing times are rounded to this step to share truth renderings (default 1 s)",
+    o.add_orbit_options(q)
+    o.TRUTH_STEP_S.add(
+        q, help="pointing times are rounded to this step to share truth renderings (default 1 s)"
     )
-    add_plan_options(q)
+    o.add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_dynamic)

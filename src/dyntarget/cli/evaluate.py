@@ -8,12 +8,11 @@ from pathlib import Path
 
 from dyntarget import defaults
 from dyntarget.cli import dynamic
+from dyntarget.cli import options as o
 from dyntarget.cli._common import (
     EXIT_OK,
     Parser,
     add_evaluation_options,
-    add_orbit_options,
-    add_plan_options,
     load_labelled,
     log,
     name_lists,
@@ -31,7 +30,6 @@ EVALUATIONS: tuple = (dynamic,)
 def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.crossval import TABLE1_COLUMNS, CVConfig, cross_validate
     from dyntarget.evaluate.options import RunOptions
-    from dyntarget.evaluate.tables import markdown_table, write_result
 
     config = CVConfig(
         folds=args.folds,
@@ -54,12 +52,10 @@ def cmd_evaluate_classification(args: argparse.Namespace) -> int:
     )
     seconds = time.perf_counter() - t0
     result["timing"]["seconds"] = seconds
-    paths = write_result(args.out, "table1_classification", result, TABLE1_COLUMNS)
-    print(markdown_table(result["rows"], TABLE1_COLUMNS))
     log(
         f"cross-validation of {len(config.classifiers)} classifiers on {len(scenes)} scenes took {seconds:.0f} s"
     )
-    log("wrote " + ", ".join(str(p) for p in paths.values()))
+    show_result(args.out, "table1_classification", result, TABLE1_COLUMNS)
     return EXIT_OK
 
 
@@ -154,40 +150,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     q = ev.add_parser("classification", help="k-fold cross-validation of the classifiers (Table 1)")
     add_evaluation_options(q)
-    q.add_argument("--classifiers", help="comma-separated subset (default: all)")
+    o.CLASSIFIERS.add(q)
     q.set_defaults(func=cmd_evaluate_classification)
     q = ev.add_parser("planning", help="the six planners on the true masks")
     add_evaluation_options(q, trains=False)
-    add_plan_options(q)
+    o.add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_planning)
     q = ev.add_parser(
         "agility", help="planners and utility-max under orbit kinematics and agility presets"
     )
     add_evaluation_options(q)
-    q.add_argument(
-        "--classifier",
+    o.CLASSIFIER.add(
+        q,
         default=defaults.AGILITY_CLASSIFIER,
         help=f"classifier to plan on (default {defaults.AGILITY_CLASSIFIER})",
     )
-    q.add_argument("--planners", help="comma-separated geometric planners (default: the four)")
-    q.add_argument("--agility", help="comma-separated presets (default: all; 'dyntarget agility')")
-    q.add_argument(
-        "--objective",
-        default=defaults.OBJECTIVE,
-        choices=defaults.OBJECTIVES,
-        help=f"what utility-max maximises (default {defaults.OBJECTIVE})",
-    )
-    add_orbit_options(q)
-    add_plan_options(q)
+    o.PLANNERS.add(q, help="comma-separated geometric planners (default: the four)")
+    o.AGILITY.add(q, help="comma-separated presets (default: all; 'dyntarget agility')")
+    o.OBJECTIVE.add(q)
+    o.add_orbit_options(q)
+    o.add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_agility)
 
     q = ev.add_parser(
         "end-to-end", help="classify, denoise, plan and observe on held-out scenes (Table 2)"
     )
     add_evaluation_options(q)
-    q.add_argument("--classifiers", help="comma-separated subset (default: all)")
-    q.add_argument("--planners", help="comma-separated subset (default: all)")
-    add_plan_options(q)
+    o.CLASSIFIERS.add(q)
+    o.PLANNERS.add(q)
+    o.add_plan_options(q)
     q.set_defaults(func=cmd_evaluate_end_to_end)
     for module in EVALUATIONS:
         module.register_evaluation(ev)

@@ -7,18 +7,8 @@ import csv
 import sys
 from pathlib import Path
 
-from dyntarget.cli._common import (
-    EXIT_OK,
-    SCHEDULER_HELP,
-    add_orbit_options,
-    add_plan_options,
-    log,
-    plan_config,
-    positive_float,
-    positive_int,
-    scheduler_address,
-    writes,
-)
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, log, plan_config, writes
 from dyntarget.errors import DynTargetError, InvalidParameterError
 
 
@@ -48,10 +38,19 @@ def _geo(args: argparse.Namespace):
         )
         if getattr(args, o) not in (None, False)
     ]
-    if not (args.geo or args.geo_omniscient or args.geo_blind):
+    modes = [f"--{m.replace('_', '-')}" for m in GEO_MODES if getattr(args, m)]
+    if not modes:
         if given:
             raise InvalidParameterError(f"--{given[0].replace('_', '-')}: give --geo too")
         return None
+    if len(modes) > 1:
+        raise InvalidParameterError(f"{' and '.join(modes)} exclude each other; give one")
+    ignored = [g for g in given if g not in GEO_MODE_OPTIONS.get(modes[0], given)]
+    if ignored:
+        raise InvalidParameterError(
+            f"--{ignored[0].replace('_', '-')}: has no effect with {modes[0]} "
+            f"({GEO_MODE_WHAT[modes[0]]}); leave it out or fly with --geo"
+        )
     from dyntarget.fly.geo import GeoSettings
 
     kw = {
@@ -62,6 +61,20 @@ def _geo(args: argparse.Namespace):
     if args.geo_no_stage:
         kw["stage"] = False
     return GeoSettings(**kw, omniscient=bool(args.geo_omniscient), blind=bool(args.geo_blind))
+
+
+GEO_MODES = ("geo", "geo_omniscient", "geo_blind")
+GEO_MODE_OPTIONS = {
+    "--geo-omniscient": ("geo_reserve", "geo_no_stage"),
+    "--geo-blind": (),
+}
+"""The ``--geo-*`` settings each GEO mode uses (``--geo`` uses them all): the omniscient
+blueprint is planned on the true plumes (no GEO grid, cadence, latency or detection); the
+blind ablation has no blueprint at all (nothing to reserve or stage)."""
+GEO_MODE_WHAT = {
+    "--geo-omniscient": "the blueprint is planned on the true plumes, not on GEO images",
+    "--geo-blind": "there is no blueprint",
+}
 
 
 def _pass_config(args: argparse.Namespace, planner: str, agility: str):
@@ -117,8 +130,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 
 def _fly(args: argparse.Namespace) -> int:
-    from dyntarget.fly import fly_pass
-    from dyntarget.fly.report import ViewCollector, write_pass, write_progress
     from dyntarget.fly.strip import load_world
 
     if "," in args.planner or "," in args.agility:
@@ -150,43 +161,86 @@ def _fly(args: argparse.Namespace) -> int:
         from dyntarget.perceive import load_classifier
 
         fallback = load_classifier(args.fallback_model)
-    out = Path(args.out)
-    views = None if args.no_html else ViewCollector()
-    from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
+    return _fly_staged(args, world, classifier, fallback, config, geo)
 
-    with stop_on_signals() as stop:
-        try:
-            result = fly_pass(
-                world,
-                classifier,
-                config,
-                fallback=fallback,
-                on_frame=_Progress(lambda r: write_progress(r, world, out, crs_mode=args.crs)),
-                should_stop=stop.is_set,
-                progress=not args.quiet,
-                frame_sink=views,
-                geo=geo,
-            )
-        except Exception as exc:  # found after the first frame: no progress files without a summary
-            _remove_progress(out)
-            if isinstance(exc, DynTargetError):
+
+def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, geo) -> int:
+    """Fly the pass into a staging folder inside ``--out``; move it into place when written.
+
+    A failure leaves ``--out`` as it was. A pass stopped by a signal is moved into place
+    when ``--out`` holds no earlier pass; otherwise the earlier pass is kept and the
+    stopped one stays in its staging folder, named on stderr.
+    """
+    from dyntarget.fly import fly_pass
+    from dyntarget.fly.report import ViewCollector, write_progress
+    from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
+    from dyntarget.fly.staging import commit_pass, discard, new_stage
+
+    out = Path(args.out)
+    stage = new_stage(out)
+    views = None if args.no_html else ViewCollector()
+    try:
+        with stop_on_signals() as stop:
+            try:
+                result = fly_pass(
+                    world,
+                    classifier,
+                    config,
+                    fallback=fallback,
+                    on_frame=_Progress(
+                        lambda r: write_progress(r, world, stage, crs_mode=args.crs)
+                    ),
+                    should_stop=stop.is_set,
+                    progress=not args.quiet,
+                    frame_sink=views,
+                    geo=geo,
+                )
+            except DynTargetError as exc:  # found after the first frame: nothing is kept
                 raise type(exc)(
-                    f"{exc} (the pass stopped; no partial timeline is left in {out})"
+                    f"{exc} (the pass stopped; no partial timeline is left in {out}: "
+                    "it holds what it held before)"
                 ) from None
-            raise
-    written = write_pass(
-        result, world, out, picture=not args.no_picture, views=views, crs_mode=args.crs
-    )
+        written = _write_outputs(args, result, world, views, stage)
+    except BaseException:
+        discard(stage)
+        raise
     t = result.totals()
     log(
         f"{t['frames']} frames, {t['pointings_flown']} pointings flown, "
         f"{t['plumes_observed']} of {t['plumes_total']} plumes observed, utility {t['utility']:.2f}"
         + (" (stopped)" if result.stopped else "")
     )
-    log("wrote " + ", ".join(str(p) for p in written))
+    if result.stopped and _holds_a_pass(out):
+        log(
+            f"stopped: {out} keeps its earlier pass; this pass's {t['frames']} frame(s) are in "
+            f"{stage}"
+        )
+    else:
+        commit_pass(stage, out)
+        log("wrote " + ", ".join(str(out / p.relative_to(stage)) for p in written))
     if result.stopped and stop.caught:
         return 128 + stop.caught[0]
     return EXIT_OK
+
+
+def _write_outputs(args: argparse.Namespace, result, world, views, stage: Path) -> list[Path]:
+    """Every file of the pass into ``stage``, in the order the ``wrote`` line names them."""
+    from dyntarget.fly.geo import write_times
+    from dyntarget.fly.report import MEASURED, write_pass
+
+    written = write_pass(
+        result, world, stage, picture=not args.no_picture, views=views, crs_mode=args.crs
+    )
+    if (stage / MEASURED).is_file() and stage / MEASURED not in written:
+        written.insert(2, stage / MEASURED)  # the measured stage times (a fixed-budget pass)
+    times = write_times(result, stage)
+    return written if times is None else [*written, times]
+
+
+def _holds_a_pass(out: Path) -> bool:
+    from dyntarget.fly.report import SUMMARY_JSON
+
+    return (out / SUMMARY_JSON).is_file()
 
 
 class _Progress:
@@ -214,13 +268,6 @@ class _Progress:
 
 PROGRESS_TIME_FACTOR = 20.0
 """After a rewrite of the progress files taking ``d`` s, the next waits ``20 d`` (<= 5 % of the time)."""
-
-
-def _remove_progress(out: Path) -> None:
-    from dyntarget.fly.report import MEASURED, POINTINGS, TIMELINE
-
-    for name in (TIMELINE, MEASURED, POINTINGS):
-        (out / name).unlink(missing_ok=True)
 
 
 def _watch(args: argparse.Namespace) -> int:
@@ -287,9 +334,23 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Fly a pass: look-ahead frames cut along a strip at the frame cadence, each "
         "classified, denoised and planned, the pointings of one shared NFOV scheduled under the "
         "agility limits and scored against the truth at their own time (docs/onboard.md). "
-        "Writes timeline.csv, pointings.geojson, summary.md, summary.json (the totals), pass.png (the picture) and "
-        "pass.html (the interactive view, with a time slider) into --out.",
+        "Writes timeline.csv, pointings.geojson, summary.md, summary.json (the totals), pass.png "
+        "(the picture) and pass.html (the interactive view, with a time slider) into --out; "
+        "with a fixed --compute-budget-s also stage_times.csv (the measured times), with a GEO "
+        "blueprint geo.timing.json. A rerun replaces the earlier pass only when it is complete.",
     )
+    _add_sources(p)
+    _add_pass_options(p)
+    _add_prediction_options(p)
+    _add_geo_options(p)
+    _add_output_options(p)
+    _add_live_options(p)
+    o.add_plan_options(p)
+    p.set_defaults(func=cmd_fly)
+
+
+def _add_sources(p: argparse.ArgumentParser) -> None:
+    """What to fly (a strip, a watched folder, a campaign) and how frames are classified."""
     what = p.add_argument_group("what to fly (one of)")
     what.add_argument(
         "--scene", help="a strip: 'dyntarget synth --strip' output or a GeoTIFF with a label"
@@ -299,66 +360,61 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     what.add_argument("--campaign", help="a directory of strips: every strip x planner x preset")
     src = p.add_argument_group("how frames are classified (one of)")
-    src.add_argument("--model", help="trained model directory ('dyntarget train')")
+    o.MODEL.add(src, help="trained model directory ('dyntarget train')")
     src.add_argument("--truth", action="store_true", help="plan on the true mask (an oracle)")
-    src.add_argument(
-        "--onnx", action="store_true", help="run the model's ONNX export (onnxruntime)"
-    )
-    src.add_argument("--int8", action="store_true", help="its INT8 export (implies --onnx)")
-    src.add_argument("--fallback-model", help="a cheaper model to fall back on under --deadline-s")
-    p.add_argument(
-        "--planner",
+    o.add_model_options(src, onnx_help="run the model's ONNX export (onnxruntime)")
+    o.FALLBACK_MODEL.add(src, help="a cheaper model to fall back on under --deadline-s")
+
+
+def _add_pass_options(p: argparse.ArgumentParser) -> None:
+    """Planner, agility, resolution, frames, timing and orbit of the pass."""
+    o.PLANNER.add(
+        p,
         default="lawnmower-transect",
         help="planner (comma list with --campaign; default lawnmower-transect)",
     )
-    p.add_argument(
-        "--agility",
+    o.AGILITY.add(
+        p,
         default="fast",
         help="agility preset: unlimited, fast, slow (comma list with --campaign; "
         "'none' in --watch: no scheduling; default fast)",
     )
-    p.add_argument("--out", required=True, help="output directory")
+    o.OUT.add(p, help="output directory")
+    o.FACTOR.add(p, default=4)
+    o.FORCE.add(p)
     p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="run a model at more than twice or half the resolution it was trained at",
-    )
-    p.add_argument(
-        "--frame-px", type=positive_int, help="frame height in WFOV px (default: the strip's width)"
+        "--frame-px",
+        type=o.int_range(8, 65_536, "a frame height in WFOV px"),
+        help="frame height in WFOV px (default: the strip's width)",
     )
     p.add_argument(
         "--overlap",
-        type=float,
+        type=o.float_range(0.0, 1.0, "a fraction of a frame", hi_open=True),
         default=0.5,
         help="fraction of a frame the next one sees again (default 0.5); sets the cadence",
     )
     p.add_argument(
         "--compute-budget-s",
-        type=positive_float,
+        type=o.positive_seconds,
         help="fixed compute time per frame instead of the measured one (deterministic)",
     )
-    p.add_argument(
-        "--deadline-s",
-        type=positive_float,
-        help="seconds from acquisition to plan per frame; fallbacks apply, late frames drop",
+    o.DEADLINE_S.add(
+        p, help="seconds from acquisition to plan per frame; fallbacks apply, late frames drop"
     )
     p.add_argument(
         "--footprint",
-        type=positive_int,
+        type=o.odd_footprint,
         default=1,
-        help="NFOV footprint in WFOV px (odd; default 1)",
+        help=f"NFOV footprint in WFOV px (odd, at most {o.MAX_FOOTPRINT} and the strip's "
+        "width; default 1)",
     )
-    add_orbit_options(p, look_ahead_type=positive_float)
-    p.add_argument(
-        "--truth-step-s",
-        type=float,
-        default=1.0,
-        help="time quantum of a moving strip's truth (default 1 s)",
-    )
-    p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
+    o.add_orbit_options(p, look_ahead_positive=True)
+    o.TRUTH_STEP_S.add(p)
+    o.NO_DENOISE.add(p)
+
+
+def _add_prediction_options(p: argparse.ArgumentParser) -> None:
+    """``--predict`` and its wind prior."""
     pr = p.add_argument_group(
         "prediction (plan for the plume as it will be when the NFOV is there)"
     )
@@ -370,24 +426,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "wind prior; two-looks: motion from this frame's overlap with the previous one, "
         "checked against the wind prior when there is one",
     )
-    pr.add_argument(
-        "--ground",
-        choices=["auto", "fixed", "moving"],
-        default="auto",
+    o.GROUND.add(
+        pr,
         help="with two-looks: is the background a fixed ground (its shift is misregistration, "
         "removed) or moving itself (weather, a plume over moving cloud)? auto (default) "
         "decides from the frames and says so",
     )
-    pr.add_argument(
-        "--wind-mps",
-        type=float,
-        help="wind prior speed, m/s (default: a synthetic strip's own wind, an ideal forecast)",
+    o.add_wind_options(
+        pr,
+        mps="wind prior speed, m/s (default: a synthetic strip's own wind, an ideal forecast)",
+        from_deg="direction the wind blows from, degrees clockwise from north",
     )
-    pr.add_argument(
-        "--wind-from-deg",
-        type=float,
-        help="direction the wind blows from, degrees clockwise from north",
-    )
+
+
+def _add_geo_options(p: argparse.ArgumentParser) -> None:
+    """Geostationary foresight: ``--geo`` (or its reference and ablation) and its settings."""
     geo = p.add_argument_group(
         "geostationary foresight (plan the whole pass from GEO images, refine with the look-ahead)"
     )
@@ -401,18 +454,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--geo-omniscient",
         action="store_true",
         help="the omniscient reference: the blueprint planned on the true plumes "
-        "(no latency, no noise)",
+        "(no latency, no noise; takes --geo-reserve and --geo-no-stage only)",
     )
     geo.add_argument(
         "--geo-blind",
         action="store_true",
-        help="no blueprint: the onboard refinement alone (an ablation: what GEO adds to it)",
+        help="no blueprint: the onboard refinement alone (an ablation: what GEO adds to it; "
+        "takes no other --geo-* setting)",
     )
-    geo.add_argument("--geo-gsd-m", type=float, help="GEO cell size, m (default 2000)")
-    geo.add_argument("--geo-cadence-s", type=float, help="seconds between GEO images (default 600)")
+    geo.add_argument(
+        "--geo-gsd-m",
+        type=o.float_range(1.0, 50_000.0, "metres"),
+        help="GEO cell size, m (default 2000)",
+    )
+    geo.add_argument(
+        "--geo-cadence-s",
+        type=o.positive_seconds,
+        help="seconds between GEO images (default 600)",
+    )
     geo.add_argument(
         "--geo-latency-s",
-        type=float,
+        type=o.seconds,
         help="an image taken at t is usable from t + latency (default 300)",
     )
     geo.add_argument(
@@ -430,33 +492,37 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     geo.add_argument(
         "--geo-reserve",
-        type=float,
+        type=o.float_range(0.0, 0.9, "a fraction"),
         help="fraction of sensor time kept for plumes the look-ahead finds (default 0.1)",
     )
-    p.add_argument("--no-picture", action="store_true", help="skip pass.png")
-    p.add_argument("--no-html", action="store_true", help="skip pass.html (interactive view)")
-    p.add_argument(
-        "--crs",
-        choices=["rfc7946", "native"],
-        default="rfc7946",
+
+
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    """What is written besides the timeline, and how campaigns are run."""
+    o.NO_PICTURE.add(p, help="skip pass.png")
+    o.NO_HTML.add(p, help="skip pass.html (interactive view)")
+    o.CRS.add(
+        p,
         help="pointings.geojson in WGS 84 lon/lat (RFC 7946, default) or the strip's own CRS "
         "(legacy 'crs' member, for GIS)",
     )
-    p.add_argument("--scheduler", type=scheduler_address, help=SCHEDULER_HELP)
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.SCHEDULER.add(p)
+    o.QUIET.add(p)
+
+
+def _add_live_options(p: argparse.ArgumentParser) -> None:
+    """``--watch``: polling, settling and when to stop."""
     live = p.add_argument_group("live mode (--watch)")
-    live.add_argument("--poll-s", type=positive_float, default=0.2, help="default 0.2")
+    live.add_argument("--poll-s", type=o.positive_seconds, default=0.2, help="default 0.2")
     live.add_argument(
         "--settle-s",
-        type=float,
+        type=o.seconds,
         default=1.0,
         help="a file unchanged this long may be read (default 1)",
     )
     live.add_argument(
         "--idle-exit-s",
-        type=positive_float,
+        type=o.positive_seconds,
         help="stop after this long without a new frame (default: run until stopped)",
     )
-    live.add_argument("--max-frames", type=positive_int, help="stop after this many frames")
-    add_plan_options(p)
-    p.set_defaults(func=cmd_fly)  # fmt: skip
+    live.add_argument("--max-frames", type=o.positive_int, help="stop after this many frames")

@@ -6,17 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from dyntarget import defaults
-from dyntarget.cli._common import (
-    EXIT_OK,
-    load_labelled,
-    log,
-    plain_text,
-    positive_float,
-    positive_int,
-    preset_names,
-    writes,
-)
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, load_labelled, log, plain_text, writes
 
 
 def cmd_classifiers(args: argparse.Namespace) -> int:
@@ -144,17 +135,19 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     for target in targets:  # every compiler before anything is written
         if compiled.target_compiler(target) is None:
             compiled.build_target(target, Path(args.model) / "unused")  # raises, one line
-    if native.name == "random-forest":
-        native.estimator  # type: ignore[attr-defined]  # noqa: B018 (read model.skops first)
-        for old in compiled.kernel_files(args.model):  # built for the forest.npz replaced now
-            old.unlink()
-        if (Path(args.model) / compiled.FOREST_FILE).is_file():
-            compiled.write_manifest(args.model, kernels=[])
+    # everything checked before anything is deleted: a refusal leaves the model as it was
+    check = generate_scene(args.seed, 0, size=args.check_size)[0].image
     for name in ("model.onnx", "forest.npz", "forest.json"):  # a forest's packed arrays
         out = Path(args.model) / name
         if out.is_symlink() or (out.exists() and not out.is_file()):
             raise OutputPathError(f"{out}: not a regular file; it is left as it is")
-    check = generate_scene(args.seed, 0, size=args.check_size)[0].image
+    if native.name == "random-forest":
+        native.estimator  # type: ignore[attr-defined]  # noqa: B018 (read model.skops first)
+        compiled.check_manifest_readable(args.model)  # never rewrite what could not be read
+        for old in compiled.kernel_files(args.model):  # built for the forest.npz replaced now
+            old.unlink()
+        if (Path(args.model) / compiled.FOREST_FILE).is_file():
+            compiled.write_manifest(args.model, kernels=[])
     path, diff = export_checked(native, args.model, check)
     log(f"{native.name}: ONNX and native plume probabilities agree to {diff:.1e} on a check scene")
     print(path)
@@ -201,6 +194,15 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_install_kernel(args: argparse.Namespace) -> int:
+    from dyntarget.perceive import compiled
+
+    path = compiled.install_kernel(args.library, target=args.target)
+    log(f"installed {args.library} into this user's forest-kernel cache")
+    print(path)
+    return EXIT_OK
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this module's command(s) to the ``dyntarget`` sub-commands."""
     p = sub.add_parser("classifiers", help="list the plume classifiers")
@@ -221,34 +223,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="one labelled image instead of --data: a 4-band GeoTIFF, a multi-band product with "
         "--preset/--bands, a .npz, or four single-band files in the order R G B NIR",
     )
-    p.add_argument("--data", help="scene directory with labels")
-    p.add_argument(
-        "--mask", help="the image's label (.tif, non-zero = plume, or .geojson); with IMAGE"
-    )
-    p.add_argument("--preset", help="sensor preset: " + ", ".join(preset_names()))
-    p.add_argument(
-        "--bands", help="R,G,B,NIR band numbers (1-based) or names, e.g. 3,2,1,7 or B4,B3,B2,B8"
-    )
-    p.add_argument(
-        "--scale", type=positive_float, help="reflectance per digital number for integer images"
-    )
-    p.add_argument(
-        "--offset", type=float, help="reflectance offset added after scaling (e.g. -0.1)"
-    )
-    p.add_argument(
-        "--classifier", required=True, help="classifier name (see 'dyntarget classifiers')"
-    )
-    p.add_argument("--out", required=True, help="model directory to write")
-    p.add_argument(
-        "--epochs", type=positive_int, default=50, help="U-Net epochs (default 50, as the paper)"
-    )
-    p.add_argument(
-        "--factor",
-        type=positive_int,
-        default=defaults.FACTOR,
-        help=f"high-res -> WFOV factor (default {defaults.FACTOR})",
-    )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    o.DATA.add(p, required=False)
+    o.MASK.add(p, help="the image's label (.tif, non-zero = plume, or .geojson); with IMAGE")
+    o.add_sensor_options(p)
+    o.CLASSIFIER.add(p, required=True)
+    o.OUT.add(p, help="model directory to write")
+    o.EPOCHS.add(p, default=50, help="U-Net epochs (default 50, as the paper)")
+    o.FACTOR.add(p)
+    o.SEED.add(p)
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser(
@@ -256,27 +238,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("model", help="trained model directory (from 'dyntarget train')")
     p.add_argument(
-        "--check-size", type=positive_int, default=128, help="check scene size (default 128)"
+        "--check-size",
+        type=o.int_range(16, 4096, "a check scene size in px"),
+        default=128,
+        help="check scene size (default 128)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the check scene (default 0)")
-    p.add_argument(
-        "--int8",
-        action="store_true",
-        help="also write model.int8.onnx: static INT8 quantization (U-Nets and MLP)",
-    )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="keep model.int8.onnx even when it differs from FP32 by more than the tolerance",
+    o.SEED.add(p, help="seed of the check scene (default 0)")
+    o.INT8.add(p, help="also write model.int8.onnx: static INT8 quantization (U-Nets and MLP)")
+    o.FORCE.add(
+        p, help="keep model.int8.onnx even when it differs from FP32 by more than the tolerance"
     )
     p.add_argument(
         "--calibration",
         help="labelled scene directory to calibrate INT8 on (the training scenes; default: "
         "synthetic scenes)",
     )
-    p.add_argument(
-        "--factor", type=positive_int, default=4, help="high-res -> WFOV factor (default 4)"
-    )
+    o.FACTOR.add(p, default=4)
     p.add_argument(
         "--targets",
         default="auto",
@@ -285,6 +262,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "host (this machine's best); 'none' builds none. Default 'auto': every one of these "
         "there is a compiler for here (those left out are said on stderr). aarch64 on x86 "
         "needs aarch64-linux-gnu-gcc (Debian gcc-aarch64-linux-gnu). The libraries go into "
-        "the model directory, bound by SHA-256 in forest.json",
+        "the model directory (recorded by SHA-256 in forest.json) to be installed with "
+        "'dyntarget install-kernel' on the machine that runs the model; a kernel is never "
+        "loaded from a model directory",
     )
     p.set_defaults(func=cmd_export_onnx)
+
+    p = sub.add_parser(
+        "install-kernel",
+        help="install a forest kernel built elsewhere (export-onnx --targets) into this user's "
+        "cache, the only place a kernel is loaded from (docs/reliability.md)",
+    )
+    p.add_argument("library", help="the library, e.g. MODEL/forest-kernel-aarch64.so")
+    p.add_argument(
+        "--target",
+        help="x86-64-v4, x86-64-v3, x86-64 or aarch64 (default: from the file name)",
+    )
+    p.set_defaults(func=cmd_install_kernel)

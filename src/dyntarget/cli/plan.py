@@ -4,18 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from dyntarget import defaults
+from dyntarget.cli import options as o
 from dyntarget.cli._common import (
     EXIT_NOTHING_FEASIBLE,
     EXIT_OK,
-    add_orbit_options,
-    add_plan_options,
     log,
     plain_text,
     plan_config,
-    positive_float,
-    positive_int,
-    preset_names,
     writes,
 )
 from dyntarget.cli._outputs import add_output_options, write_outputs
@@ -272,84 +267,60 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a 4-band GeoTIFF (R, G, B, NIR), a multi-band product with --preset/--bands, a .npz, "
         "or four single-band files in the order R G B NIR",
     )
-    src = p.add_mutually_exclusive_group()
-    src.add_argument("--mask", help="plume mask to plan on (.tif, non-zero = plume, or .geojson)")
-    src.add_argument("--model", help="trained model directory (from 'dyntarget train')")
-    p.add_argument("--classifier", help="classifier name; must match --model")
-    p.add_argument(
-        "--onnx", action="store_true", help="run the model's ONNX export with onnxruntime"
-    )
-    p.add_argument(
-        "--int8",
-        action="store_true",
-        help="run the model's INT8 ONNX export ('export-onnx --int8'; implies --onnx)",
-    )
-    p.add_argument(
-        "--deadline-s",
-        type=positive_float,
-        help="seconds allowed for classify + denoise + plan; cheaper paths are taken to meet it",
-    )
-    p.add_argument(
-        "--fallback-model", help="a cheaper trained model to fall back on under --deadline-s"
-    )
-    p.add_argument(
-        "--planner",
+    _add_plan_sources(p)
+    o.PLANNER.add(
+        p,
         required=True,
         help="planner name (see 'dyntarget planners'), or utility-max (with --agility)",
     )
-    p.add_argument(
-        "--out",
-        required=True,
-        help="trajectory file: .geojson (RFC 7946 unless --crs native) or .csv",
-    )
+    o.OUT.add(p, help="trajectory file: .geojson (RFC 7946 unless --crs native) or .csv")
     p.add_argument("--figure", help="also draw the trajectory over the image (PNG)")
-    p.add_argument(
-        "--factor",
-        type=positive_int,
-        default=1,
-        help="downsample the image to WFOV first (default 1)",
-    )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="run a model at more than twice or half the resolution it was trained at",
-    )
-    p.add_argument(
-        "--scale", type=positive_float, help="reflectance per digital number for integer images"
-    )
-    p.add_argument("--preset", help="sensor preset: " + ", ".join(preset_names()))
-    p.add_argument(
-        "--bands", help="R,G,B,NIR band numbers (1-based) or names, e.g. 3,2,1,7 or B4,B3,B2,B8"
-    )
-    p.add_argument(
-        "--offset", type=float, help="reflectance offset added after scaling (e.g. -0.1)"
-    )
-    p.add_argument("--no-denoise", action="store_true", help="plan on the raw mask")
-    add_plan_options(p)
+    o.FACTOR.add(p, default=1, help="downsample the image to WFOV first (default 1)")
+    o.FORCE.add(p)
+    o.add_sensor_options(p)
+    o.NO_DENOISE.add(p)
+    o.add_plan_options(p)
     add_predict_options(p)
     add_output_options(p)
+    _add_kinematics(p)
+    p.set_defaults(func=cmd_plan)
+
+
+def _add_plan_sources(p: argparse.ArgumentParser) -> None:
+    """What the plan is drawn on: a mask or a model (and how the model runs)."""
+    src = p.add_mutually_exclusive_group()
+    o.MASK.add(src)
+    o.MODEL.add(src)
+    o.CLASSIFIER.add(p, help="classifier name; must match --model")
+    o.add_model_options(p)
+    o.DEADLINE_S.add(p)
+    o.FALLBACK_MODEL.add(p)
+
+
+def _add_kinematics(p: argparse.ArgumentParser) -> None:
+    """``--agility`` and the orbit, start, budgets and objective that time the pointings."""
     k = p.add_argument_group("kinematics (with --agility: time the pointings, keep the feasible)")
-    k.add_argument("--agility", help="agility preset: unlimited, fast, slow ('dyntarget agility')")
-    add_orbit_options(k)
+    o.AGILITY.add(k)
+    o.add_orbit_options(k)
     k.add_argument(
         "--start-s",
-        type=float,
+        type=o.float_range(-o.MAX_SECONDS, o.MAX_SECONDS, "seconds"),
         default=0.0,
         help="seconds after acquisition when the plan starts (onboard latency; default 0)",
     )
     k.add_argument(
-        "--wfov-gsd", type=positive_float, help="metres per WFOV pixel (default: the image's)"
+        "--wfov-gsd",
+        type=o.float_range(0.0, 100_000.0, "metres", lo_open=True),
+        help="metres per WFOV pixel (default: the image's)",
     )
-    k.add_argument("--budget-s", type=float, help="time budget in seconds from the start")
+    k.add_argument(
+        "--budget-s",
+        type=o.float_range(-o.MAX_SECONDS, o.MAX_SECONDS, "seconds"),
+        help="time budget in seconds from the start",
+    )
     k.add_argument(
         "--max-pointings",
-        type=positive_int,
+        type=o.int_range(1, 1_000_000, "a number of pointings"),
         help="pointing budget (utility-max; needed when unlimited)",
     )
-    k.add_argument(
-        "--objective",
-        default=defaults.OBJECTIVE,
-        choices=defaults.OBJECTIVES,
-        help=f"what utility-max maximises (default {defaults.OBJECTIVE})",
-    )
-    p.set_defaults(func=cmd_plan)
+    o.OBJECTIVE.add(k)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from dyntarget import defaults
-from dyntarget.cli._common import EXIT_OK, positive_int, writes
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, writes
 
 
 @writes(dirs=("out", "models"))
@@ -40,12 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "sweep", help="a parameter grid over held-out scenes x classifiers x planners, on Dask"
     )
-    p.add_argument("--data", required=True, help="scene directory with labels")
-    p.add_argument(
-        "--out", required=True, help="output folder (sweep.csv, parts/, models/, sweep.png)"
-    )
-    p.add_argument("--classifiers", required=True, help="comma-separated classifier names")
-    p.add_argument("--planners", help="comma-separated subset (default: all)")
+    o.DATA.add(p)
+    o.OUT.add(p, help="output folder (sweep.csv, parts/, models/, sweep.png)")
+    o.CLASSIFIERS.add(p, required=True, help="comma-separated classifier names")
+    o.PLANNERS.add(p)
     p.add_argument(
         "--grid",
         nargs="*",
@@ -53,25 +51,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="parameters to sweep: step_fraction, denoise_iterations, min_area_fraction, factor, "
         "agility (presets: unlimited, fast, slow)",
     )
-    p.add_argument(
-        "--folds",
-        type=positive_int,
-        default=defaults.FOLDS,
-        help=f"number of folds (default {defaults.FOLDS})",
-    )
-    p.add_argument(
-        "--epochs",
-        type=positive_int,
-        default=defaults.EPOCHS,
-        help=f"U-Net epochs (default {defaults.EPOCHS})",
-    )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--models", help="folder for trained models (default OUT/models)")
-    p.add_argument(
-        "--scheduler",
+    o.FOLDS.add(p)
+    o.EPOCHS.add(p)
+    o.SEED.add(p)
+    o.MODELS.add(p, help="folder for trained models (default OUT/models)")
+    o.SCHEDULER.add(
+        p,
         default="local",
         help="dask.distributed: local (threads, default), processes (one worker process per "
         "core) or a scheduler address tcp://HOST:PORT",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.QUIET.add(p)
     p.set_defaults(func=cmd_sweep)

@@ -6,24 +6,34 @@ import argparse
 import time
 from pathlib import Path
 
-from dyntarget.cli._common import EXIT_OK, log, positive_float, positive_int, writes
+from dyntarget.cli import options as o
+from dyntarget.cli._common import EXIT_OK, log, writes
 from dyntarget.errors import InvalidParameterError
 
 
 @writes(dirs=("out",))
 def cmd_synth(args: argparse.Namespace) -> int:
+    """Write the scenes, sequences or strips into a staging folder, then into ``--out``."""
+    from dyntarget.fly.staging import staged
+
     if getattr(args, "strip", False):  # demo calls this with the static options only
-        return _synth_strips(args)
+        _check_strip_size(args)  # before anything is written
+    with staged(args.out) as stage:
+        if getattr(args, "strip", False):
+            return _synth_strips(args, stage)
+        if getattr(args, "frames", None) is not None:  # demo: the static options only
+            return _synth_sequences(args, stage)
+        return _synth_scenes(args, stage)
+
+
+def _synth_scenes(args: argparse.Namespace, dest: Path) -> int:
     from tqdm import tqdm
 
     from dyntarget.io import write_scene
     from dyntarget.synth import generate_scenes
 
-    out = Path(args.out)
     t0 = time.perf_counter()
     n_files = 0
-    if getattr(args, "frames", None) is not None:  # demo calls this with the static options only
-        return _synth_sequences(args, out, t0)
     if (
         getattr(args, "wind_mps", None) is not None
         or getattr(args, "wind_from_deg", None) is not None
@@ -33,24 +43,21 @@ def cmd_synth(args: argparse.Namespace) -> int:
     for scene, _params in tqdm(
         gen, total=args.scenes, desc="synth", unit="scene", disable=args.quiet
     ):
-        n_files += len(write_scene(scene, out))
+        n_files += len(write_scene(scene, dest))
     log(
-        f"wrote {args.scenes} scenes ({n_files} files) to {out} in {time.perf_counter() - t0:.1f} s"
+        f"wrote {args.scenes} scenes ({n_files} files) to {args.out} in "
+        f"{time.perf_counter() - t0:.1f} s"
     )
     return EXIT_OK
 
 
-def _synth_strips(args: argparse.Namespace) -> int:
+def _synth_strips(args: argparse.Namespace, dest: Path) -> int:
     """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
     from dyntarget.fly.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
 
     out = Path(args.out)
     t0 = time.perf_counter()
     if args.length_km is not None or args.plumes_per_100km is not None:
-        if args.length_km is None:
-            raise InvalidParameterError("--plumes-per-100km: give --length-km too")
-        if args.length is not None:
-            raise InvalidParameterError("--length (px) and --length-km exclude each other")
         width = args.size if args.size_given else 256
         for i in range(args.scenes):
             spec, window = long_strip_spec(
@@ -64,7 +71,7 @@ def _synth_strips(args: argparse.Namespace) -> int:
                 wind_mps=getattr(args, "wind_mps", None),
                 wind_from_deg=getattr(args, "wind_from_deg", None),
             )
-            write_long_strip(spec, window, out)
+            write_long_strip(spec, window, dest)
         log(
             f"wrote {args.scenes} strip(s) of {args.length_km:g} km to {out} "
             f"in {time.perf_counter() - t0:.1f} s"
@@ -80,17 +87,18 @@ def _synth_strips(args: argparse.Namespace) -> int:
             wind_mps=getattr(args, "wind_mps", None),
             wind_from_deg=getattr(args, "wind_from_deg", None),
         )
-        write_strip(spec, window, out)
+        write_strip(spec, window, dest)
     log(f"wrote {args.scenes} strip(s) to {out} in {time.perf_counter() - t0:.1f} s")
     return EXIT_OK
 
 
-def _synth_sequences(args: argparse.Namespace, out: Path, t0: float) -> int:
+def _synth_sequences(args: argparse.Namespace, dest: Path) -> int:
     from tqdm import tqdm
 
     from dyntarget.io import write_sequence
     from dyntarget.synth import generate_sequences
 
+    t0 = time.perf_counter()
     gen = generate_sequences(
         args.scenes,
         size=args.size,
@@ -103,12 +111,69 @@ def _synth_sequences(args: argparse.Namespace, out: Path, t0: float) -> int:
     )
     n_files = 0
     for seq in tqdm(gen, total=args.scenes, desc="synth", unit="sequence", disable=args.quiet):
-        n_files += len(write_sequence(seq, out))
+        n_files += len(write_sequence(seq, dest))
     log(
         f"wrote {args.scenes} moving-scene sequences of {args.frames} frame(s) "
-        f"({n_files} files) to {out} in {time.perf_counter() - t0:.1f} s"
+        f"({n_files} files) to {args.out} in {time.perf_counter() - t0:.1f} s"
     )
     return EXIT_OK
+
+
+MAX_VENTS, MAX_CLOUDS = 64, 256
+"""Vents and clouds a strip may hold (:data:`dyntarget.synth.dynamic.MAX_VENTS`,
+``MAX_CLOUDS``; written out here so that ``--help`` does not import the renderer, and
+checked equal by the tests)."""
+MIN_LENGTH_KM, MAX_LENGTH_KM = 10.0, 10_000.0
+"""Pass-length strips (:data:`dyntarget.fly.strip.MIN_LENGTH_KM`, ``MAX_LENGTH_KM``)."""
+MAX_WINDOW_SIDE = 1 << 16
+"""Longest side of a rendered window, px (:data:`dyntarget.synth.dynamic.MAX_WINDOW_SIDE`)."""
+MAX_WINDOW_PIXELS = 1 << 23
+"""Most pixels rendered at once (:data:`dyntarget.synth.dynamic.MAX_WINDOW_PIXELS`): a short
+strip is rendered whole, a long strip's frames (``--size`` square) one at a time."""
+MAX_LONG_WIDTH = 2896
+"""Widest pass-length strip, px: its square frames (``--size`` x ``--size``) must render at
+once (``isqrt(MAX_WINDOW_PIXELS)``)."""
+
+
+def _check_strip_size(args: argparse.Namespace) -> None:
+    """Refuse, naming the options, a strip that could not be rendered or would hold too much."""
+    if args.length_km is None and args.plumes_per_100km is None:
+        length = args.length or 4 * args.size + args.size // 2
+        if args.size > 4096 or args.size * length > MAX_WINDOW_PIXELS:
+            raise InvalidParameterError(
+                f"--size {args.size} --length {length}: a {args.size} x {length} px strip is "
+                f"rendered whole, more than the {MAX_WINDOW_PIXELS:,} px rendered at once; "
+                "give a smaller --size or --length, or a pass-length strip with --length-km"
+            )
+        return
+    if args.length_km is None:
+        raise InvalidParameterError("--plumes-per-100km: give --length-km too")
+    if args.length is not None:
+        raise InvalidParameterError("--length (px) and --length-km exclude each other")
+    width = args.size if args.size_given else 256
+    if not 32 <= width <= MAX_LONG_WIDTH:
+        raise InvalidParameterError(
+            f"--size {width}: a pass-length strip is 32 to {MAX_LONG_WIDTH} px across (its "
+            f"square frames are rendered whole, at most {MAX_WINDOW_PIXELS:,} px)"
+        )
+    if args.plumes_given:
+        return  # --plumes is within 1..MAX_VENTS by its type
+    density = 1.0 if args.plumes_per_100km is None else args.plumes_per_100km
+    vents = max(1, round(args.length_km / 100.0 * density))
+    if vents > MAX_VENTS:
+        flag = "" if args.plumes_per_100km is None else f" --plumes-per-100km {density:g}"
+        raise InvalidParameterError(
+            f"--length-km {args.length_km:g}{flag}: {vents} vents at {density:g} per 100 km, "
+            f"more than the {MAX_VENTS} a strip may hold; give --plumes-per-100km "
+            f"{MAX_VENTS * 100 / args.length_km:.3g} or less (or --plumes N)"
+        )
+    clouds = args.length_km / 100.0 * args.clouds_per_100km
+    if clouds > MAX_CLOUDS:
+        raise InvalidParameterError(
+            f"--clouds-per-100km {args.clouds_per_100km:g}: about {clouds:.0f} clouds over "
+            f"{args.length_km:g} km, more than the {MAX_CLOUDS} a strip may hold; give "
+            f"--clouds-per-100km {MAX_CLOUDS * 100 / args.length_km:.3g} or less"
+        )
 
 
 class _Given(argparse.Action):
@@ -119,41 +184,20 @@ class _Given(argparse.Action):
         setattr(namespace, f"{self.dest}_given", True)
 
 
-def _wind_speed(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected m/s, got {text!r}") from None
-    if not 0 <= value <= 60:
-        raise argparse.ArgumentTypeError(f"expected a wind speed in 0..60 m/s, got {text!r}")
-    return value
-
-
-def _degrees(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected degrees, got {text!r}") from None
-    if not -360 <= value <= 360:
-        raise argparse.ArgumentTypeError(f"expected degrees in -360..360, got {text!r}")
-    return value
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this module's command(s) to the ``dyntarget`` sub-commands."""
     p = sub.add_parser("synth", help="generate synthetic volcanic scenes (GeoTIFF + mask)")
-    p.add_argument("--scenes", type=positive_int, default=38, help="number of scenes (default 38)")
+    o.SCENES.add(p)
+    o.SIZE.add(p, action=_Given)
+    o.SEED.add(p)
     p.add_argument(
-        "--size",
-        type=positive_int,
-        action=_Given,
-        default=512,
-        help="scene size in pixels (default 512)",
+        "--gsd",
+        type=o.float_range(0.0, 10_000.0, "metres", lo_open=True),
+        default=8.0,
+        help="metres per pixel (default 8)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--gsd", type=positive_float, default=8.0, help="metres per pixel (default 8)")
-    p.add_argument("--out", required=True, help="output scene directory")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.OUT.add(p, help="output scene directory")
+    o.QUIET.add(p)
     g = p.add_argument_group(
         "moving scenes",
         "with --frames, each scene is a folder <id>/ of look-ahead frames f000.tif, f001.tif, "
@@ -161,23 +205,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "from which the true plume at any time is rebuilt); see docs/synthetic-scenes.md",
     )
     g.add_argument(
-        "--frames", type=positive_int, help="number of look-ahead frames per moving scene"
+        "--frames",
+        type=o.int_range(1, 10_000, "a number of frames"),
+        help="number of look-ahead frames per moving scene",
     )
     g.add_argument(
         "--frame-interval-s",
-        type=positive_float,
+        type=o.positive_seconds,
         default=10.0,
         help="seconds between frames (default 10)",
     )
-    g.add_argument(
-        "--wind-mps",
-        type=_wind_speed,
-        help="wind speed in m/s for every scene (default: drawn per scene, 0-16)",
-    )
-    g.add_argument(
-        "--wind-from-deg",
-        type=_degrees,
-        help="direction the wind blows from, degrees clockwise from north (default: drawn)",
+    o.add_wind_options(
+        g,
+        mps="wind speed in m/s for every scene (default: drawn per scene, 0-16)",
+        from_deg="direction the wind blows from, degrees clockwise from north (default: drawn)",
     )
     s = p.add_argument_group("strips to fly ('dyntarget fly'; --scenes strips, --size px wide)")
     s.add_argument(
@@ -187,29 +228,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--plumes",
-        type=positive_int,
+        type=o.int_range(1, MAX_VENTS, "a number of vents"),
         action=_Given,
         default=4,
         help="vents per strip (default 4; with --length-km, default 1 per 100 km)",
     )
     s.add_argument(
-        "--length", type=positive_int, help="strip length in px (default 4.5 x --size: 8 frames)"
+        "--length",
+        type=o.int_range(64, MAX_WINDOW_SIDE, "a length in px"),
+        help="strip length in px (default 4.5 x --size: 8 frames)",
     )
     s.add_argument(
         "--length-km",
-        type=positive_float,
-        help="a pass-length strip (10-10000 km, e.g. 3000), rendered lazily when flown; "
-        "--size defaults to 256 px across",
+        type=o.float_range(MIN_LENGTH_KM, MAX_LENGTH_KM, "km"),
+        help=f"a pass-length strip ({MIN_LENGTH_KM:g}-{MAX_LENGTH_KM:g} km, e.g. 3000), rendered "
+        f"lazily when flown; --size defaults to 256 px across (at most {MAX_LONG_WIDTH}). At most "
+        f"{MAX_VENTS} vents and {MAX_CLOUDS} clouds per strip: beyond {MAX_VENTS * 100} km give a "
+        "lower --plumes-per-100km (or --plumes)",
     )
     s.add_argument(
         "--plumes-per-100km",
-        type=positive_float,
+        type=o.float_range(0.0, 100.0, "vents per 100 km", lo_open=True),
         help="vent density along a --length-km strip (default 1; or give --plumes)",
     )
     s.add_argument(
         "--clouds-per-100km",
-        type=float,
+        type=o.float_range(0.0, 100.0, "clouds per 100 km"),
         default=2.0,
-        help="meteorological clouds per 100 km of a --length-km strip (default 2)",
+        help="meteorological clouds per 100 km of a --length-km strip (default 2; at most "
+        f"{MAX_CLOUDS} per strip)",
     )
     p.set_defaults(func=cmd_synth, size_given=False, plumes_given=False)

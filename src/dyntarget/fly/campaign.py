@@ -180,9 +180,18 @@ def fly_one(
     result = fly_pass(world, _classifier(model, onnx, int8), cfg, geo=geo)
     strip = Path(task["strip"])  # named after the strip file: unique in its folder, unlike world.id
     stem = strip.name[: -len(".tif")] if strip.name.endswith(".tif") else strip.stem
-    write_pass(
-        result, world, Path(out) / "passes" / f"{stem}-{cfg.planner}-{cfg.agility}", picture=False
-    )
+    from dyntarget.fly.geo import write_times
+    from dyntarget.fly.staging import commit_pass, discard, new_stage
+
+    where = Path(out) / "passes" / f"{stem}-{cfg.planner}-{cfg.agility}"
+    stage = new_stage(where)  # an earlier pass there is replaced only by a complete one
+    try:
+        write_pass(result, world, stage, picture=False)
+        write_times(result, stage)
+        commit_pass(stage, where)
+    except BaseException:
+        discard(stage)
+        raise
     return {**result.totals(), "strip": stem}
 
 

@@ -45,7 +45,9 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -857,7 +859,9 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
 
     Returns
     -------
-    (gate or None, info dict for summary.json)
+    (gate or None, info dict for summary.json, timings dict for :data:`TIMES`)
+        The info is deterministic (same inputs, same bytes); the wall-clock times of
+        the targets and the blueprint (``targets_s``, ``blueprint_s``) are kept apart.
     """
     import time
 
@@ -883,7 +887,7 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
     t_targets = time.perf_counter() - t0
     doc: dict[str, Any] = {"settings": asdict(settings), "computed": "ground", **info}
     if not targets and not info.get("images"):
-        return None, {**doc, "targets": 0}
+        return None, {**doc, "targets": 0}, {"targets_s": round(t_targets, 4)}
     horizon = frames.n_frames * frames.cadence_s + frames.geometry.look_ahead_m / (
         frames.geometry.ground_speed
     )
@@ -899,8 +903,39 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
         "blueprint_pointings": int(bp.budget.sum()),
         "reserve_pointings": int(bp.reserve),
         "blueprint_value": round(bp.value, 4),
-        "targets_s": round(t_targets, 4),
-        "blueprint_s": round(t_bp, 4),
         "slots": bp.info.get("slots", 0),
     }
-    return BlueprintGate(bp, frames, agility, stage=settings.stage), doc
+    times = {"targets_s": round(t_targets, 4), "blueprint_s": round(t_bp, 4)}
+    return BlueprintGate(bp, frames, agility, stage=settings.stage), doc, times
+
+
+TIMES = "geo.timing.json"
+"""File of a pass's GEO wall-clock times (``targets_s``, ``blueprint_s``), beside ``summary.json``."""
+
+
+def write_times(result: Any, out: str | os.PathLike[str]) -> Path | None:
+    """Write the GEO wall-clock times of a pass to ``out/geo.timing.json`` (none: nothing).
+
+    ``summary.json`` holds only what a rerun reproduces byte for byte; the measured times
+    of the ground segment go here, as ``stage_times.csv`` holds the frames'.
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass (its ``geo_times``).
+    out : str or os.PathLike
+        The pass's output folder.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The file written, or ``None`` for a pass without GEO.
+    """
+    import json
+
+    from dyntarget.io.atomic import write_text
+
+    times = getattr(result, "geo_times", None)
+    if times is None:
+        return None
+    return write_text(Path(out) / TIMES, json.dumps(times, sort_keys=True, indent=1) + "\n")

@@ -482,6 +482,9 @@ class PassResult:
         The pass was stopped before its last frame.
     geo : dict or None
         Settings and outcome of the GEO blueprint (``None``: look-ahead only).
+    geo_times : dict or None
+        Wall-clock seconds of the GEO targets and blueprint (not in ``geo``: timings
+        differ between identical runs).
     """
 
     world_id: str
@@ -494,6 +497,8 @@ class PassResult:
     stopped: bool = False
     geo: dict[str, Any] | None = None
     """GEO foresight: its settings and what the blueprint did (``None``: look-ahead only)."""
+    geo_times: dict[str, float] | None = None
+    """Wall-clock seconds of the GEO targets and blueprint (kept out of :attr:`geo`)."""
 
     @property
     def measured(self) -> bool:
@@ -664,6 +669,11 @@ def fly_pass(
     from tqdm import tqdm
 
     frames = frame_plan(world, config)
+    if config.footprint > frames.wfov_shape[1]:
+        raise InvalidParameterError(
+            f"footprint: {config.footprint} WFOV px is wider than the strip's "
+            f"{frames.wfov_shape[1]} WFOV px (--footprint); expected at most that"
+        )
     agility = get_agility(config.agility)
     if config.predict == "wind" and _wind(config, world) is None:
         raise InvalidParameterError(
@@ -674,11 +684,11 @@ def fly_pass(
     state = PassState(covered=np.zeros(frames.wfov_shape, bool))
     plumes_at_start = _plumes_at_start(world)
     stopped = False
-    gate, geo_info = None, None
+    gate, geo_info, geo_times = None, None, None
     if geo is not None:
         from dyntarget.fly.geo import prepare
 
-        gate, geo_info = prepare(world, frames, config, geo)
+        gate, geo_info, geo_times = prepare(world, frames, config, geo)
         if gate is None:
             geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
 
@@ -693,6 +703,7 @@ def fly_pass(
             plumes_at_start,
             stopped,
             info,
+            geo_times,
         )
 
     bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)

@@ -39,6 +39,8 @@ SIDECAR = ".world.json"
 LONG_VERSION = 2
 """Sidecar version of a long strip (rendered lazily, :class:`LongStrip`)."""
 MIN_LENGTH_KM, MAX_LENGTH_KM = 10.0, 10_000.0
+MAX_LONG_ROWS = 2_000_000
+"""Most rows of a long strip's window (10,000 km at 5 m; the default 8 m gives 1,250,000)."""
 PREVIEW_ROWS = 1152
 """Rows of a long strip written as its ``<id>.tif`` preview (the start of the pass)."""
 LONG_ERUPTION_AGE_S = 7200.0
@@ -123,7 +125,8 @@ def long_strip_spec(
     width : strip width, high-resolution pixels.
     gsd : high-resolution ground sampling distance, m.
     plumes, plumes_per_100km : the vents: a count, or a density (one of them; default 1 / 100 km).
-    clouds_per_100km : meteorological cloud density.
+    clouds_per_100km : meteorological cloud density (the clouds drawn must not exceed
+        :data:`~dyntarget.synth.dynamic.MAX_CLOUDS`; more are refused, not capped).
     wind_mps, wind_from_deg : the wind (drawn if not given).
 
     Returns
@@ -186,7 +189,12 @@ def long_strip_spec(
         vents.append(
             VentSpec(**{**v.__dict__, "x": x, "y": y, "eruption_age_s": LONG_ERUPTION_AGE_S})
         )
-    n_clouds = min(int(rng.poisson(length_km / 100.0 * clouds_per_100km)), MAX_CLOUDS)
+    n_clouds = int(rng.poisson(length_km / 100.0 * clouds_per_100km))
+    if n_clouds > MAX_CLOUDS:  # refused, not silently capped
+        raise InvalidParameterError(
+            f"clouds_per_100km: {n_clouds} clouds drawn over {length_km:g} km, more than the "
+            f"{MAX_CLOUDS} a strip may hold (--clouds-per-100km); give a lower density"
+        )
     clouds = [
         CloudSpec(
             x=float(rng.uniform(-0.2, 1.2) * width),
@@ -365,6 +373,12 @@ class LongStrip(MovingStrip):
         c0, r0, w, h = (int(v) for v in window)
         if not (32 <= w <= 4096 and 64 <= h <= MAX_COORD_PX and abs(c0) + abs(r0) <= MAX_COORD_PX):
             raise InvalidParameterError(f"window: {window!r} is not a long strip's window")
+        most = min(math.ceil(MAX_LENGTH_KM * 1e3 / float(spec.gsd)), MAX_LONG_ROWS)
+        if h > most:  # the longest strip long_strip_spec makes: its work grows with the rows
+            raise InvalidParameterError(
+                f"window: {h:,} rows of {float(spec.gsd):g} m, more than the {most:,} of the "
+                f"longest strip ({MAX_LENGTH_KM:g} km, at most {MAX_LONG_ROWS:,} rows)"
+            )
         self.spec, self.window = spec, (c0, r0, w, h)
         self.world = MovingWorld(spec)
         self.shape = (h, w)
