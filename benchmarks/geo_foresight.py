@@ -12,8 +12,18 @@ only the planning differs) and a fixed compute budget (deterministic), under eac
   idle sensor ahead, and GEO detected by brightness instead of unmixing;
 * ``omniscient``: the blueprint planned on the true plumes at their overpass times
   (``fly --geo-omniscient``), refined by the same refinement;
+* ``prior`` (``--prior [CATALOG]``): the catalog baseline, no GEO image at all
+  (``fly --geo-prior``): one blueprint target per known volcano over the strip
+  (:mod:`dyntarget.geo.catalog`; the synthetic strips' own vents unless a catalog CSV is
+  given), refined by the same refinement;
 * ``reference`` (added by ``--merge``): the better of ``lookahead`` and ``omniscient``
   on each pass (never below look-ahead only; not an upper bound).
+
+``--upper-bound`` adds each pass's true upper bound (:mod:`dyntarget.observe.bound`: no
+schedule the sensor can fly over that strip scores more; the same for every mode) as
+``upper_bound`` and every mode's utility as a fraction of it (``fraction_of_bound``;
+``vs_upper_bound`` in the summary). It renders the truth at every second of the pass over
+the field of regard: minutes per 1000 km strip.
 
 Strips are shared out over ``--shards`` processes (``--shard`` each); ``--merge`` writes
 ``geo_foresight.json`` (rows, summary, machine) and ``geo_foresight.png``.
@@ -38,6 +48,7 @@ from dyntarget.fly.geo import GeoSettings
 from dyntarget.fly.strip import LongStrip, long_strip_spec
 from dyntarget.geo import plan_blueprint
 from dyntarget.io.atomic import write_text
+from dyntarget.observe.bound import upper_bound_utility
 from dyntarget.schedule import get_agility
 
 DENSITIES = {"sparse": 0.2, "dense": 1.0}  # vents per 100 km: 1 / 500 km and 1 / 100 km
@@ -46,14 +57,15 @@ DENSITIES = {"sparse": 0.2, "dense": 1.0}  # vents per 100 km: 1 / 500 km and 1 
 def _row(result, **kw):
     t = result.totals()
     geo = result.geo or {}
+    times = result.geo_times or {}  # wall-clock times: kept out of result.geo (summary.json)
     return {
         **kw,
         **{k: t[k] for k in ("utility", "plumes_observed", "plumes_total", "pointings_flown")},
         "frames": t["frames"],
         "geo_targets": geo.get("targets"),
         "geo_chosen": geo.get("targets_chosen"),
-        "blueprint_s": geo.get("blueprint_s"),
-        "targets_s": geo.get("targets_s"),
+        "blueprint_s": times.get("blueprint_s"),
+        "targets_s": times.get("targets_s"),
         "degraded": geo.get("degraded"),
         **{
             k: geo.get(k)
@@ -74,11 +86,123 @@ MODES_DOC = {
     "blind": "the onboard refinement alone (no blueprint)",
     "geo@L": "GEO blueprint (latency L s) + refinement",
     "omniscient": "blueprint on the truth + refinement",
+    "prior": "catalog baseline: a target per known volcano, no GEO image + refinement",
     "reference": "the better of look-ahead only and omniscient, per pass",
 }
 
 
+def _geo_prior(source: str):
+    """GeoSettings of the catalog baseline (``fly --geo-prior SOURCE``)."""
+    if "prior" in GeoSettings.__dataclass_fields__:
+        return GeoSettings(prior=source)
+    return _PriorSettings(source)  # until fly.geo knows the prior: see _prior_prepare
+
+
+class _PriorSettings(GeoSettings):
+    """GeoSettings carrying a catalog prior, for a fly.geo without one (see _prior_prepare)."""
+
+    def __init__(self, source: str) -> None:
+        super().__init__(blind=True)
+        object.__setattr__(self, "prior_source", source)
+
+
+def _prior_prepare(original):
+    """fly.geo.prepare, planning the blueprint on the catalog's targets for _PriorSettings."""
+    import dataclasses
+
+    from dyntarget.fly.geo import BlueprintGate
+    from dyntarget.geo.catalog import prior_targets
+
+    def prepare(world, frames, config, settings):
+        out = original(world, frames, config, settings)
+        source = getattr(settings, "prior_source", None)
+        if source is None:
+            return out
+        t0 = time.perf_counter()
+        targets, info = prior_targets(source, world, frames, config.factor)
+        horizon = frames.n_frames * frames.cadence_s + frames.geometry.look_ahead_m / (
+            frames.geometry.ground_speed
+        )
+        agility = get_agility(config.agility)
+        bp = plan_blueprint(
+            targets, dataclasses.replace(frames.geometry, start_s=0.0), agility,
+            horizon_s=horizon, reserve=settings.reserve,
+        )  # fmt: skip
+        out = list(out)
+        out[0] = BlueprintGate(bp, frames, agility, stage=settings.stage)
+        out[1] = {
+            **out[1], **info, "targets": len(bp.targets), "targets_chosen": len(bp.chosen),
+            "blueprint_pointings": int(bp.budget.sum()),
+            "blueprint_s": round(time.perf_counter() - t0, 4),
+        }  # fmt: skip
+        return tuple(out)
+
+    return prepare
+
+
+class _SparseValues:
+    """The truth's utility per WFOV pixel at each time, kept sparse (shared by presets)."""
+
+    def __init__(self, world, factor: int, frames) -> None:
+        from dyntarget.fly.loop import _TruthCache
+        from dyntarget.observe.bound import values_from_bands
+
+        truth = _TruthCache(world, factor, 1, band=frames.frame_px)
+        self.values = values_from_bands(truth.at, frames.wfov_shape[1])
+        self.width = frames.wfov_shape[1]
+        self.memo: dict[float, tuple[int, int, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def _sparse(self, t: float, a: int, b: int):
+        v = self.values(t, a, b)
+        rr, cc = np.nonzero(v > 0)
+        return rr + a, cc, v[rr, cc].astype(np.float64)
+
+    def __call__(self, t: float, r0: int, r1: int) -> np.ndarray:
+        hit = self.memo.get(t)
+        if hit is None:
+            hit = self.memo[t] = (r0, r1, *self._sparse(t, r0, r1))
+        elif hit[0] > r0 or hit[1] < r1:  # render only the rows not kept yet
+            a, b, rr, cc, vv = hit
+            parts = [(rr, cc, vv)]
+            if r0 < a:
+                parts.append(self._sparse(t, r0, a))
+            if r1 > b:
+                parts.append(self._sparse(t, b, r1))
+            hit = self.memo[t] = (
+                min(a, r0),
+                max(b, r1),
+                *(np.concatenate(x) for x in zip(*parts, strict=True)),
+            )
+        out = np.zeros((r1 - r0, self.width))
+        a, b, rr, cc, vv = hit
+        on = (rr >= r0) & (rr < r1)
+        out[rr[on] - r0, cc[on]] = vv[on]
+        return out
+
+
+def upper_bounds(spec, window, presets, cfgs) -> dict[str, dict]:
+    """Each preset's upper bound on the strip (a fresh world: its truth is not the passes')."""
+    from dyntarget.fly.loop import frame_plan
+
+    world = LongStrip(spec, window)  # small caches: the bound walks the whole pass
+    frames = frame_plan(world, cfgs[presets[0]])
+    values = _SparseValues(world, cfgs[presets[0]].factor, frames)
+    out = {}
+    for preset in presets:
+        b = upper_bound_utility(
+            values, frames.wfov_shape, frames.frame_px, frames.geometry, get_agility(preset),
+            time_step_s=world.truth_step_s,
+        )  # fmt: skip
+        out[preset] = b.as_dict(timing=True)
+        print(json.dumps({"strip": spec.id, "preset": preset, "upper_bound": out[preset]}))
+    return out
+
+
 def run(args) -> dict:
+    import dyntarget.fly.geo as fly_geo
+
+    if "prior" not in GeoSettings.__dataclass_fields__:
+        fly_geo.prepare = _prior_prepare(fly_geo.prepare)
     rows = []
     jobs = [(p, d) for p in range(args.passes) for d in args.densities]  # they alternate
     for n, (p, density) in enumerate(jobs):
@@ -90,12 +214,17 @@ def run(args) -> dict:
             seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
         )
         world = LongStrip(spec, window, capacity=4000, frame_capacity=4000)
-        for preset in args.presets:
-            cfg = PassConfig(
+        cfgs = {
+            preset: PassConfig(
                 agility=preset,
                 compute_budget_s=args.budget_s,
                 look_ahead_m=args.look_ahead_km * 1e3,
             )
+            for preset in args.presets
+        }
+        bounds = upper_bounds(spec, window, args.presets, cfgs) if args.upper_bound else {}
+        for preset in args.presets:
+            cfg = cfgs[preset]
             modes = [("lookahead", None), ("blind", GeoSettings(blind=True))]
             modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
             if args.ablate:  # GEO at the middle latency without staging, and by brightness
@@ -105,6 +234,8 @@ def run(args) -> dict:
                     (f"geo@{lat:g} brightness", GeoSettings(latency_s=lat, detection="brightness")),
                 ]
             modes.append(("omniscient", GeoSettings(omniscient=True)))
+            if args.prior:
+                modes.append(("prior", _geo_prior(args.prior)))
             for mode, geo in modes:
                 t0 = time.perf_counter()
                 r = fly_pass(world, None, cfg, geo=geo)
@@ -113,6 +244,13 @@ def run(args) -> dict:
                     r, strip=spec.id, density=density, vents=len(spec.vents),
                     preset=preset, mode=mode, wall_s=round(wall, 2),
                 )  # fmt: skip
+                if preset in bounds:
+                    ub = bounds[preset]["value"]
+                    row["upper_bound"] = ub
+                    row["upper_bound_exact"] = bounds[preset]["exact"]
+                    row["fraction_of_bound"] = round(row["utility"] / ub, 4) if ub else None
+                if mode == "prior":
+                    row["prior"] = (r.geo or {}).get("catalog")
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 write_text(
@@ -150,6 +288,8 @@ def summarise(rows: list[dict]) -> list[dict]:
             per = [r["utility"] / base[r["strip"]]["utility"] for r in rs
                    if base[r["strip"]]["utility"] > 0] or [float("nan")]  # fmt: skip
             fewer = sum(r["plumes_observed"] < base[r["strip"]]["plumes_observed"] for r in rs)
+            bounded = [r for r in rs if r.get("upper_bound")]
+            ubound = sum(r["upper_bound"] for r in bounded)
             out.append({
                 "density": density, "preset": preset, "mode": mode, "passes": len(rs),
                 "utility": round(u, 3), "vs_lookahead": round(u / max(ub, 1e-9), 3),
@@ -158,6 +298,9 @@ def summarise(rows: list[dict]) -> list[dict]:
                 "plumes_observed": sum(r["plumes_observed"] for r in rs),
                 "plumes_total": sum(r["plumes_total"] for r in rs),
                 "passes_fewer_plumes": fewer,
+                "vs_upper_bound": (
+                    round(sum(r["utility"] for r in bounded) / ubound, 4) if ubound else None
+                ),
             })  # fmt: skip
     return out
 
@@ -261,6 +404,19 @@ def main() -> None:
         action="store_true",
         help="also GEO at the middle latency without staging, and with brightness detection",
     )
+    ap.add_argument(
+        "--prior",
+        nargs="?",
+        const="vents",
+        default=None,
+        help="also the catalog baseline (fly --geo-prior): a catalog CSV, or 'vents' (default: "
+        "the synthetic strips' own vents)",
+    )
+    ap.add_argument(
+        "--upper-bound",
+        action="store_true",
+        help="each pass's true upper bound and every mode as a fraction of it (minutes a strip)",
+    )
     ap.add_argument("--shard", type=int, default=0, help="this process's share (0-based)")
     ap.add_argument("--shards", type=int, default=1, help="processes sharing the strips")
     ap.add_argument("--out", default="docs/benchmarks")
@@ -304,6 +460,8 @@ def main() -> None:
             + f"--latencies {','.join(f'{v:g}' for v in args.latencies)} "
             + f"--densities {','.join(args.densities)} --look-ahead-km {args.look_ahead_km:g} "
             + ("--ablate " if args.ablate else "")
+            + (f"--prior {args.prior} " if args.prior else "")
+            + ("--upper-bound " if args.upper_bound else "")
             + f"--shards {args.shards} (each --shard), then --merge",
             "machine": machine(),
         }

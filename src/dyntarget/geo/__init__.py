@@ -11,6 +11,9 @@ A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
 * :func:`nowcast` — the GEO field carried to future times with pysteps
   (dense Lucas-Kanade motion from the last images, semi-Lagrangian
   extrapolation); needs the ``[geo]`` extra (pysteps).
+* :func:`prior_targets` — the catalog baseline's targets: the known volcanoes of a
+  catalog (:func:`read_catalog`, the Smithsonian GVP's columns) over the strip, no
+  GEO image (:mod:`dyntarget.geo.catalog`).
 * :func:`plan_blueprint` — which targets to observe, in what order, with how
   many pointings, over the whole pass: a dynamic programme over targets in
   along-track order and sensor time slots (polynomial; see its docstring).
@@ -21,6 +24,16 @@ the pass and uplinked; the onboard loop only refines within it
 """
 
 from dyntarget.geo.blueprint import Blueprint, Target, plan_blueprint
+from dyntarget.geo.catalog import prior_targets, read_catalog
 from dyntarget.geo.nowcast import detect, nowcast, unmix
 
-__all__ = ["Blueprint", "Target", "detect", "nowcast", "plan_blueprint", "unmix"]
+__all__ = [
+    "Blueprint",
+    "Target",
+    "detect",
+    "nowcast",
+    "plan_blueprint",
+    "prior_targets",
+    "read_catalog",
+    "unmix",
+]

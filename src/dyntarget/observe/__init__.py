@@ -1,5 +1,6 @@
-"""Observation: the NFOV simulator and utility metrics."""
+"""Observation: the NFOV simulator, utility metrics, and the true upper bound of a pass."""
 
+from dyntarget.observe.bound import UpperBound, upper_bound_utility
 from dyntarget.observe.nfov import (
     ObservationMetrics,
     UtilityMaps,
@@ -11,9 +12,11 @@ from dyntarget.observe.nfov import (
 
 __all__ = [
     "ObservationMetrics",
+    "UpperBound",
     "UtilityMaps",
     "observe",
     "observe_at",
     "observed_pixels",
     "pointing_truth",
+    "upper_bound_utility",
 ]
