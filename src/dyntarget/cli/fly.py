@@ -60,13 +60,23 @@ def _geo(args: argparse.Namespace):
     }
     if args.geo_no_stage:
         kw["stage"] = False
-    return GeoSettings(**kw, omniscient=bool(args.geo_omniscient), blind=bool(args.geo_blind))
+    if args.geo_prior and args.geo_prior != "vents":  # a bad catalog: one line, before the pass
+        from dyntarget.geo.catalog import read_catalog
+
+        read_catalog(args.geo_prior)
+    return GeoSettings(
+        **kw,
+        omniscient=bool(args.geo_omniscient),
+        blind=bool(args.geo_blind),
+        prior=args.geo_prior,
+    )
 
 
-GEO_MODES = ("geo", "geo_omniscient", "geo_blind")
+GEO_MODES = ("geo", "geo_omniscient", "geo_blind", "geo_prior")
 GEO_MODE_OPTIONS = {
     "--geo-omniscient": ("geo_reserve", "geo_no_stage"),
     "--geo-blind": (),
+    "--geo-prior": ("geo_reserve", "geo_no_stage"),
 }
 """The ``--geo-*`` settings each GEO mode uses (``--geo`` uses them all): the omniscient
 blueprint is planned on the true plumes (no GEO grid, cadence, latency or detection); the
@@ -74,6 +84,7 @@ blind ablation has no blueprint at all (nothing to reserve or stage)."""
 GEO_MODE_WHAT = {
     "--geo-omniscient": "the blueprint is planned on the true plumes, not on GEO images",
     "--geo-blind": "there is no blueprint",
+    "--geo-prior": "the blueprint is planned on the catalog's volcanoes, not on GEO images",
 }
 
 
@@ -150,7 +161,7 @@ def _fly(args: argparse.Namespace) -> int:
     config = _pass_config(args, args.planner, args.agility)
     if geo is not None:
         geo.check_against(world.gsd * args.factor)
-        if getattr(world, "spec", None) is None:
+        if getattr(world, "spec", None) is None and geo.prior is None:
             raise InvalidParameterError(
                 f"--geo: {args.scene} has no world to render the GEO stream from "
                 "(a 'dyntarget synth --strip' strip is needed)"
@@ -194,6 +205,9 @@ def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, g
                     progress=not args.quiet,
                     frame_sink=views,
                     geo=geo,
+                    # the true upper bound: every pass on the truth (a long strip on request)
+                    upper_bound=bool(args.truth)
+                    and (args.upper_bound or not hasattr(world, "truth_rows")),
                 )
             except DynTargetError as exc:  # found after the first frame: nothing is kept
                 raise type(exc)(
@@ -410,6 +424,12 @@ def _add_pass_options(p: argparse.ArgumentParser) -> None:
     )
     o.add_orbit_options(p, look_ahead_positive=True)
     o.TRUTH_STEP_S.add(p)
+    p.add_argument(
+        "--upper-bound",
+        action="store_true",
+        help="with --truth on a long strip: also its true upper bound (summary.json "
+        "upper_bound_utility; minutes per 1000 km; computed for every other --truth pass)",
+    )
     o.NO_DENOISE.add(p)
 
 
@@ -455,6 +475,13 @@ def _add_geo_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="the omniscient reference: the blueprint planned on the true plumes "
         "(no latency, no noise; takes --geo-reserve and --geo-no-stage only)",
+    )
+    geo.add_argument(
+        "--geo-prior",
+        metavar="CATALOG",
+        help="the catalog baseline, no GEO image: the blueprint aims at the known volcanoes "
+        "of CATALOG over the strip (a CSV with the Smithsonian GVP's columns), or 'vents' "
+        "(a synthetic strip's own vents); takes --geo-reserve and --geo-no-stage only",
     )
     geo.add_argument(
         "--geo-blind",

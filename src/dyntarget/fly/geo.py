@@ -40,6 +40,8 @@
   no noise (not an upper bound).
 * **Blind** (``GeoSettings(blind=True)``): the refinement with no blueprint, an
   ablation.
+* **Catalog prior** (``GeoSettings(prior=CATALOG)``): the blueprint planned on the known
+  volcanoes of a catalog, no GEO image (:mod:`dyntarget.geo.catalog`): the baseline.
 """
 
 from __future__ import annotations
@@ -106,6 +108,9 @@ class GeoSettings:
     omniscient : plan the blueprint on the true plumes instead (the omniscient reference).
     blind : no blueprint at all (no GEO image): the onboard refinement alone, an ablation
         that tells what the GEO blueprint adds to it.
+    prior : the catalog baseline instead of GEO images: a blueprint target per known
+        volcano over the strip (a catalog CSV with the GVP's columns, or ``"vents"``: a
+        synthetic strip's own vents), :func:`dyntarget.geo.catalog.prior_targets`.
     detection : ``"unmix"`` (plume fraction from four-band spectral unmixing) or
         ``"brightness"`` (band-mean brightness above the background).
     stage : let the idle sensor slew ahead to the next chosen blueprint target the
@@ -121,12 +126,15 @@ class GeoSettings:
     history_s: float = 3600.0
     omniscient: bool = False
     blind: bool = False
+    prior: str | None = None
     stage: bool = True
     detection: str = "unmix"
 
     def __post_init__(self) -> None:
         if self.omniscient and self.blind:
             raise InvalidParameterError("geo: omniscient and blind exclude each other")
+        if self.prior is not None and (self.omniscient or self.blind):
+            raise InvalidParameterError("geo: a catalog prior excludes omniscient and blind")
         if self.detection not in DETECTIONS:
             raise InvalidParameterError(
                 f"geo detection: expected one of {', '.join(DETECTIONS)}, got {self.detection!r}"
@@ -763,7 +771,8 @@ class BlueprintGate:
         for j in range(len(self.t_lo)):
             if self.released[j] is not None or not self.pool[j]:
                 continue
-            seen = top <= self.t_lo[j] - MERGE_ROWS  # the look-ahead is past its first row
+            # the look-ahead is past its first row, or this is the pass's last frame
+            seen = top <= self.t_lo[j] - MERGE_ROWS or top <= int(self.frame_tops[-1])
             if seen or self._window(j)[0] - t_k <= RELEASE_LEAD_S:
                 due.append(j)
         return sorted(due, key=lambda j: -self.t_hi[j])  # nearest to nadir first
@@ -868,8 +877,13 @@ def prepare(world: Any, frames: Any, config: Any, settings: GeoSettings):
     settings.check_against(frames.geometry.wfov_gsd_m)
     agility = get_agility(config.agility)
     t0 = time.perf_counter()
+    targets: list[Target]
     if settings.blind:
         targets, info = [], {"images": "none: no blueprint (the refinement alone)"}
+    elif settings.prior is not None:
+        from dyntarget.geo.catalog import prior_targets
+
+        targets, info = prior_targets(settings.prior, world, frames, config.factor)
     elif settings.omniscient:
         cache = world.__dict__.setdefault("_geo_truth_targets", {})  # reused across presets
         tkey = (config.factor, frames.frame_px, frames.step, frames.geometry)

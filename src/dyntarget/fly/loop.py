@@ -499,6 +499,8 @@ class PassResult:
     """GEO foresight: its settings and what the blueprint did (``None``: look-ahead only)."""
     geo_times: dict[str, float] | None = None
     """Wall-clock seconds of the GEO targets and blueprint (kept out of :attr:`geo`)."""
+    upper_bound: dict[str, Any] | None = None
+    """The pass's true upper bound (:func:`pass_upper_bound`; ``None``: not computed)."""
 
     @property
     def measured(self) -> bool:
@@ -633,6 +635,7 @@ def fly_pass(
     progress: bool = False,
     frame_sink: Callable[[FrameView], None] | None = None,
     geo: Any = None,
+    upper_bound: bool = False,
 ) -> PassResult:
     """Fly a pass over ``world`` (see the module docstring for the model).
 
@@ -650,6 +653,8 @@ def fly_pass(
     geo : :class:`dyntarget.fly.geo.GeoSettings`: plan a blueprint over the pass from
         the GEO stream of the strip's world and refine every frame within it
         (:mod:`dyntarget.fly.geo`); ``None``: look-ahead only.
+    upper_bound : also compute the pass's true upper bound (:func:`pass_upper_bound`,
+        :attr:`PassResult.upper_bound`): seconds on a short strip, minutes on a long one.
 
     Returns
     -------
@@ -724,7 +729,54 @@ def fly_pass(
                 break
     finally:
         bar.close()
-    return result()
+    final = result()
+    if upper_bound:
+        try:
+            bound = pass_upper_bound(world, config, frames, final.records).as_dict()
+        except InvalidParameterError as exc:  # e.g. a truth without a time step
+            bound = {"value": None, "why": str(exc)}
+        final = replace(final, upper_bound=bound)
+    return final
+
+
+def pass_upper_bound(
+    world: World, config: PassConfig, frames: FramePlan, records: list[FrameRecord] | None = None
+):
+    """An upper bound on the utility of every schedule a pass over ``world`` can fly.
+
+    :func:`dyntarget.observe.bound.upper_bound_utility` on the strip's truth at every
+    truth time step (as the loop scores it), the pass's geometry and agility; each
+    pixel counted once unless the pass moves pointings with a predicted plume.
+
+    Parameters
+    ----------
+    world : the strip.
+    config : the pass settings.
+    frames : its frame plan.
+    records : the flown timeline: with unlimited agility, no pointing starts after
+        its last plan was ready.
+
+    Returns
+    -------
+    dyntarget.observe.bound.UpperBound
+    """
+    from dyntarget.observe.bound import upper_bound_utility, values_from_bands
+
+    agility = get_agility(config.agility)
+    truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
+    t_end = None
+    if agility.unlimited:
+        t_end = max((r.ready_s for r in records or [] if not r.dropped), default=0.0)
+    return upper_bound_utility(
+        values_from_bands(truth.at, frames.wfov_shape[1]),
+        frames.wfov_shape,
+        frames.frame_px,
+        frames.geometry,
+        agility,
+        time_step_s=getattr(world, "truth_step_s", None),  # a static world has none
+        distinct=config.predict == "none",
+        t_end_s=t_end,
+    )
 
 
 def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float):

@@ -154,21 +154,23 @@ def nowcast(
         raise InvalidParameterError(f"leads_s: expected seconds >= 0, got {leads_s!r}")
     if len(fields) < 2 or not np.any(last > 0):
         return np.repeat(last[None], len(leads), axis=0), np.zeros((2, *last.shape))
+    import warnings
+
     try:
         import contextlib
         import io
 
-        with contextlib.redirect_stdout(io.StringIO()):  # pysteps announces its config file
+        with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # pysteps announces its config file, warns on import
             from pysteps import extrapolation, motion
     except ImportError:
         raise InvalidParameterError(
             "nowcasting GEO images needs pysteps: pip install 'dyntarget[geo]'"
         ) from None
-    import warnings
-
     stack = np.stack([np.asarray(f, np.float64) for f in fields])
-    with warnings.catch_warnings():  # pysteps' LK: statistics of empty feature sets
-        warnings.simplefilter("ignore", RuntimeWarning)
+    with warnings.catch_warnings():  # pysteps' LK: statistics of empty feature sets, and
+        warnings.simplefilter("ignore", RuntimeWarning)  # a UserWarning when its outlier
+        warnings.simplefilter("ignore", UserWarning)  # detection finds too few vectors
         v = motion.get_method("LK")(stack, verbose=False)  # px per interval
     v = np.nan_to_num(np.asarray(v, np.float64))
     out = np.zeros((len(leads), *last.shape))
@@ -177,6 +179,8 @@ def nowcast(
     out[~nz] = last
     if nz.any():
         ext = extrapolation.get_method("semilagrangian")
-        res = ext(last, v, list(steps[nz]), outval=0.0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            res = ext(last, v, list(steps[nz]), outval=0.0)
         out[nz] = np.nan_to_num(np.asarray(res, np.float64))
     return out, v / interval_s
