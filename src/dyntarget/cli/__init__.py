@@ -10,11 +10,22 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from dyntarget.cli import bench, datasets, demo, evaluate, fly, models, plan, sweep, synth
+from dyntarget.cli import (
+    bench,
+    constellation,
+    datasets,
+    demo,
+    evaluate,
+    fly,
+    models,
+    plan,
+    sweep,
+    synth,
+)
 from dyntarget.cli._common import EXIT_INTERNAL, EXIT_OK, EXIT_USAGE, Parser
 from dyntarget.errors import DynTargetError, missing_extra
 
-COMMANDS = (synth, models, evaluate, plan, fly, sweep, bench, datasets, demo)
+COMMANDS = (synth, models, evaluate, plan, fly, constellation, sweep, bench, datasets, demo)
 """The command modules, in the order ``dyntarget --help`` lists them. Each has
 ``register(sub)``; to add a command, add a module with one and list it here."""
 
