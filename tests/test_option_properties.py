@@ -1,4 +1,5 @@
-"""Property (issue 42): any value of a numeric option of ``plan``, ``fly`` and ``synth`` gives a
+"""Property (issue 42): any value of a numeric option of ``plan``, ``fly``, ``synth`` and
+``constellation`` gives a
 result or exit 2 with one line; never exit 1 (an internal error) and never a traceback.
 
 Values are drawn from floats (nan, inf, subnormal, huge), integers far beyond any range and
@@ -195,3 +196,48 @@ def test_synth_numeric_options_give_a_result_or_exit_2(capsys, option, value):
     with tempfile.TemporaryDirectory() as d:
         argv = ["synth", *scenes, "--out", str(Path(d) / "o"), "--quiet", *extra]
         _check([*argv, f"{option}={value}"], capsys)
+
+
+CONSTELLATION_OPTIONS = {
+    "--altitude-km": [],
+    "--inclination-deg": [],
+    "--hours": [],
+    "--seed": [],
+    "--swath-km": [],
+    "--look-ahead-km": [],
+    "--eruptions-per-day": [],
+}
+
+
+def _slow_constellation(option: str, value: str) -> bool:
+    """Valid values that legitimately take long: a simulated month, a volcano erupting per second."""
+    v = _number(value)
+    if v is None or not math.isfinite(v):
+        return False
+    return (option == "--hours" and v > 2) or (option == "--eruptions-per-day" and v > 1000)
+
+
+@pytest.fixture(scope="module")
+def catalog(tmp_path_factory) -> Path:
+    """Three volcanoes in the GVP export's columns: Etna, Kilauea, Sakurajima."""
+    p = tmp_path_factory.mktemp("catalog") / "volcanoes.csv"
+    p.write_text(
+        "volcano_number,volcano_name,latitude,longitude,elevation_m,last_known_eruption\n"
+        "211060,Etna,37.748,14.999,3357,2025 CE\n"
+        "332010,Kilauea,19.421,-155.287,1222,2025 CE\n"
+        "282080,Sakurajima,31.593,130.657,1117,2025 CE\n"
+    )
+    return p
+
+
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(option=st.sampled_from(sorted(CONSTELLATION_OPTIONS)), value=VALUES)
+def test_constellation_numeric_options_give_a_result_or_exit_2(catalog, capsys, option, value):
+    assume(not _slow_constellation(option, value))
+    hours = [] if option == "--hours" else ["--hours", "1"]
+    with tempfile.TemporaryDirectory() as d:
+        argv = ["constellation", "--walker", "2/1/0", "--volcanoes", str(catalog), *hours]
+        argv += ["--out", str(Path(d) / "o"), "--quiet", "--no-picture", "--no-html"]
+        _check([*argv, *CONSTELLATION_OPTIONS[option], f"{option}={value}"], capsys)

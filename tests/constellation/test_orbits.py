@@ -154,3 +154,11 @@ def test_sun_at_the_march_equinox_by_hand():
     d = sun_direction(datetime(2026, 3, 20, 12, tzinfo=UTC), np.array([0.0]))[0]
     assert np.degrees(np.arcsin(d[2])) == pytest.approx(-0.045, abs=0.02)
     assert np.degrees(np.arctan2(d[1], d[0])) == pytest.approx(1.85, abs=0.1)
+
+
+def test_no_sun_synchronous_orbit_exists_above_about_5970_km():
+    # J2 precession rate 3/2 n J2 (Re/a)^2 |cos i| must reach 360 deg/year: with cos i = 1 it
+    # does up to a = 12,352 km (worked out from GM, J2 and Re), i.e. 5,974 km above Re.
+    assert 170 < sso_inclination_deg(5950.0) < 180  # nearly retrograde-equatorial
+    with pytest.raises(InvalidParameterError, match="no sun-synchronous orbit at 6000 km"):
+        sso_inclination_deg(6000.0)

@@ -276,6 +276,11 @@ def sso_inclination_deg(altitude_km: float) -> float:
     a = WGS84_A_M / 1e3 + altitude_km
     rate = 2 * math.pi / (365.2422 * 86400.0)
     cos_i = -rate * 2.0 * a**3.5 / (3.0 * J2 * (WGS84_A_M / 1e3) ** 2 * math.sqrt(GM_KM3_S2))
+    if not -1.0 <= cos_i <= 1.0:  # J2 precesses too slowly that high (above about 5,970 km)
+        raise InvalidParameterError(
+            f"--altitude-km: no sun-synchronous orbit at {altitude_km:g} km (J2 is too weak "
+            "there); give --inclination-deg"
+        )
     return math.degrees(math.acos(cos_i))
 
 
