@@ -325,7 +325,10 @@ def run_bench(
     -------
     dict
         ``machine``, ``repeats``, ``sizes``, ``records`` (one per stage, size,
-        classifier and planner) and ``bounds`` (:func:`lower_bounds`).
+        classifier and planner), ``bounds`` (:func:`lower_bounds`), ``forest_path``
+        (the random forest's path that ran: :func:`forest_path`; ``None`` without a
+        random forest), ``forest_paths`` (the same per forest row, variants included)
+        and ``cpu`` (:func:`cpu_summary`).
     """
     from tqdm import tqdm
 
@@ -375,7 +378,11 @@ def run_bench(
                 )
             bar.update()
     bar.close()
+    paths = {n: forest_path(m) for n, m in models.items() if forest_path(m) is not None}
     return {
+        "forest_path": paths.get("random-forest"),
+        "forest_paths": paths,
+        "cpu": cpu_summary(),
         "machine": machine(),
         "repeats": repeats,
         "sizes": list(sizes),
@@ -383,6 +390,75 @@ def run_bench(
         "bounds": lower_bounds(
             sizes, {n: m for n, m in models.items() if m.kind == "unet"}, rates=rates
         ),
+    }
+
+
+FOREST_CPU_FLAGS = ("avx512f", "avx2", "asimd")
+"""CPU flags that decide the forest kernel's path (``asimd``: NEON on aarch64)."""
+
+
+def forest_path(model: Any) -> str | None:
+    """The path a random forest's predictions actually took, once it has predicted.
+
+    Parameters
+    ----------
+    model : a classifier (anything but a random forest gives ``None``).
+
+    Returns
+    -------
+    str or None
+        The compiled kernel's path (``"avx512"``, ``"avx2"``, ``"sse2"``, ``"neon"``,
+        ``"portable"``: what the loaded library reports), ``"sklearn"`` when
+        scikit-learn predicted (kernel off, absent or refused), ``None`` for another
+        classifier or a forest that has not predicted yet.
+
+    Examples
+    --------
+    >>> from dyntarget.perceive import make_classifier
+    >>> forest_path(make_classifier("band-threshold")) is None
+    True
+    """
+    from dyntarget.perceive.pixel import RandomForest
+
+    if not isinstance(model, RandomForest):
+        return None
+    if getattr(model, "backend", None) == "sklearn":
+        return "sklearn"
+    cached = getattr(model, "_compiled", None)
+    if cached is None:
+        return None
+    return getattr(cached[1], "isa", None) or "sklearn"
+
+
+def cpu_summary() -> dict[str, Any]:
+    """The CPU's model name and the flags that decide the forest kernel's path.
+
+    Returns
+    -------
+    dict
+        ``model`` (``/proc/cpuinfo``'s model name, else the platform's), ``arch``
+        (``platform.machine()``) and ``flags``: those of :data:`FOREST_CPU_FLAGS` present.
+
+    Examples
+    --------
+    >>> c = cpu_summary()
+    >>> sorted(c), set(c["flags"]) <= set(FOREST_CPU_FLAGS)
+    (['arch', 'flags', 'model'], True)
+    """
+    model, _ = _cpu_model_and_flags()
+    flags: set[str] = set()
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                if key.strip() in ("flags", "Features"):
+                    flags.update(value.split())
+    except OSError:
+        pass
+    return {
+        "model": model,
+        "arch": platform.machine(),
+        "flags": [f for f in FOREST_CPU_FLAGS if f in flags],
     }
 
 
@@ -553,6 +629,7 @@ def summary_tables(result: dict[str, Any]) -> str:
     classifiers = list(dict.fromkeys(r["classifier"] for r in recs))
     planners = list(dict.fromkeys(r["planner"] for r in recs if r["planner"]))
     ref_planner = "lawnmower-transect" if "lawnmower-transect" in planners else planners[0]
+    measurable = len(sizes) >= 2  # a slope needs two sizes: no column otherwise
     rows = []
     for c in classifiers:
         row: dict[str, Any] = {"classifier": c}
@@ -561,14 +638,16 @@ def summary_tables(result: dict[str, Any]) -> str:
             total = get("classify", s, c) + get("denoise", s, c) + get("plan", s, c, ref_planner)
             totals.append(total)
             row[f"{s} px (s)"] = total
-        row["scaling exponent"] = scaling_exponent(sizes, totals)
+        exponent = scaling_exponent(sizes, totals)
+        if measurable:
+            row["scaling exponent"] = exponent if np.isfinite(exponent) else "n/a"
         peak = [get("classify", s, c, key="peak_mib") for s in sizes]
         row["classify peak MiB (largest)"] = peak[-1] if peak[-1] is not None else "n/a"
         rows.append(row)
     cols = [
         "classifier",
         *[f"{s} px (s)" for s in sizes],
-        "scaling exponent",
+        *(["scaling exponent"] if measurable else []),
         "classify peak MiB (largest)",
     ]
     parts = [

@@ -205,6 +205,38 @@ def claims_md(table1_rows: list[dict], table2_rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+METRICS_MD = """## What the columns mean
+
+**Table 1** scores the plume class of each classifier's mask against the label, pixel by
+pixel. TP, FP, FN and TN (true/false positives/negatives) are counted over all held-out
+pixels of a fold; the table shows the mean over folds.
+
+| column | definition |
+|---|---|
+| Accuracy | (TP + TN) / (TP + FP + FN + TN): pixels classified right, either class |
+| Precision | TP / (TP + FP): of the pixels called plume, the share that is plume (1 when none is called plume) |
+| Recall | TP / (TP + FN): of the plume pixels, the share found (1 when there is no plume) |
+| IoU | TP / (TP + FP + FN): intersection over union of predicted and true plume (1 when both are empty) |
+| + Denoising | the row above after Algorithm 2 (3x3 closing, components below the minimum area removed) |
+
+**Table 2** plans on each held-out scene's mask and points the narrow-field sensor at each
+planned WFOV pixel; each pointing observes the high-resolution footprint under that pixel.
+Each column is the mean over the held-out scenes of:
+
+| column | definition |
+|---|---|
+| Pixels Observed | distinct WFOV pixels pointed at (a pixel pointed at twice counts once) |
+| Ratio Plume | mean over the observed footprints of their plume fraction (0-1) |
+| Intensity | mean over the observed footprints of the intensity utility: label x blue reflectance, divided by its maximum over the scene (0-1) |
+| Gradient | mean over the observed footprints of the gradient utility: the 5x5 Sobel magnitude of the intensity, divided by its maximum over the scene (0-1) |
+| Runtime (s) | wall time of classify + denoise + plan for one WFOV scene |
+
+*Classifier N/A*: the two baselines (straight nadir, naive transect), which ignore the
+plume. A trajectory with no pointing scores 0 in every column.
+"""
+"""The definitions of every metric ``report.md`` uses (written into it after Table 2)."""
+
+
 def write_report(
     out: str | os.PathLike[str],
     *,
@@ -263,6 +295,7 @@ def write_report(
         "## Table 2: perception and planning (end to end)\n",
         markdown_table(table2["rows"], TABLE2_COLUMNS),
         "\nMeans over all held-out scenes; Runtime = classify + denoise + plan for one WFOV scene.\n",
+        METRICS_MD,
         "## Figures\n",
         f"![Figure 3: planners' paths]({rel['fig3']})\n\n"
         f"*Figure 3 — the four look-ahead planners over one held-out scene (yellow: denoised mask).*\n",

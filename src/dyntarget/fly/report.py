@@ -3,14 +3,31 @@
 Every file is written atomically (:mod:`dyntarget.io.atomic`); ``timeline.csv``
 and ``pointings.geojson`` are rewritten after every frame, so a pass stopped at
 any moment leaves complete files for the frames it finished.
+
+A pass of at most :data:`MAX_VIEW_FRAMES` frames over a strip held in memory gets
+``pass.png`` (the whole strip) and ``pass.html`` (a slider over the frames). A longer
+pass, or one over a long strip rendered lazily, gets an *overview* instead, built
+frame by frame in bounded memory (:class:`ViewCollector`): the strip decimated
+along-track to at most :data:`OVERVIEW_ROWS` rows, the plume each frame planned on,
+the flown pointings, dropped frames and (with ``--geo``) the GEO targets, as
+``pass.png`` (the strip cut into lanes) and ``pass.html`` (zoomable), and the
+full-resolution slider view per segment of :data:`MAX_VIEW_FRAMES` frames in
+``pass-segments/`` (linked from ``pass.html``; the frames wait on disk, compressed,
+until the pass is written, so memory holds one segment at a time).
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import itertools
 import json
+import math
 import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +55,14 @@ PICTURE = "pass.png"
 MEASURED = "stage_times.csv"
 VIEW = "pass.html"
 MAX_VIEW_FRAMES = 64
-"""Passes with more frames get no HTML view (each frame's image is embedded)."""
+"""Frames of one slider view: a longer pass gets an overview and one view per segment."""
+SEGMENTS = "pass-segments"
+"""Folder (beside ``pass.html``) of a long pass's full-resolution views, one per segment."""
+OVERVIEW_ROWS = 4096
+"""Most along-track rows of a long pass's overview (each the mean of a run of WFOV rows)."""
+LANE_KM = 300.0
+"""Along-track kilometres per lane of a long pass's overview picture (up to 5 % more; at most
+12 lanes)."""
 
 
 def timeline_csv(result: PassResult) -> str:
@@ -364,29 +388,200 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
     return Path(path)
 
 
-class ViewCollector:
-    """Collects :class:`~dyntarget.fly.loop.FrameView` s during a pass for :func:`write_view`.
+class _Overview:
+    """The strip decimated along-track, built frame by frame in bounded memory.
 
-    Keeps at most ``max_frames`` frames (each holds its WFOV image); beyond that
-    the view is not written.
+    Each overview row is the mean of ``d`` consecutive WFOV rows (RGB and the
+    plume mask the frame planned on); when more than ``max_rows`` rows are held,
+    neighbouring rows are merged and ``d`` doubles, so memory stays below
+    ``max_rows`` x width whatever the pass's length. Overlapping frames average.
+    """
+
+    def __init__(self, max_rows: int = OVERVIEW_ROWS) -> None:
+        self.max_rows = max(2, int(max_rows))
+        self.d = 1
+        self.sums: dict[int, np.ndarray] = {}  # overview row -> (4, W): R, G, B, plume sums
+        self.counts: dict[int, int] = {}
+
+    def add(self, top: int, image: np.ndarray, mask: np.ndarray | None) -> None:
+        img = np.asarray(image, np.float32)[:3]
+        m = np.zeros(img.shape[1:], np.float32) if mask is None else np.asarray(mask, np.float32)
+        stack = np.concatenate([img, m[None]], axis=0)  # (4, fh, W)
+        keys = (top + np.arange(stack.shape[1])) // self.d
+        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        sums = np.add.reduceat(stack, starts, axis=1)
+        counts = np.diff(np.r_[starts, len(keys)])
+        for j, k in enumerate(keys[starts].tolist()):
+            if k in self.sums:
+                self.sums[k] += sums[:, j]
+                self.counts[k] += int(counts[j])
+            else:
+                self.sums[k] = sums[:, j].copy()
+                self.counts[k] = int(counts[j])
+        while len(self.sums) > self.max_rows:
+            merged: dict[int, np.ndarray] = {}
+            mc: dict[int, int] = {}
+            for k, v in self.sums.items():
+                if k // 2 in merged:
+                    merged[k // 2] += v
+                    mc[k // 2] += self.counts[k]
+                else:
+                    merged[k // 2] = v
+                    mc[k // 2] = self.counts[k]
+            self.sums, self.counts, self.d = merged, mc, self.d * 2
+
+    def arrays(self) -> tuple[int, np.ndarray, np.ndarray] | None:
+        """``(first_row, rgb (n, W, 3), plume (n, W))`` from WFOV row ``first_row * d`` on."""
+        if not self.sums:
+            return None
+        lo, hi = min(self.sums), max(self.sums)
+        w = next(iter(self.sums.values())).shape[1]
+        out = np.full((hi - lo + 1, 4, w), np.nan, np.float32)
+        for k, v in self.sums.items():
+            out[k - lo] = v / self.counts[k]
+        return lo, out[:, :3].transpose(0, 2, 1), out[:, 3]
+
+
+class _Spill:
+    """Frames of a long pass waiting on disk (compressed) until the pass is written."""
+
+    def __init__(self) -> None:
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+        self.segments = 0
+
+    def write(self, views: list[FrameView]) -> None:
+        from shapely import to_wkb
+
+        if self._dir is None:
+            self._dir = tempfile.TemporaryDirectory(prefix="dyntarget-pass-")
+        wkb = [[bytes(b) for b in to_wkb(list(v.plan.polygons))] for v in views]
+        lengths = [len(b) for w in wkb for b in w]
+        proba = [v.plan.probability for v in views]
+        np.savez_compressed(
+            Path(self._dir.name) / f"{self.segments:05d}.npz",
+            frame=np.array([v.frame for v in views]),
+            top=np.array([v.top for v in views]),
+            first=np.array([v.first for v in views]),
+            end=np.array([v.end for v in views]),
+            image=np.stack([np.asarray(v.image, np.float32) for v in views]),
+            probability=np.stack([np.asarray(p, np.float32) for p in proba])
+            if all(p is not None for p in proba)
+            else np.zeros(0, np.float32),
+            n_polygons=np.array([len(w) for w in wkb], np.int64),
+            wkb_lengths=np.array(lengths, np.int64),
+            wkb=np.frombuffer(b"".join(b for w in wkb for b in w), np.uint8),
+        )
+        self.segments += 1
+
+    def read(self, i: int) -> list[FrameView]:
+        from shapely import from_wkb
+
+        assert self._dir is not None
+        with np.load(Path(self._dir.name) / f"{i:05d}.npz") as z:
+            blob = z["wkb"].tobytes()
+            cuts = np.r_[0, np.cumsum(z["wkb_lengths"])]
+            polys = list(from_wkb([blob[a:b] for a, b in itertools.pairwise(cuts)]))
+            per = np.r_[0, np.cumsum(z["n_polygons"])]
+            proba = z["probability"]
+            return [
+                FrameView(
+                    int(z["frame"][j]),
+                    int(z["top"][j]),
+                    z["image"][j],
+                    _Planned(proba[j] if proba.size else None, polys[per[j] : per[j + 1]]),
+                    int(z["first"][j]),
+                    int(z["end"][j]),
+                )
+                for j in range(len(z["frame"]))
+            ]
+
+    def close(self) -> None:
+        if self._dir is not None:
+            self._dir.cleanup()
+            self._dir = None
+
+
+class _Planned:
+    """What a spilled frame keeps of its plan: the probability and the polygons."""
+
+    def __init__(self, probability: np.ndarray | None, polygons: list[Any]) -> None:
+        self.probability, self.polygons = probability, polygons
+
+
+class ViewCollector:
+    """Collects the :class:`~dyntarget.fly.loop.FrameView` s of a pass for its pictures.
+
+    Up to ``max_frames`` frames are kept in memory for the slider view of a short
+    pass. Every frame also feeds the long-pass overview (the strip decimated to at
+    most :data:`OVERVIEW_ROWS` rows); past ``max_frames`` frames, the frames are
+    written to a temporary folder, ``max_frames`` at a time (compressed), for the
+    per-segment views :func:`write_pass` renders one at a time. Memory does not grow
+    with the pass's length.
 
     Parameters
     ----------
     max_frames : int
-        Most frames kept.
+        Frames per slider view (a segment).
+    segments : bool
+        Keep the frames for the per-segment views (``False``: the overview only).
+
+    Examples
+    --------
+    >>> from dyntarget.fly.loop import PassConfig, fly_pass
+    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.scene import Scene
+    >>> img = np.full((4, 128, 32), 0.1, np.float32); lab = np.zeros((128, 32), bool)
+    >>> views = ViewCollector(max_frames=3)
+    >>> r = fly_pass(StaticWorld(Scene(img, label=lab, gsd=8.0)), None,
+    ...              PassConfig(compute_budget_s=0.5), frame_sink=views)
+    >>> views.n_frames, views.overflow, views.spill.segments, len(views.views)
+    (7, True, 2, 1)
+    >>> views.close()
     """
 
-    def __init__(self, max_frames: int = MAX_VIEW_FRAMES) -> None:
+    def __init__(self, max_frames: int = MAX_VIEW_FRAMES, *, segments: bool = True) -> None:
         self.views: list[FrameView] = []
-        self.max_frames = max_frames
+        self.max_frames = max(1, int(max_frames))
+        self.keep_segments = segments
         self.overflow = False
+        self.n_frames = 0
+        self.overview = _Overview()
+        self.spill = _Spill()
 
     def __call__(self, view: FrameView) -> None:
-        if len(self.views) >= self.max_frames:
-            self.overflow = True
-            self.views.clear()
+        self.n_frames += 1
+        self.overview.add(view.top, view.image, getattr(view.plan, "mask", None))
+        if not self.keep_segments:
+            return
+        self.views.append(view)
+        if not self.overflow and len(self.views) > self.max_frames:
+            self.overflow = True  # a long pass: segments from now on
+            self.spill.write(self.views[: self.max_frames])
+            self.views = self.views[self.max_frames :]
+        elif self.overflow and len(self.views) >= self.max_frames:
+            self.spill.write(self.views)
+            self.views = []
+
+    def segment_views(self) -> Iterator[list[FrameView]]:
+        """The frames, one segment at a time (read back from disk for a long pass).
+
+        Yields
+        ------
+        list of dyntarget.fly.loop.FrameView
+            At most ``max_frames`` frames, in pass order.
+        """
         if not self.overflow:
-            self.views.append(view)
+            if self.views:
+                yield self.views
+            return
+        for i in range(self.spill.segments):
+            yield self.spill.read(i)
+        if self.views:
+            yield self.views
+
+    def close(self) -> None:
+        """Remove the frames written to disk (also done when the pass is written)."""
+        self.spill.close()
 
 
 def write_view(
@@ -395,6 +590,8 @@ def write_view(
     path: str | os.PathLike[str],
     *,
     crs: object | None = None,
+    plotlyjs: bool | str = True,
+    title: str | None = None,
 ) -> Path | None:
     """The interactive HTML view of the pass: one slider step per frame (plotly, inline).
 
@@ -413,6 +610,10 @@ def write_view(
         The HTML file to write.
     crs : object or None
         The strip's CRS, named on the page (the frames are drawn in their own pixels).
+    plotlyjs : bool or str
+        plotly.js inline (``True``) or the name of a shared copy beside the page.
+    title : str or None
+        The page's title (default: the strip, planner and agility).
 
     Returns
     -------
@@ -452,8 +653,261 @@ def write_view(
         )
     if not steps:
         return None
-    title = f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
-    return write_pass_view(path, steps, title=title, crs=crs)
+    if title is None:
+        title = f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
+    return write_pass_view(path, steps, title=title, crs=crs, plotlyjs=plotlyjs)
+
+
+def _long(result: PassResult, world: World) -> bool:
+    """Whether the pass gets an overview: a lazily rendered strip, or too many frames."""
+    return hasattr(world, "truth_rows") or result.frames.n_frames > MAX_VIEW_FRAMES
+
+
+def _overview_data(result: PassResult, views: ViewCollector) -> dict[str, Any] | None:
+    """The overview in kilometres: along-track (flight direction) and across."""
+    got = views.overview.arrays()
+    if got is None:
+        return None
+    first, rgb, plume = got
+    d = views.overview.d
+    fp = result.frames
+    hw, ww = fp.wfov_shape
+    gsd_km = fp.geometry.wfov_gsd_m / 1e3
+    n = rgb.shape[0]
+    # flight from the strip's last row to its first: along = (hw - row) * gsd, increasing
+    rows0, rows1 = first * d, (first + n) * d  # WFOV rows covered
+    rgb, plume = rgb[::-1], plume[::-1]  # along-track increasing
+    a0, a1 = (hw - rows1) * gsd_km, (hw - rows0) * gsd_km
+    fl = result.flown
+    along = (hw - 0.5 - np.asarray(fl.y, np.float64)) * gsd_km
+    across = (np.asarray(fl.x, np.float64) + 0.5) * gsd_km
+    targets = None
+    geo = result.geo or {}
+    if geo.get("target_along_cross_m"):
+        ac = np.asarray(geo["target_along_cross_m"], np.float64).reshape(-1, 2)
+        g = fp.geometry
+        row = (
+            (hw - fp.frame_px)
+            + (fp.frame_px - 1) / 2.0
+            - (ac[:, 0] - g.look_ahead_m) / (g.wfov_gsd_m)
+        )
+        col = ac[:, 1] / g.wfov_gsd_m + (ww - 1) / 2.0
+        targets = ((hw - 0.5 - row) * gsd_km, (col + 0.5) * gsd_km)
+    dropped = np.array(
+        [(hw - fp.tops[r.frame] - fp.frame_px / 2) * gsd_km for r in result.records if r.dropped]
+    )
+    return {
+        "rgb": rgb,
+        "plume": plume,
+        "extent": (a0, a1, 0.0, ww * gsd_km),
+        "pointings": (along, across, np.asarray(fl.t, np.float64)),
+        "targets": targets,
+        "dropped": dropped,
+        "rows_per_cell": d,
+        "km_per_cell": d * gsd_km,
+    }
+
+
+def _overview_title(result: PassResult) -> str:
+    t = result.totals()
+    return (
+        f"{result.world_id}: {result.config.planner}, {result.config.agility} agility: "
+        f"{t['frames']} frames, {t['pointings_flown']} pointings, "
+        f"{t['plumes_observed']} of {t['plumes_total']} plumes observed"
+    )
+
+
+def draw_overview(
+    result: PassResult, views: ViewCollector, path: str | os.PathLike[str]
+) -> Path | None:
+    """Draw a long pass's overview to a PNG: the strip in lanes of :data:`LANE_KM`.
+
+    Each lane is a stretch of the pass, flight to the right, across-track
+    stretched to be seen: the decimated strip (RGB), the plume each frame planned
+    on (orange: the fraction of each decimated cell), the flown pointings
+    (coloured by time), GEO targets (red crosses) and dropped frames (red marks).
+    ``None`` (nothing drawn) without matplotlib or without frames.
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    views : ViewCollector
+        What it collected during the pass.
+    path : str or os.PathLike
+        The PNG to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The PNG written.
+    """
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+        from matplotlib.lines import Line2D
+    except ImportError:
+        return None
+    data = _overview_data(result, views)
+    if data is None:
+        return None
+    a0, a1, c0, c1 = data["extent"]
+    n_lanes = int(min(12, max(1, math.ceil((a1 - a0) / LANE_KM - 0.05))))  # lanes <= 1.05 x
+    lane = (a1 - a0) / n_lanes
+    rgb = np.clip(np.nan_to_num(data["rgb"]) * 2.0, 0, 1)
+    plume = np.nan_to_num(data["plume"])
+    na = rgb.shape[0]
+    along, across, t = data["pointings"]
+    fig, axes = plt.subplots(n_lanes, 1, figsize=(16, 1.2 + 1.1 * n_lanes), dpi=110, squeeze=False)
+    fig.subplots_adjust(hspace=0.55)
+    tmax = float(t.max()) if len(t) else 1.0
+    sc = None
+    for i, ax in enumerate(axes[:, 0]):
+        lo, hi = a0 + i * lane, a0 + (i + 1) * lane
+        j0 = int(np.floor((lo - a0) / (a1 - a0) * na))
+        j1 = int(np.ceil((hi - a0) / (a1 - a0) * na))
+        e0, e1 = a0 + j0 * (a1 - a0) / na, a0 + j1 * (a1 - a0) / na
+        ext = (e0, e1, c1, c0)  # across: 0 at the top
+        ax.imshow(rgb[j0:j1].transpose(1, 0, 2), extent=ext, aspect="auto", interpolation="nearest")
+        overlay = np.zeros((*plume[j0:j1].T.shape, 4))
+        overlay[..., 0], overlay[..., 1], overlay[..., 2] = 1.0, 0.0, 1.0  # magenta
+        overlay[..., 3] = np.where(plume[j0:j1].T > 0, 0.35 + 0.6 * plume[j0:j1].T, 0.0)
+        ax.imshow(overlay, extent=ext, aspect="auto", interpolation="nearest")
+        sel = (along >= lo) & (along < hi)
+        if sel.any():
+            sc = ax.scatter(along[sel], across[sel], c=t[sel], s=3, cmap="viridis", vmin=0,
+                            vmax=tmax, edgecolors="none")  # fmt: skip
+        if data["targets"] is not None:
+            ta, tc = data["targets"]
+            tsel = (ta >= lo) & (ta < hi)
+            ax.scatter(ta[tsel], tc[tsel], marker="x", s=30, c="red", linewidths=1.2)
+        dr = data["dropped"]
+        if len(dr):
+            dsel = (dr >= lo) & (dr < hi)
+            ax.scatter(dr[dsel], np.full(int(dsel.sum()), c1), marker="v", s=25, c="red")
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(c1, c0)
+        ax.set_yticks([c0, c1])
+        ax.tick_params(labelsize=7)
+        ax.set_ylabel("km", fontsize=7)
+    axes[-1, 0].set_xlabel(
+        "along track (km), flight to the right; each lane continues the one above"
+    )
+    if sc is not None:
+        fig.colorbar(sc, ax=axes[:, 0].tolist(), label="pointing time (s)", fraction=0.02, pad=0.01)
+    fig.suptitle(
+        _overview_title(result)
+        + f" (overview: {data['km_per_cell']:.2f} km per column, across-track stretched)",
+        fontsize=10,
+        y=0.9 + 0.5 / fig.get_figheight(),  # above the legend, which sits above the lanes
+    )
+    handles = [
+        Line2D([], [], color="magenta", lw=4, alpha=0.7, label="plume planned on (opacity: fraction)"),
+        Line2D([], [], color="tab:green", lw=0, marker="o", ms=4,
+               label="pointing flown (colour: time)"),
+        Line2D([], [], color="red", lw=0, marker="x", ms=6, label="GEO target"),
+        Line2D([], [], color="red", lw=0, marker="v", ms=6, label="frame dropped (late)"),
+    ]  # fmt: skip
+    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.45, 0.9), ncol=4,
+               fontsize=8, frameon=False, bbox_transform=fig.transFigure)  # fmt: skip
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+    return Path(path)
+
+
+def write_overview_view(
+    result: PassResult,
+    views: ViewCollector,
+    path: str | os.PathLike[str],
+    *,
+    segments: Sequence[tuple[str, str]] = (),
+) -> Path | None:
+    """A long pass's ``pass.html``: the zoomable overview and links to its segments.
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    views : ViewCollector
+        What it collected during the pass.
+    path : str or os.PathLike
+        The page to write.
+    segments : sequence of (href, text)
+        The per-segment pages to link.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The page written; ``None`` without plotly or without frames.
+    """
+    try:
+        from dyntarget.view.html import overview_html, require_plotly
+
+        require_plotly()
+    except Exception:  # plotly absent: no view
+        return None
+    data = _overview_data(result, views)
+    if data is None:
+        return None
+    note = (
+        f"decimated: {data['km_per_cell']:.2f} km per column ({data['rows_per_cell']} WFOV rows); "
+        "zoom in, or open a segment below at full resolution"
+    )
+    page = overview_html(
+        data["rgb"],
+        data["extent"],
+        plume=data["plume"],
+        pointings=data["pointings"],
+        targets=data["targets"],
+        dropped=data["dropped"],
+        links=segments,
+        title=_overview_title(result),
+        note=note,
+    )
+    return write_text(path, page)
+
+
+def write_segments(
+    result: PassResult, views: ViewCollector, folder: str | os.PathLike[str], *, crs: object = None
+) -> list[tuple[str, str]]:
+    """Write the per-segment slider views of a long pass into ``folder`` (one at a time).
+
+    Parameters
+    ----------
+    result : dyntarget.fly.loop.PassResult
+        The pass.
+    views : ViewCollector
+        What it collected (the frames spilled to disk).
+    folder : str or os.PathLike
+        Where the pages go, with one shared ``plotly.min.js``.
+    crs : object or None
+        The strip's CRS, named on the pages.
+
+    Returns
+    -------
+    list of (str, str)
+        ``(relative href, text)`` per page written (empty without plotly).
+    """
+    try:
+        from dyntarget.view.html import PLOTLYJS, write_plotlyjs
+
+        write_plotlyjs(folder)
+    except Exception:  # plotly absent
+        return []
+    folder = Path(folder)
+    links = []
+    for i, seg in enumerate(views.segment_views()):
+        a, b = seg[0].frame, seg[-1].frame
+        name = f"segment-{i:04d}.html"
+        title = f"{result.world_id}: frames {a}-{b} of {result.frames.n_frames}"
+        page = write_view(result, seg, folder / name, crs=crs, plotlyjs=PLOTLYJS, title=title)
+        if page is not None:
+            n = sum(v.end - v.first for v in seg)
+            links.append((f"{folder.name}/{name}", f"frames {a}-{b}: {n} pointings flown"))
+    return links
 
 
 def write_pass(
@@ -467,7 +921,11 @@ def write_pass(
 ) -> list[Path]:
     """Write every output of a (possibly stopped) pass into ``out``; return the paths.
 
-    ``views``: frames collected during the pass for ``pass.html`` (none: no view).
+    ``views``: frames collected during the pass for ``pass.html`` (none: no view),
+    and for the overview picture of a long pass (see the module docstring). A
+    picture or view skipped for want of matplotlib or plotly (the lean onboard
+    install) is said in one line on stderr and in ``summary.md``; the rest of the
+    pass is written.
 
     Parameters
     ----------
@@ -480,7 +938,8 @@ def write_pass(
     picture : bool
         Draw the pass picture (needs matplotlib).
     views : ViewCollector or None
-        Frames collected for ``pass.html``.
+        Frames collected for ``pass.html`` and a long pass's overview picture (a
+        collector made with ``segments=False``: the picture only, no HTML view).
     crs_mode : {"rfc7946", "native"}
         Coordinates of the pointings' GeoJSON.
 
@@ -492,27 +951,76 @@ def write_pass(
     out = Path(out)
     write_progress(result, world, out, crs_mode=crs_mode)
     written = [out / TIMELINE, out / POINTINGS]
+    if not result.measured:
+        written.append(out / MEASURED)
     notes = []
-    pic = draw_pass(result, world, out / PICTURE) if picture else None
-    if picture and pic is None:
-        if getattr(world, "truth_rows", None) is not None:
-            notes.append("No picture: a long strip is never rendered whole.")
+    missing: list[tuple[str, str]] = []  # (file, library)
+    long_pass = _long(result, world)
+    pic = None
+    if picture:
+        if not _importable("matplotlib"):
+            missing.append((PICTURE, "matplotlib"))
+            notes.append(f"No {PICTURE}: matplotlib is not installed (the lean onboard install).")
+        elif long_pass and views is not None:
+            pic = draw_overview(result, views, out / PICTURE)
+        elif long_pass:
+            notes.append(
+                f"No {PICTURE}: a long pass's overview is drawn from its frames (HTML on)."
+            )
         else:
-            notes.append("No picture: matplotlib is not installed (the lean onboard install).")
+            pic = draw_pass(result, world, out / PICTURE)
     if pic is not None:
         written.append(pic)
-    if views is not None:
-        page = (
-            None if views.overflow else write_view(result, views.views, out / VIEW, crs=world.crs)
+    if views is not None and not views.keep_segments:
+        views.close()  # collected for the overview picture only (no HTML view)
+    elif views is not None:
+        try:
+            if not _importable("plotly"):
+                missing.append((VIEW, "plotly"))
+                notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
+            elif long_pass or views.overflow:
+                seg_dir = out / SEGMENTS
+                if seg_dir.is_dir():
+                    shutil.rmtree(seg_dir)  # a rerun's old segments
+                links = write_segments(result, views, seg_dir, crs=world.crs)
+                page = write_overview_view(result, views, out / VIEW, segments=links)
+                if page is not None:
+                    written.append(page)
+                    written.append(seg_dir)
+                    notes.append(
+                        f"Interactive overview: [{VIEW}]({VIEW}); full resolution, "
+                        f"{views.max_frames} frames a page: `{SEGMENTS}/` ({len(links)} pages)."
+                    )
+            else:
+                page = write_view(result, views.views, out / VIEW, crs=world.crs)
+                if page is not None:
+                    written.append(page)
+                    notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")
+        finally:
+            views.close()
+    if missing:
+        files = " and ".join(f for f, _ in missing)
+        libs = " and ".join(lib for _, lib in missing)
+        verb = "is" if len(missing) == 1 else "are"
+        print(
+            f'dyntarget: {files} skipped: {libs} {verb} not installed (pip install "dyntarget[full]"); '
+            "the rest of the pass is written",
+            file=sys.stderr,
+            flush=True,
         )
-        if page is not None:
-            written.append(page)
-            notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")
-        elif views.overflow:
-            notes.append(f"No {VIEW}: more than {views.max_frames} frames.")
-        else:
-            notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
     write_text(out / SUMMARY, summary_md(result, PICTURE if pic else None, " ".join(notes) or None))
     written.append(out / SUMMARY)
     written.append(write_text(out / SUMMARY_JSON, summary_json(result)))
     return written
+
+
+def _importable(module: str) -> bool:
+    """Whether ``module`` can be imported (an entry of ``None`` in sys.modules: not)."""
+    import importlib.util
+
+    if module in sys.modules:
+        return sys.modules[module] is not None
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False

@@ -274,3 +274,116 @@ def sample_ring(polygon: Polygon, step: float, start: np.ndarray) -> np.ndarray:
     n = max(int(np.floor(length / step + 1e-9)), 1)
     s = (s0 + step * np.arange(n)) % length
     return interpolate_ring(np.asarray(ring.coords), s)
+
+
+def transect_ends(
+    polygons: list[Polygon], width: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cross-transects of many polygons at once: each one's ends ``A_k``, ``B_k``.
+
+    The same geometry as the transect planners draw one polygon at a time (major
+    axis by a total-least-squares fit to the evenly resampled exterior, stations
+    along it at most ``width`` apart, the farthest boundary points on each
+    perpendicular line), computed for all polygons in a few vectorised passes: a
+    mask of thousands of specks costs milliseconds, not one Python round per
+    speck. Equal to the one-polygon computation up to floating-point rounding.
+
+    Parameters
+    ----------
+    polygons : list of shapely.Polygon
+        The polygons, pixel coordinates.
+    width : float
+        Largest spacing between transects, pixels (> 0).
+
+    Returns
+    -------
+    a, b : numpy.ndarray
+        ``(m, 2)`` ends of every transect, in axis order within each polygon (lines
+        that miss their polygon are left out).
+    first : numpy.ndarray
+        ``(len(polygons) + 1,)``: polygon ``i``'s transects are rows ``first[i]:first[i + 1]``.
+
+    Examples
+    --------
+    >>> from shapely.geometry import box
+    >>> a, b, first = transect_ends([box(0, 0, 10, 2), box(20, 0, 21, 1)], width=4.0)
+    >>> first.tolist(), a[first[1]].tolist(), b[first[1]].tolist()
+    ([0, 3, 4], [20.5, 0.0], [20.5, 1.0])
+    """
+    n = len(polygons)
+    if n == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(1, np.int64)
+    rings = shapely.get_exterior_ring(np.asarray(polygons, dtype=object))
+    coords, idx = shapely.get_coordinates(rings, return_index=True)
+    counts = np.bincount(idx, minlength=n)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    lengths = shapely.length(rings)
+    # segments coords[j] -> coords[j + 1] inside a ring (a ring's last coordinate closes it)
+    is_seg = np.ones(len(coords), bool)
+    is_seg[starts + counts - 1] = False
+    seg_ids = np.flatnonzero(is_seg[:-1])
+    seg_a, seg_e = coords[seg_ids], coords[seg_ids + 1] - coords[seg_ids]
+    seg_ring = idx[seg_ids]
+    seg_len = np.hypot(seg_e[:, 0], seg_e[:, 1])
+    nseg = np.bincount(seg_ring, minlength=n)
+    seg_first = np.concatenate([[0], np.cumsum(nseg)[:-1]])
+    # 1. the ring resampled evenly (as resample_ring with spacing max(length / 400, 0.5))
+    spacing = np.maximum(lengths / 400.0, 0.5)
+    ns = np.maximum(np.ceil(lengths / spacing).astype(np.int64), 4)
+    s_ring = np.repeat(np.arange(n), ns)
+    s_first = np.concatenate([[0], np.cumsum(ns)[:-1]])
+    s = (np.arange(len(s_ring)) - s_first[s_ring]) * (lengths / ns)[s_ring]
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    offset = cum[seg_first]  # each ring's arc length starts here on the global scale
+    j = np.searchsorted(cum, offset[s_ring] + s, side="right") - 1
+    j = np.clip(j, seg_first[s_ring], seg_first[s_ring] + nseg[s_ring] - 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(seg_len[j] > 0, (s - (cum[j] - offset[s_ring])) / seg_len[j], 0.0)
+    pts = seg_a[j] + np.clip(t, 0.0, 1.0)[:, None] * seg_e[j]
+    # 2. the major axis: principal direction of the resampled points
+    centre = np.add.reduceat(pts, s_first, axis=0) / ns[:, None]
+    d = pts - centre[s_ring]
+    sxx = np.add.reduceat(d[:, 0] * d[:, 0], s_first)
+    sxy = np.add.reduceat(d[:, 0] * d[:, 1], s_first)
+    syy = np.add.reduceat(d[:, 1] * d[:, 1], s_first)
+    cov = (
+        np.stack([np.stack([sxx, sxy], -1), np.stack([sxy, syy], -1)], -2) / (ns - 1)[:, None, None]
+    )
+    w, vec = np.linalg.eigh(cov)
+    u = vec[np.arange(n), :, np.argmax(w, axis=1)]
+    round_ = np.abs(w[:, 0] - w[:, 1]) <= 1e-8 + 1e-5 * np.abs(w[:, 1])  # np.isclose
+    u[round_] = (1.0, 0.0)
+    big = np.argmax(np.abs(u), axis=1)
+    u[u[np.arange(n), big] < 0] *= -1.0
+    u /= np.hypot(u[:, 0], u[:, 1])[:, None]
+    v = np.column_stack([-u[:, 1], u[:, 0]])
+    # 3. stations along the axis over the ring's extent
+    proj = np.einsum("ij,ij->i", coords - centre[idx], u[idx])
+    lo, hi = np.minimum.reduceat(proj, starts), np.maximum.reduceat(proj, starts)
+    nst = np.maximum(np.ceil((hi - lo) / width - 1e-9).astype(np.int64), 1)
+    st_ring = np.repeat(np.arange(n), nst)
+    st_first = np.concatenate([[0], np.cumsum(nst)[:-1]])
+    k = np.arange(len(st_ring)) - st_first[st_ring]
+    off = lo[st_ring] + (k + 0.5) * ((hi - lo) / nst)[st_ring]
+    origins = centre[st_ring] + off[:, None] * u[st_ring]
+    # 4. each line against its own ring's segments (as chords): first entry, last exit
+    per = nseg[st_ring]
+    pair_st = np.repeat(np.arange(len(st_ring)), per)
+    pair_first = np.concatenate([[0], np.cumsum(per)[:-1]])
+    pair_seg = seg_first[st_ring][pair_st] + (np.arange(len(pair_st)) - pair_first[pair_st])
+    dv = v[st_ring][pair_st]
+    e = seg_e[pair_seg]
+    ao = seg_a[pair_seg] - origins[pair_st]
+    denom = dv[:, 0] * e[:, 1] - dv[:, 1] * e[:, 0]
+    ok = np.abs(denom) > 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tt = (ao[:, 0] * e[:, 1] - ao[:, 1] * e[:, 0]) / denom
+        uu = (ao[:, 0] * dv[:, 1] - ao[:, 1] * dv[:, 0]) / denom
+    hit = ok & (uu >= -1e-9) & (uu <= 1 + 1e-9)
+    t_min = np.minimum.reduceat(np.where(hit, tt, np.inf), pair_first)
+    t_max = np.maximum.reduceat(np.where(hit, tt, -np.inf), pair_first)
+    keep = np.isfinite(t_min)
+    a = origins + t_min[:, None] * v[st_ring]
+    b = origins + t_max[:, None] * v[st_ring]
+    first = np.concatenate([[0], np.cumsum(np.bincount(st_ring[keep], minlength=n))])
+    return a[keep], b[keep], first

@@ -355,9 +355,9 @@ def _note(traj, transform, crs, acquired) -> str:
     return "; ".join(parts)
 
 
-def _to_html(fig, title: str, *, animated: bool = False) -> str:
+def _to_html(fig, title: str, *, animated: bool = False, plotlyjs: bool | str = True) -> str:
     text = fig.to_html(
-        include_plotlyjs=True,
+        include_plotlyjs=plotlyjs,
         full_html=True,
         div_id=DIV_ID,
         auto_play=False,
@@ -485,6 +485,7 @@ def pass_view_html(
     crs: object | None = None,
     acquired: datetime | str | None = None,
     title: str = "dyntarget pass",
+    plotlyjs: bool | str = True,
 ) -> str:
     """The HTML page of a pass: one step per frame, a time slider and play/pause.
 
@@ -496,6 +497,10 @@ def pass_view_html(
         flown so far to see the trail grow). Pointing colours share one time scale.
     transform, crs, acquired, title
         As for :func:`scene_view_html` (``acquired`` is the first frame's instant).
+    plotlyjs : bool or str
+        ``True``: plotly.js inline (the page opens alone, offline); a file name such
+        as ``"plotly.min.js"``: the page loads it from beside itself (many pages
+        sharing one copy, see :func:`write_plotlyjs`).
 
     Returns
     -------
@@ -616,7 +621,7 @@ def pass_view_html(
         "yanchor": "bottom",
     }
     fig = go.Figure(data=per_frame[0], layout=layout, frames=plot_frames)
-    return _to_html(fig, title, animated=True)
+    return _to_html(fig, title, animated=True, plotlyjs=plotlyjs)
 
 
 def write_pass_view(
@@ -647,3 +652,165 @@ def write_pass_view(
     """
     path = _check_html_path(path)
     return write_text(path, pass_view_html(frames, **kwargs))
+
+
+PLOTLYJS = "plotly.min.js"
+"""File name of the shared plotly.js that pages written with ``plotlyjs=PLOTLYJS`` load."""
+
+
+def write_plotlyjs(folder: str | os.PathLike[str]) -> Path:
+    """Write plotly.js into ``folder`` as :data:`PLOTLYJS`, for pages that share one copy.
+
+    Parameters
+    ----------
+    folder : path-like
+        The folder of the pages (created if missing).
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> js = write_plotlyjs(pathlib.Path(tempfile.mkdtemp()))
+    >>> js.name, js.stat().st_size > 1_000_000
+    ('plotly.min.js', True)
+    """
+    require_plotly()
+    from plotly.offline import get_plotlyjs
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return write_text(folder / PLOTLYJS, get_plotlyjs())
+
+
+def overview_html(
+    rgb: np.ndarray,
+    extent: tuple[float, float, float, float],
+    *,
+    plume: np.ndarray | None = None,
+    pointings: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    targets: tuple[np.ndarray, np.ndarray] | None = None,
+    dropped: np.ndarray | None = None,
+    links: Sequence[tuple[str, str]] = (),
+    title: str = "dyntarget pass: overview",
+    note: str = "",
+) -> str:
+    """An overview page of a long pass: the strip decimated, along-track to the right.
+
+    One plotly figure (zoom and pan) of the decimated strip in kilometres along and
+    across track, with the plume (shaded), the flown pointings (coloured by time),
+    GEO targets and dropped frames; below it, links to the full-resolution pages
+    (e.g. one per segment of frames).
+
+    Parameters
+    ----------
+    rgb : array (n_along, n_across, 3)
+        The decimated strip, reflectance (stretched here), along-track first.
+    extent : (along_0, along_1, across_0, across_1)
+        What the image covers, km.
+    plume : array (n_along, n_across) or None
+        Plume fraction per cell (0..1), shown where above 0.
+    pointings : (along_km, across_km, time_s) or None
+        The flown pointings.
+    targets : (along_km, across_km) or None
+        GEO targets.
+    dropped : array or None
+        Along-track km of frames dropped (late).
+    links : sequence of (href, text)
+        Listed under the figure.
+    title, note : str
+        Page title and a subtitle line.
+
+    Returns
+    -------
+    str
+        The page (plotly.js inline: it opens offline).
+
+    Examples
+    --------
+    >>> rgb = np.random.default_rng(0).uniform(0, 0.3, (50, 4, 3))
+    >>> page = overview_html(rgb, (0.0, 100.0, 0.0, 2.0), links=[("s/0.html", "frames 0-63")])
+    >>> "frames 0-63" in page and DIV_ID in page
+    True
+    """
+    go = require_plotly()
+    rgb = np.asarray(rgb, np.float64)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.shape[0] < 1 or rgb.shape[1] < 1:
+        raise InvalidParameterError(f"rgb: expected (n_along, n_across, 3), got {rgb.shape}")
+    a0, a1, c0, c1 = (float(v) for v in extent)
+    na, nc = rgb.shape[:2]
+    da, dc = (a1 - a0) / na, (c1 - c0) / nc
+    img = _stretch(np.nan_to_num(rgb).transpose(2, 1, 0))  # (across, along, 3)
+    # the strip as a layout image stretched over its extent: an Image trace would force one
+    # scale on both axes, and a strip thousands of times longer than wide would be a line
+    strip = {
+        "source": _png_uri(img), "xref": "x", "yref": "y", "x": a0, "y": c0,
+        "sizex": a1 - a0, "sizey": c1 - c0, "sizing": "stretch", "layer": "below",
+        "xanchor": "left", "yanchor": "top",
+    }  # fmt: skip
+    traces: list[Any] = []
+    if plume is not None and np.any(np.asarray(plume) > 0):
+        z = np.where(np.asarray(plume, np.float64) > 0, plume, np.nan).T
+        traces.append(
+            go.Heatmap(
+                z=z, x0=a0 + da / 2, dx=da, y0=c0 + dc / 2, dy=dc, zmin=0, zmax=1,
+                colorscale=[[0, "rgba(255,0,255,0.35)"], [1, "rgba(255,0,255,0.95)"]],
+                showscale=False, name="plume fraction",
+                hovertemplate="plume fraction %{z:.2f}<extra></extra>",
+            )
+        )  # fmt: skip
+    if pointings is not None and len(pointings[0]):
+        x, y, t = (np.asarray(v, np.float64) for v in pointings)
+        traces.append(
+            go.Scatter(
+                x=x.round(4).tolist(), y=y.round(4).tolist(), mode="markers", name=POINTINGS,
+                marker={"size": 4, "color": t.round(2).tolist(), "colorscale": "Viridis",
+                        "showscale": True,
+                        "colorbar": {"title": {"text": "time (s)"}}},
+                hovertemplate="%{x:.2f} km along, %{y:.3f} km across<br>t = %{marker.color:.1f} s"
+                "<extra></extra>",
+            )
+        )  # fmt: skip
+    if targets is not None and len(targets[0]):
+        traces.append(
+            go.Scatter(
+                x=np.asarray(targets[0]).tolist(), y=np.asarray(targets[1]).tolist(), mode="markers",
+                name=f"GEO targets ({len(targets[0])})",
+                marker={"symbol": "x-thin", "size": 10, "line": {"width": 2, "color": "red"}},
+            )
+        )  # fmt: skip
+    if dropped is not None and len(dropped):
+        traces.append(
+            go.Scatter(
+                x=np.asarray(dropped).tolist(), y=[c1 + 0.04 * (c1 - c0)] * len(dropped),
+                mode="markers", name=f"frames dropped ({len(dropped)})",
+                marker={"symbol": "triangle-down", "size": 8, "color": "red"},
+            )
+        )  # fmt: skip
+    layout = go.Layout(
+        title={"text": html.escape(title), "subtitle": {"text": html.escape(note)}, "x": 0.02},
+        xaxis={"title": {"text": "along track (km), flight to the right"}, "range": [a0, a1]},
+        yaxis={"title": {"text": "across (km)"}, "range": [c1 + 0.08 * (c1 - c0), c0]},
+        images=[strip],
+        height=460,
+        legend={"orientation": "h", "y": -0.3},
+        margin={"l": 60, "r": 40, "t": 90, "b": 120},
+        plot_bgcolor="black",
+    )
+    fig = go.Figure(data=traces, layout=layout)
+    page = _to_html(fig, title)
+    if links:
+        items = "\n".join(
+            f'<li><a href="{html.escape(h, quote=True)}">{html.escape(t)}</a></li>'
+            for h, t in links
+        )
+        page = page.replace(
+            "</body>",
+            "<h3 style='font-family:sans-serif'>Full resolution, frame by frame</h3>\n"
+            f"<ul style='font-family:sans-serif'>\n{items}\n</ul>\n</body>",
+            1,
+        )
+    return page
