@@ -17,8 +17,7 @@ Masks (512 x 512 WFOV px, plan at factor 1, a random image under them):
 (``denoise X ms, plan Y ms``); the table gives the median over ``--repeats`` processes and
 the process's wall time.
 
-    python benchmarks/specks_process.py --repeats 5 --patch benchmarks/specks_masks.patch \\
-        --out docs/benchmarks/specks_process.json
+    python benchmarks/specks_process.py --repeats 5 --out docs/benchmarks/specks_process.json
 """
 
 from __future__ import annotations

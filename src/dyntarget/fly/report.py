@@ -252,7 +252,9 @@ def summary_json(result: PassResult) -> str:
     Holds every key of :meth:`~dyntarget.fly.loop.PassResult.totals` (``utility``,
     ``plumes_observed``, ``plumes_total``, ``pointings_flown``, ``ratio_plume``,
     ``frames``, ...), ``stopped``, and ``geo``: the geostationary settings and
-    what the blueprint did (``None`` for a look-ahead-only pass).
+    what the blueprint did (``None`` for a look-ahead-only pass); with the pass's
+    upper bound (:func:`~dyntarget.fly.loop.pass_upper_bound`), ``upper_bound_utility``,
+    ``fraction_of_bound`` (``utility`` over it) and ``upper_bound`` (how it was found).
 
     Parameters
     ----------
@@ -276,6 +278,11 @@ def summary_json(result: PassResult) -> str:
     (7, 0, None)
     """
     doc = {**result.totals(), "stopped": bool(result.stopped), "geo": result.geo}
+    if result.upper_bound is not None:  # the true upper bound, and the pass as a fraction of it
+        ub = result.upper_bound.get("value")
+        doc["upper_bound_utility"] = ub
+        doc["upper_bound"] = result.upper_bound
+        doc["fraction_of_bound"] = round(doc["utility"] / ub, 4) if ub else None
     return json.dumps(doc, sort_keys=True, indent=1) + "\n"
 
 
