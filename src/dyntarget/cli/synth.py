@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -18,12 +19,51 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
     if getattr(args, "strip", False):  # demo calls this with the static options only
         _check_strip_size(args)  # before anything is written
+    heights = _heights(args)  # before anything is written
     with staged(args.out) as stage:
         if getattr(args, "strip", False):
-            return _synth_strips(args, stage)
+            return _synth_strips(args, stage, heights)
         if getattr(args, "frames", None) is not None:  # demo: the static options only
-            return _synth_sequences(args, stage)
+            return _synth_sequences(args, stage, heights)
         return _synth_scenes(args, stage)
+
+
+Heights = tuple[tuple[float, float], tuple[float, float]]
+
+
+def _heights(args: argparse.Namespace) -> Heights | None:
+    """The height ranges of a 3D world (plume, cloud; km), or ``None`` for a flat world.
+
+    For now a moving world is 3D only when a height option is given: the pipeline does not
+    correct parallax yet (issue 40's next step), and 3D by default before it does would
+    silently degrade every pass. Static scenes stay flat (the paper's setting).
+    """
+    plume = getattr(args, "plume_height_km", None)
+    cloud = getattr(args, "cloud_height_km", None)
+    if plume is None and cloud is None:
+        return None
+    if getattr(args, "flat", False):
+        raise InvalidParameterError(
+            "--flat and --plume-height-km/--cloud-height-km exclude each other"
+        )
+    if not getattr(args, "strip", False) and getattr(args, "frames", None) is None:
+        raise InvalidParameterError(
+            "--plume-height-km/--cloud-height-km: static scenes stay flat; heights apply to "
+            "moving worlds (--frames, --strip)"
+        )
+    return (plume or PLUME_HEIGHT_KM, cloud or CLOUD_HEIGHT_KM)
+
+
+def _write_plumes(spec, dest: Path) -> Path:
+    """``<id>.plumes.geojson`` beside the strip or frame folder: the per-vent truth."""
+    from dyntarget.io.geojson import write_plumes
+
+    return write_plumes(
+        dest / f"{spec.id}.plumes.geojson",
+        spec.plumes(),
+        transform=spec.grid_transform(),
+        crs=spec.crs,
+    )
 
 
 def _synth_scenes(args: argparse.Namespace, dest: Path) -> int:
@@ -51,9 +91,10 @@ def _synth_scenes(args: argparse.Namespace, dest: Path) -> int:
     return EXIT_OK
 
 
-def _synth_strips(args: argparse.Namespace, dest: Path) -> int:
+def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None) -> int:
     """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
     from dyntarget.fly.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
+    from dyntarget.synth.dynamic import with_heights
 
     out = Path(args.out)
     t0 = time.perf_counter()
@@ -71,6 +112,9 @@ def _synth_strips(args: argparse.Namespace, dest: Path) -> int:
                 wind_mps=getattr(args, "wind_mps", None),
                 wind_from_deg=getattr(args, "wind_from_deg", None),
             )
+            if heights is not None:
+                spec = with_heights(spec, plume_height_km=heights[0], cloud_height_km=heights[1])
+                _write_plumes(spec, dest)
             write_long_strip(spec, window, dest)
         log(
             f"wrote {args.scenes} strip(s) of {args.length_km:g} km to {out} "
@@ -87,16 +131,20 @@ def _synth_strips(args: argparse.Namespace, dest: Path) -> int:
             wind_mps=getattr(args, "wind_mps", None),
             wind_from_deg=getattr(args, "wind_from_deg", None),
         )
+        if heights is not None:
+            spec = with_heights(spec, plume_height_km=heights[0], cloud_height_km=heights[1])
+            _write_plumes(spec, dest)
         write_strip(spec, window, dest)
     log(f"wrote {args.scenes} strip(s) to {out} in {time.perf_counter() - t0:.1f} s")
     return EXIT_OK
 
 
-def _synth_sequences(args: argparse.Namespace, dest: Path) -> int:
+def _synth_sequences(args: argparse.Namespace, dest: Path, heights: Heights | None) -> int:
     from tqdm import tqdm
 
     from dyntarget.io import write_sequence
     from dyntarget.synth import generate_sequences
+    from dyntarget.synth.dynamic import WorldSpec
 
     t0 = time.perf_counter()
     gen = generate_sequences(
@@ -108,15 +156,63 @@ def _synth_sequences(args: argparse.Namespace, dest: Path) -> int:
         interval_s=args.frame_interval_s,
         wind_mps=args.wind_mps,
         wind_from_deg=args.wind_from_deg,
+        heights_km=heights,
     )
     n_files = 0
     for seq in tqdm(gen, total=args.scenes, desc="synth", unit="sequence", disable=args.quiet):
         n_files += len(write_sequence(seq, dest))
+        if heights is not None:
+            _write_plumes(WorldSpec.from_dict(seq.meta["world"]), dest)
+            n_files += 1
     log(
         f"wrote {args.scenes} moving-scene sequences of {args.frames} frame(s) "
         f"({n_files} files) to {args.out} in {time.perf_counter() - t0:.1f} s"
     )
     return EXIT_OK
+
+
+PLUME_HEIGHT_KM, CLOUD_HEIGHT_KM = (2.0, 15.0), (1.0, 12.0)
+"""Default height ranges of a 3D world, km (:data:`dyntarget.synth.dynamic.PLUME_HEIGHT_KM`,
+``CLOUD_HEIGHT_KM``; written out here so that ``--help`` does not import the renderer)."""
+MAX_HEIGHT_KM = 25.0
+"""Highest plume or cloud top, km (:data:`dyntarget.synth.dynamic.MAX_HEIGHT_M` / 1000)."""
+
+
+def height_range(text: str) -> tuple[float, float]:
+    """``"LO,HI"`` (or one height ``"H"``) in km, ``0 <= LO <= HI <= 25``, finite.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` km.
+
+    Examples
+    --------
+    >>> height_range("2,15"), height_range("8")
+    ((2.0, 15.0), (8.0, 8.0))
+    >>> height_range("15,2")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected LO,HI km with 0 <= LO <= HI <= 25, got '15,2'
+    """
+    parts = text.split(",")
+    try:
+        vals = [float(v) for v in parts] if len(parts) <= 2 else []
+    except ValueError:
+        vals = []
+    if not vals:
+        raise argparse.ArgumentTypeError(f"expected LO,HI km (e.g. 2,15), got {text!r}")
+    lo, hi = vals[0], vals[-1]
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= MAX_HEIGHT_KM):
+        raise argparse.ArgumentTypeError(
+            f"expected LO,HI km with 0 <= LO <= HI <= {MAX_HEIGHT_KM:g}, got {text!r}"
+        )
+    return lo, hi
 
 
 MAX_VENTS, MAX_CLOUDS = 64, 256
@@ -257,5 +353,32 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=2.0,
         help="meteorological clouds per 100 km of a --length-km strip (default 2; at most "
         f"{MAX_CLOUDS} per strip)",
+    )
+    d = p.add_argument_group(
+        "3D worlds (docs/plumes-3d.md)",
+        "heights of the plume tops and clouds of moving worlds (--frames, --strip), written in "
+        "the world spec and as <id>.plumes.geojson beside the images (one Point per vent: "
+        "plume_id, top_height_m, rise_mps, onset_s). For now a world is 3D only when a "
+        "height option is given, and its frames are still rendered from straight above",
+    )
+    d.add_argument(
+        "--plume-height-km",
+        type=height_range,
+        metavar="LO,HI",
+        help="each vent's column-top height drawn in LO..HI km (makes the world 3D; with "
+        f"--cloud-height-km alone: {PLUME_HEIGHT_KM[0]:g},{PLUME_HEIGHT_KM[1]:g}); the column "
+        "rises at 10-100 m/s from the eruption's onset until it reaches it",
+    )
+    d.add_argument(
+        "--cloud-height-km",
+        type=height_range,
+        metavar="LO,HI",
+        help="each cloud's height drawn in LO..HI km (makes the world 3D; with "
+        f"--plume-height-km alone: {CLOUD_HEIGHT_KM[0]:g},{CLOUD_HEIGHT_KM[1]:g})",
+    )
+    d.add_argument(
+        "--flat",
+        action="store_true",
+        help="a flat world (every feature on the ground; today's bytes, the default for now)",
     )
     p.set_defaults(func=cmd_synth, size_given=False, plumes_given=False)

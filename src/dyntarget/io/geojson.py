@@ -799,3 +799,95 @@ def write_polygons(
         properties=properties,
     )
     return write_geojson(path, doc)
+
+
+PLUME_TRUTH_FIELDS = ("plume_id", "top_height_m", "rise_mps", "onset_s")
+"""Properties of each Point of a ``<id>.plumes.geojson`` truth file, in order."""
+
+
+def plumes_geojson(
+    plumes: Sequence[Mapping[str, Any]], *, transform: Affine, crs: object
+) -> dict[str, Any]:
+    """The per-plume truth of a 3D world as an RFC 7946 FeatureCollection.
+
+    One Point Feature per vent at its WGS 84 ``(longitude, latitude)``, with
+    :data:`PLUME_TRUTH_FIELDS` (``top_height_m`` metres above sea level, ``rise_mps``
+    m/s or null, ``onset_s`` seconds on the pass clock) and its world-grid position
+    ``x_px``, ``y_px``.
+
+    Parameters
+    ----------
+    plumes : sequence of mapping
+        As :meth:`dyntarget.synth.dynamic.World.plumes` gives them (``x_px``, ``y_px``
+        on the grid of ``transform``, pixel centres at integers, and the truth fields).
+    transform : affine.Affine
+        Pixel-corner transform of the world grid.
+    crs : str or rasterio CRS
+        The grid's CRS.
+
+    Returns
+    -------
+    dict
+        The FeatureCollection (with a ``bbox`` when there are plumes).
+
+    Examples
+    --------
+    >>> doc = plumes_geojson(
+    ...     [{"plume_id": 0, "x_px": 0.0, "y_px": 0.0, "top_height_m": 9000.0,
+    ...       "rise_mps": 20.0, "onset_s": -600.0}],
+    ...     transform=Affine(10, 0, 500000, 0, -10, 0), crs="EPSG:32632")
+    >>> doc["features"][0]["geometry"]["coordinates"], doc["features"][0]["properties"]["top_height_m"]
+    ([9.0000449, -4.52e-05], 9000.0)
+    """
+    pts = np.array([[float(p["x_px"]), float(p["y_px"])] for p in plumes], np.float64)
+    lonlat = crs_to_lonlat(pixels_to_crs(pts, transform), crs) if len(pts) else pts
+    lonlat = np.round(lonlat, LONLAT_DECIMALS)
+    features = []
+    for p, (lon, lat) in zip(plumes, lonlat, strict=True):
+        props = {k: _json_value(p.get(k)) for k in PLUME_TRUTH_FIELDS}
+        props["x_px"] = round(float(p["x_px"]), PIXEL_DECIMALS)
+        props["y_px"] = round(float(p["y_px"]), PIXEL_DECIMALS)
+        features.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
+                "properties": props,
+            }
+        )
+    doc: dict[str, Any] = {"type": "FeatureCollection", "features": features}
+    if len(pts):
+        doc["bbox"] = lonlat_bbox(lonlat)
+    return doc
+
+
+def write_plumes(
+    path: str | os.PathLike[str],
+    plumes: Sequence[Mapping[str, Any]],
+    *,
+    transform: Affine,
+    crs: object,
+) -> Path:
+    """Write :func:`plumes_geojson` to ``path`` (``.geojson``), atomically.
+
+    Parameters
+    ----------
+    path : path-like
+    plumes, transform, crs
+        As for :func:`plumes_geojson`.
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = write_plumes(pathlib.Path(tempfile.mkdtemp()) / "w.plumes.geojson", [],
+    ...                    transform=Affine.identity(), crs="EPSG:32632")
+    >>> json.loads(out.read_text())["features"]
+    []
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".geojson", ".json"):
+        raise InvalidParameterError(f"{path}: plume files must end in .geojson or .json")
+    return write_geojson(path, plumes_geojson(plumes, transform=transform, crs=crs))

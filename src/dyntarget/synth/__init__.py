@@ -12,6 +12,7 @@ from dyntarget.synth.dynamic import (
     sample_strip,
     sample_world,
     truth_provider,
+    with_heights,
     world_sequence,
 )
 from dyntarget.synth.noise import fractal_noise
@@ -34,5 +35,6 @@ __all__ = [
     "sample_strip",
     "sample_world",
     "truth_provider",
+    "with_heights",
     "world_sequence",
 ]

@@ -41,9 +41,10 @@ from __future__ import annotations
 import functools
 import json
 import math
+import zlib
 from collections import OrderedDict
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import cv2
@@ -107,6 +108,12 @@ MAX_RADIUS_M = 100_000.0
 """Largest puff/cloud radius, metres (100 km)."""
 MIN_GSD, MAX_GSD = 0.01, 10_000.0
 """Ground sampling distances accepted, metres per pixel."""
+MAX_HEIGHT_M = 25_000.0
+"""Highest plume or cloud top of a 3D world, metres (``synth --plume-height-km``: 0..25 km)."""
+MAX_RISE_MPS = 1_000.0
+"""Fastest column rise accepted, m/s."""
+OPTIONAL_HEIGHTS = {"vents": ("top_height_m", "rise_mps"), "clouds": ("height_m",)}
+"""Fields of a 3D world left out of a flat world's JSON (so flat specs keep their bytes)."""
 
 
 def _number(
@@ -211,6 +218,13 @@ class VentSpec:
         time (pulsing eruptions; 0: steady).
     pulse_period_s : float
         Typical period of the pulsation, seconds.
+    top_height_m : float or None
+        Neutral-buoyancy height of the column top (the umbrella), metres above sea level
+        (the vent's datum; vents sit at sea level here); ``None``: a flat world's plume,
+        on the ground (see ``docs/plumes-3d.md``).
+    rise_mps : float or None
+        Rise velocity of the column top, m/s: the top rises from the vent from the onset
+        (``-eruption_age_s``) until it reaches ``top_height_m`` (``None``: already there).
     """
 
     x: float
@@ -227,10 +241,18 @@ class VentSpec:
     ash_fade_s: float = 300.0
     pulsation: float = 0.0
     pulse_period_s: float = 120.0
+    top_height_m: float | None = None
+    rise_mps: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("x", "y"):
             _number("vent ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
+        if self.top_height_m is not None:
+            _number("vent ", "top_height_m", self.top_height_m, 0.0, MAX_HEIGHT_M)
+        if self.rise_mps is not None:
+            if self.top_height_m is None:
+                raise InvalidParameterError("vent rise_mps: give top_height_m too")
+            _number("vent ", "rise_mps", self.rise_mps, 0.0, MAX_RISE_MPS, lo_open=True)
         _number(
             "vent ", "emission_optical_depth", self.emission_optical_depth, 0.0, 100.0, lo_open=True
         )
@@ -269,6 +291,8 @@ class CloudSpec:
         A volcanic ash/steam cloud (part of the truth) rather than a meteorological one.
     ash_fraction : float
         Colour between steam (0) and ash (1), for volcanic clouds.
+    height_m : float or None
+        Cloud-top height, metres above sea level (``None``: on the ground, a flat world).
     """
 
     x: float
@@ -277,8 +301,11 @@ class CloudSpec:
     optical_depth: float = 2.0
     volcanic: bool = True
     ash_fraction: float = 0.5
+    height_m: float | None = None
 
     def __post_init__(self) -> None:
+        if self.height_m is not None:
+            _number("cloud ", "height_m", self.height_m, 0.0, MAX_HEIGHT_M)
         for name in ("x", "y"):
             _number("cloud ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
         _number("cloud ", "radius_m", self.radius_m, 1.0, MAX_RADIUS_M)
@@ -412,12 +439,68 @@ class WorldSpec:
     def to_dict(self) -> dict[str, Any]:
         """The spec as nested plain dicts and lists (``dataclasses.asdict``).
 
+        The heights of a 3D world (:data:`OPTIONAL_HEIGHTS`) are written only where set,
+        so a flat world's JSON is what it was before worlds had heights.
+
         Returns
         -------
         dict
             JSON-ready; :meth:`from_dict` reads it back.
         """
-        return asdict(self)
+        d = asdict(self)
+        for name, keys in OPTIONAL_HEIGHTS.items():
+            for item in d[name]:
+                for k in keys:
+                    if item[k] is None:
+                        del item[k]
+        return d
+
+    def plumes(self) -> list[dict[str, Any]]:
+        """The per-vent truth of a 3D world: ``plume_id``, position and heights.
+
+        Returns
+        -------
+        list of dict
+            One per vent: ``plume_id`` (the vent's index), ``x_px``, ``y_px`` (world
+            grid), ``top_height_m`` (metres above sea level), ``rise_mps`` (``None``: at
+            its top from the start) and ``onset_s`` (``-eruption_age_s``, pass clock).
+
+        Examples
+        --------
+        >>> spec = with_heights(sample_world(0, 0, size=32), seed=0)
+        >>> sorted(spec.plumes()[0])
+        ['onset_s', 'plume_id', 'rise_mps', 'top_height_m', 'x_px', 'y_px']
+        """
+        return [
+            {
+                "plume_id": i,
+                "x_px": v.x,
+                "y_px": v.y,
+                "top_height_m": v.top_height_m,
+                "rise_mps": v.rise_mps,
+                "onset_s": -v.eruption_age_s,
+            }
+            for i, v in enumerate(self.vents)
+        ]
+
+    def grid_transform(self) -> Affine:
+        """Pixel-corner transform of the world grid (pixel ``(0, 0)`` at the origin).
+
+        Returns
+        -------
+        affine.Affine
+            North up, ``gsd`` metre pixels, in :attr:`crs`.
+        """
+        return Affine.translation(self.origin_easting, self.origin_northing) @ Affine.scale(
+            self.gsd, -self.gsd
+        )
+
+    @property
+    def is_3d(self) -> bool:
+        """Whether any vent or cloud has a height (else every feature lies on the ground)."""
+        return any(v.top_height_m is not None for v in self.vents) or any(
+            c.height_m is not None for c in self.clouds
+        )
 
     def to_json(self) -> str:
         """Canonical JSON (sorted keys); floats round-trip exactly.
@@ -1041,8 +1124,10 @@ class World:
             return None
         return px[drawn], py[drawn], sig[drawn], mass[drawn], ash[drawn]
 
-    def _plume_tau(self, t: float, window: Window) -> tuple[np.ndarray, np.ndarray]:
-        """Attached plumes: ``(tau, tau_ash)`` on ``window`` at time ``t``.
+    def _plume_tau(
+        self, t: float, window: Window, only: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Attached plumes: ``(tau, tau_ash)`` on ``window`` at time ``t`` (vent ``only``'s alone).
 
         Each vent's plume is drawn on its own box and textured from its own vent (the
         texture's amplitude grows with the distance downwind of that vent).
@@ -1057,6 +1142,8 @@ class World:
         ys = np.arange(r0, r0 + h, dtype=np.float64)
         tex = None  # the plume texture on the window (sampled once, when a plume is drawn)
         for vi, v in enumerate(s.vents):
+            if only is not None and vi != only:
+                continue
             train = self._puff_train(vi, v, t, window)
             if train is None:
                 continue
@@ -1100,9 +1187,15 @@ class World:
         return tau.astype(np.float32), tau_ash.astype(np.float32)
 
     def _cloud_tau(
-        self, t: float, window: Window, *, volcanic: bool, shift: tuple[float, float] = (0.0, 0.0)
+        self,
+        t: float,
+        window: Window,
+        *,
+        volcanic: bool,
+        shift: tuple[float, float] = (0.0, 0.0),
+        only: int | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Drifting clouds of one kind: ``(tau, tau_ash)``; rigid translation with the wind."""
+        """Drifting clouds of one kind (cloud ``only`` alone): ``(tau, tau_ash)``; rigid drift."""
         s = self.spec
         c0, r0, w, h = window
         tau = np.zeros((h, w), np.float32)
@@ -1112,7 +1205,7 @@ class World:
         xs = np.arange(c0, c0 + w, dtype=np.float64)
         ys = np.arange(r0, r0 + h, dtype=np.float64)
         for ci, c in enumerate(s.clouds):
-            if c.volcanic != volcanic:
+            if c.volcanic != volcanic or (only is not None and ci != only):
                 continue
             cx, cy, rad = c.x + dx, c.y + dy, c.radius_m / s.gsd
             if (
@@ -1195,6 +1288,23 @@ class World:
         off = 0.05 * s.size / math.tan(math.radians(s.sun_elevation_deg))
         shift = (-off * math.sin(az), off * math.cos(az))
         shadow, _ = self._cloud_tau(t, window, volcanic=False, shift=shift)
+        return self._composite(image, shadow, (tau, tau_ash), (vtau, vash), mtau, t, window, noise)
+
+    def _composite(
+        self,
+        image: np.ndarray,
+        shadow: np.ndarray,
+        plume: tuple[np.ndarray, np.ndarray],
+        volcanic: tuple[np.ndarray, np.ndarray],
+        mtau: np.ndarray,
+        t: float,
+        window: Window,
+        noise: bool,
+    ) -> WorldFrame:
+        """Lay the shadows, plumes and clouds over the ground ``image``; add the noise."""
+        s = self.spec
+        tau, tau_ash = plume
+        vtau, vash = volcanic
         # each layer is skipped where it is zero everywhere (exactly a no-op: x * 1 + c * 0)
         if shadow.any():
             image *= np.exp(-0.6 * shadow)[None]
@@ -1220,6 +1330,200 @@ class World:
                 )
         image = np.clip(image, 0.0, 1.0).astype(np.float32)
         return WorldFrame(image, ptau > s.label_optical_depth, ptau.astype(np.float32), t, window)
+
+    # ------------------------------------------------------------------ 3D
+    def column_height(self, vi: int, t: float) -> float:
+        """Height of vent ``vi``'s column top at ``t``, metres (0 in a flat world).
+
+        The top rises from the vent (sea level) at ``rise_mps`` from the onset
+        (``-eruption_age_s``) until it reaches ``top_height_m``, then stays there.
+
+        Parameters
+        ----------
+        vi : int
+            Index of the vent in the spec.
+        t : float
+            Seconds on the pass clock.
+
+        Returns
+        -------
+        float
+            The height, metres (0 before the onset).
+
+        Examples
+        --------
+        >>> v = VentSpec(10.0, 10.0, eruption_age_s=100.0, top_height_m=9000.0, rise_mps=30.0)
+        >>> w = World(WorldSpec(0, 32, 8.0, Wind(5.0, 0.0), (v,)))
+        >>> w.column_height(0, 0.0), w.column_height(0, 200.0), w.column_height(0, 400.0)
+        (3000.0, 9000.0, 9000.0)
+        """
+        v = self.spec.vents[vi]
+        if v.top_height_m is None:
+            return 0.0
+        if v.rise_mps is None:
+            return float(v.top_height_m)
+        return float(min(v.top_height_m, max(0.0, v.rise_mps * (t + v.eruption_age_s))))
+
+    def _seen_from(
+        self,
+        layer: Any,
+        window: Window,
+        height_m: float,
+        nadir_px: tuple[float, float],
+        altitude_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A layer ``window -> (tau, tau_ash)`` at ``height_m`` as seen on the ground ``window``.
+
+        Each output pixel is an apparent ground point; the feature seen there lies where the
+        line of sight to it crosses ``height_m`` (:func:`dyntarget.parallax.sight_at_height`,
+        radial from the nadir), so the layer is rendered around those points and resampled
+        there (bilinear, OpenCV ``remap``).
+        """
+        from dyntarget import parallax
+
+        c0, r0, w, h = window
+        gsd = self.spec.gsd
+        nx, ny = nadir_px
+
+        def source(xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """True (source) world px of the apparent points ``(xs, ys)`` (offsets from the nadir)."""
+            d = np.hypot(xs, ys) * gsd
+            # k(d) = true / apparent distance is smooth in d: exact on 2,049 distances
+            # spanning the window, linear in between (differs from exact by < 1e-6 px)
+            grid = np.linspace(float(d.min()), float(d.max()), 2049) if d.size > 4096 else d
+            true_d = parallax.sight_at_height(altitude_m, grid, height_m)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                k = np.where(grid > 0, true_d / np.where(grid > 0, grid, 1.0), 1.0)
+            if not np.isfinite(k).all():
+                raise InvalidParameterError(
+                    "oblique view: part of the window is beyond the spacecraft's horizon"
+                )
+            if grid is not d:
+                k = np.interp(d, grid, k)
+            return nx + xs * k, ny + ys * k
+
+        # the map is a radial bijection: the window's border bounds where its pixels come from
+        cols = np.arange(c0, c0 + w, dtype=np.float64) - nx
+        rows = np.arange(r0, r0 + h, dtype=np.float64) - ny
+        bx = np.concatenate([cols, cols, np.full(h, cols[0]), np.full(h, cols[-1])])
+        by = np.concatenate([np.full(w, rows[0]), np.full(w, rows[-1]), rows, rows])
+        ex, ey = source(bx, by)
+        if c0 <= nx <= c0 + w - 1 and r0 <= ny <= r0 + h - 1:  # the nadir inside: it maps to itself
+            ex, ey = np.append(ex, nx), np.append(ey, ny)
+        bx0, by0 = math.floor(float(ex.min())) - 2, math.floor(float(ey.min())) - 2
+        bx1, by1 = math.ceil(float(ex.max())) + 3, math.ceil(float(ey.max())) + 3
+        src = check_window((bx0, by0, bx1 - bx0, by1 - by0), self.spec.size)
+        tau, tau_ash = layer(src)
+        if not tau.any():
+            return np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
+        sx, sy = source(cols[None, :], rows[:, None])
+        mx, my = (sx - bx0).astype(np.float32), (sy - by0).astype(np.float32)
+        out = [
+            cv2.remap(
+                np.ascontiguousarray(a, np.float32),
+                mx,
+                my,
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0.0,
+            )
+            for a in (tau, tau_ash)
+        ]
+        return out[0], out[1]
+
+    def render_look(
+        self,
+        t: float,
+        window: Window | None = None,
+        *,
+        nadir_px: tuple[float, float],
+        altitude_m: float,
+        noise: bool = True,
+    ) -> WorldFrame:
+        """Render a look-ahead frame at ``t`` as the spacecraft sees it from an oblique view.
+
+        The spacecraft is at ``altitude_m`` above the world-grid point ``nadir_px``
+        (``(x, y)`` world pixels; a look-ahead 500 km ahead at 8 m has it 62,500 px
+        behind the window). Every plume at its column height (:meth:`column_height`) and
+        every cloud at its height is displaced away from the nadir by its parallax
+        (:mod:`dyntarget.parallax`, exact on the sphere; the displacement varies across
+        the window); the ground, cloud shadows and the frame stay georeferenced to the
+        ground, as an L1 product orthorectified to the terrain (whose height is taken as
+        0 here). The mask and ``tau`` are those of the displaced plume, what the frame
+        shows. Not modelled: the pixel footprint's stretch with the view angle (the frame
+        keeps the ground GSD), the column's own side (each vent's plume is drawn as one
+        layer at its top's height, the umbrella) and occlusion of one layer by another
+        beyond the optical-depth blending. A flat world renders as :meth:`render`.
+
+        Parameters
+        ----------
+        t : float
+            Seconds after the look-ahead acquisition.
+        window : tuple of int or None
+            ``(col0, row0, width, height)`` on the ground (``None``: the world's tile).
+        nadir_px : tuple of float
+            The spacecraft's nadir on the world grid, pixels.
+        altitude_m : float
+            The spacecraft's altitude, metres.
+        noise : bool
+            Add sensor noise (as :meth:`render`).
+
+        Returns
+        -------
+        WorldFrame
+            The oblique view on the ground grid.
+
+        Examples
+        --------
+        A 10 km umbrella 500 km ahead of a spacecraft 500 km up shifts 11.5 km (1438 px):
+
+        >>> v = VentSpec(32.0, 32.0, top_height_m=10_000.0)
+        >>> w = World(WorldSpec(0, 64, 8.0, Wind(0.0, 0.0), (v,), plume_texture=0.0))
+        >>> f = w.render_look(0.0, (0, -1438, 64, 64), nadir_px=(32.0, 32.0 + 62_500.0),
+        ...                   altitude_m=500e3)
+        >>> [int(i) for i in np.unravel_index(f.tau.argmax(), f.tau.shape)]  # row, column
+        [32, 32]
+        """
+        t = _check_time(t)
+        window = check_window(window, self.spec.size)
+        nadir = (
+            _number("", "nadir x", nadir_px[0], -MAX_COORD_PX, MAX_COORD_PX),
+            _number("", "nadir y", nadir_px[1], -MAX_COORD_PX, MAX_COORD_PX),
+        )
+        altitude = _number("", "altitude_m", altitude_m, 1.0, 1e8)
+        if not self.spec.is_3d:
+            return self.render(t, window, noise=noise)
+        s = self.spec
+        _, _, w, h = window
+        image = self._ground(window).copy()
+        az = math.radians(s.sun_azimuth_deg)
+        off = 0.05 * s.size / math.tan(math.radians(s.sun_elevation_deg))
+        shift = (-off * math.sin(az), off * math.cos(az))
+        shadow, _ = self._cloud_tau(t, window, volcanic=False, shift=shift)
+        layers = [np.zeros((h, w), np.float32) for _ in range(5)]  # tau, ash, vtau, vash, mtau
+        for vi in range(len(s.vents)):
+            hv = self.column_height(vi, t)
+
+            def plume(win: Window, vi: int = vi) -> tuple[np.ndarray, np.ndarray]:
+                return self._plume_tau(t, win, only=vi)
+
+            a, b = self._seen_from(plume, window, hv, nadir, altitude) if hv > 0 else plume(window)
+            layers[0] += a
+            layers[1] += b
+        for ci, c in enumerate(s.clouds):
+
+            def cloud(win: Window, ci: int = ci, c: CloudSpec = c) -> tuple[np.ndarray, np.ndarray]:
+                return self._cloud_tau(t, win, volcanic=c.volcanic, only=ci)
+
+            hc = c.height_m or 0.0
+            a, b = self._seen_from(cloud, window, hc, nadir, altitude) if hc > 0 else cloud(window)
+            if c.volcanic:
+                layers[2] += a
+                layers[3] += b
+            else:
+                layers[4] += a
+        tau, tau_ash, vtau, vash, mtau = layers
+        return self._composite(image, shadow, (tau, tau_ash), (vtau, vash), mtau, t, window, noise)
 
     def transform(self, window: Window | None = None) -> Affine:
         """Pixel -> CRS transform of ``window`` (north up, ``gsd`` m pixels).
@@ -1412,6 +1716,7 @@ def generate_sequences(
     interval_s: float = 10.0,
     wind_mps: float | None = None,
     wind_from_deg: float | None = None,
+    heights_km: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> Iterator[FrameSequence]:
     """Yield sequences ``0`` to ``n - 1`` of the moving-world set with ``seed`` (see :func:`sample_world`).
 
@@ -1433,6 +1738,10 @@ def generate_sequences(
         Wind speed for every world, m/s (default: drawn per world).
     wind_from_deg : float or None
         Wind direction for every world, degrees from north (default: drawn).
+    heights_km : tuple or None
+        ``((plume lo, hi), (cloud lo, hi))`` km: 3D worlds (:func:`with_heights`);
+        ``None``: flat worlds. The frames are still rendered from straight above
+        (:meth:`World.render_look` renders oblique looks).
 
     Yields
     ------
@@ -1450,6 +1759,8 @@ def generate_sequences(
         spec = sample_world(
             seed, i, size=size, gsd=gsd, wind_mps=wind_mps, wind_from_deg=wind_from_deg
         )
+        if heights_km is not None:
+            spec = with_heights(spec, plume_height_km=heights_km[0], cloud_height_km=heights_km[1])
         yield world_sequence(World(spec), frames=frames, interval_s=interval_s)
 
 
@@ -1536,3 +1847,100 @@ def sample_strip(
         }
     )
     return spec, (0, 0, int(width), int(length))
+
+
+PLUME_HEIGHT_KM = (2.0, 15.0)
+"""Default range of a vent's column-top height, km (neutral buoyancy; issue 40)."""
+CLOUD_HEIGHT_KM = (1.0, 12.0)
+"""Default range of a cloud's top height, km."""
+RISE_MPS = (10.0, 100.0)
+"""Range of a column's rise velocity, m/s."""
+
+
+def check_height_range(name: str, value: object) -> tuple[float, float]:
+    """A ``(lo, hi)`` range of heights in km: finite, ``0 <= lo <= hi <= 25``, or a refusal.
+
+    Parameters
+    ----------
+    name : str
+        The option, for the message.
+    value : object
+        The range.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` km.
+
+    Examples
+    --------
+    >>> check_height_range("plume height", (2, 15))
+    (2.0, 15.0)
+    """
+    try:
+        lo, hi = (float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise InvalidParameterError(f"{name}: expected LO,HI km, got {value!r}") from None
+    top = MAX_HEIGHT_M / 1e3
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= top):
+        raise InvalidParameterError(
+            f"{name}: expected LO,HI km with 0 <= LO <= HI <= {top:g}, got {lo:g},{hi:g}"
+        )
+    return lo, hi
+
+
+def with_heights(
+    spec: WorldSpec,
+    *,
+    plume_height_km: tuple[float, float] = PLUME_HEIGHT_KM,
+    cloud_height_km: tuple[float, float] = CLOUD_HEIGHT_KM,
+    rise_mps: tuple[float, float] = RISE_MPS,
+    seed: int | None = None,
+) -> WorldSpec:
+    """The world made 3D: a column-top height and rise velocity per vent, a height per cloud.
+
+    Drawn uniformly in the ranges from their own random stream (``seed`` and the spec's
+    id, so each world of a set, and each strip, draws its own), so the flat world's
+    other draws are untouched: the 3D world differs from the flat one only in its heights.
+
+    Parameters
+    ----------
+    spec : WorldSpec
+        The flat world.
+    plume_height_km : tuple of float
+        Range of the vents' top heights, km.
+    cloud_height_km : tuple of float
+        Range of the clouds' heights (volcanic and meteorological), km.
+    rise_mps : tuple of float
+        Range of the rise velocities, m/s.
+    seed : int or None
+        Seed of the height draws (default: the spec's).
+
+    Returns
+    -------
+    WorldSpec
+        The same world with heights.
+
+    Examples
+    --------
+    >>> spec = with_heights(sample_world(0, 0, size=32), plume_height_km=(5, 5), seed=1)
+    >>> spec.vents[0].top_height_m, spec.is_3d
+    (5000.0, True)
+    """
+    p_lo, p_hi = check_height_range("plume height", plume_height_km)
+    c_lo, c_hi = check_height_range("cloud height", cloud_height_km)
+    r_lo, r_hi = (float(v) for v in rise_mps)
+    if not (0.0 < r_lo <= r_hi <= MAX_RISE_MPS):
+        raise InvalidParameterError(f"rise: expected 0 < LO <= HI <= {MAX_RISE_MPS:g} m/s")
+    key = zlib.crc32(spec.id.encode())
+    rng = np.random.default_rng([int(spec.seed if seed is None else seed), key, 0xD8])
+    vents = tuple(
+        replace(
+            v,
+            top_height_m=float(rng.uniform(p_lo, p_hi) * 1e3),
+            rise_mps=float(rng.uniform(r_lo, r_hi)),
+        )
+        for v in spec.vents
+    )
+    clouds = tuple(replace(c, height_m=float(rng.uniform(c_lo, c_hi) * 1e3)) for c in spec.clouds)
+    return replace(spec, vents=vents, clouds=clouds)
