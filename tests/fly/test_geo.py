@@ -11,10 +11,14 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.errors import InvalidParameterError
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.geo import BlueprintGate, GeoSettings, image_times
-from dyntarget.fly.strip import MovingStrip, strip_spec
+from dyntarget.fly.geo import GeoSettings
+from dyntarget.fly.strip import MovingStrip
 from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint
+from dyntarget.geo.blueprint import step_s
+from dyntarget.geo.refine import BlueprintGate
+from dyntarget.geo.targets import image_times
 from dyntarget.schedule import OrbitGeometry, get_agility, schedule
+from dyntarget.synth.strip import strip_spec
 from dyntarget.trajectory import Trajectory
 
 
@@ -161,8 +165,8 @@ def test_gate_takes_the_top_k_when_time_is_short():
     # the sensor tracks the plume and is free 3.2 pointings before its window closes;
     # starting again costs a settle (1 s, no slew): two pointings fit
     _, t_out, along, cross = gate._window(len(gate.t_lo) - 1)
-    step = gate._step(gate.geometry, gate.agility, np.array([along]), np.array([cross]),
-                      np.array([t_out]))[0]  # fmt: skip
+    step = step_s(gate.geometry, gate.agility, np.array([along]), np.array([cross]),
+                 np.array([t_out]))[0]  # fmt: skip
     gate.booked_at = (along, cross)
     out = gate.route(0.1, 2980, rows[:0], cols[:0], vals[:0], t_out - 3.2 * step)
     assert sorted(out[:, 1].tolist()) == [1, 3]  # the two best
@@ -248,15 +252,15 @@ def test_unmix_recovers_cloud_and_plume_fractions_built_by_hand():
 
 
 def test_plume_field_ignores_a_cloud_that_brightness_takes_for_a_plume():
-    from dyntarget.fly.geo import CONTRAST, plume_field
-    from dyntarget.synth.volcano import ASH_PLUME, CLOUD
+    from dyntarget.geo.targets import CONTRAST, plume_field
+    from dyntarget.synth.volcano import ASH_PLUME, CLOUD, STEAM
 
     ground = np.array([0.05, 0.08, 0.06, 0.30])
     bg = np.repeat(ground[:, None, None], 2, axis=2)
     img = bg.copy()
     img[:, 0, 0] = ground + 0.2 * (np.array(CLOUD) - ground)  # a fifth of the cell cloudy
     img[:, 0, 1] = ground + 0.4 * (np.array(ASH_PLUME) - ground)  # 40 % ash
-    unmixed = plume_field(img, bg, GeoSettings())
+    unmixed = plume_field(img, bg, GeoSettings(), np.array([CLOUD, ASH_PLUME, STEAM]))
     bright = plume_field(img, bg, GeoSettings(detection="brightness"))
     # brightness: the cloud's anomaly (0.2 x (0.8075 - 0.1225) = 0.137) beats the ash's
     assert bright[0, 0] == pytest.approx(0.2 * (np.mean(CLOUD) - ground.mean()))
@@ -322,3 +326,36 @@ def test_no_staging_when_the_look_ahead_sees_the_target_in_time_or_when_ablated(
     assert _fly_idle(gate, frames) == []
     gate, frames = _staging_gate(150e3, stage=False)
     assert _fly_idle(gate, frames) == []
+
+
+def test_gate_under_unlimited_agility_flies_every_pooled_pixel():
+    # unlimited agility: no field of regard (every window is open) and a pointing takes no
+    # time (its step is 0 s), so a target is released at once with its whole pool (the
+    # release divided by the step: ZeroDivisionError)
+    gate = _gate(preset="unlimited")
+    rows = np.array([3000, 3000, 3001, 3002, 3002, 3003])
+    cols = np.array([4, 5, 4, 4, 9, 1])
+    vals = np.array([0.1, 0.9, 0.5, 0.8, 0.2, 0.05])
+    out = gate.route(0.0, 2990, rows, cols, vals, 0.0)
+    # nearest the sensor first (largest row), serpentine: odd rows left to right
+    want = [[3003, 1], [3002, 9], [3002, 4], [3001, 4], [3000, 5], [3000, 4]]
+    assert out.tolist() == want
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("geo", [["--geo-omniscient"], ["--geo-prior", "vents"]])
+def test_cli_geo_reference_flies_under_unlimited_agility(tmp_path, capsys, geo):
+    import json
+
+    from dyntarget.synth.strip import write_strip
+
+    spec, window = strip_spec(0, width=64, length=512, plumes=2, wind_mps=5.0)
+    tif = next(p for p in write_strip(spec, window, tmp_path) if p.name == f"{spec.id}.tif")
+    out = tmp_path / "o"
+    argv = ["fly", "--scene", str(tif), "--truth", *geo, "--agility", "unlimited",
+            "--compute-budget-s", "0.05", "--no-picture", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0, capsys.readouterr().err
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["agility"] == "unlimited" and doc["pointings_flown"] > 0
+    # the catalog prior: one target per vent of the strip (2); the truth: at least one plume
+    assert doc["geo"]["targets"] == 2 if "--geo-prior" in geo else doc["geo"]["targets"] >= 1

@@ -10,8 +10,9 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.errors import InvalidParameterError
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.strip import LongStrip, load_world, long_strip_spec
+from dyntarget.fly.strip import LongStrip, load_world
 from dyntarget.synth.dynamic import World
+from dyntarget.synth.strip import long_strip_spec
 
 
 def test_vents_follow_the_density_one_per_segment():

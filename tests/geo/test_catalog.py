@@ -150,9 +150,9 @@ def test_the_hawaiian_volcanoes_over_a_strip_are_the_ones_inside_it():
 
 def test_target_geometry_matches_the_loop_and_the_geo_code():
     from dyntarget.fly import PassConfig
-    from dyntarget.fly.geo import _along_of_row
     from dyntarget.fly.loop import frame_plan
     from dyntarget.fly.world import StaticWorld
+    from dyntarget.geo.targets import along_of_row
     from dyntarget.scene import Scene
 
     img = np.zeros((4, 1024, 256), np.float32)
@@ -166,7 +166,7 @@ def test_target_geometry_matches_the_loop_and_the_geo_code():
     assert idx.tolist() == [0]
     (t,) = ts
     row = 402.0 / 4 - 0.5
-    assert t.along_m == pytest.approx(float(_along_of_row(frames, np.array([row]))[0]))
+    assert t.along_m == pytest.approx(float(along_of_row(frames, np.array([row]))[0]))
     # the scheduler's own ground coordinates: in frame k's pixels, nadir at t_k
     k = 2
     top = frames.tops[k]
@@ -199,7 +199,8 @@ def test_volcanoes_beyond_the_radius_are_left_out_and_edges_clipped():
 def test_a_synthetic_strips_vents_are_its_catalog():
     from dyntarget.fly import PassConfig
     from dyntarget.fly.loop import frame_plan
-    from dyntarget.fly.strip import MovingStrip, strip_spec
+    from dyntarget.fly.strip import MovingStrip
+    from dyntarget.synth.strip import strip_spec
 
     spec, window = strip_spec(4, width=128, length=576, plumes=3)
     w = MovingStrip(spec, window)
@@ -215,7 +216,12 @@ def test_a_synthetic_strips_vents_are_its_catalog():
     assert all(on)  # strip_spec puts every vent on the strip
     assert info["volcanoes"] == 3 and len(ts) == 3
     with pytest.raises(InvalidSceneError, match="synthetic"):
-        strip_vents(SimpleNamespace(id="x", crs="EPSG:32605", transform=Affine.identity()))
+        # a strip with no synthetic world (a GeoTIFF): no vents to list
+        strip_vents(
+            SimpleNamespace(
+                id="x", crs="EPSG:32605", transform=Affine.identity(), vent_pixels=lambda: None
+            )
+        )
 
 
 @pytest.mark.slow
@@ -225,8 +231,10 @@ def test_catalog_targets_plan_a_blueprint_and_fly_a_pass(monkeypatch):
 
     import dyntarget.fly.geo as fg
     from dyntarget.fly import PassConfig, fly_pass
-    from dyntarget.fly.strip import MovingStrip, strip_spec
+    from dyntarget.fly.strip import MovingStrip
+    from dyntarget.geo.refine import BlueprintGate
     from dyntarget.schedule import get_agility
+    from dyntarget.synth.strip import strip_spec
 
     # 18 km: the vents' targets lie far enough from the strip's top for the look-ahead to
     # see them whole (the gate releases a target then, or when its window opens)
@@ -248,7 +256,7 @@ def test_catalog_targets_plan_a_blueprint_and_fly_a_pass(monkeypatch):
             horizon_s=horizon, reserve=settings.reserve,
         )  # fmt: skip
         out = list(blind(world, frames, config, fg.GeoSettings(blind=True)))
-        out[0] = fg.BlueprintGate(bp, frames, agility)
+        out[0] = BlueprintGate(bp, frames, agility)
         out[1] = {**out[1], **info, "targets": len(bp.targets), "targets_chosen": len(bp.chosen)}
         return tuple(out)
 
@@ -265,9 +273,9 @@ def test_the_blueprint_gate_takes_catalog_targets_unchanged():
     import dataclasses
 
     from dyntarget.fly import PassConfig
-    from dyntarget.fly.geo import BlueprintGate
     from dyntarget.fly.loop import frame_plan
     from dyntarget.fly.world import StaticWorld
+    from dyntarget.geo.refine import BlueprintGate
     from dyntarget.scene import Scene
     from dyntarget.schedule import get_agility
 

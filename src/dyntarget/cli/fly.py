@@ -149,7 +149,7 @@ def _fly(args: argparse.Namespace) -> int:
     world = load_world(args.scene, truth_step_s=args.truth_step_s)
     from dyntarget.cli._resolution import check_resolution
 
-    gsd = None if getattr(world, "gsd", None) is None else world.gsd * args.factor
+    gsd = world.gsd * args.factor
     for opt in ("model", "fallback_model"):
         check_resolution(
             getattr(args, opt),
@@ -161,7 +161,7 @@ def _fly(args: argparse.Namespace) -> int:
     config = _pass_config(args, args.planner, args.agility)
     if geo is not None:
         geo.check_against(world.gsd * args.factor)
-        if getattr(world, "spec", None) is None and geo.prior is None:
+        if world.spec is None and geo.prior is None:
             raise InvalidParameterError(
                 f"--geo: {args.scene} has no world to render the GEO stream from "
                 "(a 'dyntarget synth --strip' strip is needed)"
@@ -206,8 +206,7 @@ def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, g
                     frame_sink=views,
                     geo=geo,
                     # the true upper bound: every pass on the truth (a long strip on request)
-                    upper_bound=bool(args.truth)
-                    and (args.upper_bound or not hasattr(world, "truth_rows")),
+                    upper_bound=bool(args.truth) and (args.upper_bound or not world.is_long),
                 )
             except DynTargetError as exc:  # found after the first frame: nothing is kept
                 raise type(exc)(

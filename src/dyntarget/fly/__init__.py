@@ -1,7 +1,7 @@
 """Fly a pass: the onboard loop over a stream of look-ahead frames (see ``docs/onboard.md``)."""
 
 from dyntarget.fly.loop import FramePlan, PassConfig, PassResult, fly_pass, frame_plan
-from dyntarget.fly.world import StaticWorld, Truth, World, plume_ids
+from dyntarget.fly.world import StaticWorld, Truth, World, WorldBase, plume_ids
 
 __all__ = [
     "FramePlan",
@@ -10,6 +10,7 @@ __all__ = [
     "StaticWorld",
     "Truth",
     "World",
+    "WorldBase",
     "fly_pass",
     "frame_plan",
     "plume_ids",

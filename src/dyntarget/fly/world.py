@@ -7,7 +7,16 @@ The pass loop talks to the world through one small interface, :class:`World`:
   as the look-ahead sensor sees them at pass time ``t`` (seconds after the
   first frame's acquisition);
 * ``truth_at(t)``: the plume truth over the whole strip at time ``t``
-  (:class:`Truth`: label, utility maps, plume identities).
+  (:class:`Truth`: label, utility maps, plume identities);
+* ``label_rows(t, top, bottom)``, ``plumes_at_start()``, ``quantize(t)``: the true
+  label of some rows, the plumes there at t = 0, the truth's time grid;
+* ``is_long``: the truth is rendered by rows only (``truth_rows``, a long strip);
+  ``spec``, ``wind``, ``truth_step_s``, ``acquired``: the synthetic world, its wind, the
+  truth's time step and when t = 0 is (``None`` where the strip has none).
+
+:class:`WorldBase` answers all but ``image_at`` and ``truth_at`` from the truth (a
+world built whole); :class:`StaticWorld` and the moving strips
+(:mod:`dyntarget.fly.strip`) subclass it.
 
 :class:`StaticWorld` wraps one labelled scene (a user's large GeoTIFF, or a
 static synthetic strip): the same image and truth at every time.
@@ -16,7 +25,8 @@ static synthetic strip): the same image and truth at every time.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from datetime import datetime
+from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
@@ -25,6 +35,9 @@ from affine import Affine
 from dyntarget.errors import InvalidSceneError
 from dyntarget.observe.nfov import UtilityMaps
 from dyntarget.scene import Scene, block_mean
+
+if TYPE_CHECKING:
+    from dyntarget.synth.dynamic import Wind, WorldSpec
 
 MIN_PLUME_FRACTION = 0.01
 """Connected components of a label smaller than this fraction of the largest are not
@@ -115,6 +128,60 @@ class World(Protocol):
         """
         ...
 
+    @property
+    def is_long(self) -> bool:
+        """Whether the truth is rendered by rows only (a long strip: ``truth_rows``)."""
+        ...
+
+    @property
+    def spec(self) -> WorldSpec | None:
+        """The synthetic world the strip renders, ``None`` for a static strip."""
+        ...
+
+    @property
+    def wind(self) -> Wind | None:
+        """The strip's true wind, ``None`` when unknown."""
+        ...
+
+    @property
+    def truth_step_s(self) -> float | None:
+        """The truth's time step, s (``None``: the truth does not change)."""
+        ...
+
+    @property
+    def acquired(self) -> datetime | str | None:
+        """When pass time 0 is (ISO-8601 text or a datetime), ``None`` when unknown."""
+        ...
+
+    def label_rows(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """The true label of rows ``top:bottom`` at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(bottom - top, W)``.
+        """
+        ...
+
+    def plumes_at_start(self) -> frozenset[int]:
+        """Plume ids present at t = 0."""
+        ...
+
+    def quantize(self, t: float) -> float:
+        """``t`` on the truth's time grid."""
+        ...
+
+    def vent_pixels(self) -> np.ndarray | None:
+        """``(n, 2)`` strip ``(col, row)`` of a synthetic strip's vents, ``None`` otherwise."""
+        ...
+
 
 def plume_ids(label: np.ndarray, *, min_fraction: float = MIN_PLUME_FRACTION) -> np.ndarray:
     """Number the plumes of a label: 8-connected components, small fragments merged away.
@@ -148,7 +215,95 @@ def plume_ids(label: np.ndarray, *, min_fraction: float = MIN_PLUME_FRACTION) ->
     return new[comp]
 
 
-class StaticWorld:
+class WorldBase:
+    """What a :class:`World` whose truth is built whole (:meth:`truth_at`) answers by default.
+
+    The label's rows and the plumes at t = 0 are read from :meth:`truth_at`; no time
+    grid, no synthetic world, no known wind. A world subclasses it and implements
+    ``image_at`` and ``truth_at`` (and the grid attributes); the moving strips override
+    what their world knows.
+
+    Examples
+    --------
+    >>> img = np.zeros((4, 4, 4), np.float32); lab = np.zeros((4, 4), bool); lab[1:3, 2] = True
+    >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
+    >>> isinstance(w, WorldBase), w.is_long, sorted(w.plumes_at_start()), w.quantize(0.3)
+    (True, False, [1], 0.3)
+    """
+
+    is_long = False
+    """Whether the truth is rendered by rows only (a long strip: ``truth_rows``)."""
+    spec: WorldSpec | None = None
+    wind: Wind | None = None
+    truth_step_s: float | None = None
+    acquired: datetime | str | None = None
+
+    def truth_at(self, t: float) -> Truth:
+        """The plume truth over the whole strip at ``t`` (a subclass implements it).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        Truth
+        """
+        raise NotImplementedError
+
+    def label_rows(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """The true label of rows ``top:bottom`` at ``t`` (rows of :meth:`truth_at`).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            Boolean ``(bottom - top, W)``.
+        """
+        return self.truth_at(t).maps.label[top:bottom]
+
+    def plumes_at_start(self) -> frozenset[int]:
+        """Plume ids present at t = 0 (those of :meth:`truth_at` at 0).
+
+        Returns
+        -------
+        frozenset of int
+        """
+        ids0 = self.truth_at(0.0).ids
+        return frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
+
+    def quantize(self, t: float) -> float:
+        """``t`` itself (no time grid).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        float
+        """
+        return t
+
+    def vent_pixels(self) -> np.ndarray | None:
+        """No vents known (no synthetic world behind the strip).
+
+        Returns
+        -------
+        None
+        """
+        return None
+
+
+class StaticWorld(WorldBase):
     """A labelled scene that does not change during the pass.
 
     Parameters
@@ -176,7 +331,7 @@ class StaticWorld:
                 "give it (GeoTIFF in metres, the DYNTARGET_GSD tag, or --gsd)"
             )
         self.scene = scene
-        self.acquired: object | None = None  # the acquisition instant of t = 0, when known
+        self.acquired: datetime | str | None = None  # the instant of t = 0, when known
         self.shape = scene.shape
         self.gsd = float(scene.gsd)
         self.crs, self.transform, self.valid, self.id = (

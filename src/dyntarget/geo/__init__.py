@@ -18,9 +18,17 @@ A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
   many pointings, over the whole pass: a dynamic programme over targets in
   along-track order and sensor time slots (polynomial; see its docstring).
 
+* :mod:`dyntarget.geo.targets` — the blueprint's targets from GEO images
+  (``plume_field``, ``geo_targets``: detection, nowcast, persistence) and the
+  omniscient reference (``omniscient_targets``: the true plumes).
+* :mod:`dyntarget.geo.refine` — ``BlueprintGate``: the onboard refinement within the
+  blueprint and the staging of the idle sensor.
+
 The blueprint is computed **on the ground** (where the GEO images are) before
 the pass and uplinked; the onboard loop only refines within it
-(:mod:`dyntarget.fly.geo`). Nothing here needs pysteps except :func:`nowcast`.
+(:class:`dyntarget.geo.refine.BlueprintGate`, wired by :mod:`dyntarget.fly.geo`).
+The pass, the GEO images and the world come in through the typed protocols of
+:mod:`dyntarget.geo.seams`. Nothing here needs pysteps except :func:`nowcast`.
 """
 
 from dyntarget.geo.blueprint import Blueprint, Target, plan_blueprint

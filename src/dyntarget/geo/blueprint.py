@@ -99,7 +99,7 @@ class Blueprint:
     reserve: int
     value: float
     slot_s: float
-    info: dict = field(default_factory=dict)
+    info: dict[str, object] = field(default_factory=dict)
     step_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     window: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
@@ -153,7 +153,14 @@ def step_s(
     return out
 
 
-def _transition(geometry, agility, src, free_s, dst, t_in) -> np.ndarray:
+def _transition(
+    geometry: OrbitGeometry,
+    agility: Agility,
+    src: tuple[float, float] | None,
+    free_s: np.ndarray,
+    dst: tuple[float, float],
+    t_in: float,
+) -> np.ndarray:
     """When the sensor, free at each of ``free_s`` and tracking ``src`` (None: nadir), starts on ``dst``.
 
     :meth:`dyntarget.schedule.Timer.arrival`, vectorised over the departure times.
@@ -270,7 +277,16 @@ def plan_blueprint(  # noqa: C901, PLR0915  (one programme: slots, windows, tran
         J = np.full(len(arr), -1, np.int64)
         S = np.zeros(len(arr), np.int64)
 
-        def relax(j, deps, vals, idx_arr=arr, a_=A, j_=J, s_=S, i_=i):
+        def relax(
+            j: int,
+            deps: np.ndarray,
+            vals: np.ndarray,
+            idx_arr: np.ndarray = arr,
+            a_: np.ndarray = A,
+            j_: np.ndarray = J,
+            s_: np.ndarray = S,
+            i_: int = i,
+        ) -> None:
             src = None if j < 0 else (float(along[j]), float(cross[j]))
             t_a = _transition(geometry, agility, src, deps * slot, (along[i_], cross[i_]), t_in[i_])
             a_slot = np.ceil(t_a / slot - 1e-9).astype(np.int64)

@@ -3,7 +3,7 @@
 What GEO adds over knowing where volcanoes are is measured against this
 prior (``fly --geo-prior CATALOG``): the blueprint is planned on one target
 per catalogued volcano over the strip, and refined onboard exactly as a GEO
-blueprint is (:class:`dyntarget.fly.geo.BlueprintGate`).
+blueprint is (:class:`dyntarget.geo.refine.BlueprintGate`).
 
 * **Catalog.** A CSV with the Smithsonian Global Volcanism Program's columns
   (Volcanoes of the World: ``volcano_number``, ``volcano_name``,
@@ -34,12 +34,17 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError
 from dyntarget.geo.blueprint import Target
+from dyntarget.geo.seams import MappedStrip, PassFrames
+from dyntarget.schedule import OrbitGeometry
+
+if TYPE_CHECKING:
+    from affine import Affine
 
 PRIOR_VALUE = 0.1
 """Expected utility of one pointing on a catalogued volcano (the same for all)."""
@@ -47,7 +52,7 @@ PRIOR_AREA_M2 = 4e6
 """Expected plume area of a catalogued volcano, m² (about 10 km x 400 m)."""
 PRIOR_RADIUS_M = 6_000.0
 """How far from its vent a volcano's plume is looked for, m (either way along track): as far
-as a GEO target reaches beyond its cells (3 cells of 2 km, :data:`dyntarget.fly.geo.SPAN_CELLS`)."""
+as a GEO target reaches beyond its cells (3 cells of 2 km, :data:`dyntarget.geo.targets.SPAN_CELLS`)."""
 NEED_MAX = 400
 """Most pointings one target asks for (as the GEO targets)."""
 VENTS = "vents"
@@ -210,8 +215,8 @@ def _volcano(path: Path, line: int, row: dict[str, Any]) -> Volcano:
 
 def locate(
     volcanoes: list[Volcano],
-    crs: Any,
-    transform: Any,
+    crs: str | None,
+    transform: Affine | None,
     shape: tuple[int, int] | None = None,
     margin_m: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -262,7 +267,14 @@ def locate(
     return rows, cols
 
 
-def _near_footprint(lons, lats, crs, transform, shape, margin_m) -> np.ndarray:
+def _near_footprint(
+    lons: np.ndarray,
+    lats: np.ndarray,
+    crs: str,
+    transform: Affine,
+    shape: tuple[int, int],
+    margin_m: float,
+) -> np.ndarray:
     """Volcanoes within the strip's lon/lat bounds widened by ``margin_m`` (and 0.05 degrees)."""
     from rasterio.transform import array_bounds
     from rasterio.warp import transform_bounds
@@ -278,21 +290,24 @@ def _near_footprint(lons, lats, crs, transform, shape, margin_m) -> np.ndarray:
     west, east = west - dlon, east + dlon
     if west > east or west < -180.0 or east > 180.0:  # across the antimeridian
         lo, hi = ((west + 180.0) % 360.0) - 180.0, ((east + 180.0) % 360.0) - 180.0
-        return ok & ((lons >= lo) | (lons <= hi))
-    return ok & (lons >= west) & (lons <= east)
+        near: np.ndarray = ok & ((lons >= lo) | (lons <= hi))
+    else:
+        near = ok & (lons >= west) & (lons <= east)
+    return near
 
 
-def _apply(t: Any, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _apply(t: Affine, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """An affine transform applied to arrays of points."""
     return t.a * x + t.b * y + t.c, t.d * x + t.e * y + t.f
 
 
-def strip_vents(world: Any) -> list[Volcano]:
+def strip_vents(world: MappedStrip) -> list[Volcano]:
     """A synthetic strip's own vents as a catalog (their lon/lat through the strip's CRS).
 
     Parameters
     ----------
-    world : a synthetic strip (``spec.vents``, ``window``, ``crs``, ``transform``).
+    world : MappedStrip
+        A synthetic strip (its ``vent_pixels``, ``crs``, ``transform``).
 
     Returns
     -------
@@ -301,24 +316,27 @@ def strip_vents(world: Any) -> list[Volcano]:
 
     Examples
     --------
-    >>> from dyntarget.fly.strip import MovingStrip, strip_spec
+    >>> from dyntarget.fly.strip import MovingStrip
+    >>> from dyntarget.synth.strip import strip_spec
     >>> w = MovingStrip(*strip_spec(0, width=64, length=256, plumes=2))
     >>> [v.name for v in strip_vents(w)]
     ['vent 1', 'vent 2']
     """
     from rasterio.warp import transform as warp
 
-    spec = getattr(world, "spec", None)
-    if spec is None:
+    px = world.vent_pixels()
+    if px is None:
         raise InvalidSceneError(
-            f"strip {getattr(world, 'id', '?')!r}: --geo-prior {VENTS} needs a synthetic "
+            f"strip {world.id!r}: --geo-prior {VENTS} needs a synthetic "
             "strip (its vents are the catalog); give a catalog CSV"
         )
-    if not spec.vents:
+    if not len(px):
         return []
-    c0, r0 = world.window[:2]
-    cols = np.array([v.x - c0 for v in spec.vents], np.float64)
-    rows = np.array([v.y - r0 for v in spec.vents], np.float64)
+    if world.crs is None or world.transform is None:
+        raise InvalidSceneError(
+            "the catalog prior needs a georeferenced strip (a CRS and a geotransform)"
+        )
+    cols, rows = px[:, 0], px[:, 1]
     xs, ys = _apply(world.transform, cols, rows)
     lons, lats = warp(world.crs, "EPSG:4326", list(np.atleast_1d(xs)), list(np.atleast_1d(ys)))
     return [
@@ -332,7 +350,7 @@ def catalog_targets(
     cols: np.ndarray,
     wfov_shape: tuple[int, int],
     frame_px: int,
-    geometry: Any,
+    geometry: OrbitGeometry,
     factor: int,
     *,
     radius_m: float = PRIOR_RADIUS_M,
@@ -341,33 +359,36 @@ def catalog_targets(
 ) -> tuple[list[Target], np.ndarray]:
     """One blueprint target per volcano within ``radius_m`` of the strip (module docstring).
 
-    Pass coordinates as the loop's: frame 0 (the strip's bottom ``frame_px`` WFOV
-    rows) is acquired at pass time 0 with its centre ``look_ahead_m`` ahead of
-    nadir; targets' ``span`` is in strip WFOV rows (what the gate matches).
+        Pass coordinates as the loop's: frame 0 (the strip's bottom ``frame_px`` WFOV
+        rows) is acquired at pass time 0 with its centre ``look_ahead_m`` ahead of
+        nadir; targets' ``span`` is in strip WFOV rows (what the gate matches).
 
-    Parameters
-    ----------
-    rows, cols : the volcanoes' strip pixels, high resolution (:func:`locate`).
-    wfov_shape : the strip's WFOV grid ``(H, W)``.
-    frame_px : rows per look-ahead frame.
-    geometry : the pass's :class:`~dyntarget.schedule.OrbitGeometry` (look-ahead, WFOV GSD).
-    factor : high-res -> WFOV factor.
-    radius_m : how far from the vent its plume is looked for.
-    value : expected utility of one pointing.
-    area_m2 : expected plume area (``need`` = its WFOV pixels, at most :data:`NEED_MAX`).
+        Parameters
+        ----------
+        rows, cols : the volcanoes' strip pixels, high resolution (:func:`locate`).
+        wfov_shape : the strip's WFOV grid ``(H, W)``.
+        frame_px : rows per look-ahead frame.
+        geometry : the pass's :class:`~dyntarget.schedule.OrbitGeometry` (look-ahead, WFOV GSD).
+        factor : high-res -> WFOV factor.
+        radius_m : how far from the vent its plume is looked for.
+        value : expected utility of one pointing.
+        area_m2 : expected plume area (``need`` = its WFOV pixels, at most :data:`NEED_MAX`).
 
-    Returns
-    -------
-    (targets, index) : the targets (along-track order) and which volcano each is.
+        Returns
+        -------
+        (targets, index) : the targets (along-track order) and which volcano each is.
 
-    Examples
-    --------
-    >>> from dyntarget.schedule import OrbitGeometry
-    >>> g = OrbitGeometry(look_ahead_m=500e3, wfov_gsd_m=100.0)
-    >>> ts, i = catalog_targets(np.array([400.0, 9e9]), np.array([200.0, 0.0]), (200, 100),
-    ...                         50, g, 4, radius_m=1000.0)
-    >>> i.tolist(), ts[0].along_m, ts[0].cross_m, ts[0].span, ts[0].need
-    ([0], 507500.0, 0.0, (89.5, 109.5), 400)
+        Examples
+        --------
+        >>> from dyntarget.schedule import OrbitGeometry
+
+    if TYPE_CHECKING:
+        from affine import Affine
+        >>> g = OrbitGeometry(look_ahead_m=500e3, wfov_gsd_m=100.0)
+        >>> ts, i = catalog_targets(np.array([400.0, 9e9]), np.array([200.0, 0.0]), (200, 100),
+        ...                         50, g, 4, radius_m=1000.0)
+        >>> i.tolist(), ts[0].along_m, ts[0].cross_m, ts[0].span, ts[0].need
+        ([0], 507500.0, 0.0, (89.5, 109.5), 400)
     """
     for name, v in (("radius_m", radius_m), ("value", value), ("area_m2", area_m2)):
         if not (math.isfinite(v) and v >= 0):
@@ -402,8 +423,8 @@ def catalog_targets(
 
 def prior_targets(
     source: str | os.PathLike[str],
-    world: Any,
-    frames: Any,
+    world: MappedStrip,
+    frames: PassFrames,
     factor: int,
     *,
     active_since: int | None = None,
@@ -413,8 +434,10 @@ def prior_targets(
     Parameters
     ----------
     source : a catalog CSV, or ``"vents"`` (a synthetic strip's own vents).
-    world : the strip (``crs``, ``transform``; ``spec`` and ``window`` for ``"vents"``).
-    frames : the pass's frame plan (``wfov_shape``, ``frame_px``, ``geometry``).
+    world : MappedStrip
+        The strip (``crs``, ``transform``; ``vent_pixels`` for ``"vents"``).
+    frames : PassFrames
+        The pass's frame plan (``wfov_shape``, ``frame_px``, ``geometry``).
     factor : high-res -> WFOV factor.
     active_since : only volcanoes that erupted in or after this year (CE).
 
@@ -426,7 +449,8 @@ def prior_targets(
     --------
     >>> from dyntarget.fly import PassConfig
     >>> from dyntarget.fly.loop import frame_plan
-    >>> from dyntarget.fly.strip import MovingStrip, strip_spec
+    >>> from dyntarget.fly.strip import MovingStrip
+    >>> from dyntarget.synth.strip import strip_spec
     >>> w = MovingStrip(*strip_spec(0, width=64, length=256, plumes=2))
     >>> ts, info = prior_targets("vents", w, frame_plan(w, PassConfig()), 4)
     >>> len(ts), info["volcanoes"], info["in_footprint"]
