@@ -189,7 +189,7 @@ def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, g
 
     out = Path(args.out)
     stage = new_stage(out)
-    views = None if args.no_html else ViewCollector()
+    views = None if args.no_html and args.no_picture else ViewCollector(segments=not args.no_html)
     try:
         with stop_on_signals() as stop:
             try:

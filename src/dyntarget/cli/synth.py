@@ -93,8 +93,8 @@ def _synth_scenes(args: argparse.Namespace, dest: Path) -> int:
 
 def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None) -> int:
     """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
-    from dyntarget.fly.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
     from dyntarget.synth.dynamic import with_heights
+    from dyntarget.synth.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
 
     out = Path(args.out)
     t0 = time.perf_counter()
@@ -220,7 +220,7 @@ MAX_VENTS, MAX_CLOUDS = 64, 256
 ``MAX_CLOUDS``; written out here so that ``--help`` does not import the renderer, and
 checked equal by the tests)."""
 MIN_LENGTH_KM, MAX_LENGTH_KM = 10.0, 10_000.0
-"""Pass-length strips (:data:`dyntarget.fly.strip.MIN_LENGTH_KM`, ``MAX_LENGTH_KM``)."""
+"""Pass-length strips (:data:`dyntarget.synth.strip.MIN_LENGTH_KM`, ``MAX_LENGTH_KM``)."""
 MAX_WINDOW_SIDE = 1 << 16
 """Longest side of a rendered window, px (:data:`dyntarget.synth.dynamic.MAX_WINDOW_SIDE`)."""
 MAX_WINDOW_PIXELS = 1 << 23

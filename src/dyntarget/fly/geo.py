@@ -234,6 +234,7 @@ def prepare(
     t_bp = time.perf_counter() - t0
     doc |= {
         "targets": len(bp.targets),
+        "target_along_cross_m": [[round(t.along_m, 1), round(t.cross_m, 1)] for t in bp.targets],
         "targets_chosen": len(bp.chosen),
         "blueprint_pointings": int(bp.budget.sum()),
         "reserve_pointings": int(bp.reserve),
