@@ -7,10 +7,17 @@ volcano within reach of its field of regard is an *overflight*. At that grid tim
 in the ground track's frame (Earth-fixed positions: Earth rotation included) and
 :func:`dyntarget.schedule.visibility_windows` gives the window ``[t_in, t_out]`` the
 NFOV field of regard holds it, from the same kinematics and agility preset the pass
-scheduler uses. The observation is placed at ``t_out - dwell`` (the end of the window,
-nadir's along-track crossing: the smallest off-nadir angle a forward-looking sensor
-gets); its off-nadir angle is recomputed exactly there (SGP4 position, WGS 84 geodetic
-nadir, the summit at its catalog elevation) and its utility is ``cos(off-nadir)``.
+scheduler uses. The observation is timed by :func:`dyntarget.schedule.make_feasible`
+(:func:`first_pointing_s`) as the pass loop (``fly``) times its pointings: the sensor
+starts at nadir when the plan is ready (:data:`PLAN_S` after the look-ahead passes over
+the volcano, or earlier when cued) and takes the pointing as soon as the kinematics
+allow, which is when the volcano enters the field of regard (its forward edge, about
+30° off nadir with the default presets); its off-nadir angle is recomputed exactly
+there (SGP4 position, WGS 84 geodetic nadir, the summit at its catalog elevation) and
+its utility is ``cos(off-nadir)``. (Until the pixel-level comparison,
+``benchmarks/constellation.py --parts fidelity``, showed that ``fly`` takes its first
+pointing on a plume there, the observation was placed at the end of the window, nadir's
+along-track crossing, with the smallest off-nadir angle.)
 
 Both sensors are optical: each row carries the Sun's elevation over the volcano when
 the look-ahead passes and at the observation (the simulation uses neither below
@@ -38,7 +45,13 @@ from dyntarget.constellation.orbits import (
     utc,
 )
 from dyntarget.constellation.world import Eruptions
-from dyntarget.schedule import EARTH_RADIUS_M, OrbitGeometry, get_agility, visibility_windows
+from dyntarget.schedule import (
+    EARTH_RADIUS_M,
+    Agility,
+    OrbitGeometry,
+    get_agility,
+    visibility_windows,
+)
 
 STATIONS: tuple[tuple[str, float, float], ...] = (
     ("Svalbard", 78.23, 15.39),
@@ -53,6 +66,9 @@ STATIONS: tuple[tuple[str, float, float], ...] = (
 """Ground stations of the ``ground`` relay: name, latitude, longitude (degrees)."""
 MIN_ELEVATION_DEG = 5.0
 """A satellite is in contact with a station above this elevation."""
+PLAN_S = 20.0
+"""Seconds from a detection to a plan the NFOV can fly (the observation needs the eruption
+known this long before it)."""
 MIN_SUN_DEG = 5.0
 """Lowest Sun elevation over a volcano at which the look-ahead detects and the NFOV observes."""
 ENC_FIELDS = (
@@ -96,6 +112,53 @@ def reach_angle_rad(altitude_m: float, field_of_regard_deg: float) -> float:
     eta = math.radians(field_of_regard_deg)
     r = EARTH_RADIUS_M
     return math.asin(min(1.0, (r + altitude_m) / r * math.sin(eta))) - eta
+
+
+def first_pointing_s(
+    altitude_m: float, agility: Agility, along_m: float, cross_m: float, ready_s: float
+) -> float:
+    """When the NFOV takes one pointing at a ground point, by :func:`dyntarget.schedule.make_feasible`.
+
+    The point lies ``along_m`` ahead of nadir and ``cross_m`` across track at ``t = 0``;
+    the sensor starts at nadir at ``ready_s`` (the plan is ready) and takes the pointing
+    as soon as the kinematics allow, as the pass loop does.
+
+    Parameters
+    ----------
+    altitude_m : float
+        Orbit altitude, metres.
+    agility : dyntarget.schedule.Agility
+        The NFOV's agility preset.
+    along_m, cross_m : float
+        Ground distances from nadir at ``t = 0``, metres.
+    ready_s : float
+        When the plan is ready, seconds.
+
+    Returns
+    -------
+    float
+        When the observation starts, seconds (NaN: it cannot be taken).
+
+    Examples
+    --------
+    >>> from dyntarget.schedule import get_agility
+    >>> fast = get_agility("fast")  # a point under the track 500 km ahead, plan ready at once:
+    >>> # it enters the 30 deg field of regard 292 km ahead of nadir: (500 - 292) / 7.06 km/s
+    >>> round(first_pointing_s(500e3, fast, 500e3, 0.0, 0.0), 1)
+    29.4
+    >>> first_pointing_s(500e3, fast, 500e3, 400e3, 0.0)  # beyond the field of regard
+    nan
+    """
+    from dyntarget.schedule import make_feasible
+    from dyntarget.trajectory import Trajectory
+
+    geometry = OrbitGeometry(
+        altitude_m=altitude_m, look_ahead_m=0.0, wfov_gsd_m=1.0, start_s=ready_s
+    )
+    # a 1 x 1 px "image" with 1 m pixels: pixel (x, y) lies -y m ahead, x m across
+    traj = Trajectory(np.array([[cross_m, -along_m]]), np.zeros(1), "constellation")
+    flown = make_feasible(traj, (1, 1), geometry, agility)
+    return float(flown.times[0]) if len(flown.kept) else math.nan
 
 
 def overflights(task: dict[str, Any], **shared: Any) -> list[dict[str, Any]]:
@@ -209,7 +272,13 @@ def _rows(
     sw = float(settings["swath_m"]) / 2.0
     look_hit = (lo <= sw) & (hi >= -sw) & erupt.active(e_idx, t_look)
     visible = t_in <= t_out
-    t_obs = t_ref + t_out - agility.dwell_s
+    t_first = np.full(len(e_idx), np.nan)
+    for j in np.flatnonzero(visible).tolist():  # scheduled as fly schedules its pointings
+        t_first[j] = first_pointing_s(
+            alt, agility, float(along[j]), float(cross[j]), float(t_look[j] - t_ref[j]) + PLAN_S
+        )
+    visible &= np.isfinite(t_first)
+    t_obs = t_ref + t_first
     t_obs_eval = np.where(visible, t_obs, t_ref)
     rr, _ = propagate([sat], start, t_obs_eval)
     off = off_nadir_deg(rr[0], summit[e_idx])

@@ -40,7 +40,7 @@ from dyntarget.constellation.allocate import (
     distributed,
     greedy,
 )
-from dyntarget.constellation.geometry import ENC_FIELDS, MIN_SUN_DEG, overflights
+from dyntarget.constellation.geometry import ENC_FIELDS, MIN_SUN_DEG, PLAN_S, overflights
 from dyntarget.constellation.orbits import Satellite, geodetic_to_ecef
 from dyntarget.constellation.world import Catalog, Eruptions, cloud_state, hidden
 from dyntarget.errors import InvalidParameterError
@@ -60,8 +60,6 @@ Himawari-9 (AHI every 10 min)."""
 GEO_RADIUS_M = 42_164_000.0
 GEO_MAX_ZENITH_DEG = 65.0
 """Largest viewing zenith angle a GEO detection is trusted at (beyond: blind)."""
-PLAN_S = 20.0
-"""Onboard planning latency: a target must be known this long before its observation."""
 HOUR6 = 6 * 3600.0
 
 

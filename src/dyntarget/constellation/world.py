@@ -2,7 +2,8 @@
 
 * :func:`read_catalog`: a GVP Holocene volcano list (CSV: ``volcano_number``,
   ``latitude``, ``longitude``, ``elevation_m``, ``last_known_eruption``; other columns
-  kept as they are). One line names the row and field of anything wrong.
+  ignored), read by :func:`dyntarget.io.catalog.read_catalog` with every one of these
+  columns required. One line names the row and field of anything wrong.
 * :func:`draw_eruptions`: the stochastic eruption model. An *eruption* here is an
   eruptive episode that raises a plume (an explosion, an ash-emission pulse), not a
   GVP eruption (which may last years and hold thousands of episodes). Onsets are a
@@ -25,18 +26,17 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from dyntarget.errors import DataFileError, InvalidParameterError
+from dyntarget.errors import InvalidParameterError
+from dyntarget.io.catalog import Catalog
+from dyntarget.io.catalog import parse_catalog as _parse
+from dyntarget.io.catalog import read_catalog as _read
 
-REQUIRED = ("volcano_number", "latitude", "longitude", "elevation_m", "last_known_eruption")
 RECENCY_WEIGHTS = ((2020, 100.0), (2000, 20.0), (1900, 3.0), (-10_000, 1.0))
 """``(since year CE, weight)``: the first row whose year the last eruption reaches."""
 OLD_WEIGHT = 0.1
@@ -45,51 +45,21 @@ MEDIAN_DURATION_S = 3 * 3600.0
 MIN_DURATION_S, MAX_DURATION_S = 1200.0, 3 * 86400.0
 CLOUD_BLOCK_S = 3 * 3600.0
 CLOUD_FRACTION = 0.5
-MAX_VOLCANOES = 100_000
 
 
-@dataclass(frozen=True)
-class Catalog:
-    """Volcanoes as arrays (one entry per catalog row, in file order).
-
-    Parameters
-    ----------
-    number : numpy.ndarray
-        GVP volcano numbers (int64).
-    name : tuple of str
-        Volcano names (empty where the catalog has none).
-    lat, lon, elevation_m : numpy.ndarray
-        WGS 84 degrees and summit elevation, metres.
-    last_year : numpy.ndarray
-        Last known eruption year (CE positive, BCE negative), NaN if unknown.
-    """
-
-    number: np.ndarray
-    name: tuple[str, ...]
-    lat: np.ndarray
-    lon: np.ndarray
-    elevation_m: np.ndarray
-    last_year: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.number)
-
-
-def _year(text: str) -> float:
-    m = re.fullmatch(r"\s*(\d+)\s*(CE|BCE)\s*", text)
-    if not m:
-        return math.nan
-    y = float(m.group(1))
-    return -y if m.group(2) == "BCE" else y
+REQUIRED = ("volcano_number", "elevation_m", "last_known_eruption")
+"""Columns ``--volcanoes`` needs besides latitude and longitude (:mod:`dyntarget.io.catalog`)."""
 
 
 def parse_catalog(text: str, *, source: str = "volcanoes") -> Catalog:
-    """Read a GVP volcano list from CSV text, checking every row.
+    """A GVP volcano list from CSV text, every column the constellation needs required.
+
+    :func:`dyntarget.io.catalog.parse_catalog` with :data:`REQUIRED`.
 
     Parameters
     ----------
     text : str
-        The CSV text (a header row naming at least :data:`REQUIRED`).
+        The CSV text.
     source : str
         File name for messages.
 
@@ -98,73 +68,18 @@ def parse_catalog(text: str, *, source: str = "volcanoes") -> Catalog:
     Catalog
         The volcanoes.
 
-    Raises
-    ------
-    dyntarget.errors.DataFileError
-        Naming the row and field: a missing column, an empty or non-numeric field,
-        a latitude outside [-90, 90] or longitude outside [-180, 180], a repeated number.
-
     Examples
     --------
     >>> head = "volcano_number,latitude,longitude,elevation_m,last_known_eruption\\n"
     >>> c = parse_catalog(head + "1,19.4,-155.3,1222,2025 CE\\n")
     >>> c.number.tolist(), float(c.last_year[0])
     ([1], 2025.0)
-    >>> parse_catalog(head + "1,95,0,0,Unknown\\n")
-    Traceback (most recent call last):
-    ...
-    dyntarget.errors.DataFileError: volcanoes row 2: latitude 95 out of range [-90, 90]
     """
-    reader = csv.DictReader(io.StringIO(text))
-    fields = reader.fieldnames or []
-    missing = [c for c in REQUIRED if c not in fields]
-    if missing:
-        raise DataFileError(f"{source}: missing column(s) {', '.join(missing)}")
-    nums: list[int] = []
-    names: list[str] = []
-    vals: list[tuple[float, float, float, float]] = []
-    seen: set[int] = set()
-    for row_no, row in enumerate(reader, start=2):
-        where = f"{source} row {row_no}"
-        got: dict[str, float] = {}
-        for key, lo, hi in (
-            ("latitude", -90.0, 90.0),
-            ("longitude", -180.0, 180.0),
-            ("elevation_m", -11_000.0, 9_000.0),
-        ):
-            raw = (row.get(key) or "").strip()
-            if not raw:
-                raise DataFileError(f"{where}: {key} is empty")
-            try:
-                v = float(raw)
-            except ValueError:
-                raise DataFileError(f"{where}: {key} {raw!r} is not a number") from None
-            if not (math.isfinite(v) and lo <= v <= hi):
-                raise DataFileError(f"{where}: {key} {raw} out of range [{lo:g}, {hi:g}]")
-            got[key] = v
-        raw = (row.get("volcano_number") or "").strip()
-        if not raw.isdigit():
-            raise DataFileError(f"{where}: volcano_number {raw!r} is not a positive integer")
-        num = int(raw)
-        if num in seen:
-            raise DataFileError(f"{where}: volcano_number {num} appears twice")
-        seen.add(num)
-        nums.append(num)
-        names.append((row.get("volcano_name") or "").strip())
-        last = _year(row.get("last_known_eruption") or "")
-        vals.append((got["latitude"], got["longitude"], got["elevation_m"], last))
-        if len(nums) > MAX_VOLCANOES:
-            raise DataFileError(f"{source}: more than {MAX_VOLCANOES} volcanoes")
-    if not nums:
-        raise DataFileError(f"{source}: no volcanoes")
-    arr = np.asarray(vals, np.float64)
-    return Catalog(
-        np.asarray(nums, np.int64), tuple(names), arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
-    )
+    return _parse(text, source=source, require=REQUIRED)
 
 
 def read_catalog(path: str | Path) -> Catalog:
-    """:func:`parse_catalog` of a file (``--volcanoes``).
+    """The ``--volcanoes`` file (:func:`dyntarget.io.catalog.read_catalog`, :data:`REQUIRED`).
 
     Parameters
     ----------
@@ -184,13 +99,7 @@ def read_catalog(path: str | Path) -> Catalog:
     >>> len(read_catalog(p))
     1
     """
-    from dyntarget.io.safeopen import read_text
-
-    try:
-        text = read_text(path, max_bytes=256 << 20, what="--volcanoes")
-    except OSError as exc:
-        raise DataFileError(f"--volcanoes {path}: cannot read ({exc})") from None
-    return parse_catalog(text, source=str(path))
+    return _read(path, require=REQUIRED, what="--volcanoes")
 
 
 def recency_weight(last_year: np.ndarray) -> np.ndarray:
@@ -199,7 +108,7 @@ def recency_weight(last_year: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     last_year : numpy.ndarray
-        Years (BCE negative), NaN if unknown.
+        Astronomical years (CE positive, 1 BCE is 0, earlier negative), NaN if unknown.
 
     Returns
     -------
