@@ -15,7 +15,11 @@ elsewhere it is not reported.
 Lower bounds (:func:`lower_bounds`) put each stage's time in perspective: reading
 the image once from memory at the machine's measured copy bandwidth, and for the
 U-Nets the network's multiply-adds for one pass over the image at the machine's
-measured single-precision matrix-multiply rate.
+measured single-precision matrix-multiply rate. That rate is measured once at the
+start (the ``bounds`` table) and, for each timed U-Net classification, again right
+before and right after it (:func:`matmul_rate`), so that each run's time is set
+against a bound measured under the same load: the run's record holds ``runs`` (time,
+both rates, the 1-minute load average, threads) and ``ratios`` (time over its bound).
 """
 
 from __future__ import annotations
@@ -71,7 +75,9 @@ def _release_free_memory() -> None:
         pass
 
 
-def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
+def measure(
+    fn: Callable[[], Any], *, repeats: int, probe: Callable[[], float] | None = None
+) -> dict[str, Any]:
     """Median wall time (s) of ``repeats`` runs after a warm-up, and peak memory (MiB) above the start.
 
     Parameters
@@ -80,18 +86,39 @@ def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
         The work, called without arguments.
     repeats : int
         Timed runs.
+    probe : callable or None
+        Called right before and right after each timed run (outside its time), e.g.
+        :func:`matmul_rate`'s FLOP/s: its two readings are kept with the run.
 
     Returns
     -------
     dict
-        ``median_s``, ``min_s`` and ``peak_mib`` (``None`` where peak memory cannot be measured).
+        ``median_s``, ``min_s`` and ``peak_mib`` (``None`` where peak memory cannot be
+        measured); with a ``probe`` also ``runs``, one ``{"s", "probe_before",
+        "probe_after", "load_1min"}`` per timed run.
+
+    Examples
+    --------
+    >>> r = measure(lambda: sum(range(1000)), repeats=2, probe=lambda: 1.0)
+    >>> len(r["runs"]), r["runs"][0]["probe_before"], r["min_s"] <= r["median_s"]
+    (2, 1.0, True)
     """
     fn()
-    times = []
+    times, runs = [], []
     for _ in range(repeats):
+        reading = probe() if probe is not None else None
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
+        if probe is not None:
+            runs.append(
+                {
+                    "s": times[-1],
+                    "probe_before": reading,
+                    "probe_after": probe(),
+                    "load_1min": round(os.getloadavg()[0], 2),
+                }
+            )
     peak = None
     gc.collect()
     _release_free_memory()
@@ -101,7 +128,54 @@ def measure(fn: Callable[[], Any], *, repeats: int) -> dict[str, float | None]:
         after = _status_kb("VmHWM")
         if before is not None and after is not None:
             peak = max(after - before, 0) / 1024
-    return {"median_s": float(np.median(times)), "min_s": float(np.min(times)), "peak_mib": peak}
+    out: dict[str, Any] = {
+        "median_s": float(np.median(times)),
+        "min_s": float(np.min(times)),
+        "peak_mib": peak,
+    }
+    if probe is not None:
+        out["runs"] = runs
+    return out
+
+
+def per_run_bound(record: dict[str, Any], flops: float, threads: int | None) -> dict[str, Any]:
+    """A record of :func:`measure` with a matmul probe, each run set against its own bound.
+
+    Each run's bound is ``flops`` at the higher of the two matmul rates measured around
+    it (the stricter bound).
+
+    Parameters
+    ----------
+    record : dict
+        :func:`measure`'s result with ``runs`` (probe readings in FLOP/s).
+    flops : float
+        The stage's FLOPs (a U-Net's one pass over the image).
+    threads : int or None
+        Threads the stage ran on (recorded with each run).
+
+    Returns
+    -------
+    dict
+        ``record`` with, per run, ``bound_s``, ``ratio`` and ``threads``, and
+        ``ratios`` (per run), ``ratio_median``, ``load_1min`` (per run).
+
+    Examples
+    --------
+    >>> rec = {"runs": [{"s": 0.3, "probe_before": 1e9, "probe_after": 2e9, "load_1min": 4.0}]}
+    >>> per_run_bound(rec, 1e8, 1)["ratios"]
+    [6.0]
+    """
+    runs = []
+    for run in record["runs"]:
+        bound = flops / max(run["probe_before"], run["probe_after"])
+        runs.append(run | {"bound_s": bound, "ratio": run["s"] / bound, "threads": threads})
+    ratios = [round(r["ratio"], 3) for r in runs]
+    return record | {
+        "runs": runs,
+        "ratios": ratios,
+        "ratio_median": float(np.median(ratios)),
+        "load_1min": [r["load_1min"] for r in runs],
+    }
 
 
 def _torch_threads() -> int | None:
@@ -325,7 +399,9 @@ def run_bench(
     -------
     dict
         ``machine``, ``repeats``, ``sizes``, ``records`` (one per stage, size,
-        classifier and planner), ``bounds`` (:func:`lower_bounds`), ``forest_path``
+        classifier and planner; a U-Net's classify record also holds ``runs``,
+        ``ratios`` and ``ratio_median``: :func:`per_run_bound`, each run against the
+        matmul rate measured around it), ``bounds`` (:func:`lower_bounds`), ``forest_path``
         (the random forest's path that ran: :func:`forest_path`; ``None`` without a
         random forest), ``forest_paths`` (the same per forest row, variants included)
         and ``cpu`` (:func:`cpu_summary`).
@@ -356,7 +432,14 @@ def run_bench(
         for name, model in models.items():
             bar.set_postfix_str(f"{size} px: {name}")
             rec = {"size": size, "stage": "classify", "classifier": name, "planner": None}
-            records.append(rec | measure(partial(classify, scene.image, model), repeats=repeats))
+            if model.kind == "unet":  # each run against a bound measured under its own load
+                timed = measure(partial(classify, scene.image, model), repeats=repeats,
+                                probe=lambda: matmul_rate()["flop_per_s"])  # fmt: skip
+                flops = unet_flops(model, size)["one_pass"]
+                rec |= per_run_bound(timed, flops, getattr(model, "threads_used", None))
+            else:
+                rec |= measure(partial(classify, scene.image, model), repeats=repeats)
+            records.append(rec)
             # the pipeline's own stages, timed one by one (Algorithm 1 as plan_scene runs it)
             seg = segment(scene.image, probability=classify(scene.image, model), config=config)
             records.append(
@@ -488,17 +571,55 @@ def machine_rates() -> dict[str, float]:
     Returns
     -------
     dict of str to float
-        ``copy_bytes_per_s`` and ``matmul_flop_per_s`` (best of 5 runs each).
+        ``copy_bytes_per_s`` (best of 10 runs) and ``matmul_flop_per_s``
+        (:func:`matmul_rate` with 10 runs per thread count).
     """
-    import torch
-
     src = np.ones(1 << 23)  # 64 MiB, far beyond any cache
     dst = np.empty_like(src)
     copy_s = min(_timed(lambda: np.copyto(dst, src)) for _ in range(10))
-    n = 2048
+    mm = matmul_rate(repeats=10)["flop_per_s"]  # best of 10: the peak
+    return {"copy_bytes_per_s": 2 * src.nbytes / copy_s, "matmul_flop_per_s": mm}
+
+
+def matmul_rate(*, n: int = 2048, repeats: int = 3) -> dict[str, Any]:
+    """The machine's float32 matrix-multiply rate now: best of ``repeats`` ``n``-square products.
+
+    Measured on 1 thread and on every available core, and the higher taken: on a loaded
+    machine one thread can outrun two that wait for each other (the stricter bound).
+
+    Parameters
+    ----------
+    n : int
+        Matrix side.
+    repeats : int
+        Products timed per thread count.
+
+    Returns
+    -------
+    dict
+        ``flop_per_s`` (the best) and ``by_threads`` (thread count as a string to FLOP/s).
+
+    Examples
+    --------
+    >>> r = matmul_rate(n=64, repeats=1)
+    >>> r["flop_per_s"] == max(r["by_threads"].values()) > 0
+    True
+    """
+    import torch
+
+    from dyntarget.perceive.resources import available_cores
+
     a, b = torch.randn(n, n), torch.randn(n, n)
-    mm_s = min(_timed(lambda: torch.mm(a, b)) for _ in range(10))  # best of 10: the peak
-    return {"copy_bytes_per_s": 2 * src.nbytes / copy_s, "matmul_flop_per_s": 2 * n**3 / mm_s}
+    before = torch.get_num_threads()
+    rates = {}
+    try:
+        for threads in sorted({1, available_cores()}):
+            torch.set_num_threads(threads)
+            best = min(_timed(lambda: torch.mm(a, b)) for _ in range(repeats))
+            rates[str(threads)] = 2 * n**3 / best
+    finally:
+        torch.set_num_threads(before)
+    return {"flop_per_s": max(rates.values()), "by_threads": rates}
 
 
 def _timed(fn: Callable[[], Any]) -> float:
@@ -726,18 +847,30 @@ def bounds_table(result: dict[str, Any], get: Callable[..., Any]) -> str:
             )
         else:
             bound, what = entry["read_image_s"], "read the image once"
+        rec = next(
+            r for r in result["records"]
+            if r["stage"] == "classify" and r["size"] == size and r["classifier"] == c
+        )  # fmt: skip
+        ratios = rec.get("ratios")
         rows.append(
             {
                 "classifier": c,
                 "classify (ms)": 1000 * measured,
                 "lower bound (ms)": 1000 * bound,
                 "measured / bound": measured / bound,
+                "per run, bound interleaved (median; runs)": (
+                    f"{np.median(ratios):.2f}; " + ", ".join(f"{x:.2f}" for x in ratios)
+                    if ratios
+                    else "n/a"
+                ),
                 "bound": what,
             }
         )
     head = (
         f"Classification at {size} px against a lower bound (copy bandwidth "
         f"{rates['copy_bytes_per_s'] / 1e9:.1f} GB/s, float32 matmul "
-        f"{rates['matmul_flop_per_s'] / 1e9:.0f} GFLOP/s, both measured):\n"
+        f"{rates['matmul_flop_per_s'] / 1e9:.0f} GFLOP/s, both measured at the start; "
+        "per run: each U-Net classification against the matmul rate measured right "
+        "before and after it):\n"
     )
     return head + markdown_table(rows, list(rows[0]), digits=1)

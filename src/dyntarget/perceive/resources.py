@@ -71,3 +71,89 @@ def available_cores() -> int:
         return max(len(os.sched_getaffinity(0)), 1)
     except AttributeError:  # not Linux
         return os.cpu_count() or 1
+
+
+def _running_tasks() -> tuple[int, int] | None:
+    """``(runnable tasks on the machine, runnable threads of this process)`` now (Linux)."""
+    try:
+        with open("/proc/stat", encoding="ascii") as fh:
+            total = next(int(line.split()[1]) for line in fh if line.startswith("procs_running"))
+        own = 0
+        for task in os.listdir("/proc/self/task"):
+            try:
+                with open(f"/proc/self/task/{task}/stat", encoding="ascii", errors="replace") as fh:
+                    stat = fh.read()
+            except OSError:  # the thread ended meanwhile
+                continue
+            own += stat[stat.rindex(")") + 2 : stat.rindex(")") + 3] == "R"
+    except (OSError, StopIteration, ValueError):
+        return None
+    return total, own
+
+
+def busy_cores(samples: int = 5) -> int:
+    """Cores other processes keep busy now: runnable tasks not of this process (median of samples).
+
+    Read from the kernel's count of runnable tasks (``procs_running`` in ``/proc/stat``)
+    less this process's own runnable threads, sampled ``samples`` times about a
+    millisecond apart; 0 where it cannot be read (not Linux).
+
+    Parameters
+    ----------
+    samples : int
+        Readings (the median is returned).
+
+    Returns
+    -------
+    int
+        At least 0.
+
+    Examples
+    --------
+    >>> busy_cores() >= 0
+    True
+    """
+    import time
+
+    counts = []
+    for i in range(max(int(samples), 1)):
+        now = _running_tasks()
+        if now is None:
+            return 0
+        counts.append(max(now[0] - now[1], 0))
+        if i + 1 < samples:
+            time.sleep(0.001)
+    return int(sorted(counts)[len(counts) // 2])
+
+
+def inference_threads(limit: int | None = None) -> int:
+    """Intra-op threads for one network pass: the cores not kept busy by other processes.
+
+    The rule of OpenMP's dynamic adjustment (libgomp's ``OMP_DYNAMIC``: the online
+    cores less the load), with the load read as it is now (:func:`busy_cores`) rather
+    than as a minutes-long average, which would count this process's own past work. A
+    pass of a U-Net runs some hundred parallel regions, each ending at a barrier that
+    waits for its slowest thread: when other processes share the cores, a thread is
+    often descheduled there for a scheduler time slice, so on this 2-core machine under
+    load UNET-Xception ran 2-5x *slower* on 2 threads than on 1 (docs/performance.md).
+    On a quiet machine the result is :func:`available_cores`.
+
+    Parameters
+    ----------
+    limit : int or None
+        Upper bound (e.g. ``torch.get_num_threads()``, a caller's own setting).
+
+    Returns
+    -------
+    int
+        Between 1 and ``min(limit, available_cores())``.
+
+    Examples
+    --------
+    >>> 1 <= inference_threads() <= available_cores()
+    True
+    >>> inference_threads(limit=1)
+    1
+    """
+    cores = available_cores() if limit is None else min(available_cores(), int(limit))
+    return max(1, min(cores, available_cores() - busy_cores()))

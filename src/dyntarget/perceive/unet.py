@@ -22,7 +22,9 @@ stitchings:
 
 * ``"halo"`` (default): the networks are fully convolutional, so the image (padded at
   the bottom/right to a multiple of the total downsampling factor ``2**levels``) is
-  predicted in one pass when its activations fit :data:`DEFAULT_MEMORY_MIB`, else in
+  predicted in one pass when its activations fit :data:`DEFAULT_MEMORY_MIB` (estimated
+  by the peak of a PyTorch pass, :data:`PEAK_FLOATS_PER_PIXEL`; by the sum of every
+  layer's output in ONNX Runtime), else in
   large windows whose origins sit on multiples of that factor, each with a halo of at
   least the network's receptive-field radius (:func:`receptive_radius`), keeping only
   the centre. Normalisation uses the per-band statistics stored in the model (never
@@ -34,7 +36,8 @@ stitchings:
 
 PyTorch prediction runs a copy of the network with its batch norms folded into the
 convolutions, in channels-last memory format (faster on the CPU; equal to the trained
-network to float rounding, tested).
+network to float rounding, tested), on the cores other processes leave free
+(:func:`dyntarget.perceive.resources.inference_threads`).
 
 This module imports no torch: the networks (:mod:`dyntarget.perceive.networks`)
 and torch are loaded when a U-Net is built, trained or loaded natively; the
@@ -267,7 +270,19 @@ def check_stitching(stitch: str, memory_mib: float) -> tuple[str, float]:
 ACTIVATION_FLOATS_PER_WIDTH = {"uavsar": 24.5, "xception": 20.0}
 """float32 activations per input pixel per unit of network width, summed over every
 layer's output of one pass (an upper bound on the peak: a pass frees most of them as it
-goes). Counted with forward hooks in the tests."""
+goes). Counted with forward hooks in the tests. The memory estimate of ONNX Runtime's
+passes, whose arena keeps what it allocates."""
+
+PEAK_FLOATS_PER_PIXEL = {"uavsar": (10.0, 16.0), "xception": (4.0, 32.0)}
+"""``(per unit of width, constant)``: float32 values per input pixel that one PyTorch
+pass of the prediction copy (:meth:`_UNetClassifier.inference_network`) holds at its
+peak, with margin. The copy frees each activation once used and UNET-Xception's works in
+place, so the peak is far below the sum of every layer's output
+(:data:`ACTIVATION_FLOATS_PER_WIDTH`): measured as the process's resident high-water
+mark above its start at 1024 px, 8.2-8.6 (Uavsar) and 3.4-5.2 (Xception) floats per pixel
+per unit of width at widths 8 and 16, 1 and 2 threads (checked in the tests). With it a
+1024 px image fits the default budget in one pass (18.9 GFLOP for UNET-Xception at width
+16) instead of four halo windows (29.5 GFLOP)."""
 
 
 class Stitching:
@@ -324,6 +339,7 @@ class Stitching:
         tile: int,
         stitch: str = DEFAULT_STITCH,
         memory_mib: float = DEFAULT_MEMORY_MIB,
+        peak: bool = False,
     ) -> Stitching:
         """The stitching of a ``uavsar`` / ``xception`` U-Net of ``width`` and ``levels``.
 
@@ -341,18 +357,35 @@ class Stitching:
             The stitching.
         memory_mib : float
             Activation budget of one pass, MiB (``"halo"``).
+        peak : bool
+            Estimate a pass's memory by the PyTorch prediction copy's peak
+            (:data:`PEAK_FLOATS_PER_PIXEL`) instead of the sum of every layer's output
+            (:data:`ACTIVATION_FLOATS_PER_WIDTH`, ONNX Runtime's estimate).
 
         Returns
         -------
         Stitching
             The stitching, halo from the network's receptive-field radius.
+
+        Examples
+        --------
+        >>> Stitching.for_architecture("xception", levels=4, width=16, tile=64).bytes_per_pixel
+        1312.0
+        >>> Stitching.for_architecture(
+        ...     "xception", levels=4, width=16, tile=64, peak=True
+        ... ).bytes_per_pixel
+        384.0
         """
         factor = 2**levels
+        if peak:
+            per_width, constant = PEAK_FLOATS_PER_PIXEL[architecture]
+        else:
+            per_width, constant = ACTIVATION_FLOATS_PER_WIDTH[architecture], 8.0
         return cls(
             tile=tile,
             factor=factor,
             halo=-(-receptive_radius(architecture) // factor) * factor,
-            bytes_per_pixel=4 * (ACTIVATION_FLOATS_PER_WIDTH[architecture] * width + 8),
+            bytes_per_pixel=4 * (per_width * width + constant),
             stitch=stitch,
             memory_mib=memory_mib,
         )
@@ -609,8 +642,13 @@ class _UNetClassifier(Classifier):
         model.eval()
         self.model = model
 
+    threads_used: int | None = None
+    """Intra-op threads the last PyTorch prediction ran on (``None`` before one)."""
+
     def _predict_proba(self, image: np.ndarray) -> np.ndarray:
         import torch
+
+        from dyntarget.perceive.resources import inference_threads
 
         net = self.inference_network()
         channels_last = torch.channels_last
@@ -620,7 +658,12 @@ class _UNetClassifier(Classifier):
                 x = torch.from_numpy(batch).contiguous(memory_format=channels_last)
                 return torch.softmax(net(x), dim=1)[:, 1].numpy()
 
-        return self.tiled(image, forward)
+        # the cores other processes leave free, at most torch's own setting: under load a
+        # pass on 2 threads waits at every barrier for a descheduled thread (2-5x slower
+        # than 1 thread here); the probabilities do not depend on the thread count (tested)
+        self.threads_used = inference_threads(limit=torch.get_num_threads())
+        with _fixed_threads(self.threads_used):
+            return self.tiled(image, forward)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
@@ -689,6 +732,10 @@ class _UNetClassifier(Classifier):
     def stitching(self) -> Stitching:
         """This model's :class:`Stitching` (tile, factor, halo, memory per pixel).
 
+        The memory per pixel is the PyTorch prediction copy's peak
+        (:data:`PEAK_FLOATS_PER_PIXEL`); ONNX Runtime builds its own with the larger
+        estimate.
+
         Returns
         -------
         Stitching
@@ -701,6 +748,7 @@ class _UNetClassifier(Classifier):
             tile=self.tile,
             stitch=self.stitch,
             memory_mib=self.memory_mib,
+            peak=True,
         )
 
     def work_units(self, shape: tuple[int, int]) -> float:

@@ -1,0 +1,107 @@
+"""U-Net prediction on the cores other processes leave free, and in one pass where it fits."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from dyntarget.perceive import make_classifier
+from dyntarget.perceive.resources import available_cores, busy_cores, inference_threads
+from dyntarget.perceive.unet import Stitching
+
+
+def test_inference_threads_never_exceeds_the_limit_nor_the_cores():
+    assert inference_threads(limit=1) == 1
+    assert 1 <= inference_threads() <= available_cores()
+
+
+@pytest.mark.slow
+def test_other_busy_processes_leave_one_thread():
+    # as many spinning processes as cores: none is free, so one thread (never zero)
+    code = "while True: pass"
+    spinners = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(available_cores())]
+    try:
+        time.sleep(0.5)
+        assert busy_cores() >= available_cores()
+        assert inference_threads() == 1
+    finally:
+        for p in spinners:
+            p.kill()
+            p.wait()
+
+
+@pytest.mark.parametrize("name", ["unet-uavsar", "unet-xception"])
+def test_probabilities_do_not_depend_on_the_thread_count(name, monkeypatch):
+    import torch
+
+    from dyntarget.perceive import resources
+
+    model = make_classifier(name, width=4, tile=32)
+    model.model.eval()
+    model.fitted = True
+    image = np.random.default_rng(0).random((4, 96, 80), dtype=np.float32)
+    torch_threads = torch.get_num_threads()
+    got = {}
+    for threads in (1, 2):
+        monkeypatch.setattr(resources, "inference_threads", lambda limit=None, t=threads: t)
+        got[threads] = model.predict_proba(image)
+        assert model.threads_used == threads
+        assert torch.get_num_threads() == torch_threads  # restored afterwards
+    # bit for bit on this machine: the same bytes whatever the load picked
+    assert np.array_equal(got[1], got[2])
+
+
+def test_width_16_models_predict_1024_px_in_one_pass_and_2048_in_windows():
+    for name in ("unet-uavsar", "unet-xception"):
+        st = make_classifier(name).stitching()
+        assert len(st.windows((1024, 1024))) == 1
+    # Xception: 4 * (4 * 16 + 32) = 384 B/px; 2048**2 px * 384 B = 1536 MiB > 1024 MiB
+    xception = make_classifier("unet-xception").stitching()
+    assert xception.bytes_per_pixel == 384.0
+    assert len(xception.windows((2048, 2048))) > 1
+    # ONNX Runtime's estimate (the sum of every layer's output) is unchanged
+    onnx = Stitching.for_architecture("xception", levels=4, width=16, tile=64)
+    assert onnx.bytes_per_pixel == 4 * (20.0 * 16 + 8)
+
+
+PEAK_SCRIPT = """
+import gc, ctypes, sys
+import numpy as np
+from dyntarget.perceive import make_classifier
+name, width, size = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+model = make_classifier(name, width=width)
+model.model.eval()
+model.fitted = True
+model.set_stitching("halo", memory_mib=1e6)
+image = np.random.default_rng(0).random((4, size, size), dtype=np.float32)
+model.predict_proba(image)
+def kb(field):
+    for line in open("/proc/self/status"):
+        if line.startswith(field + ":"):
+            return int(line.split()[1])
+gc.collect()
+ctypes.CDLL("libc.so.6").malloc_trim(0)
+open("/proc/self/clear_refs", "w").write("5")
+start = kb("VmRSS")
+model.predict_proba(image)
+print((kb("VmHWM") - start) * 1024 / size**2, model.stitching().bytes_per_pixel)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("name", ["unet-uavsar", "unet-xception"])
+@pytest.mark.parametrize("width", [8, 16])
+def test_peak_estimate_bounds_the_measured_peak_of_one_pass(name, width):
+    # a fresh process: the resident high-water mark of one 512 px pass above its start
+    out = subprocess.run(
+        [sys.executable, "-c", PEAK_SCRIPT, name, str(width), "512"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    measured, estimate = map(float, out.stdout.split())
+    assert measured <= estimate
+    assert measured >= 0.25 * estimate  # an estimate, not a blanket allowance
