@@ -1,7 +1,9 @@
 #!/bin/bash
-# Writes the outputs that must stay byte-identical when code moves (issue 26): the paper's tables
-# (`reproduce`, 6 scenes, 2 folds, 1 epoch) and fly passes (fast/slow presets, every --predict mode,
-# the truth and a trained model), with a fixed compute budget so no wall-clock time enters a pass.
+# Writes the outputs that must stay byte-identical when code moves (issues 26 and 39): the paper's
+# tables (`reproduce`, 6 scenes, 2 folds, 1 epoch), 13 fly passes (fast/slow presets, every --predict
+# mode, the truth and a trained model, GEO cueing), `evaluate dynamic` on small moving scenes
+# (`synth --frames`) and `plan` with a previous look, an agility preset and the HTML view, with a
+# fixed compute budget so no wall-clock time enters a pass. A few minutes with nice on 2 cores.
 #
 # usage: scripts/identity_outputs.sh SRC OUT     (SRC: a checkout; its src/ is put first on PYTHONPATH)
 #   git worktree add /tmp/before <commit>
@@ -19,10 +21,27 @@ dyntarget reproduce --data scenes --out repro --folds 2 --epochs 1 --quiet > rep
 dyntarget synth --strip --scenes 1 --size 256 --plumes 4 --seed 0 --out strips --quiet
 dyntarget synth --scenes 2 --size 256 --seed 1 --out flyscenes --quiet
 dyntarget train --data flyscenes --classifier logistic-regression --out model > train.log 2>&1
+STRIP=strips/strip-0000.tif
+fly() {  # fly NAME ARGS...: one pass with a fixed compute budget, its rc reported when non-zero
+  local name=$1; shift
+  dyntarget fly --scene $STRIP "$@" --compute-budget-s 0.05 --out fly-$name > fly-$name.log 2>&1 || echo "fly $name rc=$?"
+}
 for preset in fast slow; do
   for pred in none wind two-looks; do
-    dyntarget fly --scene strips/strip-0000.tif --truth --planner lawnmower-transect --agility $preset --predict $pred --compute-budget-s 0.05 --out fly-truth-$preset-$pred > /dev/null 2>&1 || echo "fly truth $preset $pred rc=$?"
+    fly truth-$preset-$pred --truth --planner lawnmower-transect --agility $preset --predict $pred
   done
-  dyntarget fly --scene strips/strip-0000.tif --model model --planner track-center --agility $preset --compute-budget-s 0.05 --out fly-lr-$preset > /dev/null 2>&1 || echo "fly lr $preset rc=$?"
+  fly lr-$preset --model model --planner track-center --agility $preset
 done
+fly lr-fast-two-looks --model model --planner lawnmower-transect --agility fast --predict two-looks
+fly lr-slow-wind --model model --planner track-center --agility slow --predict wind --wind-mps 6 --wind-from-deg 120
+fly geo-truth-two-looks --truth --geo --planner lawnmower-transect --agility fast --predict two-looks
+fly geo-lr-slow --model model --geo --planner track-center --agility slow --predict two-looks
+fly geo-truth-omniscient --truth --geo-omniscient --planner lawnmower-transect --agility slow
+# moving scenes: evaluate dynamic (static, predictive, wind-prior under an agility preset) and plan
+dyntarget synth --scenes 3 --size 64 --frames 3 --seed 2 --out seqs --quiet
+dyntarget evaluate dynamic --data seqs --out dynamic --folds 2 --epochs 1 --classifiers logistic-regression --modes static,predictive,wind-prior --latencies 0,30 --agility fast --planners lawnmower-transect,track-center --quiet > dynamic.log 2>&1 || echo "evaluate dynamic rc=$?"
+S=seqs/dyn-0002-0000
+dyntarget plan $S/f002.tif --mask $S/f002_mask.tif --previous $S/f001.tif --previous-mask $S/f001_mask.tif --interval-s 10 --lead-s 30 --planner lawnmower-transect --agility fast --html plan-masks.html --out plan-masks.geojson > plan-masks.log 2>&1 || echo "plan masks rc=$?"
+dyntarget plan $S/f002.tif --model model --force --previous $S/f001.tif --interval-s 10 --lead-s 30 --planner utility-max --agility slow --html plan-model.html --out plan-model.csv > plan-model.log 2>&1 || echo "plan model rc=$?"
+dyntarget plan $S/f002.tif --mask $S/f002_mask.tif --wind-mps 8 --wind-from-deg 270 --lead-s 60 --planner track-center --agility fast --html plan-wind.html --out plan-wind.geojson > plan-wind.log 2>&1 || echo "plan wind rc=$?"
 rm -rf repro/models model

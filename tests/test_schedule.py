@@ -292,3 +292,51 @@ def test_a_busy_sensor_starts_when_free_from_what_it_tracks():
         sensor=SensorState(1.0),
     )  # fmt: skip
     assert early.times.tolist() == [2.0]
+
+
+def test_a_pass_sensor_is_seen_in_the_frame_time_and_ground():
+    # issue 39: SensorState for one frame of a pass (was fly.loop._sensor)
+    from dyntarget.schedule import sensor_in_frame
+
+    g = OrbitGeometry()
+    v = g.ground_speed
+    # free at 12 s into the pass, tracking 1 km ahead of where nadir was at t = 0 + 10 s of flight;
+    # frame acquired at 10 s, its plan ready at 11 s: free 2 s after the acquisition, the target
+    # 1 km ahead of the frame's nadir
+    s = sensor_in_frame(12.0, (v * 10.0 + 1000.0, -40.0), g, 10.0, 11.0)
+    assert s.free_s == pytest.approx(2.0)
+    assert s.target == (pytest.approx(1000.0), -40.0)
+    # a plan ready after the sensor is free starts when it is ready; no target: nadir
+    s = sensor_in_frame(3.0, None, g, 10.0, 14.5)
+    assert s.free_s == pytest.approx(4.5) and s.target is None
+
+
+def test_the_lead_is_when_the_frame_enters_the_field_of_regard_or_later():
+    from dyntarget.schedule import get_agility, lead_s
+
+    g, fast = OrbitGeometry(), get_agility("fast")
+    # the frame centre enters the field of regard when its look angle drops to the limit:
+    # ahead distance d with atan-geometry worked from the orbit (spherical Earth)
+    R, h = 6_371_000.0, g.altitude_m
+    fov = math.radians(fast.field_of_regard_deg)
+    # off-nadir angle fov -> Earth central angle: asin((R + h) / R * sin(fov)) - fov
+    central = math.asin((R + h) / R * math.sin(fov)) - fov
+    enter = (g.look_ahead_m - R * central) / g.ground_speed
+    assert lead_s(g, fast, 0.0, 0.0, 0.0) == pytest.approx(enter, abs=1e-3)
+    # the sensor busy until 100 s into the pass on a frame acquired at 10 s: 90 s
+    assert lead_s(g, fast, 10.0, 12.0, 100.0) == pytest.approx(90.0)
+    # unlimited agility: no field of regard, the lead is when the loop or sensor is free
+    assert lead_s(g, get_agility("unlimited"), 10.0, 12.5, 0.0) == pytest.approx(2.5)
+
+
+def test_without_a_prediction_schedule_on_prediction_is_make_feasible():
+    from dyntarget.schedule import make_feasible, schedule, schedule_on_prediction
+
+    traj = Trajectory(np.array([[8.0, 2.0], [8.0, 14.0], [2.0, 8.0]]), np.zeros(3), "demo")
+    g = OrbitGeometry(start_s=1.0)
+    a = schedule_on_prediction(traj, (16, 16), g, "slow", None)
+    b = make_feasible(traj, (16, 16), g, "slow")
+    assert a.kept.tolist() == b.kept.tolist() and a.times.tolist() == b.times.tolist()
+    planned = schedule(traj, (16, 16), g, "slow")
+    c = schedule_on_prediction(traj, (16, 16), g, "slow", None, as_planned=planned)
+    assert c.kept.tolist() == b.kept.tolist()

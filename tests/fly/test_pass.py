@@ -298,16 +298,16 @@ def test_the_pass_loop_keeps_attached_plumes_of_a_mixed_scene_at_their_vent(monk
 
 @pytest.mark.parametrize("ground", ["fixed", "moving"])
 def test_the_pass_asks_two_look_motion_for_the_ground_it_was_given(monkeypatch, ground):
-    from dyntarget.fly import loop
+    from dyntarget.predict import forecast
 
     asked = []
-    real = loop.two_look_motion
+    real = forecast.two_look_motion
 
     def record(*args, **kw):
         asked.append(kw.get("ground"))
         return real(*args, **kw)
 
-    monkeypatch.setattr(loop, "two_look_motion", record)
+    monkeypatch.setattr(forecast, "two_look_motion", record)
     world = _strip([(904, 920, 8, 40)])
     config = PassConfig(
         agility="unlimited", compute_budget_s=0.01, predict="two-looks", ground=ground
@@ -320,3 +320,61 @@ def test_the_pass_asks_two_look_motion_for_the_ground_it_was_given(monkeypatch, 
 def test_an_unknown_ground_is_refused():
     with pytest.raises(InvalidParameterError, match="ground: expected one of auto, fixed"):
         PassConfig(ground="sea")
+
+
+@pytest.mark.parametrize("budget", [0.01, None])
+@pytest.mark.parametrize("predict", ["none", "two-looks"])
+def test_each_frame_runs_the_pipeline_once_and_schedules_once(monkeypatch, budget, predict):
+    # issue 39: a predictive frame no longer plans twice, and a measured frame no longer
+    # schedules once only to time the scheduling: one plan_scene, one schedule per frame
+    from dyntarget.fly import loop
+
+    calls = {"plan_scene": 0, "schedule": 0}
+    real_plan, real_schedule = loop.plan_scene, loop.schedule_on_prediction
+
+    def plan(*a, **kw):
+        calls["plan_scene"] += 1
+        return real_plan(*a, **kw)
+
+    def schedule(*a, **kw):
+        calls["schedule"] += 1
+        return real_schedule(*a, **kw)
+
+    monkeypatch.setattr(loop, "plan_scene", plan)
+    monkeypatch.setattr(loop, "schedule_on_prediction", schedule)
+    world = _strip([(600, 680, 20, 80)])
+    config = PassConfig(agility="fast", compute_budget_s=budget, predict=predict)
+    result = fly_pass(world, None, config)
+    assert len(result.records) == 15  # 256 WFOV rows, 32-row frames every 16 rows
+    assert calls == {"plan_scene": 15, "schedule": 15}
+
+
+def test_a_predictive_frame_says_what_it_planned_on():
+    # the path of a two-looks frame: classify, the motion (or none for the first frame),
+    # the planner; the plan is drawn on the prediction from the same segmentation
+    world = _strip([(600, 680, 20, 80)])
+    config = PassConfig(agility="unlimited", compute_budget_s=0.01, predict="two-looks")
+    paths = [r.path.split("; ") for r in fly_pass(world, None, config).records]
+    assert paths[0] == [
+        "classify: given mask",
+        "predict: no motion known (planned on the look as it is)",
+        "plan: lawnmower-transect",
+    ]
+    later = [p for p in paths[1:] if p[1] != paths[0][1]]
+    assert later, "no frame planned on a motion"
+    assert all(
+        p[0] == "classify: given mask" and p[-1] == "plan: lawnmower-transect" for p in later
+    )
+    assert all(p[1].startswith("predict: ") and " s ahead (" in p[1] for p in later)
+
+
+def test_the_agility_preset_is_looked_up_once_per_settings(monkeypatch):
+    from dyntarget.fly import loop
+
+    asked = []
+    real = loop.get_agility
+    monkeypatch.setattr(loop, "get_agility", lambda name: asked.append(name) or real(name))
+    config = PassConfig(agility="slow", compute_budget_s=0.01)
+    fly_pass(_strip([(600, 680, 20, 80)]), None, config, upper_bound=True)
+    assert asked == ["slow"]
+    assert config.limits.name == "slow"

@@ -198,15 +198,15 @@ def _crs_key(crs) -> str | None:
 
 
 def _mask_of(scene, classifier, threshold: float):
-    from dyntarget.denoise import denoise
+    """``(raw, denoised)`` plume mask of a look: its label, or the classifier's (the pipeline's
+    segment stage, so the motion sees the masks the plan is drawn on)."""
+    from dyntarget.pipeline import PipelineConfig, segment
 
-    if scene.label is not None:
-        raw = scene.label
-    else:
-        raw = classifier.predict_proba(scene.image) >= threshold
-    if scene.valid is not None:
-        raw = raw & scene.valid
-    return raw, denoise(raw).mask
+    seg = segment(
+        scene.image, classifier, mask=scene.label, valid=scene.valid,
+        config=PipelineConfig(threshold=threshold),
+    )  # fmt: skip
+    return seg.raw_mask, seg.mask
 
 
 def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float):
@@ -216,8 +216,7 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
     mask returned, so the pipeline plans on it without classifying again.
     """
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.pipeline import two_look_motion
-    from dyntarget.predict import LOW_CONFIDENCE, Prediction, wind_motion
+    from dyntarget.predict import LOW_CONFIDENCE, Prediction, plume_motion, wind_motion
 
     _check_args(args)
     prior = None
@@ -237,19 +236,17 @@ def prediction_for(args: argparse.Namespace, wfov, classifier, threshold: float)
             args.wind_mps, args.wind_from_deg, transform=transform, gsd_m=gsd,
             regime=args.regime,
         )  # fmt: skip
-    current_raw = None
-    if args.previous is None:
-        if prior is None:  # _check_args asks for --previous or --wind-mps
-            raise InvalidParameterError("--predict: give --previous or --wind-mps")
-        motion = prior
-    else:
+    current_raw, looks = None, None
+    if args.previous is not None:
         prev = _read_previous(args, wfov)
         _, prev_mask = _mask_of(prev, classifier, threshold)
         current_raw, cur_mask = _mask_of(wfov, classifier, threshold)
-        motion = two_look_motion(
-            prev.image, wfov.image, args.interval_s, previous_mask=prev_mask,
-            current_mask=cur_mask, prior=prior, ground=getattr(args, "ground", "auto"),
-        )  # fmt: skip
+        looks = (prev.image, wfov.image, prev_mask, cur_mask)
+    motion = plume_motion(
+        prior, looks, args.interval_s or 0.0, ground=getattr(args, "ground", "auto")
+    )
+    if motion is None:  # _check_args asks for --previous or --wind-mps
+        raise InvalidParameterError("--predict: give --previous or --wind-mps")
     log(f"motion: {motion.summary()}")
     if motion.fallback:
         log(

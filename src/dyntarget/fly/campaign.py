@@ -14,13 +14,17 @@ import functools
 import hashlib
 import io
 import os
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dyntarget.errors import DataFileError, InvalidParameterError
 from dyntarget.fly.loop import PassConfig, fly_pass
 from dyntarget.io.atomic import write_text
+
+if TYPE_CHECKING:
+    from dyntarget.fly.geo import GeoSettings
 
 COLUMNS = (
     "strip",
@@ -142,7 +146,7 @@ def fly_one(
     out: str,
     truth_step_s: float,
     int8: bool = False,
-    geo: Any = None,
+    geo: GeoSettings | None = None,
 ) -> dict[str, Any]:
     """Fly one pass of a campaign and write its outputs; return its row of totals.
 
@@ -208,7 +212,7 @@ def run_campaign(
     scheduler: str | None = None,
     truth_step_s: float = 1.0,
     progress: bool = True,
-    geo: Any = None,
+    geo: GeoSettings | None = None,
 ) -> list[dict[str, Any]]:
     """Fly every strip x planner x preset; write ``campaign.csv``/``.md``; return the rows.
 
@@ -230,16 +234,9 @@ def run_campaign(
     -------
     list of rows (dicts with :data:`COLUMNS`), in strip, planner, preset order.
     """
-    from dyntarget.evaluate.distributed import run_tasks, task_key
-    from dyntarget.plan import PLANNERS
-    from dyntarget.schedule import get_agility
+    from dyntarget.evaluate.distributed import run_tasks
 
-    if not planners or not agilities:
-        raise InvalidParameterError("campaign: give at least one planner and one agility preset")
-    for p in planners:
-        PLANNERS.get(p)
-    for a in agilities:
-        get_agility(a)
+    _check_axes(planners, agilities)
     out = Path(out)
     tasks = [
         {"strip": str(s), "planner": p, "agility": a}
@@ -247,20 +244,7 @@ def run_campaign(
         for p in planners
         for a in agilities
     ]
-    digests = {str(s): _digest(s) for s in strips}
-    runtime = (onnx, "int8") if int8 else (onnx,)  # FP32 keys as before: parts stay valid
-    model_id = None if model is None else (model, *runtime, _model_digest(Path(model)))
-    settings = {**config.as_dict(), "truth_step_s": truth_step_s}
-    if geo is not None:  # passes without --geo keep their keys (parts stay valid)
-        from dataclasses import asdict
-
-        settings["geo"] = asdict(geo)
-
-    def key(task: dict[str, str]) -> str:
-        return task_key(
-            "fly", digests[task["strip"]], task["planner"], task["agility"], model_id, settings
-        )
-
+    key = _task_key(strips, config, model, onnx, int8, truth_step_s, geo)
     rows = run_tasks(
         fly_one,
         tasks,
@@ -282,6 +266,48 @@ def run_campaign(
     write_text(out / "campaign.csv", _csv(rows))
     write_text(out / "campaign.md", _markdown(rows))
     return rows
+
+
+def _check_axes(planners: tuple[str, ...], agilities: tuple[str, ...]) -> None:
+    """Refuse an empty axis, an unknown planner or an unknown agility preset."""
+    from dyntarget.plan import PLANNERS
+    from dyntarget.schedule import get_agility
+
+    if not planners or not agilities:
+        raise InvalidParameterError("campaign: give at least one planner and one agility preset")
+    for p in planners:
+        PLANNERS.get(p)
+    for a in agilities:
+        get_agility(a)
+
+
+def _task_key(
+    strips: list[Path],
+    config: PassConfig,
+    model: str | None,
+    onnx: bool,
+    int8: bool,
+    truth_step_s: float,
+    geo: GeoSettings | None,
+) -> Callable[[dict[str, str]], str]:
+    """The key of a pass's part: the strip's bytes, planner, preset, model and settings."""
+    from dyntarget.evaluate.distributed import task_key
+
+    digests = {str(s): _digest(s) for s in strips}
+    runtime = (onnx, "int8") if int8 else (onnx,)  # FP32 keys as before: parts stay valid
+    model_id = None if model is None else (model, *runtime, _model_digest(Path(model)))
+    settings = {**config.as_dict(), "truth_step_s": truth_step_s}
+    if geo is not None:  # passes without --geo keep their keys (parts stay valid)
+        from dataclasses import asdict
+
+        settings["geo"] = asdict(geo)
+
+    def key(task: dict[str, str]) -> str:
+        return task_key(
+            "fly", digests[task["strip"]], task["planner"], task["agility"], model_id, settings
+        )
+
+    return key
 
 
 def _model_digest(model: Path) -> str:

@@ -18,22 +18,29 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   With ``deadline_s``, the time left after the wait is the deadline of
   :func:`dyntarget.pipeline.plan_scene` (its fallbacks apply); a frame whose
   wait alone exceeds the deadline is dropped.
-* **One NFOV.** Pointings are timed by the kinematics
-  (:func:`dyntarget.pipeline.schedule_on_prediction`, i.e.
+* **One NFOV.** Pointings are timed by the kinematics, once per frame
+  (:func:`dyntarget.schedule.schedule_on_prediction`, i.e.
   :func:`~dyntarget.schedule.make_feasible`, moving pointings with a predicted
   plume) from the sensor's state (:class:`~dyntarget.schedule.SensorState`:
-  when it is free, what it tracks), which carries over from frame to frame: a
-  new frame's pointings queue behind those already committed. Of the plan in
-  its own order and earliest-deadline-first, the order keeping more pointings
-  is flown.
+  when it is free, what it tracks; :func:`~dyntarget.schedule.sensor_in_frame`),
+  which carries over from frame to frame: a new frame's pointings queue behind
+  those already committed. Of the plan in its own order and
+  earliest-deadline-first, the order keeping more pointings is flown. With
+  measured latency a frame's pointings are timed from its stages so far plus
+  the previous frame's scheduling time (its own is known only once scheduled);
+  its ``ready_s`` is the measured one.
 * **Never twice.** The pass keeps the strip's covered WFOV pixels: a
   pointing on a covered pixel is dropped before scheduling, and a plume
   (connected component of the frame's denoised mask) at least half of whose
   pointings were flown marks its whole area covered, so a plume seen again by
   the next, overlapping frame gets no new pointings.
 * **Scoring.** Each flown pointing is scored against the truth *at its own
-  time* (``World.truth_at``) over its NFOV footprint: plume fraction,
-  intensity and gradient utility (the paper's metrics, summed over the pass).
+  time* (``World.truth_at``) over its NFOV footprint
+  (:func:`dyntarget.observe.score_pointings`): plume fraction, intensity and
+  gradient utility (the paper's metrics, summed over the pass).
+* **Prediction.** ``predict`` asks the predict stage's entry point
+  (:func:`dyntarget.predict.plume_motion`) for the motion, and plans once on the
+  frame's segmentation carried to the lead (:func:`dyntarget.schedule.lead_s`).
 """
 
 from __future__ import annotations
@@ -43,7 +50,8 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, Protocol
 
 import cv2
 import numpy as np
@@ -51,25 +59,36 @@ import numpy as np
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.fly.world import WfovTruth, World, wfov_truth
+from dyntarget.masks import mask_to_polygons
+from dyntarget.observe import score_pointings
 from dyntarget.perceive.base import Classifier
 from dyntarget.pipeline import (
     LAST_RESORT,
     PipelineConfig,
+    PlanResult,
+    Segmentation,
     plan_scene,
-    schedule_on_prediction,
-    two_look_motion,
+    plan_segmentation,
+    predict_segmentation,
 )
-from dyntarget.predict import GROUNDS, Prediction, wind_motion
+from dyntarget.predict import GROUNDS, Motion, Prediction, plume_motion, wind_motion
 from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
 from dyntarget.schedule import (
     Agility,
     OrbitGeometry,
     Schedule,
-    SensorState,
     get_agility,
-    visibility_windows,
+    lead_s,
+    schedule_on_prediction,
+    sensor_in_frame,
 )
 from dyntarget.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from affine import Affine
+
+    from dyntarget.fly.geo import GeoSettings
+    from dyntarget.observe.bound import UpperBound
 
 STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 """Stages whose wall time each timeline row reports."""
@@ -131,7 +150,7 @@ class PassConfig:
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
 
     def __post_init__(self) -> None:
-        get_agility(self.agility)
+        _ = self.limits  # an unknown preset is refused here
         if self.predict not in PREDICT_MODES:
             raise InvalidParameterError(
                 f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
@@ -163,6 +182,17 @@ class PassConfig:
             raise InvalidParameterError(
                 f"footprint: expected an odd positive number of WFOV pixels, got {fp!r}"
             )
+
+    @cached_property
+    def limits(self) -> Agility:
+        """The agility preset :attr:`agility` names (looked up once per pass settings).
+
+        Returns
+        -------
+        dyntarget.schedule.Agility
+            The preset.
+        """
+        return get_agility(self.agility)
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as a plain dict, without ``pipeline`` (recorded with the flown trajectory).
@@ -441,6 +471,9 @@ class PassState:
         ``(frame, image, mask)`` last seen, for two-look motion.
     parts : int
         Plumes visited so far (the next part number).
+    schedule_s : float
+        Wall seconds the last frame took to schedule (measured latency only: a
+        frame's pointings are timed from its stages so far plus this).
     plumes_seen : set of int
         True plume ids observed so far.
     records : list of FrameRecord
@@ -455,6 +488,7 @@ class PassState:
     busy_until: float = 0.0  # when the loop finished its last frame
     previous: tuple[int, np.ndarray, np.ndarray] | None = None  # (frame, image, mask) last seen
     parts: int = 0
+    schedule_s: float = 0.0  # the last frame's scheduling time (measured latency only)
     plumes_seen: set[int] = field(default_factory=set)
     records: list[FrameRecord] = field(default_factory=list)
     flown: Flown = field(default_factory=Flown)
@@ -536,6 +570,20 @@ class PassResult:
         }
 
 
+class FramePlanned(Protocol):
+    """What a view of a frame reads of its plan (a :class:`~dyntarget.pipeline.PlanResult`)."""
+
+    @property
+    def probability(self) -> np.ndarray | None:
+        """``(H, W)`` plume probability (``None``: planned from a given mask)."""
+        ...
+
+    @property
+    def polygons(self) -> list[Any]:
+        """The polygons planned over."""
+        ...
+
+
 @dataclass(frozen=True, eq=False)
 class FrameView:
     """What one frame saw and sent: for views of the pass (not kept by the loop itself).
@@ -548,8 +596,9 @@ class FrameView:
         The frame's top row on the strip's WFOV grid.
     image : numpy.ndarray
         The frame's ``(4, H, W)`` WFOV image.
-    plan : dyntarget.pipeline.PlanResult
-        The pipeline's result on it.
+    plan : FramePlanned
+        The pipeline's result on it (:class:`~dyntarget.pipeline.PlanResult`; read back
+        from a spilled view, its probability and polygons).
     first, end : int
         The slice of :attr:`PassResult.flown` its plan added.
     """
@@ -557,9 +606,29 @@ class FrameView:
     frame: int
     top: int
     image: np.ndarray
-    plan: Any
+    plan: FramePlanned
     first: int
     end: int
+
+
+class Gate(Protocol):
+    """Onboard refinement within a GEO blueprint (:class:`dyntarget.geo.refine.BlueprintGate`)."""
+
+    def route(
+        self,
+        t_k: float,
+        top: int,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        values: np.ndarray,
+        free_s: float,
+    ) -> np.ndarray:
+        """Pool a frame's plume pixels; the ``(N, 2)`` strip ``(row, col)`` to fly now."""
+        ...
+
+    def report(self) -> dict[str, int]:
+        """What the refinement did (for summary.json)."""
+        ...
 
 
 class _TruthCache:
@@ -573,7 +642,7 @@ class _TruthCache:
         self.world, self.factor, self.footprint = world, factor, footprint
         self.lazy = hasattr(world, "truth_rows")
         self.band = max(1, int(band))
-        self._key: Any = None
+        self._key: int | None = None
         self._value: WfovTruth | None = None
         self._bands: OrderedDict[tuple[float, int], WfovTruth] = OrderedDict()
 
@@ -585,7 +654,7 @@ class _TruthCache:
                 self._value = wfov_truth(truth, self.factor, self.footprint)
                 self._key = id(truth)
             return self._value, 0
-        tq = self.world.quantize(t)  # type: ignore[attr-defined]
+        tq = self.world.quantize(t)
         b = int(r) // self.band
         key = (tq, b)
         hit = self._bands.get(key)
@@ -612,7 +681,7 @@ def _label_rows(world: World, t: float, top: int, bottom: int) -> np.ndarray:
     """The true label of high-resolution rows ``top:bottom`` at ``t`` (by rows on a long strip)."""
     rows = getattr(world, "label_rows", None)
     if rows is not None:
-        return rows(t, top, bottom)
+        return np.asarray(rows(t, top, bottom))
     return world.truth_at(t).maps.label[top:bottom]
 
 
@@ -622,6 +691,20 @@ def _plumes_at_start(world: World) -> frozenset[int]:
         return frozenset(start())
     ids0 = world.truth_at(0.0).ids
     return frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
+
+
+@dataclass(frozen=True, eq=False)
+class _Pass:
+    """What every frame of one pass shares."""
+
+    world: World
+    classifier: Classifier | None
+    fallback: Classifier | None
+    config: PassConfig
+    frames: FramePlan
+    agility: Agility
+    truth: _TruthCache
+    gate: Gate | None
 
 
 def fly_pass(
@@ -634,7 +717,7 @@ def fly_pass(
     should_stop: Callable[[], bool] | None = None,
     progress: bool = False,
     frame_sink: Callable[[FrameView], None] | None = None,
-    geo: Any = None,
+    geo: GeoSettings | None = None,
     upper_bound: bool = False,
 ) -> PassResult:
     """Fly a pass over ``world`` (see the module docstring for the model).
@@ -671,24 +754,49 @@ def fly_pass(
     >>> r.totals()["plumes_observed"], r.totals()["frames"]
     (1, 7)
     """
-    from tqdm import tqdm
+    ctx, geo_info, geo_times = _prepare(world, classifier, fallback, config, geo)
+    state = PassState(covered=np.zeros(ctx.frames.wfov_shape, bool))
+    plumes_at_start = _plumes_at_start(world)
 
+    def result(stopped: bool = False) -> PassResult:
+        gate = ctx.gate
+        info = None if geo_info is None else {**geo_info, **(gate.report() if gate else {})}
+        return PassResult(
+            world.id, config, ctx.frames, list(state.records), state.flown, plumes_at_start,
+            stopped, info, geo_times,
+        )  # fmt: skip
+
+    stopped = _fly_frames(ctx, state, result, on_frame, should_stop, progress, frame_sink)
+    final = result(stopped)
+    if upper_bound:
+        try:
+            bound = pass_upper_bound(world, config, ctx.frames, final.records).as_dict()
+        except InvalidParameterError as exc:  # e.g. a truth without a time step
+            bound = {"value": None, "why": str(exc)}
+        final = replace(final, upper_bound=bound)
+    return final
+
+
+def _prepare(
+    world: World,
+    classifier: Classifier | None,
+    fallback: Classifier | None,
+    config: PassConfig,
+    geo: GeoSettings | None,
+) -> tuple[_Pass, dict[str, Any] | None, dict[str, float] | None]:
+    """The pass's shared context, checked; with ``geo``, its blueprint gate, settings, times."""
     frames = frame_plan(world, config)
     if config.footprint > frames.wfov_shape[1]:
         raise InvalidParameterError(
             f"footprint: {config.footprint} WFOV px is wider than the strip's "
             f"{frames.wfov_shape[1]} WFOV px (--footprint); expected at most that"
         )
-    agility = get_agility(config.agility)
     if config.predict == "wind" and _wind(config, world) is None:
         raise InvalidParameterError(
             "predict: 'wind' needs a wind: give wind_mps and wind_from_deg (--wind-mps, "
             "--wind-from-deg); only synthetic strips carry their own"
         )
     truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
-    state = PassState(covered=np.zeros(frames.wfov_shape, bool))
-    plumes_at_start = _plumes_at_start(world)
-    stopped = False
     gate, geo_info, geo_times = None, None, None
     if geo is not None:
         from dyntarget.fly.geo import prepare
@@ -696,52 +804,46 @@ def fly_pass(
         gate, geo_info, geo_times = prepare(world, frames, config, geo)
         if gate is None:
             geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
+    ctx = _Pass(world, classifier, fallback, config, frames, config.limits, truth, gate)
+    return ctx, geo_info, geo_times
 
-    def result() -> PassResult:
-        info = None if geo_info is None else {**geo_info, **(gate.report() if gate else {})}
-        return PassResult(
-            world.id,
-            config,
-            frames,
-            list(state.records),
-            state.flown,
-            plumes_at_start,
-            stopped,
-            info,
-            geo_times,
-        )
 
-    bar = tqdm(total=frames.n_frames, desc=f"fly {world.id}", unit="frame", disable=not progress)
+def _fly_frames(
+    ctx: _Pass,
+    state: PassState,
+    result: Callable[[], PassResult],
+    on_frame: Callable[[PassResult], None] | None,
+    should_stop: Callable[[], bool] | None,
+    progress: bool,
+    frame_sink: Callable[[FrameView], None] | None,
+) -> bool:
+    """Fly the frames in order; whether the pass was stopped before its last."""
+    from tqdm import tqdm
+
+    frames = ctx.frames
+    bar = tqdm(
+        total=frames.n_frames, desc=f"fly {ctx.world.id}", unit="frame", disable=not progress
+    )
     try:
         for k in range(frames.n_frames):
             before = len(state.flown.x)
-            record, image, planned = _fly_frame(
-                k, world, classifier, fallback, config, frames, agility, truth, state, gate
-            )
+            record, image, planned = _fly_frame(k, ctx, state)
             state.records.append(record)
-            if frame_sink is not None and image is not None:
+            if frame_sink is not None and image is not None and planned is not None:
                 frame_sink(FrameView(k, frames.tops[k], image, planned, before, len(state.flown.x)))
             bar.update()
             if on_frame is not None:
                 on_frame(result())
             if should_stop is not None and should_stop() and k + 1 < frames.n_frames:
-                stopped = True
-                break
+                return True
     finally:
         bar.close()
-    final = result()
-    if upper_bound:
-        try:
-            bound = pass_upper_bound(world, config, frames, final.records).as_dict()
-        except InvalidParameterError as exc:  # e.g. a truth without a time step
-            bound = {"value": None, "why": str(exc)}
-        final = replace(final, upper_bound=bound)
-    return final
+    return False
 
 
 def pass_upper_bound(
     world: World, config: PassConfig, frames: FramePlan, records: list[FrameRecord] | None = None
-):
+) -> UpperBound:
     """An upper bound on the utility of every schedule a pass over ``world`` can fly.
 
     :func:`dyntarget.observe.bound.upper_bound_utility` on the strip's truth at every
@@ -762,7 +864,7 @@ def pass_upper_bound(
     """
     from dyntarget.observe.bound import upper_bound_utility, values_from_bands
 
-    agility = get_agility(config.agility)
+    agility = config.limits
     truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
     t_end = None
     if agility.unlimited:
@@ -779,7 +881,9 @@ def pass_upper_bound(
     )
 
 
-def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float):
+def _frame_image(
+    world: World, frames: FramePlan, k: int, factor: int, t: float
+) -> tuple[np.ndarray, np.ndarray | None]:
     top = frames.tops[k]
     hr = world.image_at(t, top * factor, (top + frames.frame_px) * factor)
     expected = (4, frames.frame_px * factor, frames.wfov_shape[1] * factor)
@@ -795,83 +899,174 @@ def _frame_image(world: World, frames: FramePlan, k: int, factor: int, t: float)
     return image, valid
 
 
-def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, score)
-    k: int,
-    world: World,
-    classifier: Classifier | None,
-    fallback: Classifier | None,
-    config: PassConfig,
-    frames: FramePlan,
-    agility: Agility,
-    truth: _TruthCache,
-    state: PassState,
-    gate: Any = None,
-) -> tuple[FrameRecord, np.ndarray | None, Any]:
-    t_k = frames.acquired_s(k)
-    top = frames.tops[k]
+def _look(
+    ctx: _Pass, k: int, t_k: float
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Frame ``k``'s WFOV image, valid pixels and (the oracle: no classifier) true mask."""
+    config, frames = ctx.config, ctx.frames
+    image, valid = _frame_image(ctx.world, frames, k, config.factor, t_k)
+    if ctx.classifier is not None:
+        return image, valid, None
+    f, width, top = config.factor, frames.wfov_shape[1] * config.factor, frames.tops[k]
+    label = _label_rows(ctx.world, t_k, top * f, (top + frames.frame_px) * f)[:, :width]
+    return image, valid, block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+
+
+@dataclass(frozen=True, eq=False)
+class _Todo:
+    """A frame's plan less the pointings on covered pixels: what goes to the scheduler."""
+
+    trajectory: Trajectory
+    part: np.ndarray
+    keep: np.ndarray
+    """Indices, in the plan, of the pointings flown as planned (none within a blueprint)."""
+    skipped: int
+    rows: np.ndarray
+    cols: np.ndarray
+    """The frame pixel of every planned pointing."""
+
+
+def _fly_frame(
+    k: int, ctx: _Pass, state: PassState
+) -> tuple[FrameRecord, np.ndarray | None, PlanResult | None]:
+    """Frame ``k``: look, plan, schedule behind the committed pointings, score, record."""
+    frames, config = ctx.frames, ctx.config
+    t_k, top = frames.acquired_s(k), frames.tops[k]
     start = max(t_k, state.busy_until)
     wait = start - t_k
-    deadline = config.deadline_s
-    if deadline is not None and wait >= deadline:  # the loop is too far behind: skip the frame
+    if config.deadline_s is not None and wait >= config.deadline_s:  # too far behind: skip it
         record = FrameRecord(
             k, t_k, start, start, wait, {}, False, "dropped: loop behind", 0, 0, 0, 0, 0, 0, 0, True
         )
         return record, None, None
-    image, valid = _frame_image(world, frames, k, config.factor, t_k)
-    mask = None
-    if classifier is None:  # the oracle: the truth at acquisition time, on the WFOV grid
-        f, width = config.factor, frames.wfov_shape[1] * config.factor
-        label = _label_rows(world, t_k, top * f, (top + frames.frame_px) * f)[:, :width]
-        mask = block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+    image, valid, mask = _look(ctx, k, t_k)
     t_loop = time.perf_counter()
+    result, stage, prediction = _plan_frame(ctx, k, image, valid, mask, start, state)
+    t0 = time.perf_counter()
+    todo = _todo(ctx, k, image, result, start, state)
+    flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state)
+    stage["schedule"] = time.perf_counter() - t0
+    loop_s = time.perf_counter() - t_loop
+    if config.compute_budget_s is None:  # the plan is ready after all the measured work
+        ready = start + sum(stage.values())
+        state.schedule_s = stage["schedule"]
+    _commit(flown, ready, t_k, frames.geometry, state)
+    gains = _score(ctx, k, flown, todo, state)
+    flown_local = todo.keep[flown.kept[flown.kept < len(todo.keep)]]  # of this frame's plan
+    target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
+    _cover_plumes(
+        target_mask, todo.rows, todo.cols, flown_local, len(result.trajectory), top, state
+    )
+    met = None if config.deadline_s is None else (ready - t_k) <= config.deadline_s
+    record = FrameRecord(
+        k, t_k, start, ready, ready - t_k, stage, met, "; ".join(result.path),
+        len(result.trajectory), todo.skipped, len(flown.kept), *gains, loop_s=loop_s,
+    )  # fmt: skip
+    return record, image, result
+
+
+def _stage_times(timings: dict[str, float]) -> dict[str, float]:
+    """Classify, denoise, plan (with the deadline's overhead and any other step) and predict."""
+    stage = {s: float(timings.get(s, 0.0)) for s in ("classify", "denoise", "plan")}
+    stage["plan"] += sum(
+        float(v) for k, v in timings.items() if k not in ("classify", "denoise", "plan")
+    )
+    stage["predict"] = 0.0
+    return stage
+
+
+def _plan_frame(
+    ctx: _Pass,
+    k: int,
+    image: np.ndarray,
+    valid: np.ndarray | None,
+    mask: np.ndarray | None,
+    start: float,
+    state: PassState,
+) -> tuple[PlanResult, dict[str, float], Prediction | None]:
+    """Segment and plan frame ``k`` (under the deadline left); predictive: on the prediction.
+
+    A predictive frame segments under the deadline with the last-resort planner
+    (microseconds), estimates the motion on the denoised mask, and then plans on the
+    prediction from that segmentation (:func:`_plan_on_prediction`): the pipeline runs once.
+    """
+    config, frames = ctx.config, ctx.frames
+    t_k = frames.acquired_s(k)
     predictive = config.predict != "none"
+    deadline = config.deadline_s
     result = plan_scene(
         image,
-        classifier,
+        ctx.classifier,
         LAST_RESORT if predictive else config.planner,  # predictive: plan below, on the prediction
         mask=mask,
         valid=valid,
         denoise=config.denoise,
         config=config.pipeline,
-        deadline_s=None if deadline is None else deadline - wait,
-        fallback=fallback,
+        deadline_s=None if deadline is None else deadline - (start - t_k),
+        fallback=ctx.fallback,
     )
-    stage = {s: float(result.timings.get(s, 0.0)) for s in ("classify", "denoise", "plan")}
-    stage["plan"] += sum(  # the deadline's overhead, and any other step the pipeline times
-        float(v) for k, v in result.timings.items() if k not in ("classify", "denoise", "plan")
-    )
-    stage["predict"] = 0.0
-    prediction = None
-    if predictive:
-        t0 = time.perf_counter()
-        motion = _motion(k, image, result.mask, config, frames, world, state)
-        if motion is not None:
-            prediction = Prediction(motion, _lead_s(frames, agility, state, t_k, start))
-        stage["predict"] = time.perf_counter() - t0
-        state.previous = (k, image, result.mask)
-        again = plan_scene(
-            image,
-            None,
-            config.planner,
-            mask=result.mask,
-            valid=valid,
-            denoise=False,
-            config=config.pipeline,
-            prediction=prediction,
-        )
-        # the second call's own mask check and polygons count as planning
-        stage["predict"] += float(again.timings.get("predict", 0.0))
-        stage["plan"] += sum(float(v) for k, v in again.timings.items() if k != "predict")
-        path = [*result.path[:-1], *again.path[1:]]
-        if prediction is None:
-            path.insert(-1, "predict: no motion known (planned on the look as it is)")
-        result = replace(again, probability=result.probability, raw_mask=result.raw_mask, path=path)
+    stage = _stage_times(result.timings)
+    if not predictive:
+        return result, stage, None
     t0 = time.perf_counter()
+    motion = _motion(ctx, k, image, result.mask, state)
+    prediction = None
+    if motion is not None:
+        prediction = Prediction(
+            motion, lead_s(frames.geometry, ctx.agility, t_k, start, state.timer_t)
+        )
+    stage["predict"] = time.perf_counter() - t0
+    state.previous = (k, image, result.mask)
+    return _plan_on_prediction(ctx, image, valid, result, prediction, stage), stage, prediction
+
+
+def _plan_on_prediction(
+    ctx: _Pass,
+    image: np.ndarray,
+    valid: np.ndarray | None,
+    seen: PlanResult,
+    prediction: Prediction | None,
+    stage: dict[str, float],
+) -> PlanResult:
+    """Plan on the frame's denoised mask carried to the prediction (as seen without one).
+
+    The segmentation is the one ``seen`` holds (no second classification or denoising);
+    its time to predict adds to ``stage["predict"]``, the planning's to ``stage["plan"]``.
+    """
+    t0 = time.perf_counter()
+    planner = ctx.config.planner
+    mask = seen.mask if valid is None else seen.mask & valid
+    polygons = seen.polygons if np.array_equal(mask, seen.mask) else mask_to_polygons(mask)
+    seg = Segmentation(None, mask, mask, polygons, valid, image, {})
+    path = list(seen.path[:-1])
+    if prediction is None:
+        target = seg
+        path.append("predict: no motion known (planned on the look as it is)")
+    else:
+        target = predict_segmentation(seg, prediction)
+        stage["predict"] += target.timings["predict"]
+        m = prediction.motion
+        path.append(f"predict: {m.regime}, {prediction.lead_s:g} s ahead ({m.source})")
+    t1 = time.perf_counter()
+    trajectory = plan_segmentation(target, planner, ctx.config.pipeline)
+    t2 = time.perf_counter()
+    stage["plan"] += (t2 - t0) - target.timings.get("predict", 0.0)  # polygons and planning
+    return PlanResult(
+        seen.probability, seen.raw_mask, mask, target.polygons, trajectory,
+        {**target.timings, "plan": t2 - t1}, [*path, f"plan: {planner}"],
+        planner=planner, prediction=prediction,
+        predicted_mask=None if prediction is None else target.mask,
+    )  # fmt: skip
+
+
+def _todo(
+    ctx: _Pass, k: int, image: np.ndarray, result: PlanResult, start: float, state: PassState
+) -> _Todo:
+    """The plan less repeats and covered pixels; within a blueprint, what the gate releases."""
+    frames = ctx.frames
+    t_k, top = frames.acquired_s(k), frames.tops[k]
     traj = result.trajectory
-    planned = len(traj)
     shape = (frames.frame_px, frames.wfov_shape[1])
-    hw, ww = frames.wfov_shape
-    # drop pointings on covered strip pixels (and repeats of a pixel within the plan)
     cols = np.clip(np.floor(traj.points[:, 0] + 0.5).astype(np.int64), 0, shape[1] - 1)
     rows = np.clip(np.floor(traj.points[:, 1] + 0.5).astype(np.int64), 0, shape[0] - 1)
     flat = (rows + top) * shape[1] + cols
@@ -880,119 +1075,104 @@ def _fly_frame(  # noqa: C901, PLR0915  (next to split: frame, plan, schedule, s
     repeat[first] = False
     skip = state.covered.ravel()[flat] | repeat
     keep = np.flatnonzero(~skip)
-    todo_points, todo_part = traj.points[keep], traj.part[keep]
-    if gate is not None:  # refine within the blueprint: pool every plume pixel, fly the best
+    points, part = traj.points[keep], traj.part[keep]
+    if ctx.gate is not None:  # refine within the blueprint: pool every plume pixel, fly the best
         on = result.mask if result.predicted_mask is None else result.predicted_mask
         pr, pc = np.nonzero(on & ~state.covered[top : top + shape[0]])
-        released = gate.route(
-            t_k, top, pr + top, pc, image[2, pr, pc],
-            max(state.timer_t, start + (config.compute_budget_s or 0.0)),
-        )  # fmt: skip
-        todo_points = np.stack([released[:, 1], released[:, 0] - top], axis=1).astype(np.float64)
-        todo_part = np.full(len(released), -1, np.int64)
+        free = max(state.timer_t, start + (ctx.config.compute_budget_s or 0.0))
+        released = ctx.gate.route(t_k, top, pr + top, pc, image[2, pr, pc], free)
+        points = np.stack([released[:, 1], released[:, 0] - top], axis=1).astype(np.float64)
+        part = np.full(len(released), -1, np.int64)
         keep = keep[:0]  # no pointing of this frame's plan is flown as planned
-    todo = Trajectory(todo_points, np.zeros(len(todo_points)), traj.planner)
+    todo = Trajectory(points, np.zeros(len(points)), traj.planner)
+    return _Todo(todo, part, keep, int(np.count_nonzero(skip)), rows, cols)
+
+
+def _schedule_frame(
+    ctx: _Pass,
+    todo: _Todo,
+    result: PlanResult,
+    prediction: Prediction | None,
+    t_k: float,
+    start: float,
+    stage: dict[str, float],
+    state: PassState,
+) -> tuple[Schedule, float]:
+    """Schedule the frame's pointings behind what the NFOV has committed to, once.
+
+    Returns the schedule and when the plan is ready: ``start + compute_budget_s``, or
+    without a budget ``start`` + the stages measured so far + the previous frame's
+    scheduling time (this frame's own is known only once it is scheduled).
+    """
+    frames = ctx.frames
+    budget = ctx.config.compute_budget_s
+    ready = start + (budget if budget is not None else sum(stage.values()) + state.schedule_s)
     attached = None
     if prediction is not None and prediction.motion.regime == "mixed":
         attached = prediction.attached_mask(result.mask)
+    flown = schedule_on_prediction(
+        todo.trajectory,
+        (frames.frame_px, frames.wfov_shape[1]),
+        replace(frames.geometry, start_s=ready - t_k),
+        ctx.agility,
+        prediction,
+        attached=attached,
+        sensor=sensor_in_frame(state.timer_t, state.target, frames.geometry, t_k, ready),
+        keep_order=True,
+    )
+    return flown, ready
 
-    def fly_from(ready: float) -> Schedule:  # the kinematics, behind the committed pointings
-        return schedule_on_prediction(
-            todo,
-            shape,
-            replace(frames.geometry, start_s=ready - t_k),
-            agility,
-            prediction,
-            attached=attached,
-            sensor=_sensor(state, frames.geometry, t_k, ready),
-            keep_order=True,
-        )
 
-    # schedule what is left behind what the NFOV has already committed to
-    budget = config.compute_budget_s
-    if budget is not None:
-        ready = start + budget
-        flown = fly_from(ready)
-        stage["schedule"] = time.perf_counter() - t0
-        loop_s = time.perf_counter() - t_loop
-    else:  # timed once to measure it, then re-timed from when the plan is really ready
-        fly_from(start + sum(stage.values()))
-        stage["schedule"] = time.perf_counter() - t0
-        loop_s = time.perf_counter() - t_loop
-        ready = start + sum(stage.values())
-        flown = fly_from(ready)
-    sched_t, points = flown.times, flown.trajectory.points
-    assert sched_t is not None  # a scheduled trajectory is timed
-    met = None if deadline is None else (ready - t_k) <= deadline
-    flown_local = keep[flown.kept[flown.kept < len(keep)]]  # of this frame's plan
+def _commit(
+    flown: Schedule, ready: float, t_k: float, geometry: OrbitGeometry, state: PassState
+) -> None:
+    """The loop is free at ``ready``; the sensor after the last pointing flown, tracking it."""
     state.busy_until = ready
     if len(flown.kept):
         state.timer_t = flown.end_s + t_k
         assert flown.end_target is not None  # set whenever a pointing was kept
         along, cross = flown.end_target
-        state.target = (along + frames.geometry.ground_speed * t_k, cross)
-    # score each flown pointing against the truth at its own time
-    plume_sum = inten_sum = grad_sum = 0.0
+        state.target = (along + geometry.ground_speed * t_k, cross)
+
+
+def _score(
+    ctx: _Pass, k: int, flown: Schedule, todo: _Todo, state: PassState
+) -> tuple[float, float, float, int]:
+    """Score the flown pointings (:func:`dyntarget.observe.score_pointings`) and keep them.
+
+    Returns the plume fraction, intensity and gradient gained and the plumes seen first.
+    """
+    frames = ctx.frames
+    t_k, top = frames.acquired_s(k), frames.tops[k]
+    points = flown.trajectory.points
+    assert flown.times is not None  # a scheduled trajectory is timed
+    t_pass = [t_k + float(t) for t in flown.times]
+    scores = score_pointings(points, t_pass, top, frames.wfov_shape, ctx.truth.at)
     new_plumes = 0
-    fl = state.flown
-    part_of = {}
-    for j, (x, y), t_local in zip(flown.kept, points, sched_t, strict=True):
-        r, c = int(np.floor(y + 0.5)) + top, int(np.floor(x + 0.5))
-        t_pass = t_k + float(t_local)
-        pl = it = gr = 0.0
-        pid = 0
-        if 0 <= r < hw and 0 <= c < ww:
-            w, b0 = truth.at(t_pass, r)
-            rb = r - b0
-            if w.valid[rb, c]:
-                pl, it, gr = (
-                    float(w.plume[rb, c]),
-                    float(w.intensity[rb, c]),
-                    float(w.gradient[rb, c]),
-                )
-                pid = int(w.ids[rb, c]) if pl > 0 else 0
-        plume_sum, inten_sum, grad_sum = plume_sum + pl, inten_sum + it, grad_sum + gr
+    for pid in scores.plume_id:
         if pid and pid not in state.plumes_seen:
             state.plumes_seen.add(pid)
             new_plumes += 1
-        p = int(todo_part[j])
+    fl = state.flown
+    part_of: dict[int, int] = {}
+    for j in flown.kept:
+        p = int(todo.part[j])
         if p not in part_of:
             part_of[p] = state.parts
             state.parts += 1
-        fl.x.append(float(x))
-        fl.y.append(float(y) + top)
-        fl.t.append(t_pass)
-        fl.frame.append(k)
         fl.part.append(part_of[p])
-        fl.plume.append(pl)
-        fl.intensity.append(it)
-        fl.plume_id.append(pid)
-        if 0 <= r < hw and 0 <= c < ww:
-            state.covered[r, c] = True
-    target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
-    _cover_plumes(target_mask, rows, cols, flown_local, planned, top, state)
-    record = FrameRecord(
-        k,
-        t_k,
-        start,
-        ready,
-        ready - t_k,
-        stage,
-        met,
-        "; ".join(result.path),
-        planned,
-        int(np.count_nonzero(skip)),
-        len(flown.kept),
-        plume_sum,
-        inten_sum,
-        grad_sum,
-        new_plumes,
-        loop_s=loop_s,
-    )
-    return record, image, result
+    fl.x.extend(float(x) for x in points[:, 0])
+    fl.y.extend(float(y) + top for y in points[:, 1])
+    fl.t.extend(t_pass)
+    fl.frame.extend([k] * len(t_pass))
+    fl.plume.extend(scores.plume)
+    fl.intensity.extend(scores.intensity)
+    fl.plume_id.extend(scores.plume_id)
+    state.covered[scores.rows[scores.inside], scores.cols[scores.inside]] = True
+    return (*scores.totals(), new_plumes)
 
 
-def _frame_transform(world: World, config: PassConfig, top: int):
+def _frame_transform(world: World, config: PassConfig, top: int) -> Affine | None:
     if world.transform is None:
         return None
     from affine import Affine
@@ -1007,53 +1187,40 @@ def _wind(config: PassConfig, world: World) -> tuple[float, float] | None:
     return None if wind is None else (wind.speed_mps, wind.from_deg)
 
 
-def _motion(k, image, clean, config: PassConfig, frames: FramePlan, world: World, state):
+def _motion(
+    ctx: _Pass, k: int, image: np.ndarray, clean: np.ndarray, state: PassState
+) -> Motion | None:
     """The plume's motion for frame ``k``: a wind prior, or two looks checked against it."""
-    top = frames.tops[k]
+    config, frames, world = ctx.config, ctx.frames, ctx.world
     prior = None
     wind = _wind(config, world)
     if wind is not None:
         prior = wind_motion(
             wind[0],
             wind[1],
-            transform=_frame_transform(world, config, top),
+            transform=_frame_transform(world, config, frames.tops[k]),
             gsd_m=world.gsd * config.factor,
         )
     if config.predict == "wind" or state.previous is None:
-        return prior
+        return plume_motion(prior)
     k0, prev_image, prev_mask = state.previous
     offset = (k - k0) * frames.step  # rows frame k0 lies below frame k
     if frames.frame_px - offset < MIN_OVERLAP_ROWS:
-        return prior
-    return two_look_motion(
-        prev_image,
-        image,
-        (k - k0) * frames.cadence_s,
-        previous_mask=prev_mask,
-        current_mask=clean,
-        prior=prior,
-        offset_rows=offset,
-        ground=config.ground,
-    )
+        return plume_motion(prior)
+    looks = (prev_image, image, prev_mask, clean)
+    interval = (k - k0) * frames.cadence_s
+    return plume_motion(prior, looks, interval, offset_rows=offset, ground=config.ground)
 
 
-def _lead_s(frames: FramePlan, agility: Agility, state: PassState, t_k: float, start: float):
-    """When the NFOV will be on the frame: its centre enters the field of regard, or later."""
-    g = frames.geometry
-    t_in, _ = visibility_windows(g, agility, np.array([g.look_ahead_m]), np.array([0.0]))
-    enter = float(t_in[0]) if np.isfinite(t_in[0]) else 0.0
-    return max(enter, max(start, state.timer_t) - t_k, 0.0)
-
-
-def _sensor(state: PassState, geometry: OrbitGeometry, t_k: float, ready: float) -> SensorState:
-    """The shared NFOV's state for frame ``k`` (acquired ``t_k``), in the frame's time and ground."""
-    target = state.target
-    if target is not None:  # pass ground coordinates -> the frame's (nadir at t_k)
-        target = (target[0] - geometry.ground_speed * t_k, target[1])
-    return SensorState(max(ready, state.timer_t) - t_k, target)
-
-
-def _cover_plumes(mask, rows, cols, flown, planned, top, state: PassState) -> None:
+def _cover_plumes(
+    mask: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    flown: np.ndarray,
+    planned: int,
+    top: int,
+    state: PassState,
+) -> None:
     """Mark the area of every plume of the frame's mask that was flown enough as covered."""
     if planned == 0 or not mask.any():
         return

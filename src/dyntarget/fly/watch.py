@@ -51,8 +51,8 @@ from dyntarget import defaults
 from dyntarget.errors import DataFileError, DynTargetError, InvalidParameterError
 from dyntarget.io.atomic import write_text
 from dyntarget.perceive.base import Classifier
-from dyntarget.pipeline import PipelineConfig, plan_scene
-from dyntarget.schedule import OrbitGeometry, get_agility, make_feasible
+from dyntarget.pipeline import PipelineConfig, plan_scene, schedule_on_prediction
+from dyntarget.schedule import OrbitGeometry, get_agility
 
 FRAMES = "frames.csv"
 REJECTED = "rejected.csv"
@@ -452,7 +452,8 @@ class Watcher:
                 wfov_gsd_m=scene.gsd or OrbitGeometry().wfov_gsd_m,
                 start_s=result.runtime,
             )
-            traj = make_feasible(traj, scene.shape, geometry, cfg.agility).trajectory
+            flown = schedule_on_prediction(traj, scene.shape, geometry, cfg.agility, None)
+            traj = flown.trajectory
         out = traj.save(self.out / name, transform=scene.transform, crs=scene.crs)
         latency = time.perf_counter() - t0
         written = time.time()

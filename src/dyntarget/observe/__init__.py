@@ -1,4 +1,5 @@
-"""Observation: the NFOV simulator, utility metrics, and the true upper bound of a pass."""
+"""Observation: the NFOV simulator, utility metrics, the scores of a pass's pointings
+(:func:`score_pointings`) and the true upper bound of a pass."""
 
 from dyntarget.observe.bound import UpperBound, upper_bound_utility
 from dyntarget.observe.nfov import (
@@ -9,14 +10,17 @@ from dyntarget.observe.nfov import (
     observed_pixels,
     pointing_truth,
 )
+from dyntarget.observe.pointings import PointingScores, score_pointings
 
 __all__ = [
     "ObservationMetrics",
+    "PointingScores",
     "UpperBound",
     "UtilityMaps",
     "observe",
     "observe_at",
     "observed_pixels",
     "pointing_truth",
+    "score_pointings",
     "upper_bound_utility",
 ]

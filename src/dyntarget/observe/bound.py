@@ -396,7 +396,9 @@ def dual_bound(
     return float(np.sum(capacity * price) + np.sum(best))
 
 
-def _solve(p, k, u, c, distinct: bool) -> tuple[float, float, bool]:
+def _solve(
+    p: np.ndarray, k: np.ndarray, u: np.ndarray, c: np.ndarray, distinct: bool
+) -> tuple[float, float, bool]:
     """``(bound, relaxation optimum, exact)`` of the assignment (module docstring)."""
     if not len(u):
         return 0.0, 0.0, True

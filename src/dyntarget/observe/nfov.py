@@ -147,7 +147,8 @@ def observed_pixels(trajectory: Trajectory, wfov_shape: tuple[int, int]) -> np.n
     inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
     rc = np.column_stack([rows[inside], cols[inside]])
     _, first = np.unique(rc[:, 0] * w + rc[:, 1], return_index=True)
-    return rc[np.sort(first)]
+    pixels: np.ndarray = rc[np.sort(first)]
+    return pixels
 
 
 def _check_footprint(footprint: object) -> int:
@@ -235,10 +236,14 @@ def observe(
     )
 
 
-_PER_WFOV_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_PER_WFOV_CACHE: weakref.WeakKeyDictionary[
+    Scene, dict[tuple[int, int], tuple[np.ndarray, np.ndarray | None]]
+] = weakref.WeakKeyDictionary()
 
 
-def _per_wfov_of(truth: Scene | UtilityMaps, factor: int, footprint: int):
+def _per_wfov_of(
+    truth: Scene | UtilityMaps, factor: int, footprint: int
+) -> tuple[np.ndarray, np.ndarray | None]:
     """:func:`_per_wfov` of a truth object, remembered while the object lives."""
     if isinstance(truth, UtilityMaps):  # not hashable: computed each time
         check_factor(factor, truth.label.shape)

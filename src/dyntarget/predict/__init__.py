@@ -8,10 +8,13 @@ the plume to any time after the current look (detached plumes advected
 semi-Lagrangian along the dense field, attached plumes stretch from their
 vent; an estimate below :data:`LOW_CONFIDENCE` falls back to persistence). The
 pipeline (:func:`dyntarget.pipeline.plan_scene` with ``prediction=``) plans on
-the prediction. Method, assumptions and failure cases: ``docs/onboard.md``.
+the prediction. :func:`plume_motion` is the stage's entry point (the motion for
+a plan: two looks checked against a wind prior, or the prior), :func:`lucas_kanade`
+the one wrapper of pysteps' Lucas-Kanade field. Method, assumptions and failure cases: ``docs/onboard.md``.
 """
 
 from dyntarget.predict.advect import Prediction, check_lead, predict_field, predict_mask
+from dyntarget.predict.forecast import plume_motion, two_look_motion
 from dyntarget.predict.motion import (
     CALM,
     GROUNDS,
@@ -24,6 +27,7 @@ from dyntarget.predict.motion import (
     check_against_prior,
     check_interval,
     estimate_motion,
+    lucas_kanade,
     wind_motion,
     wind_to_pixels,
 )
@@ -42,8 +46,11 @@ __all__ = [
     "check_interval",
     "check_lead",
     "estimate_motion",
+    "lucas_kanade",
+    "plume_motion",
     "predict_field",
     "predict_mask",
+    "two_look_motion",
     "wind_motion",
     "wind_to_pixels",
 ]

@@ -622,22 +622,56 @@ def _robust_field(weights: np.ndarray, rel: np.ndarray, mode: tuple[float, float
     )
 
 
-def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    try:
-        import warnings
+def lucas_kanade(stack: np.ndarray, *, needs: str) -> np.ndarray:
+    """pysteps' Lucas-Kanade motion field of an image sequence (the one wrapper of it).
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            from pysteps import motion as psmotion
-    except ImportError as exc:
-        raise InvalidParameterError(
-            "flow: 'lk' needs pysteps (pip install 'dyntarget[nowcast]')"
-        ) from exc
+    Parameters
+    ----------
+    stack : numpy.ndarray
+        ``(T, H, W)`` images, oldest first, ``T >= 2``, in time steps of one interval.
+    needs : str
+        What to tell the user when pysteps is missing (``dyntarget: error: NEEDS``),
+        e.g. ``"flow: 'lk' needs pysteps (pip install 'dyntarget[nowcast]')"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2, H, W)`` float64 ``(u, v)`` pixels per interval (``u`` along columns, ``v``
+        along rows), 0 where pysteps found none.
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        When pysteps is not installed.
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[0:32, 0:64]
+    >>> blob = lambda c: np.exp(-((x - c) ** 2 + (y - 16) ** 2) / 8.0)
+    >>> v = lucas_kanade(np.stack([blob(20), blob(22)]), needs="pysteps")  # a blob 2 px east
+    >>> round(float(v[0, 16, 21]))
+    2
+    """
+    import contextlib
+    import io
+    import warnings
+
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # pysteps announces its config file, warns on import
+            from pysteps import motion
+    except ImportError:
+        raise InvalidParameterError(needs) from None
+    with warnings.catch_warnings():  # statistics of empty feature sets, and a UserWarning
+        warnings.simplefilter("ignore")  # when its outlier detection finds too few vectors
+        v = motion.get_method("LK")(stack, verbose=False)
+    return np.nan_to_num(np.asarray(v, np.float64))
+
+
+def _pysteps_lk(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     stack = np.stack([a, b]).astype(np.float64) / 255.0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        v = psmotion.get_method("LK")(stack, verbose=False)
-    return np.moveaxis(np.nan_to_num(v), 0, -1).astype(np.float32)
+    v = lucas_kanade(stack, needs="flow: 'lk' needs pysteps (pip install 'dyntarget[nowcast]')")
+    return np.moveaxis(v, 0, -1).astype(np.float32)
 
 
 def estimate_motion(

@@ -1,4 +1,10 @@
-"""Observation geometry and timing: which NFOV pointings can really be taken, and when.
+"""Kinematics of the NFOV: orbit geometry, agility presets, look vectors, visibility windows.
+
+The model below is the scheduling model as a whole; this module holds its geometry
+(:class:`OrbitGeometry`), the agility presets (:class:`Agility`) and the field of
+regard (:func:`visibility_windows`); :mod:`dyntarget.schedule.feasibility` times the
+pointings.
+
 
 The paper plans in the image plane as if the NFOV sensor could take every
 pointing at once. Here the spacecraft moves and the sensor has finite agility.
@@ -37,13 +43,13 @@ flies whichever of the two keeps more pointings.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
-from dyntarget.trajectory import Trajectory
 
 EARTH_RADIUS_M = 6_371_000.0
 """Mean Earth radius (IUGG)."""
@@ -267,7 +273,9 @@ def get_agility(name: str) -> Agility:
         ) from None
 
 
-def look_vectors(geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, t) -> np.ndarray:
+def look_vectors(
+    geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, t: float | np.ndarray
+) -> np.ndarray:
     """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``.
 
     Frame: x along the velocity, y across track, z up (away from Earth's centre).
@@ -298,7 +306,8 @@ def look_vectors(geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, 
         axis=-1,
     )
     los = target - np.array([0.0, 0.0, r + geometry.altitude_m])
-    return los / np.linalg.norm(los, axis=-1, keepdims=True)
+    unit: np.ndarray = los / np.linalg.norm(los, axis=-1, keepdims=True)
+    return unit
 
 
 def _look_one(geometry: OrbitGeometry, along: float, cross: float, t: float) -> tuple[float, ...]:
@@ -326,7 +335,8 @@ def off_nadir_deg(los: np.ndarray) -> np.ndarray:
     numpy.ndarray
         Off-nadir angles, degrees.
     """
-    return np.degrees(np.arccos(np.clip(-los[..., 2], -1.0, 1.0)))
+    deg: np.ndarray = np.degrees(np.arccos(np.clip(-los[..., 2], -1.0, 1.0)))
+    return deg
 
 
 def pitch_deg(los: np.ndarray) -> np.ndarray:
@@ -342,7 +352,8 @@ def pitch_deg(los: np.ndarray) -> np.ndarray:
     numpy.ndarray
         Along-track look angles, degrees.
     """
-    return np.degrees(np.arctan2(los[..., 0], -los[..., 2]))
+    deg: np.ndarray = np.degrees(np.arctan2(los[..., 0], -los[..., 2]))
+    return deg
 
 
 def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -358,7 +369,8 @@ def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     numpy.ndarray
         Angles in degrees, 0..180.
     """
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+    deg: np.ndarray = np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+    return deg
 
 
 def _angle_deg(a: tuple[float, ...], b: tuple[float, ...]) -> float:
@@ -464,10 +476,12 @@ def _reach_compute(
     fov = agility.field_of_regard_deg
     assert fov is not None  # limited agility
 
-    def los_at(delta):  # the target ``delta`` metres ahead of nadir
+    def los_at(delta: np.ndarray) -> np.ndarray:  # the target ``delta`` metres ahead of nadir
         return look_vectors(geometry, delta, cross, 0.0)
 
-    def bisect(pred, lo, hi):  # largest delta in [lo, hi] with pred true (pred true at lo)
+    def bisect(
+        pred: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray
+    ) -> np.ndarray:  # largest delta in [lo, hi] with pred true (pred true at lo)
         for _ in range(60):
             mid = (lo + hi) / 2
             ok = pred(mid)
@@ -487,388 +501,3 @@ def _reach_compute(
         zero + reach,
     )
     return visible_now, ahead, behind
-
-
-@dataclass(frozen=True, eq=False)
-class Schedule:
-    """A trajectory re-timed under a geometry and an agility preset.
-
-    ``trajectory`` holds the kept pointings in the order they are taken,
-    ``times`` when each observation starts (s after the WFOV acquisition),
-    ``kept`` their indices in the planned trajectory, ``planned`` how many
-    pointings were planned. ``window_end_s`` is when the last planned point
-    leaves the field of regard (``inf`` without limits).
-
-    Parameters
-    ----------
-    trajectory : dyntarget.trajectory.Trajectory
-        The kept pointings, timed, in the order taken.
-    times : numpy.ndarray
-        ``(k,)`` observation start times, seconds after the WFOV acquisition.
-    kept : numpy.ndarray
-        ``(k,)`` int64 indices of the kept pointings in the planned trajectory.
-    planned : int
-        Number of pointings planned.
-    start_s : float
-        When the sensor started, seconds.
-    end_s : float
-        When the sensor was free after the last observation, seconds.
-    window_end_s : float
-        When the last visible planned point leaves the field of regard, seconds.
-    agility : str
-        Name of the agility preset.
-    end_target : tuple of float or None
-        ``(along, cross)`` ground point the sensor tracks after the last observation
-        (this geometry's frame, metres at ``t = 0``); ``None``: nothing taken, the
-        sensor is where it started.
-    reordered : bool
-        Whether the pointings were flown earliest-deadline-first (``reorder=True``).
-    """
-
-    trajectory: Trajectory
-    times: np.ndarray
-    kept: np.ndarray
-    planned: int
-    start_s: float
-    end_s: float
-    window_end_s: float
-    agility: str
-    end_target: tuple[float, float] | None = None
-    reordered: bool = False
-
-    @property
-    def fraction_feasible(self) -> float:
-        """Share of the planned pointings that were kept (1.0 for an empty plan)."""
-        return len(self.kept) / self.planned if self.planned else 1.0
-
-    @property
-    def total_s(self) -> float:
-        """From the plan's start to the end of the last observation."""
-        return self.end_s - self.start_s
-
-    @property
-    def time_left_s(self) -> float:
-        """Between the end of the last observation and the end of the window."""
-        return self.window_end_s - self.end_s
-
-
-class Timer:
-    """Step-by-step timing of pointings: what the sensor tracks and when it is free.
-
-    Between observations the sensor keeps tracking the ground, so a slew covers
-    the angle between the previous and the next ground point as seen at the
-    arrival time (from nadir for the first pointing).
-
-    Parameters
-    ----------
-    geometry : OrbitGeometry
-        The orbit and the start time (the sensor starts at nadir at ``start_s``).
-    agility : Agility
-        The sensor's kinematics.
-    """
-
-    def __init__(self, geometry: OrbitGeometry, agility: Agility) -> None:
-        self.geometry, self.agility = geometry, agility
-        self.t = geometry.start_s
-        self.target: tuple[float, float] | None = None  # None: looking at nadir
-
-    def _from(self, t: np.ndarray) -> np.ndarray:
-        if self.target is None:
-            return np.array([0.0, 0.0, -1.0])
-        along, cross = np.asarray(self.target[0]), np.asarray(self.target[1])
-        return look_vectors(self.geometry, along, cross, t)
-
-    def arrival(self, along: np.ndarray, cross: np.ndarray, t_in: np.ndarray) -> np.ndarray:
-        """When observations of the given targets could start if taken next (vectorised).
-
-        Parameters
-        ----------
-        along : numpy.ndarray
-            Along-track ground distances of the targets from nadir at ``t = 0``, metres.
-        cross : numpy.ndarray
-            Cross-track ground distances, metres.
-        t_in : numpy.ndarray
-            When each target enters the field of regard, seconds.
-
-        Returns
-        -------
-        numpy.ndarray
-            Earliest observation start per target, seconds (slew and settle from the
-            current target, and not before ``t_in``).
-        """
-        if self.agility.unlimited:
-            return np.full(np.shape(along), self.t)
-        ta = np.full(np.shape(along), self.t)
-        for _ in range(4):  # the geometry changes during the slew: fixed-point iteration
-            when = np.maximum(ta, t_in)
-            angle = angle_between_deg(
-                self._from(when), look_vectors(self.geometry, along, cross, when)
-            )
-            ta = self.t + self.agility.slew_time(angle) + self.agility.settle_s
-        return np.maximum(ta, t_in)
-
-    def arrival_one(self, along: float, cross: float, t_in: float) -> float:
-        """:meth:`arrival` for one target, in scalar arithmetic: the same floats, faster.
-
-        Scheduling times pointings one after another, so this runs once per pointing;
-        numpy's per-call overhead on one-element arrays was most of a frame's
-        scheduling time. Every operation is the one :meth:`arrival` does, in the same
-        order (``math.sin``/``cos``/``sqrt`` give numpy's results to the bit; the arc
-        cosine stays numpy's), so the result is bit-identical (tested).
-
-        Parameters
-        ----------
-        along, cross : float
-            Along- and cross-track ground distances of the target from nadir at
-            ``t = 0``, metres.
-        t_in : float
-            When the target enters the field of regard, seconds.
-
-        Returns
-        -------
-        float
-            Earliest observation start, seconds.
-        """
-        if self.agility.unlimited:
-            return float(self.t)
-        ta = float(self.t)
-        for _ in range(4):
-            when = max(ta, t_in)
-            origin = (
-                (0.0, 0.0, -1.0)
-                if self.target is None
-                else _look_one(self.geometry, *self.target, when)
-            )
-            angle = _angle_deg(origin, _look_one(self.geometry, along, cross, when))
-            ta = self.t + self.agility.slew_time_one(angle) + self.agility.settle_s
-        return max(ta, t_in)
-
-    def take(self, along: float, cross: float, start: float) -> None:
-        """Take an observation: the sensor dwells on the target from ``start`` and then tracks it.
-
-        Parameters
-        ----------
-        along : float
-            Along-track ground distance of the target from nadir at ``t = 0``, metres.
-        cross : float
-            Cross-track ground distance, metres.
-        start : float
-            When the observation starts, seconds (the sensor is free at ``start + dwell_s``).
-        """
-        self.t = start + self.agility.dwell_s
-        self.target = (float(along), float(cross))
-
-
-CHUNK = 32
-"""Pointings :func:`schedule` screens at once (a speed setting; the result does not depend on it)."""
-
-
-@dataclass(frozen=True)
-class SensorState:
-    """What the NFOV is doing when a plan starts, when it is not idle at nadir.
-
-    A pass schedules frame after frame on one sensor: a new plan queues behind the
-    pointings already committed, and its first slew starts from the ground point
-    the sensor tracks then.
-
-    Parameters
-    ----------
-    free_s : float
-        When the sensor is free, seconds in the schedule's time (not before the
-        geometry's ``start_s``: the later of the two is used).
-    target : tuple of float or None
-        ``(along, cross)`` ground point it tracks, metres from nadir at ``t = 0`` in
-        the schedule's geometry; ``None``: it looks at nadir.
-    """
-
-    free_s: float
-    target: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        if not math.isfinite(self.free_s):
-            raise InvalidParameterError(f"free_s: expected a finite number, got {self.free_s!r}")
-
-
-def schedule(
-    trajectory: Trajectory,
-    shape: tuple[int, int],
-    geometry: OrbitGeometry,
-    agility: Agility | str,
-    *,
-    reorder: bool = False,
-    budget_s: float | None = None,
-    sensor: SensorState | None = None,
-) -> Schedule:
-    """Time every pointing in order, dropping those that cannot be taken in their window.
-
-    ``reorder``: first sort by the time each point leaves the field of regard.
-    ``budget_s``: also drop pointings that would end later than ``start_s + budget_s``.
-    ``sensor``: the sensor is busy until ``sensor.free_s`` and then slews from
-    ``sensor.target`` (default: free at nadir at ``start_s``).
-
-    Pointings are screened :data:`CHUNK` at a time: while pointings are skipped the
-    sensor's state does not change, so the first pointing of a chunk that can be
-    taken is the one a pointing-by-pointing walk would take (the same floats).
-
-    Parameters
-    ----------
-    trajectory : dyntarget.trajectory.Trajectory
-        The plan, in WFOV pixels.
-    shape : tuple of int
-        The WFOV image's ``(H, W)``.
-    geometry : OrbitGeometry
-        The orbit, the scene's placement and the start time.
-    agility : Agility or str
-        The sensor's kinematics, or a preset name.
-    reorder : bool
-        Sort the pointings earliest deadline first before timing them.
-    budget_s : float or None
-        Time budget after ``geometry.start_s``, seconds; ``None`` for none.
-    sensor : SensorState or None
-        Where the sensor is when the plan starts (a pass: the pointings committed
-        before); ``None``: free at nadir at ``geometry.start_s``.
-
-    Returns
-    -------
-    Schedule
-        The kept pointings, timed, with the trajectory's ``params`` plus ``agility``.
-
-    Examples
-    --------
-    >>> t = Trajectory(np.array([[8.0, 8.0], [8.0, 8.0]]), np.zeros(2), "demo")
-    >>> s = schedule(t, (16, 16), OrbitGeometry(), "unlimited", sensor=SensorState(3.0))
-    >>> s.times.tolist()   # unlimited agility: every pointing when the sensor is free
-    [3.0, 3.0]
-    """
-    agility = get_agility(agility) if isinstance(agility, str) else agility
-    if budget_s is not None and not (budget_s >= 0 and math.isfinite(budget_s)):
-        raise InvalidParameterError(
-            f"budget_s: expected a number of seconds >= 0, got {budget_s!r}"
-        )
-    along, cross = geometry.ground(trajectory.points, shape)
-    t_in, t_out = visibility_windows(geometry, agility, along, cross)
-    order = np.argsort(t_out, kind="stable") if reorder else np.arange(len(trajectory))
-    limit = math.inf if budget_s is None else geometry.start_s + budget_s
-    timer = Timer(geometry, agility)
-    if sensor is not None:
-        timer.t = max(geometry.start_s, sensor.free_s)
-        if sensor.target is not None:
-            timer.target = (float(sensor.target[0]), float(sensor.target[1]))
-        else:
-            timer.target = None
-    kept, times = _walk(timer, order, along, cross, t_in, t_out, limit)
-    kept_idx = np.asarray(kept, np.int64)
-    keep_traj = Trajectory(
-        trajectory.points[kept_idx],
-        trajectory.part[kept_idx],
-        trajectory.planner,
-        {**trajectory.params, "agility": agility.name},
-        np.asarray(times, np.float64),
-    )
-    visible = t_out[t_in <= t_out]
-    return Schedule(
-        trajectory=keep_traj,
-        times=np.asarray(times, np.float64),
-        kept=kept_idx,
-        planned=len(trajectory),
-        start_s=geometry.start_s,
-        end_s=timer.t,
-        window_end_s=float(visible.max()) if len(visible) else geometry.start_s,
-        agility=agility.name,
-        end_target=timer.target,
-        reordered=bool(reorder),
-    )
-
-
-def _walk(timer: Timer, order, along, cross, t_in, t_out, limit) -> tuple[list[int], list[float]]:
-    """Take the pointings of ``order`` that fit their window (and ``limit``), in order."""
-    agility = timer.agility
-    kept: list[int] = []
-    times: list[float] = []
-    floor = agility.settle_s + agility.dwell_s  # a pointing ends at least this after timer.t
-    pos = 0
-    while pos < len(order):
-        # the first pointing of the next CHUNK in order that can still be taken: the
-        # timer does not move while pointings are skipped, so screening a chunk at
-        # once (Timer.arrival is elementwise) gives exactly the one-by-one result
-        chunk = order[pos : pos + CHUNK]
-        maybe = (t_in[chunk] <= t_out[chunk]) & (timer.t + floor <= t_out[chunk])
-        first = int(np.argmax(maybe))
-        if maybe[first]:  # most often the first candidate is taken: time it alone
-            j = int(chunk[first])
-            start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
-            end = start + agility.dwell_s
-            if end <= t_out[j] and end <= limit:
-                timer.take(along[j], cross[j], start)
-                kept.append(j)
-                times.append(start)
-                pos += first + 1
-                continue
-            maybe[first] = False  # timed above: it cannot be taken
-        ok = np.zeros(len(chunk), bool)
-        begin = np.zeros(len(chunk))
-        if maybe.any():
-            c = chunk[maybe]
-            begin[maybe] = timer.arrival(along[c], cross[c], t_in[c])
-            end = begin[maybe] + agility.dwell_s
-            ok[maybe] = (end <= t_out[c]) & (end <= limit)
-        if not ok.any():
-            pos += len(chunk)
-            continue
-        i = int(np.argmax(ok))
-        j = int(chunk[i])
-        timer.take(along[j], cross[j], float(begin[i]))
-        kept.append(j)
-        times.append(float(begin[i]))
-        pos += i + 1
-    return kept, times
-
-
-def make_feasible(
-    trajectory: Trajectory,
-    shape: tuple[int, int],
-    geometry: OrbitGeometry,
-    agility: Agility | str,
-    *,
-    budget_s: float | None = None,
-    as_planned: Schedule | None = None,
-    sensor: SensorState | None = None,
-) -> Schedule:
-    """The better of flying the plan in its own order and reordered earliest-deadline-first.
-
-    Both are re-timed and trimmed by :func:`schedule`; the one that keeps more
-    pointings wins (the planner's order on ties). Reordering rescues points a
-    plan would visit too late, but interleaves transects across track and so
-    costs slews; which matters more depends on the plan and the agility. Pass
-    ``as_planned`` when that schedule (same arguments, no reordering) is already at hand.
-
-    Parameters
-    ----------
-    trajectory : dyntarget.trajectory.Trajectory
-        The plan, in WFOV pixels.
-    shape : tuple of int
-        The WFOV image's ``(H, W)``.
-    geometry : OrbitGeometry
-        The orbit, the scene's placement and the start time.
-    agility : Agility or str
-        The sensor's kinematics, or a preset name.
-    budget_s : float or None
-        Time budget after ``geometry.start_s``, seconds.
-    as_planned : Schedule or None
-        The schedule of the plan in its own order, if already computed.
-    sensor : SensorState or None
-        Where the sensor is when the plan starts (see :func:`schedule`).
-
-    Returns
-    -------
-    Schedule
-        The schedule that keeps more pointings.
-    """
-    if as_planned is None:
-        as_planned = schedule(
-            trajectory, shape, geometry, agility, budget_s=budget_s, sensor=sensor
-        )
-    reordered = schedule(
-        trajectory, shape, geometry, agility, reorder=True, budget_s=budget_s, sensor=sensor
-    )
-    return reordered if len(reordered.kept) > len(as_planned.kept) else as_planned
