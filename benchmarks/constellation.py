@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from dyntarget.fly.world import WorldBase
+
 ROOT = Path(__file__).resolve().parents[1]
 GVP = ROOT.parent / "shared" / "data" / "gvp-holocene" / "volcanoes.csv"
 START = "2026-06-01T00:00:00Z"
@@ -245,7 +247,7 @@ FIDELITY_TOLERANCE = 0.02
 0.02 is 2.3 % of cos 30 deg, about 2.3 deg of off-nadir angle at the field of regard's edge)."""
 
 
-class OffsetStrip:
+class OffsetStrip(WorldBase):
     """A wide strip centred on the ground track holding a narrow rendered strip off track.
 
     The pass loop (``fly``) puts the ground track down the middle of its strip; a volcano

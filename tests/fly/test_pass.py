@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.fly import PassConfig, StaticWorld, fly_pass, frame_plan
+from dyntarget.fly import PassConfig, StaticWorld, WorldBase, fly_pass, frame_plan
 from dyntarget.fly.report import TIMELINE, timeline_csv, write_pass
 from dyntarget.scene import Scene
 
@@ -166,7 +166,7 @@ def test_a_strip_without_label_is_refused():
         StaticWorld(Scene(np.zeros((4, 64, 16), np.float32), gsd=8.0))
 
 
-class DriftingCloud:
+class DriftingCloud(WorldBase):
     """A bright square cloud drifting east at ``speed`` m/s over dark ground (a test world)."""
 
     def __init__(self, speed: float, *, rows=1024, cols=128, box=(880, 920, 16, 56)) -> None:
@@ -248,7 +248,7 @@ def _mixed_stub(calls):
 
 
 def test_two_look_motion_moves_vent_and_attached_plumes_into_the_current_rows(monkeypatch):
-    import dyntarget.predict as predict
+    import dyntarget.predict.motion as predict
     from dyntarget.pipeline import two_look_motion
 
     calls = []
@@ -270,7 +270,7 @@ def test_the_pass_loop_keeps_attached_plumes_of_a_mixed_scene_at_their_vent(monk
     # detached. Frame 1 (top 208) sees them at rows 18..21; its overlap with frame 0 is its
     # rows 16..31, where the stub finds A's vent at row 3.5 -> frame row 19.5, on A.
     import dyntarget.fly.loop as loop
-    import dyntarget.predict as predict
+    import dyntarget.predict.motion as predict
 
     monkeypatch.setattr(predict, "estimate_motion", _mixed_stub([]))
     seen = {}

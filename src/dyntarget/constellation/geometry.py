@@ -7,8 +7,9 @@ volcano within reach of its field of regard is an *overflight*. At that grid tim
 in the ground track's frame (Earth-fixed positions: Earth rotation included) and
 :func:`dyntarget.schedule.visibility_windows` gives the window ``[t_in, t_out]`` the
 NFOV field of regard holds it, from the same kinematics and agility preset the pass
-scheduler uses. The observation is timed by :func:`dyntarget.schedule.make_feasible`
-(:func:`first_pointing_s`) as the pass loop (``fly``) times its pointings: the sensor
+scheduler uses. The observation is timed through the pipeline's scheduler
+(:func:`dyntarget.pipeline.schedule_on_prediction` without a prediction, which is
+:func:`dyntarget.schedule.make_feasible`; :func:`first_pointing_s`) as the pass loop (``fly``) times its pointings: the sensor
 starts at nadir when the plan is ready (:data:`PLAN_S` after the look-ahead passes over
 the volcano, or earlier when cued) and takes the pointing as soon as the kinematics
 allow, which is when the volcano enters the field of regard (its forward edge, about
@@ -117,7 +118,7 @@ def reach_angle_rad(altitude_m: float, field_of_regard_deg: float) -> float:
 def first_pointing_s(
     altitude_m: float, agility: Agility, along_m: float, cross_m: float, ready_s: float
 ) -> float:
-    """When the NFOV takes one pointing at a ground point, by :func:`dyntarget.schedule.make_feasible`.
+    """When the NFOV takes one pointing at a ground point, by the pipeline's scheduler.
 
     The point lies ``along_m`` ahead of nadir and ``cross_m`` across track at ``t = 0``;
     the sensor starts at nadir at ``ready_s`` (the plan is ready) and takes the pointing
@@ -149,7 +150,7 @@ def first_pointing_s(
     >>> first_pointing_s(500e3, fast, 500e3, 400e3, 0.0)  # beyond the field of regard
     nan
     """
-    from dyntarget.schedule import make_feasible
+    from dyntarget.pipeline import schedule_on_prediction
     from dyntarget.trajectory import Trajectory
 
     geometry = OrbitGeometry(
@@ -157,7 +158,7 @@ def first_pointing_s(
     )
     # a 1 x 1 px "image" with 1 m pixels: pixel (x, y) lies -y m ahead, x m across
     traj = Trajectory(np.array([[cross_m, -along_m]]), np.zeros(1), "constellation")
-    flown = make_feasible(traj, (1, 1), geometry, agility)
+    flown = schedule_on_prediction(traj, (1, 1), geometry, agility, None)  # no prediction
     return float(flown.times[0]) if len(flown.kept) else math.nan
 
 

@@ -34,10 +34,17 @@ from dyntarget.evaluate.options import RunOptions, TrainingConfig
 from dyntarget.evaluate.tables import display
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS
-from dyntarget.pipeline import Kinematics, PipelineConfig, plan_segmentation, schedule_plan, segment
+from dyntarget.pipeline import (
+    Kinematics,
+    PipelineConfig,
+    plan_segmentation,
+    schedule_on_prediction,
+    schedule_plan,
+    segment,
+)
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, PlanConfig
 from dyntarget.scene import Scene
-from dyntarget.schedule import AGILITY, OrbitGeometry, make_feasible, schedule
+from dyntarget.schedule import AGILITY, OrbitGeometry, schedule
 
 AGILITY_COLUMNS = [
     "Agility",
@@ -158,7 +165,9 @@ def _agility_task(
         kept = []
         for name, traj in plans.items():
             as_planned = schedule(traj, w.shape, geometry, preset)
-            flown = make_feasible(traj, w.shape, geometry, preset, as_planned=as_planned)
+            flown = schedule_on_prediction(
+                traj, w.shape, geometry, preset, None, as_planned=as_planned
+            )
             kept.append(len(flown.kept))
             records.append(
                 record(preset, name, len(traj), as_planned.fraction_feasible, flown.trajectory)

@@ -50,9 +50,15 @@ from dyntarget.evaluate.tables import display
 from dyntarget.observe import observe_at
 from dyntarget.perceive import CLASSIFIERS
 from dyntarget.perceive.base import Classifier, Predictor
-from dyntarget.pipeline import PipelineConfig, classify, plan_segmentation, segment
+from dyntarget.pipeline import (
+    PipelineConfig,
+    classify,
+    plan_segmentation,
+    schedule_on_prediction,
+    segment,
+)
 from dyntarget.plan import BASELINES, PAPER_PLANNERS, PLANNERS, Trajectory
-from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule, make_feasible
+from dyntarget.schedule import AGILITY, OrbitGeometry, Schedule
 from dyntarget.sequence import FrameSequence
 
 DEFAULT_LATENCIES: tuple[float, ...] = defaults.DYNAMIC_LATENCIES_S
@@ -331,7 +337,9 @@ def _dynamic_task(
             wfov_gsd_m=gsd,
             start_s=float(latency),
         )
-        return lambda traj: make_feasible(traj, decision.shape, geometry, config.agility)
+        return lambda traj: schedule_on_prediction(
+            traj, decision.shape, geometry, config.agility, None
+        )
 
     def score(traj: Trajectory, latency: float, **labels: Any) -> dict[str, Any]:
         flown = scheduler(latency)(traj).trajectory

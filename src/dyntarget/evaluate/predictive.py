@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from dyntarget.denoise import denoise
 from dyntarget.errors import InvalidParameterError
 from dyntarget.evaluate.dynamic import ModeContext, static_mode
 from dyntarget.pipeline import (
@@ -32,15 +31,8 @@ from dyntarget.pipeline import (
     predict_segmentation,
     segment,
 )
-from dyntarget.pipeline import two_look_motion as motion_from_two_looks
-from dyntarget.predict import Motion, Prediction, wind_motion
+from dyntarget.predict import Motion, Prediction, plume_motion, wind_motion
 from dyntarget.trajectory import Trajectory
-
-
-def _clean(mask: np.ndarray, valid: np.ndarray | None, ctx: ModeContext) -> np.ndarray:
-    m = mask & valid if valid is not None else mask
-    cfg = ctx.pipeline.denoise
-    return denoise(m, iterations=cfg.iterations, min_area_fraction=cfg.min_area_fraction).mask
 
 
 def plan_on_motion(ctx: ModeContext, motion: Motion) -> Trajectory:
@@ -97,19 +89,16 @@ def two_look_motion(ctx: ModeContext) -> Motion:
         )
     prev, cur = frames.frames[-2], frames.frames[-1]
     interval = float(frames.times[-1] - frames.times[-2])
-    if ctx.classifier is None:
-        if prev.label is None:
-            raise InvalidParameterError(
-                f"predictive mode: sequence {frames.id!r}: the previous frame has no label"
-            )
-        prev_raw = prev.label
-    else:
-        prev_raw = ctx.classifier.predict_proba(prev.image) >= ctx.pipeline.threshold
-    return motion_from_two_looks(
-        prev.image, cur.image, interval,
-        previous_mask=_clean(prev_raw, prev.valid, ctx),
-        current_mask=_clean(ctx.mask, cur.valid, ctx),
-    )  # fmt: skip
+    if ctx.classifier is None and prev.label is None:
+        raise InvalidParameterError(
+            f"predictive mode: sequence {frames.id!r}: the previous frame has no label"
+        )
+    label = prev.label if ctx.classifier is None else None
+    seen = segment(prev.image, ctx.classifier, mask=label, valid=prev.valid, config=ctx.pipeline)
+    now = segment(cur.image, mask=ctx.mask, valid=cur.valid, config=ctx.pipeline)
+    motion = plume_motion(None, (prev.image, cur.image, seen.mask, now.mask), interval)
+    assert motion is not None  # two looks always give a motion
+    return motion
 
 
 _MOTIONS: weakref.WeakKeyDictionary[Any, dict[tuple, Motion]] = weakref.WeakKeyDictionary()

@@ -232,9 +232,14 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
     from dyntarget.io import read_scene
     from dyntarget.observe import UtilityMaps, observe
     from dyntarget.perceive import load_classifier
-    from dyntarget.pipeline import DenoiseConfig, PipelineConfig, plan_scene
+    from dyntarget.pipeline import (
+        DenoiseConfig,
+        PipelineConfig,
+        plan_scene,
+        schedule_on_prediction,
+    )
     from dyntarget.plan import PlanConfig
-    from dyntarget.schedule import OrbitGeometry, make_feasible
+    from dyntarget.schedule import OrbitGeometry
 
     p = task.params
     scene = read_scene(task.scene_path)
@@ -262,7 +267,7 @@ def run_task(task: SweepTask, planners: Sequence[str]) -> list[dict[str, Any]]:
         res = plan_scene(wfov.image, None, planner, mask=mask, valid=wfov.valid, config=config)
         flown, feasible = res.trajectory, 1.0
         if geometry is not None:  # fly what the kinematics allow (see dyntarget.schedule)
-            sched = make_feasible(res.trajectory, wfov.shape, geometry, p["agility"])
+            sched = schedule_on_prediction(res.trajectory, wfov.shape, geometry, p["agility"], None)
             flown, feasible = sched.trajectory, sched.fraction_feasible
         m = observe(flown, maps, factor=p["factor"])
         rows.append(

@@ -156,7 +156,7 @@ def pointings_geojson(
         transform=transform,
         crs=world.crs,
         crs_mode=crs_mode,
-        acquired=getattr(world, "acquired", None),
+        acquired=world.acquired,
         point_properties={
             "frame": list(result.flown.frame),
             "plume_fraction": [round(p, 4) for p in result.flown.plume],
@@ -318,7 +318,7 @@ def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) ->
         from matplotlib.patches import Rectangle
     except ImportError:
         return None
-    if not hasattr(world, "truth_at") or getattr(world, "truth_rows", None) is not None:
+    if world.is_long:
         return None  # a long strip: no whole-strip picture (it is never rendered whole)
     f = result.config.factor
     fp = result.frames
@@ -667,7 +667,7 @@ def write_view(
 
 def _long(result: PassResult, world: World) -> bool:
     """Whether the pass gets an overview: a lazily rendered strip, or too many frames."""
-    return hasattr(world, "truth_rows") or result.frames.n_frames > MAX_VIEW_FRAMES
+    return world.is_long or result.frames.n_frames > MAX_VIEW_FRAMES
 
 
 def _overview_data(result: PassResult, views: ViewCollector) -> dict[str, Any] | None:

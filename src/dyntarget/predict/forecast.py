@@ -81,7 +81,7 @@ def two_look_motion(
     >>> m.source, m.regime, round(m.velocity[0], 1)
     ('two-looks', 'detached', 2.0)
     """
-    from dyntarget.predict import check_against_prior, estimate_motion  # patchable in tests
+    from dyntarget.predict import motion  # its functions looked up at call time (patchable in tests)
 
     h = np.shape(current)[-2]
     if isinstance(offset_rows, bool) or not isinstance(offset_rows, int | np.integer):
@@ -91,7 +91,7 @@ def two_look_motion(
             f"offset_rows: expected 0 <= offset < {h} rows (some rows seen twice), got {offset_rows}"
         )
     overlap = h - offset_rows
-    est = estimate_motion(
+    est = motion.estimate_motion(
         np.asarray(previous)[:, :overlap],
         np.asarray(current)[:, offset_rows:],
         interval_s,
@@ -105,7 +105,7 @@ def two_look_motion(
             vent=None if est.vent is None else (est.vent[0], est.vent[1] + offset_rows),
             attached=tuple((x, y + offset_rows, r) for x, y, r in est.attached),
         )
-    return est if prior is None else check_against_prior(est, prior)
+    return est if prior is None else motion.check_against_prior(est, prior)
 
 
 def plume_motion(
