@@ -232,3 +232,19 @@ def test_export_onnx_by_default_builds_every_class_it_has_a_compiler_for(
     )
     said = [line for line in capsys.readouterr().err.splitlines() if "no forest kernel" in line]
     assert len(said) == 1 and "no-such-cross-gcc" in said[0] and "ONNX Runtime" in said[0]
+
+
+def test_an_installed_kernel_runs_even_on_a_path_not_measured_faster(trained, tiny_scenes, flight):
+    # A kernel built here runs only on a path measured faster than scikit-learn (AVX2,
+    # AVX-512); one the user installed on purpose (the flight computer's NEON kernel,
+    # here the x86-64 SSE2 baseline) runs whatever its path, as .ci/aarch64 needs.
+    model, model_dir, targets = trained
+    if "x86-64" not in targets or not compiled.cpu_runs("sse2"):
+        pytest.skip("no x86-64 baseline artefact for this CPU")
+    assert "sse2" not in compiled.FAST_ISAS
+    installed = compiled.install_kernel(model_dir / "forest-kernel-x86-64.so")
+    predict = compiled.fast_predictor(_packed(model_dir), against="scikit-learn")
+    assert predict is not None and predict.source == installed and predict.isa == "sse2"
+    x = _pixels(tiny_scenes)
+    expected = model.estimator.predict_proba(x)[:, 1].astype(np.float32)
+    np.testing.assert_array_equal(predict(x), expected)

@@ -1581,10 +1581,11 @@ def fast_predictor(
 ) -> Callable[[np.ndarray], np.ndarray] | None:
     """The kernel's predictor where it is the faster path, else ``None``.
 
-    The kernel built here or found in this user's cache (:func:`build_library`: built
-    with the C compiler, or installed by :func:`install_kernel`) where it runs a path
-    measured faster than the backend ``against`` (AVX2 or AVX-512 against scikit-learn;
-    also SSE2 against ONNX Runtime); else ``None``, which says to use that backend. A
+    A kernel installed by :func:`install_kernel` (a deliberate act: the user put it in the
+    cache for this CPU class) whatever its path; else the kernel built here or found in
+    this user's cache (:func:`build_library`) where it runs a path measured faster than the
+    backend ``against`` (AVX2 or AVX-512 against scikit-learn; also SSE2 against ONNX
+    Runtime); else ``None``, which says to use that backend. A
     library in the model directory is never loaded (:func:`shipped_kernels`). Where the
     kernel cannot be had, one line on stderr (once per process) names the CPU class and
     why. The policy of ``RandomForest``'s ``"auto"`` backend and of a forest's ONNX twin.
@@ -1625,7 +1626,10 @@ def fast_predictor(
             "a slower backend predicts"
         )
         return None
-    runs = predictor.isa in fast  # type: ignore[attr-defined]
+    # a kernel the user installed on purpose (install_kernel: built ahead of time for this
+    # CPU class, as export-onnx --targets does for a flight computer) runs whatever its path
+    installed = Path(predictor.source).name.endswith(f"-{INSTALLED}.so")  # type: ignore[attr-defined]
+    runs = installed or predictor.isa in fast  # type: ignore[attr-defined]
     if shipped and not runs:
         _say_once(
             f"dyntarget: {shipped}; on this CPU ({cpu_class()}) the kernel built here "
