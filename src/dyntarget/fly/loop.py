@@ -519,6 +519,11 @@ class PassResult:
     geo_times : dict or None
         Wall-clock seconds of the GEO targets and blueprint (not in ``geo``: timings
         differ between identical runs).
+    upper_bound : dict or None
+        The pass's true upper bound: :func:`pass_upper_bound` as plain JSON values
+        (:meth:`~dyntarget.observe.bound.UpperBound.as_dict`), or
+        ``{"value": None, "why": ...}`` when it could not be computed (``None``: not
+        asked for).
     """
 
     world_id: str
@@ -623,24 +628,56 @@ class Gate(Protocol):
         values: np.ndarray,
         free_s: float,
     ) -> np.ndarray:
-        """Pool a frame's plume pixels; the ``(N, 2)`` strip ``(row, col)`` to fly now."""
+        """Pool a frame's plume pixels; the ``(N, 2)`` strip ``(row, col)`` to fly now.
+
+        Parameters
+        ----------
+        t_k : float
+            The frame's acquisition time, seconds into the pass.
+        top : int
+            The frame's top row on the strip's WFOV grid.
+        rows, cols : numpy.ndarray
+            ``(n,)`` int, strip WFOV row and column of each of the frame's plume
+            pixels not yet covered (the loop passes ``frame row + top``).
+        values : numpy.ndarray
+            ``(n,)`` float, each pixel's value: the frame's red WFOV reflectance
+            there (band 2 of the ``(4, H, W)`` image).
+        free_s : float
+            When the sensor is free of the pointings already committed, seconds
+            into the pass.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, 2)`` int64 strip WFOV ``(row, col)`` of the pointings to fly now,
+            in flight order (``N`` may be 0).
+        """
         ...
 
     def report(self) -> dict[str, int]:
-        """What the refinement did (for summary.json)."""
+        """What the refinement did (for summary.json).
+
+        Returns
+        -------
+        dict of str to int
+            Counters of the refinement (in :class:`~dyntarget.geo.refine.BlueprintGate`:
+            targets released, of them the blueprint's, the look-ahead's own targets,
+            pointings pooled and released, releases capped by the blueprint, caps
+            lifted), merged into the pass's ``geo`` record.
+        """
         ...
 
 
 class _TruthCache:
     """Truth on the WFOV footprints, rebuilt only when the world's truth object changes.
 
-    A long strip (a world with ``truth_rows``) is scored band by band: ``band``
+    A long strip (``world.is_long``) is scored band by band: ``band``
     WFOV rows at a time (with the footprint's margin), recent bands kept.
     """
 
     def __init__(self, world: World, factor: int, footprint: int, band: int = 64) -> None:
         self.world, self.factor, self.footprint = world, factor, footprint
-        self.lazy = hasattr(world, "truth_rows")
+        self.lazy = world.is_long
         self.band = max(1, int(band))
         self._key: int | None = None
         self._value: WfovTruth | None = None
@@ -675,22 +712,6 @@ class _TruthCache:
 
 
 WFOV_FIELDS = ("plume", "intensity", "gradient", "ids", "valid")
-
-
-def _label_rows(world: World, t: float, top: int, bottom: int) -> np.ndarray:
-    """The true label of high-resolution rows ``top:bottom`` at ``t`` (by rows on a long strip)."""
-    rows = getattr(world, "label_rows", None)
-    if rows is not None:
-        return np.asarray(rows(t, top, bottom))
-    return world.truth_at(t).maps.label[top:bottom]
-
-
-def _plumes_at_start(world: World) -> frozenset[int]:
-    start = getattr(world, "plumes_at_start", None)
-    if start is not None:
-        return frozenset(start())
-    ids0 = world.truth_at(0.0).ids
-    return frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -756,7 +777,7 @@ def fly_pass(
     """
     ctx, geo_info, geo_times = _prepare(world, classifier, fallback, config, geo)
     state = PassState(covered=np.zeros(ctx.frames.wfov_shape, bool))
-    plumes_at_start = _plumes_at_start(world)
+    plumes_at_start = world.plumes_at_start()
 
     def result(stopped: bool = False) -> PassResult:
         gate = ctx.gate
@@ -875,7 +896,7 @@ def pass_upper_bound(
         frames.frame_px,
         frames.geometry,
         agility,
-        time_step_s=getattr(world, "truth_step_s", None),  # a static world has none
+        time_step_s=world.truth_step_s,  # a static world has none
         distinct=config.predict == "none",
         t_end_s=t_end,
     )
@@ -908,7 +929,7 @@ def _look(
     if ctx.classifier is not None:
         return image, valid, None
     f, width, top = config.factor, frames.wfov_shape[1] * config.factor, frames.tops[k]
-    label = _label_rows(ctx.world, t_k, top * f, (top + frames.frame_px) * f)[:, :width]
+    label = ctx.world.label_rows(t_k, top * f, (top + frames.frame_px) * f)[:, :width]
     return image, valid, block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
 
 
@@ -1183,7 +1204,7 @@ def _frame_transform(world: World, config: PassConfig, top: int) -> Affine | Non
 def _wind(config: PassConfig, world: World) -> tuple[float, float] | None:
     if config.wind_mps is not None:
         return (config.wind_mps, config.wind_from_deg or 0.0)
-    wind = getattr(world, "wind", None)
+    wind = world.wind
     return None if wind is None else (wind.speed_mps, wind.from_deg)
 
 

@@ -171,15 +171,42 @@ class World(Protocol):
         ...
 
     def plumes_at_start(self) -> frozenset[int]:
-        """Plume ids present at t = 0."""
+        """Plume ids present at t = 0.
+
+        Returns
+        -------
+        frozenset of int
+            The ids (as :attr:`Truth.ids` numbers them, all > 0) of the plumes in the
+            strip's truth at pass time 0; empty when there are none.
+        """
         ...
 
     def quantize(self, t: float) -> float:
-        """``t`` on the truth's time grid."""
+        """``t`` on the truth's time grid.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        float
+            Seconds into the pass: ``t`` rounded to the nearest multiple of
+            :attr:`truth_step_s`, or ``t`` itself when the truth has no time grid.
+        """
         ...
 
     def vent_pixels(self) -> np.ndarray | None:
-        """``(n, 2)`` strip ``(col, row)`` of a synthetic strip's vents, ``None`` otherwise."""
+        """``(n, 2)`` strip ``(col, row)`` of a synthetic strip's vents, ``None`` otherwise.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``(n, 2)`` float64 ``(col, row)`` of each vent on the strip's
+            high-resolution grid (``n`` may be 0); ``None`` when no synthetic world
+            is behind the strip.
+        """
         ...
 
 
@@ -275,6 +302,7 @@ class WorldBase:
         Returns
         -------
         frozenset of int
+            The non-zero ids of ``truth_at(0.0).ids``.
         """
         ids0 = self.truth_at(0.0).ids
         return frozenset(int(i) for i in np.unique(ids0[ids0 > 0]))
@@ -290,6 +318,7 @@ class WorldBase:
         Returns
         -------
         float
+            ``t`` unchanged, seconds into the pass.
         """
         return t
 
@@ -299,6 +328,7 @@ class WorldBase:
         Returns
         -------
         None
+            Always ``None``.
         """
         return None
 

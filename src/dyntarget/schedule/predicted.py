@@ -36,7 +36,29 @@ class PlumeForecast(Protocol):
         points: np.ndarray | None = None,
         attached: np.ndarray | None = None,
     ) -> np.ndarray:
-        """``(N, 2)`` pixels each pointing moves in ``dt_s`` seconds."""
+        """``(N, 2)`` pixels each pointing moves in ``dt_s`` seconds.
+
+        Parameters
+        ----------
+        dt_s : numpy.ndarray
+            ``(N,)`` seconds after :attr:`lead_s` at which each pointing is flown
+            (negative: before it).
+        points : numpy.ndarray or None
+            ``(N, 2)`` float pointings ``(x, y)``, pixels of the WFOV image the plan
+            was drawn on (column, row); where given, a dense motion field is sampled
+            there, and with ``mixed`` plumes they tell which pointings lie in
+            ``attached``.
+        attached : numpy.ndarray or None
+            Boolean ``(H, W)`` mask of where the plumes attached to their source
+            will be at :attr:`lead_s` (``Prediction.attached_mask``); with ``mixed``
+            plumes, pointings inside it do not move.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, 2)`` float64 shifts ``(dx, dy)``, WFOV pixels, to add to the
+            pointings (zero for a pointing that stays, e.g. on an attached plume).
+        """
         ...
 
 
