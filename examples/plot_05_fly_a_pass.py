@@ -12,7 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from dyntarget.fly.loop import PassConfig, fly_pass
-from dyntarget.fly.strip import MovingStrip, strip_spec
+from dyntarget.fly.strip import MovingStrip
+from dyntarget.synth.strip import strip_spec
 
 spec, window = strip_spec(0, width=128, length=576, plumes=3)
 world = MovingStrip(spec, window)

@@ -314,7 +314,7 @@ def test_frame_renamed_in_is_read_without_waiting_to_settle(tmp_path, classifier
 
 
 def _spec_dict(**changes):
-    from dyntarget.fly.strip import strip_spec
+    from dyntarget.synth.strip import strip_spec
 
     spec, _ = strip_spec(0, width=64, length=256, plumes=1, wind_mps=5.0)
     d = spec.to_dict()

@@ -461,7 +461,7 @@ def test_clouds_beyond_the_cap_are_refused_not_capped(tmp_path, capsys):
 
 def test_a_cloud_draw_beyond_the_cap_is_refused_by_the_library():
     from dyntarget.errors import InvalidParameterError
-    from dyntarget.fly.strip import long_strip_spec
+    from dyntarget.synth.strip import long_strip_spec
 
     # a mean of 255.9 clouds: draws above 256 are refused, never silently cut to 256
     outcomes = set()
