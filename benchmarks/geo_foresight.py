@@ -19,6 +19,16 @@ only the planning differs) and a fixed compute budget (deterministic), under eac
 * ``reference`` (added by ``--merge``): the better of ``lookahead`` and ``omniscient``
   on each pass (never below look-ahead only; not an upper bound).
 
+``--curve`` (the latency curve, issue 43): each pass is flown look-ahead only, with GEO at
+every ``--latencies`` value (in seconds, e.g. ``0,300,600,1200,1800,2700,3600``) for
+each ``--endmembers`` source (``simulator``: the imager's stated spectra; ``estimated``:
+N-FINDR on the GEO images), blind and omniscient; with the archive long enough that every
+latency has three images (``history_s = max(3600, L + 2 cadence)``). ``--worlds
+steady,onsets`` flies each strip as drawn (steady plumes) and with onsets
+(``synth --onset-fraction``: ``--onset-fraction`` of the vents start erupting at a time
+drawn in ``--onset-window-min``, pass clock). ``--tag`` names the output files
+(``<tag>.json``, ``<tag>.png``; default ``geo_foresight``).
+
 ``--upper-bound`` adds each pass's true upper bound (:mod:`dyntarget.observe.bound`: no
 schedule the sensor can fly over that strip scores more; the same for every mode) as
 ``upper_bound`` and every mode's utility as a fraction of it (``fraction_of_bound``;
@@ -34,6 +44,7 @@ Commands: docs/results.md, "Geostationary foresight".
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import resource
 import time
@@ -50,6 +61,7 @@ from dyntarget.geo import plan_blueprint
 from dyntarget.io.atomic import write_text
 from dyntarget.observe.bound import upper_bound_utility
 from dyntarget.schedule import get_agility
+from dyntarget.synth.dynamic import with_onsets
 
 DENSITIES = {"sparse": 0.2, "dense": 1.0}  # vents per 100 km: 1 / 500 km and 1 / 100 km
 
@@ -204,8 +216,8 @@ def run(args) -> dict:
     if "prior" not in GeoSettings.__dataclass_fields__:
         fly_geo.prepare = _prior_prepare(fly_geo.prepare)
     rows = []
-    jobs = [(p, d) for p in range(args.passes) for d in args.densities]  # they alternate
-    for n, (p, density) in enumerate(jobs):
+    jobs = [(p, d, w) for p in range(args.passes) for d in args.densities for w in args.worlds]
+    for n, (p, density, kind) in enumerate(jobs):  # they alternate
         if n % args.shards != args.shard:
             continue
         per100 = DENSITIES[density]
@@ -213,6 +225,10 @@ def run(args) -> dict:
         spec, window = long_strip_spec(
             seed, args.length_km, width=args.width, gsd=args.gsd, plumes_per_100km=per100
         )
+        if kind == "onsets":  # the draws of synth --strip --onset-fraction, a distinct id
+            lo, hi = args.onset_window_min
+            spec = with_onsets(spec, args.onset_fraction, window_s=(lo * 60.0, hi * 60.0))
+            spec = dataclasses.replace(spec, id=f"{spec.id}-onsets")
         world = LongStrip(spec, window, capacity=4000, frame_capacity=4000)
         cfgs = {
             preset: PassConfig(
@@ -226,7 +242,22 @@ def run(args) -> dict:
         for preset in args.presets:
             cfg = cfgs[preset]
             modes = [("lookahead", None), ("blind", GeoSettings(blind=True))]
-            modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
+            if args.curve:
+                modes += [
+                    (f"geo@{lat:g}" + ("" if em == "simulator" else " estimated"),
+                     GeoSettings(latency_s=lat, endmembers=em,
+                                 history_s=max(3600.0, lat + 2 * GeoSettings.cadence_s)))
+                    for em in args.endmembers for lat in args.latencies
+                ]  # fmt: skip
+                if args.no_persistence:  # the ablation: every detection at full weight
+                    modes += [
+                        (f"geo@{lat:g} no persistence",
+                         GeoSettings(latency_s=lat, persistence=False,
+                                     history_s=max(3600.0, lat + 2 * GeoSettings.cadence_s)))
+                        for lat in args.latencies
+                    ]  # fmt: skip
+            else:
+                modes += [(f"geo@{lat:g}", GeoSettings(latency_s=lat)) for lat in args.latencies]
             if args.ablate:  # GEO at the middle latency without staging, and by brightness
                 lat = args.latencies[len(args.latencies) // 2]
                 modes += [
@@ -244,6 +275,18 @@ def run(args) -> dict:
                     r, strip=spec.id, density=density, vents=len(spec.vents),
                     preset=preset, mode=mode, wall_s=round(wall, 2),
                 )  # fmt: skip
+                if len(args.worlds) > 1 or kind != "steady":
+                    row["world"] = kind
+                    row["onsets_s"] = [round(-v.eruption_age_s, 1) for v in spec.vents
+                                       if v.eruption_age_s < 0 or kind == "onsets"]  # fmt: skip
+                if args.curve and mode.startswith("geo@"):
+                    row["latency_s"] = geo.latency_s
+                    row["endmembers"] = geo.endmembers + (
+                        "" if geo.persistence else "/no-persistence"
+                    )
+                    found = (r.geo or {}).get("endmembers")
+                    if found is not None:
+                        row["endmembers_found"] = found
                 if preset in bounds:
                     ub = bounds[preset]["value"]
                     row["upper_bound"] = ub
@@ -253,9 +296,7 @@ def run(args) -> dict:
                     row["prior"] = (r.geo or {}).get("catalog")
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-                write_text(
-                    Path(args.out) / f"geo_foresight.part{args.shard}.json", json.dumps(rows)
-                )
+                write_text(Path(args.out) / f"{args.tag}.part{args.shard}.json", json.dumps(rows))
     return {"rows": rows}
 
 
@@ -274,9 +315,10 @@ def add_reference(rows: list[dict]) -> list[dict]:
 def summarise(rows: list[dict]) -> list[dict]:
     """One line per density, preset and mode: sums, ratios and per-pass ranges."""
     out = []
-    groups = dict.fromkeys((r["density"], r["preset"]) for r in rows)
-    for density, preset in groups:
-        sub = [r for r in rows if r["density"] == density and r["preset"] == preset]
+    groups = dict.fromkeys((r.get("world"), r["density"], r["preset"]) for r in rows)
+    for world, density, preset in groups:
+        sub = [r for r in rows if r["density"] == density and r["preset"] == preset
+               and r.get("world") == world]  # fmt: skip
         base = {r["strip"]: r for r in sub if r["mode"] == "lookahead"}
         ref = {r["strip"]: r for r in sub if r["mode"] == "reference"}
         for mode in dict.fromkeys(r["mode"] for r in sub):
@@ -291,6 +333,7 @@ def summarise(rows: list[dict]) -> list[dict]:
             bounded = [r for r in rs if r.get("upper_bound")]
             ubound = sum(r["upper_bound"] for r in bounded)
             out.append({
+                **({"world": world} if world else {}),
                 "density": density, "preset": preset, "mode": mode, "passes": len(rs),
                 "utility": round(u, 3), "vs_lookahead": round(u / max(ub, 1e-9), 3),
                 "vs_reference": round(u / max(uref, 1e-9), 3) if uref else None,
@@ -368,18 +411,154 @@ def figure(rows, path: Path) -> None:
     plt.close(fig)
 
 
-def merge(out: Path) -> dict:
-    """Combine the shards' rows (``geo_foresight.part*.json``) with the header."""
-    doc = json.loads((out / "geo_foresight.json.head").read_text())
+def curve(rows: list[dict]) -> list[dict]:
+    """The latency curve: per world, preset, end-members and latency, sums over the passes."""
+    out = []
+    geo = [r for r in rows if "latency_s" in r]
+    keys = dict.fromkeys((r.get("world", "steady"), r["preset"], r["endmembers"]) for r in geo)
+    for world, preset, em in keys:
+        sub = [r for r in rows if r.get("world", "steady") == world and r["preset"] == preset]
+        base = {r["strip"]: r["utility"] for r in sub if r["mode"] == "lookahead"}
+        omni = {r["strip"]: r["utility"] for r in sub if r["mode"] == "omniscient"}
+        blind = {r["strip"]: r["utility"] for r in sub if r["mode"] == "blind"}
+        bound = {r["strip"]: r.get("upper_bound") for r in sub if r["mode"] == "lookahead"}
+        lats = sorted({r["latency_s"] for r in sub if "latency_s" in r})
+        for lat in lats:
+            rs = [r for r in sub if r.get("latency_s") == lat and r.get("endmembers") == em]
+            u = sum(r["utility"] for r in rs)
+            b = sum(base[r["strip"]] for r in rs)
+            o = sum(omni.get(r["strip"], 0.0) for r in rs)
+            bl = sum(blind.get(r["strip"], 0.0) for r in rs)
+            ub = [bound[r["strip"]] for r in rs if bound.get(r["strip"])]
+            per = [r["utility"] / base[r["strip"]] for r in rs if base[r["strip"]] > 0]
+            out.append({
+                "world": world, "preset": preset, "endmembers": em,
+                "latency_min": round(lat / 60.0, 2), "passes": len(rs),
+                "utility": round(u, 3), "lookahead": round(b, 3), "omniscient": round(o, 3),
+                "blind": round(bl, 3),
+                "geo_targets": sum(r["geo_targets"] or 0 for r in rs),
+                "geo_chosen": sum(r["geo_chosen"] or 0 for r in rs),
+                "vs_lookahead": round(u / max(b, 1e-9), 4),
+                "vs_omniscient": round(u / max(o, 1e-9), 4) if o else None,
+                "fraction_of_bound": round(u / sum(ub), 4) if len(ub) == len(rs) and ub else None,
+                "upper_bound": round(sum(ub), 3) if len(ub) == len(rs) and ub else None,
+                "per_pass_min": round(min(per), 3) if per else None,
+                "per_pass_max": round(max(per), 3) if per else None,
+                "plumes_observed": sum(r["plumes_observed"] for r in rs),
+                "plumes_total": sum(r["plumes_total"] for r in rs),
+            })  # fmt: skip
+    return out
+
+
+def curve_figure(points: list[dict], path: Path) -> None:
+    """Utility against GEO latency (per world and end-members): vs look-ahead, and vs the bound."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bounded = all(p["fraction_of_bound"] is not None for p in points)
+    fig, axes = plt.subplots(1, 2 if bounded else 1, figsize=(10 if bounded else 5.5, 4.0))
+    axes = np.atleast_1d(axes)
+    styles = {"steady": "tab:blue", "onsets": "tab:red"}
+    keys = dict.fromkeys((p["world"], p["preset"], p["endmembers"]) for p in points)
+    for world, preset, em in keys:
+        pts = [
+            p for p in points if (p["world"], p["preset"], p["endmembers"]) == (world, preset, em)
+        ]
+        x = [p["latency_min"] for p in pts]
+        ls = {"simulator": "-", "estimated": "--"}.get(em, "-.")
+        label = f"{world} plumes, {em} end-members ({preset})"
+        mk = {"simulator": "o", "estimated": "s"}.get(em, "^")
+        axes[0].plot(x, [p["vs_lookahead"] for p in pts], ls, marker=mk, ms=4,
+                     color=styles.get(world), label=label, alpha=1.0 if mk == "o" else 0.6)  # fmt: skip
+        if em == "simulator":
+            o = pts[0]["omniscient"] / max(pts[0]["lookahead"], 1e-9)
+            axes[0].axhline(o, color=styles.get(world), lw=0.8, ls=":")
+            bl = pts[0]["blind"] / max(pts[0]["lookahead"], 1e-9)
+            axes[0].axhline(bl, color=styles.get(world), lw=2.0, alpha=0.3)
+        if bounded:
+            axes[1].plot(x, [p["fraction_of_bound"] for p in pts], ls, marker=mk, ms=4,
+                         color=styles.get(world), label=label, alpha=1.0 if mk == "o" else 0.6)  # fmt: skip
+    axes[0].axhline(1.0, color="k", lw=0.8)
+    axes[0].set_ylabel("utility / look-ahead only (sum over passes)")
+    axes[0].set_title(
+        "GEO blueprint vs look-ahead only\n(dotted: omniscient blueprint)", fontsize=9
+    )
+    if bounded:
+        axes[1].set_ylabel("utility / true upper bound")
+        axes[1].set_title("fraction of the pass's upper bound", fontsize=9)
+    for ax in axes:
+        ax.set_xlabel("GEO latency (min)")
+        ax.set_xticks(sorted({p["latency_min"] for p in points}))
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def combined_figure(docs: list[tuple[str, dict]], path: Path) -> None:
+    """One panel per run (``(title, merged doc)``): utility / upper bound against latency.
+
+    Lines: GEO per world (steady blue, onsets red) and end-members (simulator solid,
+    estimated dashed); horizontal: look-ahead only (thin), the refinement alone with no
+    blueprint (wide, pale) and the omniscient blueprint (dotted), in the world's colour.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(docs), figsize=(5.6 * len(docs), 5.0), sharey=False)
+    axes = np.atleast_1d(axes)
+    colour = {"steady": "tab:blue", "onsets": "tab:red"}
+    for ax, (title, doc) in zip(axes, docs, strict=True):
+        pts = doc["latency_curve"]
+        for world in dict.fromkeys(p["world"] for p in pts):
+            c = colour.get(world, "k")
+            for em, ls, mk in (("simulator", "-", "o"), ("estimated", "--", "s")):
+                sub = [p for p in pts if p["world"] == world and p["endmembers"] == em]
+                if not sub:
+                    continue
+                ax.plot([p["latency_min"] for p in sub], [p["fraction_of_bound"] for p in sub],
+                        ls, marker=mk, ms=4, color=c, alpha=1.0 if em == "simulator" else 0.6,
+                        label=f"{world}: GEO, {em} end-members")  # fmt: skip
+            p0 = next(p for p in pts if p["world"] == world)
+            ub = p0["upper_bound"]
+            ax.axhline(p0["lookahead"] / ub, color=c, lw=0.8, label=f"{world}: look-ahead only")
+            ax.axhline(p0["blind"] / ub, color=c, lw=4.0, alpha=0.25,
+                       label=f"{world}: refinement alone (no blueprint)")  # fmt: skip
+            ax.axhline(p0["omniscient"] / ub, color=c, lw=1.0, ls=":",
+                       label=f"{world}: omniscient blueprint")  # fmt: skip
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("GEO latency (min)")
+        ax.set_xticks(sorted({p["latency_min"] for p in pts}))
+        ax.set_ylabel("utility / true upper bound (sum over passes)")
+        ax.grid(alpha=0.3)
+    handles, labels = axes[-1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.15, 1.0, 1.0))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def merge(out: Path, tag: str = "geo_foresight", figure_path: Path | None = None) -> dict:
+    """Combine the shards' rows (``<tag>.part*.json``) with the header."""
+    doc = json.loads((out / f"{tag}.json.head").read_text())
     rows = []
-    for f in sorted(out.glob("geo_foresight.part*.json")):
+    for f in sorted(out.glob(f"{tag}.part*.json")):
         rows += json.loads(f.read_text())
     rows = add_reference(rows)
     doc["rows"] = rows
     doc["summary"] = summarise(rows)
     doc["modes"] = MODES_DOC
-    write_text(out / "geo_foresight.json", json.dumps(doc, indent=1))
-    figure(rows, out / "geo_foresight.png")
+    if any("latency_s" in r and "endmembers" in r for r in rows) and doc.get("curve"):
+        doc["latency_curve"] = curve(rows)
+        curve_figure(doc["latency_curve"], figure_path or out / f"{tag}.png")
+    else:
+        figure(rows, figure_path or out / f"{tag}.png")
+    write_text(out / f"{tag}.json", json.dumps(doc, indent=1))
     return doc
 
 
@@ -431,6 +610,29 @@ def main() -> None:
         help="only time the blueprint on --blueprint-km (dense: 1 target / 100 km)",
     )
     ap.add_argument("--blueprint-km", type=float, default=3000.0)
+    ap.add_argument(
+        "--curve",
+        action="store_true",
+        help="the latency curve: look-ahead only, GEO at each latency and --endmembers, omniscient",
+    )
+    ap.add_argument("--endmembers", default="simulator", help="with --curve: simulator,estimated")
+    ap.add_argument(
+        "--no-persistence",
+        action="store_true",
+        help="with --curve: also GEO (simulator end-members) without the persistence weight",
+    )
+    ap.add_argument("--worlds", default="steady", help="steady and/or onsets (comma-separated)")
+    ap.add_argument("--onset-fraction", type=float, default=1.0, help="of the onsets worlds")
+    ap.add_argument(
+        "--onset-window-min", default="-60,0", help="onsets drawn in LO,HI minutes (pass clock)"
+    )
+    ap.add_argument("--tag", default="geo_foresight", help="output file stem")
+    ap.add_argument(
+        "--combine",
+        default=None,
+        help="merged --curve JSONs (comma-separated): their curves side by side in --figure",
+    )
+    ap.add_argument("--figure", default=None, help="the figure's path (default OUT/<tag>.png)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -444,14 +646,26 @@ def main() -> None:
         print(json.dumps(doc["timing"]))
         write_text(out / "geo_blueprint_timing.json", json.dumps(doc, indent=1))
         return
+    if args.combine:  # the latency curves of merged runs side by side
+        docs = [json.loads(Path(p).read_text()) for p in args.combine.split(",")]
+        titles = [
+            f"look-ahead {d['command'].split('--look-ahead-km ')[1].split()[0]} km ahead: "
+            f"{d['latency_curve'][0]['passes']} passes of each world"
+            for d in docs
+        ]
+        combined_figure(list(zip(titles, docs, strict=True)), Path(args.figure))
+        return
     if args.merge:
-        doc = merge(out)
-        for line in doc["summary"]:
+        doc = merge(out, args.tag, Path(args.figure) if args.figure else None)
+        for line in doc.get("latency_curve") or doc["summary"]:
             print(json.dumps(line))
         return
     args.presets = args.presets.split(",")
     args.latencies = [float(v) for v in args.latencies.split(",")]
     args.densities = [d for d in args.densities.split(",") if d in DENSITIES]
+    args.endmembers = args.endmembers.split(",")
+    args.worlds = [w for w in args.worlds.split(",") if w in ("steady", "onsets")]
+    args.onset_window_min = tuple(float(v) for v in args.onset_window_min.split(","))
     if args.shard == 0:
         head = {
             "command": "python benchmarks/geo_foresight.py "
@@ -462,10 +676,20 @@ def main() -> None:
             + ("--ablate " if args.ablate else "")
             + (f"--prior {args.prior} " if args.prior else "")
             + ("--upper-bound " if args.upper_bound else "")
+            + (
+                f"--curve --endmembers {','.join(args.endmembers)} "
+                + ("--no-persistence " if args.no_persistence else "")
+                + f"--worlds {','.join(args.worlds)} --onset-fraction {args.onset_fraction:g} "
+                f"--onset-window-min={args.onset_window_min[0]:g},{args.onset_window_min[1]:g} "
+                if args.curve
+                else ""
+            )
+            + (f"--tag {args.tag} " if args.tag != "geo_foresight" else "")
             + f"--shards {args.shards} (each --shard), then --merge",
             "machine": machine(),
+            "curve": bool(args.curve),
         }
-        write_text(out / "geo_foresight.json.head", json.dumps(head))
+        write_text(out / f"{args.tag}.json.head", json.dumps(head))
     t0 = time.perf_counter()
     run(args)
     peak = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)

@@ -359,3 +359,35 @@ def test_cli_geo_reference_flies_under_unlimited_agility(tmp_path, capsys, geo):
     assert doc["agility"] == "unlimited" and doc["pointings_flown"] > 0
     # the catalog prior: one target per vent of the strip (2); the truth: at least one plume
     assert doc["geo"]["targets"] == 2 if "--geo-prior" in geo else doc["geo"]["targets"] >= 1
+
+
+def test_plume_field_with_named_members_counts_every_member_but_cloud():
+    from dyntarget.geo.targets import CONTRAST, plume_field
+
+    ground = np.array([0.05, 0.08, 0.06, 0.30])
+    cloud, steam = np.array([0.8, 0.8, 0.8, 0.8]), np.array([0.75, 0.75, 0.75, 0.56])
+    bg = np.repeat(ground[:, None, None], 2, axis=2)
+    img = bg.copy()
+    img[:, 0, 0] = ground + 0.5 * (cloud - ground)
+    img[:, 0, 1] = ground + 0.25 * (steam - ground)
+    # two members found (no ash), in an order of their own
+    field = plume_field(img, bg, GeoSettings(), np.stack([steam, cloud]), ["steam", "cloud"])
+    assert field[0] == pytest.approx([0.0, 0.25 * CONTRAST], abs=1e-9)
+    assert plume_field(img, bg, GeoSettings(), np.zeros((0, 4)), []).tolist() == [[0.0, 0.0]]
+
+
+@pytest.mark.slow
+def test_geo_settings_endmembers_and_persistence_validated_and_left_out_when_default():
+    with pytest.raises(InvalidParameterError, match="end-members: expected one of"):
+        GeoSettings(endmembers="library")
+    with pytest.raises(InvalidParameterError, match="persistence"):
+        GeoSettings(persistence=1)  # type: ignore[arg-type]
+    spec, window = strip_spec(0, width=64, length=512, plumes=2, wind_mps=5.0)
+    world = MovingStrip(spec, window)
+    cfg = PassConfig(agility="slow", compute_budget_s=0.05)
+    plain = fly_pass(world, None, cfg, geo=GeoSettings(latency_s=0.0))
+    assert "endmembers" not in plain.geo["settings"]
+    assert "persistence" not in plain.geo["settings"]
+    est = fly_pass(world, None, cfg, geo=GeoSettings(latency_s=0.0, endmembers="estimated"))
+    assert est.geo["settings"]["endmembers"] == "estimated"
+    assert set(est.geo["endmembers"]["members"]) <= {"cloud", "ash", "steam"}

@@ -20,6 +20,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     if getattr(args, "strip", False):  # demo calls this with the static options only
         _check_strip_size(args)  # before anything is written
     heights = _heights(args)  # before anything is written
+    _check_onsets(args)
     with staged(args.out) as stage:
         if getattr(args, "strip", False):
             return _synth_strips(args, stage, heights)
@@ -52,6 +53,40 @@ def _heights(args: argparse.Namespace) -> Heights | None:
             "moving worlds (--frames, --strip)"
         )
     return (plume or PLUME_HEIGHT_KM, cloud or CLOUD_HEIGHT_KM)
+
+
+def _check_onsets(args: argparse.Namespace) -> None:
+    """Refuse onset options without ``--strip``, or a duration without a fraction."""
+    given = [
+        n for n in ("onset_fraction", "onset_window_min", "onset_duration_min")
+        if getattr(args, n, None) is not None
+    ]  # fmt: skip
+    if given and not getattr(args, "strip", False):
+        raise InvalidParameterError(
+            "--onset-fraction/--onset-window-min/--onset-duration-min: onsets apply to "
+            "strips (--strip)"
+        )
+    if given and getattr(args, "onset_fraction", None) is None:
+        raise InvalidParameterError(
+            "--onset-window-min/--onset-duration-min: give --onset-fraction too"
+        )
+
+
+def _onsets(spec, args: argparse.Namespace):
+    """The strip's world with the onsets of ``--onset-fraction`` (unchanged without it)."""
+    from dyntarget.synth.dynamic import ONSET_WINDOW_S, with_onsets
+
+    f = getattr(args, "onset_fraction", None)
+    if f is None:
+        return spec
+    win = getattr(args, "onset_window_min", None)
+    dur = getattr(args, "onset_duration_min", None)
+    return with_onsets(
+        spec,
+        f,
+        window_s=ONSET_WINDOW_S if win is None else (win[0] * 60.0, win[1] * 60.0),
+        duration_s=None if dur is None else (dur[0] * 60.0, dur[1] * 60.0),
+    )
 
 
 def _write_plumes(spec, dest: Path) -> Path:
@@ -112,6 +147,7 @@ def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None)
                 wind_mps=getattr(args, "wind_mps", None),
                 wind_from_deg=getattr(args, "wind_from_deg", None),
             )
+            spec = _onsets(spec, args)
             if heights is not None:
                 spec = with_heights(spec, plume_height_km=heights[0], cloud_height_km=heights[1])
                 _write_plumes(spec, dest)
@@ -131,6 +167,7 @@ def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None)
             wind_mps=getattr(args, "wind_mps", None),
             wind_from_deg=getattr(args, "wind_from_deg", None),
         )
+        spec = _onsets(spec, args)
         if heights is not None:
             spec = with_heights(spec, plume_height_km=heights[0], cloud_height_km=heights[1])
             _write_plumes(spec, dest)
@@ -211,6 +248,47 @@ def height_range(text: str) -> tuple[float, float]:
     if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= MAX_HEIGHT_KM):
         raise argparse.ArgumentTypeError(
             f"expected LO,HI km with 0 <= LO <= HI <= {MAX_HEIGHT_KM:g}, got {text!r}"
+        )
+    return lo, hi
+
+
+MAX_ONSET_MIN = 1440.0
+"""Onsets and durations within a day, minutes (:data:`dyntarget.synth.dynamic.MAX_SECONDS`)."""
+
+
+def minute_span(text: str) -> tuple[float, float]:
+    """``"LO,HI"`` minutes on the pass clock (negative: before the pass), ``LO < HI``, within a day.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` minutes.
+
+    Examples
+    --------
+    >>> minute_span("-60,0")
+    (-60.0, 0.0)
+    >>> minute_span("5,5")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected LO,HI minutes with LO < HI within ±1440, got '5,5'
+    """
+    parts = text.split(",")
+    try:
+        vals = [float(v) for v in parts] if len(parts) == 2 else []
+    except ValueError:
+        vals = []
+    if not vals:
+        raise argparse.ArgumentTypeError(f"expected LO,HI minutes (e.g. -60,0), got {text!r}")
+    lo, hi = vals
+    if not (math.isfinite(lo) and math.isfinite(hi) and -MAX_ONSET_MIN <= lo < hi <= MAX_ONSET_MIN):
+        raise argparse.ArgumentTypeError(
+            f"expected LO,HI minutes with LO < HI within ±{MAX_ONSET_MIN:g}, got {text!r}"
         )
     return lo, hi
 
@@ -353,6 +431,33 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=2.0,
         help="meteorological clouds per 100 km of a --length-km strip (default 2; at most "
         f"{MAX_CLOUDS} per strip)",
+    )
+    e = p.add_argument_group(
+        "eruptions that start during the pass (strips)",
+        "an onset on the pass clock (t = 0: the first look-ahead frame) for a share of the "
+        "vents: before it the vent shows nothing (GEO images, look-ahead frames, truth); after "
+        "it the plume grows downwind. The other vents erupt from long before the pass",
+    )
+    e.add_argument(
+        "--onset-fraction",
+        type=o.float_range(0.0, 1.0, "a fraction"),
+        metavar="F",
+        help="share of the vents (each with probability F) that start erupting at a time drawn "
+        "uniformly in --onset-window-min",
+    )
+    e.add_argument(
+        "--onset-window-min",
+        type=minute_span,
+        metavar="LO,HI",
+        help="span of the onsets, minutes on the pass clock (default -60,0: the hour before "
+        "the pass, when the GEO images a blueprint uses are taken)",
+    )
+    e.add_argument(
+        "--onset-duration-min",
+        type=minute_span,
+        metavar="LO,HI",
+        help="the eruptions with an onset stop after a duration drawn in LO..HI minutes "
+        "(default: they do not stop)",
     )
     d = p.add_argument_group(
         "3D worlds (docs/plumes-3d.md)",

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.geo import Target, plan_blueprint
 from dyntarget.geo.refine import BlueprintGate
-from dyntarget.geo.targets import DETECTIONS, geo_targets, omniscient_targets
+from dyntarget.geo.targets import DETECTIONS, ENDMEMBERS, geo_targets, omniscient_targets
 from dyntarget.schedule import OrbitGeometry, get_agility
 from dyntarget.synth.geoimager import GeoStream
 
@@ -63,6 +63,13 @@ class GeoSettings:
         synthetic strip's own vents), :func:`dyntarget.geo.catalog.prior_targets`.
     detection : ``"unmix"`` (plume fraction from four-band spectral unmixing) or
         ``"brightness"`` (band-mean brightness above the background).
+    endmembers : where the unmixing's end-members come from: ``"simulator"`` (the GEO
+        imager's stated spectra; for the synthetic stream the simulator's own) or
+        ``"estimated"`` (found in the GEO images used, N-FINDR:
+        :func:`dyntarget.geo.endmembers.estimate_members`).
+    persistence : weight each GEO cell by how steady its plume is over the images (a
+        drifting cloud passes, a vent's plume stays; an eruption newer than the oldest image
+        is weighted down too); ``False``: an ablation, every detection at full weight.
     stage : let the idle sensor slew ahead to the next chosen blueprint target the
         look-ahead has not seen yet (:meth:`BlueprintGate.route`); ``False``: an ablation.
     """
@@ -79,6 +86,8 @@ class GeoSettings:
     prior: str | None = None
     stage: bool = True
     detection: str = "unmix"
+    endmembers: str = "simulator"
+    persistence: bool = True
 
     def __post_init__(self) -> None:
         if self.omniscient and self.blind:
@@ -88,6 +97,14 @@ class GeoSettings:
         if self.detection not in DETECTIONS:
             raise InvalidParameterError(
                 f"geo detection: expected one of {', '.join(DETECTIONS)}, got {self.detection!r}"
+            )
+        if not isinstance(self.persistence, bool):
+            raise InvalidParameterError(
+                f"geo persistence: expected true or false, got {self.persistence!r}"
+            )
+        if self.endmembers not in ENDMEMBERS:
+            raise InvalidParameterError(
+                f"geo end-members: expected one of {', '.join(ENDMEMBERS)}, got {self.endmembers!r}"
             )
         for name, lo, hi in (
             ("gsd_m", 1.0, 50_000.0),
@@ -220,7 +237,11 @@ def prepare(
             streams[key] = GeoStream(world.spec, world.window, settings.gsd_m, settings.noise)
         targets, info = geo_targets(streams[key], settings, frames, config.factor)
     t_targets = time.perf_counter() - t0
-    doc: dict[str, Any] = {"settings": asdict(settings), "computed": "ground", **info}
+    kept = asdict(settings)
+    for name, default in (("endmembers", "simulator"), ("persistence", True)):
+        if kept[name] == default:  # the defaults: summary.json keeps its bytes
+            del kept[name]
+    doc: dict[str, Any] = {"settings": kept, "computed": "ground", **info}
     if not targets and not info.get("images"):
         return None, {**doc, "targets": 0}, {"targets_s": round(t_targets, 4)}
     horizon = frames.n_frames * frames.cadence_s + frames.geometry.look_ahead_m / (

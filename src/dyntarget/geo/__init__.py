@@ -21,6 +21,9 @@ A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
 * :mod:`dyntarget.geo.targets` — the blueprint's targets from GEO images
   (``plume_field``, ``geo_targets``: detection, nowcast, persistence) and the
   omniscient reference (``omniscient_targets``: the true plumes).
+* :mod:`dyntarget.geo.endmembers` — ``estimate_members``: the cloud, ash and steam
+  end-members found in the GEO images themselves (N-FINDR, named by spectral shape),
+  for ``GeoSettings(endmembers="estimated")``.
 * :mod:`dyntarget.geo.refine` — ``BlueprintGate``: the onboard refinement within the
   blueprint and the staging of the idle sensor.
 

@@ -42,6 +42,10 @@ OBSERVE_BEFORE_NADIR_S = 20.0
 """A target is taken to be observed this long before the satellite is over it (mid-window)."""
 DETECTIONS = ("unmix", "brightness")
 """How GEO cells are tested for plume (:attr:`DetectionSettings.detection`)."""
+ENDMEMBERS = ("simulator", "estimated")
+"""Where the unmixing's end-members come from: the imager's stated spectra
+(``GeoImager.members``; for the synthetic stream, the simulator's own), or estimated from
+the GEO images used (:func:`dyntarget.geo.endmembers.estimate_members`)."""
 
 
 def image_times(settings: DetectionSettings, t_plan: float) -> list[float]:
@@ -146,6 +150,7 @@ def plume_field(
     background: np.ndarray,
     settings: DetectionSettings,
     members: np.ndarray | None = None,
+    names: list[str] | None = None,
 ) -> np.ndarray:
     """The plume anomaly of one GEO image (reflectance units; ``threshold`` applies to it).
 
@@ -160,8 +165,11 @@ def plume_field(
     settings : DetectionSettings
         ``detection`` and ``threshold``.
     members : numpy.ndarray, optional
-        ``(3, bands)`` end-member spectra (meteorological cloud, ash, steam), needed by
-        ``"unmix"`` (:attr:`GeoImager.members`).
+        ``(K, bands)`` end-member spectra, needed by ``"unmix"`` (:attr:`GeoImager.members`:
+        meteorological cloud, ash, steam).
+    names : list of str, optional
+        The class of each member (``"cloud"``, ``"ash"``, ``"steam"``; default those three
+        in that order): every member but ``"cloud"`` counts as plume.
 
     Returns
     -------
@@ -172,8 +180,12 @@ def plume_field(
         return detect(image.mean(axis=0), settings.threshold, background.mean(axis=0))[1]
     if members is None:
         raise InvalidParameterError("geo detection 'unmix': needs the end-member spectra")
-    f = unmix(image, background, np.asarray(members, np.float64))
-    field: np.ndarray = CONTRAST * (f[1] + f[2])
+    m = np.asarray(members, np.float64)
+    if len(m) == 0:  # no end-member found (estimated, nothing bright in the images)
+        return np.zeros(image.shape[1:])
+    f = unmix(image, background, m)
+    plume = [i for i, n in enumerate(names or ("cloud", "ash", "steam")) if n != "cloud"]
+    field: np.ndarray = CONTRAST * f[plume].sum(axis=0)
     return field
 
 
@@ -206,7 +218,14 @@ def geo_targets(
     if not times:
         return [], {**info, "note": "no GEO image usable before the pass: look-ahead only"}
     bg = stream.background()
-    fields = [plume_field(stream.image(t), bg, s, stream.members) for t in times]
+    images = [stream.image(t) for t in times]
+    members, names = stream.members, None
+    if s.detection == "unmix" and getattr(s, "endmembers", "simulator") == "estimated":
+        from dyntarget.geo.endmembers import estimate_members
+
+        members, names, found = estimate_members(images, bg)
+        info["endmembers"] = found
+    fields = [plume_field(im, bg, s, members, names) for im in images]
     nrow = stream.cells[0]
     row_w = stream.strip_rows(np.arange(nrow)) / factor
     v = frames.geometry.ground_speed
@@ -220,8 +239,11 @@ def geo_targets(
     # persistence: a vent's plume stays where it is from image to image, a drifting
     # cloud does not: weight each cell by its smallest anomaly over the images
     # relative to the last one (1: steady; about 0: something passing through)
+    # (an eruption that started between the images is weighted down as well: it is new in
+    # the last one; ``persistence=False`` drops the weight, see docs/results.md)
     last = np.maximum(fields[-1], 1e-6)
-    steady = np.clip(np.minimum.reduce(fields) / last, 0.0, 1.0) if len(fields) > 1 else 1.0
+    persist = getattr(s, "persistence", True) and len(fields) > 1
+    steady = np.clip(np.minimum.reduce(fields) / last, 0.0, 1.0) if persist else 1.0
     a, b = stream.strip_cols()
     weight = np.ones_like(composite) * steady
     full = composite * weight > s.threshold

@@ -7,7 +7,9 @@ grid at any time ``t`` (seconds after the look-ahead acquisition):
 * a **fixed ground** (terrain, land cover, hillshade, haze) from periodic noise
   tiles, so any window, however far from the origin, is defined;
 * **attached plumes**: each vent emits continuously since ``eruption_age_s``
-  before ``t = 0``; the emission is a train of Gaussian puffs (the Gaussian puff
+  before ``t = 0`` (a negative age: an eruption that starts during the pass, nothing
+  before it; ``end_s``: one that stops, its last puffs drifting on; :func:`with_onsets`
+  draws them); the emission is a train of Gaussian puffs (the Gaussian puff
   model) that are carried downwind with the wind and spread (diffusion plus
   turbulent relative dispersion), and fade with age. The vent end stays put,
   the envelope stretches downwind;
@@ -112,8 +114,9 @@ MAX_HEIGHT_M = 25_000.0
 """Highest plume or cloud top of a 3D world, metres (``synth --plume-height-km``: 0..25 km)."""
 MAX_RISE_MPS = 1_000.0
 """Fastest column rise accepted, m/s."""
-OPTIONAL_HEIGHTS = {"vents": ("top_height_m", "rise_mps"), "clouds": ("height_m",)}
-"""Fields of a 3D world left out of a flat world's JSON (so flat specs keep their bytes)."""
+OPTIONAL_HEIGHTS = {"vents": ("top_height_m", "rise_mps", "end_s"), "clouds": ("height_m",)}
+"""Optional fields (the heights of a 3D world, a vent's end time) left out of the JSON where
+unset (so the specs written before them keep their bytes)."""
 
 
 def _number(
@@ -198,7 +201,10 @@ class VentSpec:
     source_sigma_m : float
         Puff radius at release, metres.
     eruption_age_s : float
-        How long the vent has emitted at ``t = 0``, seconds.
+        How long the vent has emitted at ``t = 0``, seconds: the onset is at
+        ``-eruption_age_s`` on the pass clock. Negative: the eruption starts
+        ``-eruption_age_s`` seconds *after* ``t = 0`` (an onset during the pass; before
+        it the vent shows nothing, in any image or truth).
     fade_s : float
         E-folding time of a puff's optical depth (dilution, fallout), seconds.
     diffusivity_m2s : float
@@ -225,6 +231,9 @@ class VentSpec:
     rise_mps : float or None
         Rise velocity of the column top, m/s: the top rises from the vent from the onset
         (``-eruption_age_s``) until it reaches ``top_height_m`` (``None``: already there).
+    end_s : float or None
+        When the vent stops emitting, pass clock, s (``None``: never). The puffs already
+        released drift on and fade (``fade_s``); the column keeps its height.
     """
 
     x: float
@@ -243,10 +252,19 @@ class VentSpec:
     pulse_period_s: float = 120.0
     top_height_m: float | None = None
     rise_mps: float | None = None
+    end_s: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("x", "y"):
             _number("vent ", name, getattr(self, name), -MAX_COORD_PX, MAX_COORD_PX)
+        _number("vent ", "eruption_age_s", self.eruption_age_s, -MAX_SECONDS, MAX_SECONDS)
+        if self.end_s is not None:
+            _number("vent ", "end_s", self.end_s, -MAX_SECONDS, MAX_SECONDS)
+            if self.end_s <= -self.eruption_age_s:
+                raise InvalidParameterError(
+                    f"vent end_s: {self.end_s!r} is not after the onset "
+                    f"(-eruption_age_s = {-self.eruption_age_s!r})"
+                )
         if self.top_height_m is not None:
             _number("vent ", "top_height_m", self.top_height_m, 0.0, MAX_HEIGHT_M)
         if self.rise_mps is not None:
@@ -264,7 +282,6 @@ class VentSpec:
         ):
             _number("vent ", name, getattr(self, name), lo, hi)
         for name, hi in (
-            ("eruption_age_s", MAX_SECONDS),
             ("diffusivity_m2s", 1e4),
             ("turbulence", 10.0),
             ("gustiness", 5.0),
@@ -1062,10 +1079,11 @@ class World:
         start = -v.eruption_age_s
         if t <= start:
             return None
+        stop = t if v.end_s is None else min(t, v.end_s)  # emission ends at end_s
         step = self.puff_step_s(v)
         sigma0 = v.source_sigma_m / s.gsd
-        # puff k carries the emission over [start + k step, start + (k+1) step), clipped at t
-        k_last = math.floor((t - start) / step)
+        # puff k carries the emission over [start + k step, start + (k+1) step), clipped at stop
+        k_last = math.floor((stop - start) / step)
         k_first = max(0, math.floor((t - start - 8.0 * v.fade_s) / step))
         gust, cross_draw, top = self._puffs(vi, k_first, k_last + 1)
         age_max = max(t - start - k_first * step, 0.0)
@@ -1086,7 +1104,7 @@ class World:
             return None
         k = np.arange(k_first, k_last + 1)
         t0 = start + k * step
-        t1 = np.minimum(t0 + step, t)
+        t1 = np.minimum(t0 + step, stop)
         keep = t1 > t0
         t0, t1, gust, cross_draw = t0[keep], t1[keep], gust[keep], cross_draw[keep]
         age = t - 0.5 * (t0 + t1)  # age of the puff's centre of emission
@@ -1944,3 +1962,106 @@ def with_heights(
     )
     clouds = tuple(replace(c, height_m=float(rng.uniform(c_lo, c_hi) * 1e3)) for c in spec.clouds)
     return replace(spec, vents=vents, clouds=clouds)
+
+
+ONSET_WINDOW_S = (-3600.0, 0.0)
+"""Default span of the drawn onsets, pass clock, s: the hour before the pass starts (the
+GEO images a blueprint may use are from then: a latency decides which onsets they show)."""
+
+
+def check_onset_window(name: str, value: object) -> tuple[float, float]:
+    """A ``(lo, hi)`` span on the pass clock, s: finite, ``lo < hi``, within a day, or a refusal.
+
+    Parameters
+    ----------
+    name : str
+        The option, for the message.
+    value : object
+        The span.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` s.
+
+    Examples
+    --------
+    >>> check_onset_window("onset window", (-3600, 60))
+    (-3600.0, 60.0)
+    """
+    try:
+        lo, hi = (float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise InvalidParameterError(f"{name}: expected LO,HI seconds, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and -MAX_SECONDS <= lo < hi <= MAX_SECONDS):
+        raise InvalidParameterError(
+            f"{name}: expected LO < HI within ±{MAX_SECONDS:g} s, got {lo:g},{hi:g}"
+        )
+    return lo, hi
+
+
+def with_onsets(
+    spec: WorldSpec,
+    fraction: float,
+    *,
+    window_s: tuple[float, float] = ONSET_WINDOW_S,
+    duration_s: tuple[float, float] | None = None,
+    seed: int | None = None,
+) -> WorldSpec:
+    """Eruptions that start (and optionally stop) around the pass: an onset for some vents.
+
+    Each vent erupts, with probability ``fraction``, at an onset drawn uniformly in
+    ``window_s`` on the pass clock (``eruption_age_s = -onset``: before it the vent shows
+    nothing; after it the plume grows downwind from the vent at the wind's speed and, in a
+    3D world, the column rises at ``rise_mps``); with ``duration_s`` it stops after a
+    duration drawn uniformly in that range (``end_s``). The other vents keep their draws.
+    Drawn from their own random stream (``seed`` and the spec's id), so every other draw
+    of the world is untouched.
+
+    Parameters
+    ----------
+    spec : WorldSpec
+        The world.
+    fraction : float
+        Share of the vents given an onset, in ``[0, 1]`` (0: the world unchanged).
+    window_s : tuple of float
+        Span of the onsets, pass clock, s (default :data:`ONSET_WINDOW_S`).
+    duration_s : tuple of float or None
+        Span of the eruptions' durations, s (``None``: they do not stop).
+    seed : int or None
+        Seed of the onset draws (default: the spec's).
+
+    Returns
+    -------
+    WorldSpec
+        The same world with onsets.
+
+    Examples
+    --------
+    >>> spec = with_onsets(sample_world(0, 0, size=32), 1.0, window_s=(-600, -300), seed=1)
+    >>> -600 <= -spec.vents[0].eruption_age_s <= -300
+    True
+    """
+    f = _number("", "onset fraction", fraction, 0.0, 1.0)
+    lo, hi = check_onset_window("onset window", window_s)
+    if duration_s is not None:
+        d_lo, d_hi = (float(v) for v in duration_s)
+        if not (math.isfinite(d_lo) and math.isfinite(d_hi) and 0.0 < d_lo <= d_hi <= MAX_SECONDS):
+            raise InvalidParameterError(
+                f"onset duration: expected 0 < LO <= HI <= {MAX_SECONDS:g} s, got {d_lo:g},{d_hi:g}"
+            )
+    if f == 0.0:
+        return spec
+    key = zlib.crc32(spec.id.encode())
+    rng = np.random.default_rng([int(spec.seed if seed is None else seed), key, 0xD9])
+    vents = []
+    for v in spec.vents:
+        hit, onset, dur = rng.uniform(), rng.uniform(lo, hi), rng.uniform()
+        if hit >= f:
+            vents.append(v)
+            continue
+        end = None
+        if duration_s is not None:
+            end = float(onset + d_lo + dur * (d_hi - d_lo))
+        vents.append(replace(v, eruption_age_s=float(-onset), end_s=end))
+    return replace(spec, vents=tuple(vents))
