@@ -56,12 +56,13 @@ from dyntarget import defaults
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.fly.geo import GeoSettings
-from dyntarget.fly.strip import LongStrip, long_strip_spec
+from dyntarget.fly.strip import LongStrip
 from dyntarget.geo import plan_blueprint
 from dyntarget.io.atomic import write_text
 from dyntarget.observe.bound import upper_bound_utility
 from dyntarget.schedule import get_agility
 from dyntarget.synth.dynamic import with_onsets
+from dyntarget.synth.strip import long_strip_spec
 
 DENSITIES = {"sparse": 0.2, "dense": 1.0}  # vents per 100 km: 1 / 500 km and 1 / 100 km
 
@@ -122,8 +123,8 @@ def _prior_prepare(original):
     """fly.geo.prepare, planning the blueprint on the catalog's targets for _PriorSettings."""
     import dataclasses
 
-    from dyntarget.fly.geo import BlueprintGate
     from dyntarget.geo.catalog import prior_targets
+    from dyntarget.geo.refine import BlueprintGate
 
     def prepare(world, frames, config, settings):
         out = original(world, frames, config, settings)

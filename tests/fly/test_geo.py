@@ -38,7 +38,9 @@ def test_nowcast_carries_a_blob_at_its_speed():
 
     # 3 px right and 1 px down per 600 s: after 1200 s more, at (30 + 6, 20 + 2)
     fields = [blob(24, 18), blob(27, 19), blob(30, 20)]
-    out, v = nowcast(fields, 600.0, [0.0, 1200.0])
+    from dyntarget.predict import lucas_kanade
+
+    out, v = nowcast(fields, 600.0, [0.0, 1200.0], lambda st: lucas_kanade(st, needs="pysteps"))
     assert np.unravel_index(np.argmax(out[0]), out[0].shape) == (20, 30)
     assert np.unravel_index(np.argmax(out[1]), out[1].shape) == (22, 36)
     assert v[0, 20, 30] == pytest.approx(3 / 600, rel=0.1)

@@ -34,6 +34,7 @@ def _geo(args: argparse.Namespace):
             "geo_latency_s",
             "geo_reserve",
             "geo_detection",
+            "geo_endmembers",
             "geo_no_stage",
         )
         if getattr(args, o) not in (None, False)
@@ -55,7 +56,7 @@ def _geo(args: argparse.Namespace):
 
     kw = {
         k: getattr(args, f"geo_{k}")
-        for k in ("gsd_m", "cadence_s", "latency_s", "reserve", "detection")
+        for k in ("gsd_m", "cadence_s", "latency_s", "reserve", "detection", "endmembers")
         if getattr(args, f"geo_{k}") is not None
     }
     if args.geo_no_stage:
@@ -509,6 +510,13 @@ def _add_geo_options(p: argparse.ArgumentParser) -> None:
         help="how GEO cells are tested for plume: the plume fraction of a four-band "
         "unmixing into cloud, ash and steam (default), or brightness above the clear sky "
         "(takes meteorological clouds for plumes)",
+    )
+    geo.add_argument(
+        "--geo-endmembers",
+        choices=["simulator", "estimated"],
+        help="the unmixing's end-members: the GEO imager's stated spectra (default; for a "
+        "synthetic strip the simulator's own), or estimated from the GEO images used "
+        "(N-FINDR, named by spectral shape: dyntarget.geo.endmembers)",
     )
     geo.add_argument(
         "--geo-no-stage",

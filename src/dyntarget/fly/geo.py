@@ -28,18 +28,18 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.geo import Target, plan_blueprint
 from dyntarget.geo.refine import BlueprintGate
 from dyntarget.geo.targets import DETECTIONS, ENDMEMBERS, geo_targets, omniscient_targets
-from dyntarget.schedule import OrbitGeometry, get_agility
+from dyntarget.schedule import OrbitGeometry
 from dyntarget.synth.geoimager import GeoStream
 
 if TYPE_CHECKING:
     from dyntarget.fly.loop import FramePlan, PassConfig, PassResult
     from dyntarget.fly.world import World
-
-from dyntarget.geo.targets import CONTRAST  # noqa: F401  moved (issue 39)
 
 
 @dataclass(frozen=True)
@@ -183,6 +183,15 @@ def geo_cache(world: object) -> GeoCache:
     return hit
 
 
+def _geo_motion(stack: np.ndarray) -> np.ndarray:
+    """The GEO fields' motion (px per interval): the predict stage's one Lucas-Kanade wrapper."""
+    from dyntarget.predict import lucas_kanade
+
+    return lucas_kanade(
+        stack, needs="nowcasting GEO images needs pysteps: pip install 'dyntarget[geo]'"
+    )
+
+
 def prepare(
     world: World, frames: FramePlan, config: PassConfig, settings: GeoSettings
 ) -> tuple[BlueprintGate | None, dict[str, Any], dict[str, float]]:
@@ -209,7 +218,7 @@ def prepare(
     from dyntarget.fly.strip import MovingStrip
 
     settings.check_against(frames.geometry.wfov_gsd_m)
-    agility = get_agility(config.agility)
+    agility = config.limits  # the preset, looked up once per pass
     t0 = time.perf_counter()
     targets: list[Target]
     info: dict[str, Any]
@@ -235,7 +244,9 @@ def prepare(
         key = (settings.gsd_m, settings.noise)
         if key not in streams:
             streams[key] = GeoStream(world.spec, world.window, settings.gsd_m, settings.noise)
-        targets, info = geo_targets(streams[key], settings, frames, config.factor)
+        targets, info = geo_targets(
+            streams[key], settings, frames, config.factor, motion=_geo_motion
+        )
     t_targets = time.perf_counter() - t0
     kept = asdict(settings)
     for name, default in (("endmembers", "simulator"), ("persistence", True)):

@@ -9,7 +9,8 @@ blueprint is (:class:`dyntarget.geo.refine.BlueprintGate`).
   (Volcanoes of the World: ``volcano_number``, ``volcano_name``,
   ``last_known_eruption`` such as ``2025 CE`` / ``8300 BCE`` / ``Unknown``,
   ``latitude``, ``longitude`` in WGS 84 degrees; other columns ignored),
-  :func:`read_catalog`; ``active_since`` keeps the volcanoes that erupted in
+  :func:`read_catalog` (through :func:`dyntarget.io.catalog.read_catalog`, the one
+  catalog reader); ``active_since`` keeps the volcanoes that erupted in
   or after a year. A row with a missing or out-of-range coordinate (or an
   unreadable eruption year) is refused with one line naming the row and the field.
 * **Synthetic strips** lie wherever their world's spec puts them (UTM 5N by
@@ -28,19 +29,18 @@ blueprint is (:class:`dyntarget.geo.refine.BlueprintGate`).
 
 from __future__ import annotations
 
-import csv
 import math
 import os
-import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dyntarget.errors import DataFileError, InvalidParameterError, InvalidSceneError
+from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.geo.blueprint import Target
 from dyntarget.geo.seams import MappedStrip, PassFrames
+from dyntarget.io.catalog import eruption_year as eruption_year  # re-exported
+from dyntarget.io.catalog import read_catalog as _read_catalog
 from dyntarget.schedule import OrbitGeometry
 
 if TYPE_CHECKING:
@@ -57,11 +57,6 @@ NEED_MAX = 400
 """Most pointings one target asks for (as the GEO targets)."""
 VENTS = "vents"
 """``--geo-prior vents``: a synthetic strip's own vents are the catalog."""
-COLUMNS = ("latitude", "longitude")
-"""Columns a catalog must have (``volcano_name``, ``volcano_number`` and
-``last_known_eruption`` are read when present)."""
-MAX_ROWS = 100_000
-_YEAR = re.compile(r"^\s*(\d{1,5})\s*(CE|BCE)\s*$", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -88,41 +83,10 @@ class Volcano:
     last_eruption: int | None = None
 
 
-def eruption_year(text: str) -> int | None:
-    """The year of a GVP ``last_known_eruption`` (``None`` for unknown).
-
-    Parameters
-    ----------
-    text : str
-        ``"2025 CE"``, ``"8300 BCE"``, ``"Unknown"`` or empty.
-
-    Returns
-    -------
-    int or None
-        Astronomical year (1 BCE is 0).
-
-    Raises
-    ------
-    ValueError
-        For anything else.
-
-    Examples
-    --------
-    >>> eruption_year("2025 CE"), eruption_year("8300 BCE"), eruption_year("Unknown")
-    (2025, -8299, None)
-    """
-    t = (text or "").strip()
-    if not t or t.lower() == "unknown":
-        return None
-    m = _YEAR.match(t)
-    if m is None:
-        raise ValueError(f"expected a year such as '2025 CE' or '8300 BCE', got {text!r:.40}")
-    year = int(m.group(1))
-    return year if m.group(2).upper() == "CE" else 1 - year
-
-
 def read_catalog(path: str | os.PathLike[str], *, active_since: int | None = None) -> list[Volcano]:
     """The volcanoes of a catalog CSV (module docstring), optionally only the recently active.
+
+    Read by :func:`dyntarget.io.catalog.read_catalog` (the one catalog reader).
 
     Parameters
     ----------
@@ -142,75 +106,30 @@ def read_catalog(path: str | os.PathLike[str], *, active_since: int | None = Non
 
     Examples
     --------
-    >>> import tempfile
-    >>> d = tempfile.mkdtemp(); p = Path(d) / "v.csv"
+    >>> import pathlib, tempfile
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "v.csv"
     >>> _ = p.write_text("volcano_name,latitude,longitude,last_known_eruption\\n"
     ...                  "Kilauea,19.421,-155.287,2025 CE\\nOld,10,10,8300 BCE\\n")
     >>> [v.name for v in read_catalog(p)], [v.name for v in read_catalog(p, active_since=2000)]
     (['Kilauea', 'Old'], ['Kilauea'])
     """
-    path = Path(path)
-    try:
-        fh = open(path, newline="", encoding="utf-8-sig")  # closed by the with below
-    except OSError as exc:
-        raise DataFileError(f"catalog {path}: cannot read it ({exc.strerror or exc})") from None
+    cat = _read_catalog(path)
     out: list[Volcano] = []
-    with fh:
-        try:
-            reader = csv.DictReader(fh)
-            fields = [f.strip() for f in reader.fieldnames or []]
-            missing = [c for c in COLUMNS if c not in fields]
-            if missing:
-                raise DataFileError(
-                    f"catalog {path}: no {' or '.join(repr(c) for c in missing)} column "
-                    f"(line 1 has: {', '.join(fields)[:120] or 'nothing'})"
-                )
-            reader.fieldnames = fields
-            for row in reader:
-                if len(out) >= MAX_ROWS:
-                    raise DataFileError(f"catalog {path}: more than {MAX_ROWS} rows")
-                v = _volcano(path, reader.line_num, row)
-                if active_since is None or (
-                    v.last_eruption is not None and v.last_eruption >= active_since
-                ):
-                    out.append(v)
-        except UnicodeDecodeError:
-            raise DataFileError(f"catalog {path}: not UTF-8 text") from None
-        except csv.Error as exc:
-            raise DataFileError(f"catalog {path}: not a CSV file ({exc})") from None
+    for k in range(len(cat)):
+        year = None if math.isnan(cat.last_year[k]) else int(cat.last_year[k])
+        if active_since is not None and (year is None or year < active_since):
+            continue
+        number = int(cat.number[k])
+        out.append(
+            Volcano(
+                cat.name[k],
+                float(cat.lat[k]),
+                float(cat.lon[k]),
+                None if number < 0 else number,
+                year,
+            )
+        )
     return out
-
-
-def _volcano(path: Path, line: int, row: dict[str, Any]) -> Volcano:
-    """One catalog row; a bad field: one line naming the row and the field."""
-    name = (row.get("volcano_name") or "").strip()
-    where = f"catalog {path}: row at line {line}" + (f" ({name[:60]})" if name else "")
-    coords = []
-    for field, lim in (("latitude", 90.0), ("longitude", 180.0)):
-        text = (row.get(field) or "").strip()
-        if not text:
-            raise DataFileError(f"{where}: {field} is missing")
-        try:
-            v = float(text)
-        except ValueError:
-            raise DataFileError(f"{where}: {field} {text[:40]!r} is not a number") from None
-        if not (math.isfinite(v) and -lim <= v <= lim):
-            raise DataFileError(f"{where}: {field} {text[:40]} is outside [-{lim:g}, {lim:g}]")
-        coords.append(v)
-    number = None
-    text = (row.get("volcano_number") or "").strip()
-    if text:
-        try:
-            number = int(text)
-        except ValueError:
-            raise DataFileError(
-                f"{where}: volcano_number {text[:40]!r} is not an integer"
-            ) from None
-    try:
-        last = eruption_year(row.get("last_known_eruption") or "")
-    except ValueError as exc:
-        raise DataFileError(f"{where}: last_known_eruption: {exc}") from None
-    return Volcano(name or f"line {line}", coords[0], coords[1], number, last)
 
 
 def locate(

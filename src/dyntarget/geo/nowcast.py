@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -115,9 +116,16 @@ def unmix(image: np.ndarray, background: np.ndarray, members: np.ndarray) -> np.
 
 
 def nowcast(
-    fields: list[np.ndarray], interval_s: float, leads_s: list[float]
+    fields: list[np.ndarray],
+    interval_s: float,
+    leads_s: list[float],
+    motion: Callable[[np.ndarray], np.ndarray],
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Carry the last GEO field to future times: pysteps LK motion + semi-Lagrangian.
+    """Carry the last GEO field to future times: a motion field + pysteps' semi-Lagrangian.
+
+    As in pysteps, the motion is an input: ``motion(stack)`` of the ``(T, H, W)``
+    fields gives the ``(2, H, W)`` field in pixels per interval; the pipeline passes
+    the predict stage's Lucas-Kanade (:func:`dyntarget.predict.lucas_kanade`).
 
     Parameters
     ----------
@@ -128,6 +136,8 @@ def nowcast(
         Seconds between consecutive fields.
     leads_s : list of float
         Seconds after the last field to extrapolate to (>= 0).
+    motion : callable
+        ``motion(stack) -> (2, H, W)`` pixels per interval (``u``, ``v``), finite.
 
     Returns
     -------
@@ -140,7 +150,10 @@ def nowcast(
     --------
     >>> y, x = np.mgrid[0:32, 0:64]
     >>> blob = lambda c: np.exp(-((x - c) ** 2 + (y - 16) ** 2) / 8.0)
-    >>> out, v = nowcast([blob(20), blob(22), blob(24)], 600.0, [600.0])
+    >>> from functools import partial
+    >>> from dyntarget.predict import lucas_kanade
+    >>> lk = partial(lucas_kanade, needs="pysteps")
+    >>> out, v = nowcast([blob(20), blob(22), blob(24)], 600.0, [600.0], lk)
     >>> int(np.argmax(out[0][16]))
     26
     """
@@ -162,17 +175,12 @@ def nowcast(
 
         with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
             warnings.simplefilter("ignore")  # pysteps announces its config file, warns on import
-            from pysteps import extrapolation, motion
+            from pysteps import extrapolation
     except ImportError:
         raise InvalidParameterError(
             "nowcasting GEO images needs pysteps: pip install 'dyntarget[geo]'"
         ) from None
-    stack = np.stack([np.asarray(f, np.float64) for f in fields])
-    with warnings.catch_warnings():  # pysteps' LK: statistics of empty feature sets, and
-        warnings.simplefilter("ignore", RuntimeWarning)  # a UserWarning when its outlier
-        warnings.simplefilter("ignore", UserWarning)  # detection finds too few vectors
-        v = motion.get_method("LK")(stack, verbose=False)  # px per interval
-    v = np.nan_to_num(np.asarray(v, np.float64))
+    v = motion(np.stack([np.asarray(f, np.float64) for f in fields]))  # px per interval
     out = np.zeros((len(leads), *last.shape))
     steps = leads / interval_s
     nz = steps > 1e-9

@@ -15,6 +15,7 @@ The pass, the images and the world come in through :mod:`dyntarget.geo.seams`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -195,6 +196,8 @@ def geo_targets(
     frames: PassFrames,
     factor: int,
     t_plan: float = 0.0,
+    *,
+    motion: Callable[[np.ndarray], np.ndarray],
 ) -> tuple[list[Target], dict[str, object]]:
     """Targets for the blueprint from the GEO images usable at ``t_plan``, nowcast to overpass.
 
@@ -207,6 +210,10 @@ def geo_targets(
     frames : the pass's frame plan.
     factor : high-res -> WFOV factor.
     t_plan : when the blueprint is planned, pass seconds.
+    motion : callable
+        The motion field of the GEO fields, ``motion(stack (T, H, W)) -> (2, H, W)`` pixels
+        per interval (:func:`dyntarget.geo.nowcast.nowcast`'s input; the pass passes the
+        predict stage's Lucas-Kanade).
 
     Returns
     -------
@@ -233,7 +240,7 @@ def geo_targets(
     leads_all = np.maximum(t_obs - times[-1], 0.0)
     lo, hi = float(leads_all.min()), float(leads_all.max())
     leads = list(np.linspace(lo, hi, LEAD_STEPS)) if hi > lo else [lo]
-    out, vel = nowcast(fields, s.cadence_s, leads)
+    out, vel = nowcast(fields, s.cadence_s, leads, motion)
     pick = np.abs(leads_all[:, None] - np.asarray(leads)[None, :]).argmin(axis=1)
     composite = out[pick, np.arange(nrow)]  # (nrow, ncol): each row at its own lead
     # persistence: a vent's plume stays where it is from image to image, a drifting

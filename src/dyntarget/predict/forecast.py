@@ -81,7 +81,8 @@ def two_look_motion(
     >>> m.source, m.regime, round(m.velocity[0], 1)
     ('two-looks', 'detached', 2.0)
     """
-    from dyntarget.predict import motion  # its functions looked up at call time (patchable in tests)
+    # its functions looked up at call time (patchable in tests)
+    from dyntarget.predict import motion
 
     h = np.shape(current)[-2]
     if isinstance(offset_rows, bool) or not isinstance(offset_rows, int | np.integer):
