@@ -281,10 +281,8 @@ MAX_SECONDS = 86_400.0
 MIN_INTERVAL_S = 1e-3
 """Shortest time between two looks, s (closer looks give no usable motion)."""
 
-seconds = float_range(0.0, MAX_SECONDS, "seconds")
-"""Seconds >= 0, at most a day."""
-positive_seconds = float_range(0.0, MAX_SECONDS, "seconds", lo_open=True)
-"""Seconds > 0, at most a day."""
+seconds = float_range(0.0, MAX_SECONDS, "seconds")  # seconds >= 0, at most a day
+positive_seconds = float_range(0.0, MAX_SECONDS, "seconds", lo_open=True)  # > 0, at most a day
 seed_int = int_range(0, MAX_SEED, "a seed")
 wind_speed = float_range(0.0, MAX_WIND_MPS, "a wind speed, m/s")
 degrees = float_range(-360.0, 360.0, "degrees")

@@ -278,36 +278,33 @@ def catalog_targets(
 ) -> tuple[list[Target], np.ndarray]:
     """One blueprint target per volcano within ``radius_m`` of the strip (module docstring).
 
-        Pass coordinates as the loop's: frame 0 (the strip's bottom ``frame_px`` WFOV
-        rows) is acquired at pass time 0 with its centre ``look_ahead_m`` ahead of
-        nadir; targets' ``span`` is in strip WFOV rows (what the gate matches).
+    Pass coordinates as the loop's: frame 0 (the strip's bottom ``frame_px`` WFOV
+    rows) is acquired at pass time 0 with its centre ``look_ahead_m`` ahead of
+    nadir; targets' ``span`` is in strip WFOV rows (what the gate matches).
 
-        Parameters
-        ----------
-        rows, cols : the volcanoes' strip pixels, high resolution (:func:`locate`).
-        wfov_shape : the strip's WFOV grid ``(H, W)``.
-        frame_px : rows per look-ahead frame.
-        geometry : the pass's :class:`~dyntarget.schedule.OrbitGeometry` (look-ahead, WFOV GSD).
-        factor : high-res -> WFOV factor.
-        radius_m : how far from the vent its plume is looked for.
-        value : expected utility of one pointing.
-        area_m2 : expected plume area (``need`` = its WFOV pixels, at most :data:`NEED_MAX`).
+    Parameters
+    ----------
+    rows, cols : the volcanoes' strip pixels, high resolution (:func:`locate`).
+    wfov_shape : the strip's WFOV grid ``(H, W)``.
+    frame_px : rows per look-ahead frame.
+    geometry : the pass's :class:`~dyntarget.schedule.OrbitGeometry` (look-ahead, WFOV GSD).
+    factor : high-res -> WFOV factor.
+    radius_m : how far from the vent its plume is looked for.
+    value : expected utility of one pointing.
+    area_m2 : expected plume area (``need`` = its WFOV pixels, at most :data:`NEED_MAX`).
 
-        Returns
-        -------
-        (targets, index) : the targets (along-track order) and which volcano each is.
+    Returns
+    -------
+    (targets, index) : the targets (along-track order) and which volcano each is.
 
-        Examples
-        --------
-        >>> from dyntarget.schedule import OrbitGeometry
-
-    if TYPE_CHECKING:
-        from affine import Affine
-        >>> g = OrbitGeometry(look_ahead_m=500e3, wfov_gsd_m=100.0)
-        >>> ts, i = catalog_targets(np.array([400.0, 9e9]), np.array([200.0, 0.0]), (200, 100),
-        ...                         50, g, 4, radius_m=1000.0)
-        >>> i.tolist(), ts[0].along_m, ts[0].cross_m, ts[0].span, ts[0].need
-        ([0], 507500.0, 0.0, (89.5, 109.5), 400)
+    Examples
+    --------
+    >>> from dyntarget.schedule import OrbitGeometry
+    >>> g = OrbitGeometry(look_ahead_m=500e3, wfov_gsd_m=100.0)
+    >>> ts, i = catalog_targets(np.array([400.0, 9e9]), np.array([200.0, 0.0]), (200, 100),
+    ...                         50, g, 4, radius_m=1000.0)
+    >>> i.tolist(), ts[0].along_m, ts[0].cross_m, ts[0].span, ts[0].need
+    ([0], 507500.0, 0.0, (89.5, 109.5), 400)
     """
     for name, v in (("radius_m", radius_m), ("value", value), ("area_m2", area_m2)):
         if not (math.isfinite(v) and v >= 0):

@@ -61,7 +61,18 @@ class PassFrames(Protocol):
         ...
 
     def acquired_s(self, k: int) -> float:
-        """When frame ``k`` is acquired, pass seconds."""
+        """When frame ``k`` is acquired.
+
+        Parameters
+        ----------
+        k : int
+            The frame's index, in flight order.
+
+        Returns
+        -------
+        float
+            Its acquisition time, seconds on the pass clock.
+        """
         ...
 
 
@@ -128,19 +139,53 @@ class GeoImager(Protocol):
         ...
 
     def background(self) -> np.ndarray:
-        """``(bands, rows, cols)`` clear-sky reflectance of every GEO cell."""
+        """The clear-sky reflectance of every GEO cell.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(bands, rows, cols)`` float reflectance.
+        """
         ...
 
     def image(self, t: float) -> np.ndarray:
-        """``(bands, rows, cols)`` GEO image taken at ``t`` (pass seconds)."""
+        """The GEO image taken at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Acquisition time, seconds on the pass clock.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(bands, rows, cols)`` float reflectance.
+        """
         ...
 
     def strip_rows(self, gy: np.ndarray) -> np.ndarray:
-        """High-resolution strip rows of the centres of GEO rows ``gy``."""
+        """Where GEO rows lie on the strip.
+
+        Parameters
+        ----------
+        gy : numpy.ndarray
+            GEO row indices of this grid.
+
+        Returns
+        -------
+        numpy.ndarray
+            The high-resolution strip rows of their centres (float, same shape).
+        """
         ...
 
     def strip_cols(self) -> tuple[int, int]:
-        """GEO columns overlapping the strip, ``(first, last + 1)``."""
+        """The GEO columns overlapping the strip.
+
+        Returns
+        -------
+        tuple of int
+            ``(first, last + 1)``.
+        """
         ...
 
 
@@ -148,7 +193,20 @@ class TruthRenderer(Protocol):
     """A world that renders its true plumes (:meth:`dyntarget.synth.dynamic.World.truth`)."""
 
     def truth(self, t: float, window: Window | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``(mask, tau)``: the true plume at ``t`` on ``window``."""
+        """The true plume at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds on the pass clock.
+        window : tuple of int, optional
+            ``(col0, row0, width, height)`` on the world's grid; default the whole world.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(mask, tau)``: the bool plume mask and its optical depth, ``(height, width)``.
+        """
         ...
 
 
@@ -166,11 +224,35 @@ class PlumeTruth(Protocol):
         ...
 
     def source_rows(self, t: float, factor: int) -> list[float]:
-        """Strip WFOV rows of the plume sources at ``t``: vents, then volcanic clouds."""
+        """Where the plume sources are at ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds on the pass clock.
+        factor : int
+            High-resolution pixels per WFOV pixel.
+
+        Returns
+        -------
+        list of float
+            Strip WFOV rows of the vents, then of the volcanic clouds.
+        """
         ...
 
     def wfov_renderer(self, factor: int) -> TruthRenderer:
-        """The strip's world on a grid ``factor`` times coarser (the WFOV grid)."""
+        """The strip's world on the WFOV grid.
+
+        Parameters
+        ----------
+        factor : int
+            High-resolution pixels per WFOV pixel.
+
+        Returns
+        -------
+        TruthRenderer
+            The same world on a grid ``factor`` times coarser.
+        """
         ...
 
 
@@ -198,5 +280,12 @@ class MappedStrip(Protocol):
         ...
 
     def vent_pixels(self) -> np.ndarray | None:
-        """``(n, 2)`` strip ``(col, row)`` of a synthetic strip's vents; ``None``: no world."""
+        """The vents of a synthetic strip.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``(n, 2)`` float ``(col, row)`` on the strip's high-resolution grid; ``None`` when
+            no synthetic world is behind the strip.
+        """
         ...
