@@ -28,10 +28,23 @@ def cmd_datasets_fetch(args: argparse.Namespace) -> int:
 
 @writes(dirs=("out",))
 def cmd_datasets_prepare(args: argparse.Namespace) -> int:
+    """Prepare the scene directory as a whole: staged, then moved in place of the previous one.
+
+    The scenes are written into a staging folder inside ``--out``
+    (:mod:`dyntarget.fly.staging`); when all are written, they replace every scene file
+    of the previous preparation at once (hidden entries, such as dyntarget's marker, stay).
+    A failing or interrupted run leaves the previous scene directory as it was.
+    """
+    from pathlib import Path
+
     from dyntarget.datasets import get_dataset
+    from dyntarget.fly.staging import staged
 
     adapter = get_dataset(args.name).adapter()
-    ids = adapter.prepare(args.source, args.out, negatives=args.negatives, progress=not args.quiet)
+    out = Path(args.out)
+    previous = [p.name for p in out.iterdir() if not p.name.startswith(".")]  # claimed: exists
+    with staged(out, stale=previous) as stage:
+        ids = adapter.prepare(args.source, stage, negatives=args.negatives, progress=not args.quiet)
     log(f"wrote {len(ids)} scenes to {args.out}")
     print(args.out)
     return EXIT_OK

@@ -11,27 +11,38 @@ from dyntarget.cli._common import EXIT_OK, writes
 
 @writes(dirs=("out", "models"))
 def cmd_sweep(args: argparse.Namespace) -> int:
+    """Run (or resume) the sweep; its table and figure move into ``--out`` together.
+
+    ``parts/`` and ``models/`` (the resume state) are written in ``--out`` as they finish;
+    ``sweep.csv`` and ``sweep.png`` are staged (:mod:`dyntarget.fly.staging`), so a failing
+    or interrupted rerun leaves the previous table and figure as they were, and a rerun
+    that draws no figure removes the earlier one.
+    """
     from dyntarget.evaluate.options import RunOptions
-    from dyntarget.evaluate.sweep import parse_grid, summary_figure, sweep
+    from dyntarget.evaluate.sweep import RESULT_FILES, parse_grid, summary_figure, sweep
+    from dyntarget.fly.staging import staged
 
     grid = parse_grid(args.grid or [])
-    table = sweep(
-        args.data,
-        args.out,
-        classifiers=args.classifiers.split(","),
-        planners=args.planners.split(",") if args.planners else None,
-        grid=grid,
-        folds=args.folds,
-        seed=args.seed,
-        epochs=args.epochs,
-        options=RunOptions(
-            models_dir=args.models, progress=not args.quiet, scheduler=args.scheduler
-        ),
-    )
-    figure = summary_figure(table, Path(args.out) / "sweep.png")
-    print(table)
+    out = Path(args.out)
+    with staged(out, stale=RESULT_FILES) as stage:
+        table = sweep(
+            args.data,
+            out,
+            classifiers=args.classifiers.split(","),
+            planners=args.planners.split(",") if args.planners else None,
+            grid=grid,
+            folds=args.folds,
+            seed=args.seed,
+            epochs=args.epochs,
+            options=RunOptions(
+                models_dir=args.models, progress=not args.quiet, scheduler=args.scheduler
+            ),
+            into=stage,
+        )
+        figure = summary_figure(table, stage / "sweep.png")
+    print(out / table.name)
     if figure:
-        print(figure)
+        print(out / figure.name)
     return EXIT_OK
 
 

@@ -22,6 +22,16 @@ from dyntarget.pipeline import PipelineConfig, plan_scene
 from dyntarget.plan import BASELINES
 from dyntarget.scene import Scene
 
+_TABLES = ("table1_classification", "table2_end_to_end")
+_FIGURES = ("fig3_trajectories.png", "view.html", "fig4_classification.png", "fig_utilities.png")
+RESULT_FILES = (
+    *(f"{t}{s}" for t in _TABLES for s in (".md", ".csv", ".json", ".timing.json")),
+    *_FIGURES,
+    "report.md",
+)
+"""The files of one evaluation report (:func:`evaluate_all`, :func:`write_report`): a rerun
+that does not write one of them (``view.html`` without plotly) removes the earlier one."""
+
 
 def best_classifier(table1_rows: list[dict]) -> str:
     """Classifier with the highest IoU (raw or denoised).
@@ -350,11 +360,15 @@ def evaluate_all(
     classifiers: tuple[str, ...],
     training: TrainingConfig = TrainingConfig(),
     options: RunOptions = RunOptions(),
+    into: str | os.PathLike[str] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Path]]:
     """Table 1 and Table 2 sharing one training run (models in ``options.models_dir``), plus figures.
 
     Finished tasks are kept in ``out/parts/`` so that an interrupted run resumes;
     ``options.scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
+    The tables and figures (:data:`RESULT_FILES`) go to ``into`` (default ``out``): a
+    command passes a staging folder (:mod:`dyntarget.fly.staging`) so that they move
+    into ``out`` together, while the resume state stays in ``out``.
 
     Parameters
     ----------
@@ -369,6 +383,8 @@ def evaluate_all(
     options : RunOptions
         Where the fold models are kept (default ``out/models``), progress, scheduler;
         its ``parts`` is ignored (``out/parts/`` holds each table's parts).
+    into : str or os.PathLike or None
+        Folder of the tables and figures (default ``out``).
 
     Returns
     -------
@@ -384,6 +400,7 @@ def evaluate_all(
     from dyntarget.evaluate.tables import write_result
 
     out = Path(out)
+    dest = Path(into) if into is not None else out
     models_dir = options.models_dir if options.models_dir is not None else out / "models"
     shared = asdict(training)
     t0 = time.perf_counter()
@@ -393,7 +410,7 @@ def evaluate_all(
         options=replace(options, models_dir=models_dir, parts=out / "parts" / "classification"),
     )
     table1["timing"]["seconds"] = time.perf_counter() - t0
-    write_result(out, "table1_classification", table1, TABLE1_COLUMNS)
+    write_result(dest, "table1_classification", table1, TABLE1_COLUMNS)
     t0 = time.perf_counter()
     table2 = evaluate_end_to_end(
         scenes,
@@ -401,7 +418,7 @@ def evaluate_all(
         options=replace(options, models_dir=models_dir, parts=out / "parts" / "end-to-end"),
     )
     table2["timing"] = {"seconds": time.perf_counter() - t0}
-    write_result(out, "table2_end_to_end", table2, TABLE2_COLUMNS)
+    write_result(dest, "table2_end_to_end", table2, TABLE2_COLUMNS)
     factor = training.factor
-    figures = make_figures(out, scenes, table1, table2, models_dir, factor=factor)
+    figures = make_figures(dest, scenes, table1, table2, models_dir, factor=factor)
     return table1, table2, figures

@@ -299,6 +299,11 @@ class SweepInterrupted(Exception):
     """Raised by ``stop_after`` (tests simulate a killed sweep with it)."""
 
 
+RESULT_FILES = ("sweep.csv", "sweep.png")
+"""The files of a sweep's result (:func:`sweep`, :func:`summary_figure`); ``parts/`` and
+``models/`` are its resume state."""
+
+
 SWEEP_RUN = RunOptions(scheduler="local")
 """A sweep's default :class:`~dyntarget.evaluate.options.RunOptions`: on local Dask threads."""
 
@@ -315,8 +320,12 @@ def sweep(
     epochs: int = 50,
     options: RunOptions = SWEEP_RUN,
     stop_after: int | None = None,
+    into: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Run (or resume) a sweep; returns the path of the tidy table ``OUT/sweep.csv``.
+
+    The resume state (``OUT/parts``, ``OUT/models``) stays in ``out``; the table goes to
+    ``into`` when given (a staging folder the command moves into ``out`` when complete).
 
     Parameters
     ----------
@@ -342,11 +351,13 @@ def sweep(
         (``OUT/parts`` holds them).
     stop_after : int or None
         Stop after this many finished tasks (tests).
+    into : str or os.PathLike or None
+        Folder of ``sweep.csv`` (default ``out``).
 
     Returns
     -------
     pathlib.Path
-        ``OUT/sweep.csv``.
+        ``OUT/sweep.csv`` (``INTO/sweep.csv`` with ``into``).
     """
     from dyntarget.evaluate.crossval import kfold_indices, train_or_load
     from dyntarget.io import read_scene_dir, scene_ids
@@ -406,7 +417,8 @@ def sweep(
     except Interrupted as exc:
         raise SweepInterrupted(str(exc)) from None
     order = sorted(range(len(tasks)), key=lambda i: tasks[i].key)  # independent of run order
-    return write_text(out / "sweep.csv", _csv([row for i in order for row in results[i]]))
+    dest = Path(into) if into is not None else out
+    return write_text(dest / "sweep.csv", _csv([row for i in order for row in results[i]]))
 
 
 def summary_figure(table: Path, path: Path) -> Path | None:
