@@ -196,8 +196,11 @@ def merge(args: argparse.Namespace) -> None:
                         ],
                     }
                 )
+    from dyntarget.evaluate.bench import machine
+
     out = {
         "command": " ".join(sys.argv),
+        "machine": machine(),  # the machine and code, as every benchmark record names them
         "summary": summary,
         "processes": parts,
         "bench": bench,
