@@ -218,10 +218,11 @@ def test_bad_height_options_one_line_exit_2(tmp_path, capsys, extra, needle):
 
 
 def test_cli_constants_match_the_renderer():
+    from dyntarget.cli import options
     from dyntarget.cli import synth as cli
     from dyntarget.synth import dynamic
 
-    assert cli.MAX_HEIGHT_KM * 1e3 == dynamic.MAX_HEIGHT_M
+    assert options.MAX_HEIGHT_KM * 1e3 == dynamic.MAX_HEIGHT_M
     assert (cli.PLUME_HEIGHT_KM, cli.CLOUD_HEIGHT_KM) == (
         dynamic.PLUME_HEIGHT_KM,
         dynamic.CLOUD_HEIGHT_KM,

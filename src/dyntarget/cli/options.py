@@ -290,6 +290,86 @@ degrees = float_range(-360.0, 360.0, "degrees")
 # -- the options ----------------------------------------------------------------------------
 
 
+def _pair(text: str, *, single: bool, usage: str) -> tuple[float, float]:
+    """``"LO,HI"`` as two floats (``"H"`` as ``(H, H)`` where ``single``); else one line."""
+    parts = text.split(",")
+    try:
+        vals = [float(v) for v in parts] if len(parts) == 2 or (single and len(parts) == 1) else []
+    except ValueError:
+        vals = []
+    if not vals:
+        raise argparse.ArgumentTypeError(f"expected LO,HI {usage}, got {text!r}")
+    return vals[0], vals[-1]
+
+
+MAX_HEIGHT_KM = 25.0
+"""Highest plume or cloud top, km (:data:`dyntarget.synth.dynamic.MAX_HEIGHT_M` / 1000; checked equal by the tests)."""
+
+
+def height_range(text: str) -> tuple[float, float]:
+    """``"LO,HI"`` (or one height ``"H"``) in km, ``0 <= LO <= HI <= 25``, finite.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` km.
+
+    Examples
+    --------
+    >>> height_range("2,15"), height_range("8")
+    ((2.0, 15.0), (8.0, 8.0))
+    >>> height_range("15,2")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected LO,HI km with 0 <= LO <= HI <= 25, got '15,2'
+    """
+    lo, hi = _pair(text, single=True, usage="km (e.g. 2,15)")
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= MAX_HEIGHT_KM):
+        raise argparse.ArgumentTypeError(
+            f"expected LO,HI km with 0 <= LO <= HI <= {MAX_HEIGHT_KM:g}, got {text!r}"
+        )
+    return lo, hi
+
+
+MAX_ONSET_MIN = 1440.0
+"""Onsets and durations within a day, minutes (:data:`dyntarget.synth.dynamic.MAX_SECONDS`)."""
+
+
+def minute_span(text: str) -> tuple[float, float]:
+    """``"LO,HI"`` minutes on the pass clock (negative: before the pass), ``LO < HI``, within a day.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` minutes.
+
+    Examples
+    --------
+    >>> minute_span("-60,0")
+    (-60.0, 0.0)
+    >>> minute_span("5,5")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected LO,HI minutes with LO < HI within ±1440, got '5,5'
+    """
+    lo, hi = _pair(text, single=False, usage="minutes (e.g. -60,0)")
+    if not (math.isfinite(lo) and math.isfinite(hi) and -MAX_ONSET_MIN <= lo < hi <= MAX_ONSET_MIN):
+        raise argparse.ArgumentTypeError(
+            f"expected LO,HI minutes with LO < HI within ±{MAX_ONSET_MIN:g}, got {text!r}"
+        )
+    return lo, hi
+
+
 @dataclass(frozen=True)
 class Option:
     """One command-line option, defined once: its flags and ``add_argument`` keywords.

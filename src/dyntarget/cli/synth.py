@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from pathlib import Path
 
@@ -211,88 +210,6 @@ def _synth_sequences(args: argparse.Namespace, dest: Path, heights: Heights | No
 PLUME_HEIGHT_KM, CLOUD_HEIGHT_KM = (2.0, 15.0), (1.0, 12.0)
 """Default height ranges of a 3D world, km (:data:`dyntarget.synth.dynamic.PLUME_HEIGHT_KM`,
 ``CLOUD_HEIGHT_KM``; written out here so that ``--help`` does not import the renderer)."""
-MAX_HEIGHT_KM = 25.0
-"""Highest plume or cloud top, km (:data:`dyntarget.synth.dynamic.MAX_HEIGHT_M` / 1000)."""
-
-
-def height_range(text: str) -> tuple[float, float]:
-    """``"LO,HI"`` (or one height ``"H"``) in km, ``0 <= LO <= HI <= 25``, finite.
-
-    Parameters
-    ----------
-    text : str
-        The option's value.
-
-    Returns
-    -------
-    tuple of float
-        ``(lo, hi)`` km.
-
-    Examples
-    --------
-    >>> height_range("2,15"), height_range("8")
-    ((2.0, 15.0), (8.0, 8.0))
-    >>> height_range("15,2")
-    Traceback (most recent call last):
-    ...
-    argparse.ArgumentTypeError: expected LO,HI km with 0 <= LO <= HI <= 25, got '15,2'
-    """
-    parts = text.split(",")
-    try:
-        vals = [float(v) for v in parts] if len(parts) <= 2 else []
-    except ValueError:
-        vals = []
-    if not vals:
-        raise argparse.ArgumentTypeError(f"expected LO,HI km (e.g. 2,15), got {text!r}")
-    lo, hi = vals[0], vals[-1]
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= MAX_HEIGHT_KM):
-        raise argparse.ArgumentTypeError(
-            f"expected LO,HI km with 0 <= LO <= HI <= {MAX_HEIGHT_KM:g}, got {text!r}"
-        )
-    return lo, hi
-
-
-MAX_ONSET_MIN = 1440.0
-"""Onsets and durations within a day, minutes (:data:`dyntarget.synth.dynamic.MAX_SECONDS`)."""
-
-
-def minute_span(text: str) -> tuple[float, float]:
-    """``"LO,HI"`` minutes on the pass clock (negative: before the pass), ``LO < HI``, within a day.
-
-    Parameters
-    ----------
-    text : str
-        The option's value.
-
-    Returns
-    -------
-    tuple of float
-        ``(lo, hi)`` minutes.
-
-    Examples
-    --------
-    >>> minute_span("-60,0")
-    (-60.0, 0.0)
-    >>> minute_span("5,5")
-    Traceback (most recent call last):
-    ...
-    argparse.ArgumentTypeError: expected LO,HI minutes with LO < HI within ±1440, got '5,5'
-    """
-    parts = text.split(",")
-    try:
-        vals = [float(v) for v in parts] if len(parts) == 2 else []
-    except ValueError:
-        vals = []
-    if not vals:
-        raise argparse.ArgumentTypeError(f"expected LO,HI minutes (e.g. -60,0), got {text!r}")
-    lo, hi = vals
-    if not (math.isfinite(lo) and math.isfinite(hi) and -MAX_ONSET_MIN <= lo < hi <= MAX_ONSET_MIN):
-        raise argparse.ArgumentTypeError(
-            f"expected LO,HI minutes with LO < HI within ±{MAX_ONSET_MIN:g}, got {text!r}"
-        )
-    return lo, hi
-
-
 MAX_VENTS, MAX_CLOUDS = 64, 256
 """Vents and clouds a strip may hold (:data:`dyntarget.synth.dynamic.MAX_VENTS`,
 ``MAX_CLOUDS``; written out here so that ``--help`` does not import the renderer, and
@@ -447,14 +364,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     e.add_argument(
         "--onset-window-min",
-        type=minute_span,
+        type=o.minute_span,
         metavar="LO,HI",
         help="span of the onsets, minutes on the pass clock (default -60,0: the hour before "
         "the pass, when the GEO images a blueprint uses are taken)",
     )
     e.add_argument(
         "--onset-duration-min",
-        type=minute_span,
+        type=o.minute_span,
         metavar="LO,HI",
         help="the eruptions with an onset stop after a duration drawn in LO..HI minutes "
         "(default: they do not stop)",
@@ -468,7 +385,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     d.add_argument(
         "--plume-height-km",
-        type=height_range,
+        type=o.height_range,
         metavar="LO,HI",
         help="each vent's column-top height drawn in LO..HI km (makes the world 3D; with "
         f"--cloud-height-km alone: {PLUME_HEIGHT_KM[0]:g},{PLUME_HEIGHT_KM[1]:g}); the column "
@@ -476,7 +393,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     d.add_argument(
         "--cloud-height-km",
-        type=height_range,
+        type=o.height_range,
         metavar="LO,HI",
         help="each cloud's height drawn in LO..HI km (makes the world 3D; with "
         f"--plume-height-km alone: {CLOUD_HEIGHT_KM[0]:g},{CLOUD_HEIGHT_KM[1]:g})",
