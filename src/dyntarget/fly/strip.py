@@ -105,6 +105,8 @@ class MovingStrip(WorldBase):
         self.truth_step_s = truth_step_s
         self._cache: OrderedDict[Any, Truth] = OrderedDict()  # keyed by time (and rows)
         self._capacity = capacity
+        self.is_3d = spec.is_3d
+        """Whether the world's plumes or clouds have heights (``spec.is_3d``)."""
 
     def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
         """Rows ``top:bottom`` of the strip as the look-ahead sensor sees them at ``t``.
@@ -123,6 +125,105 @@ class MovingStrip(WorldBase):
         """
         c0, r0, w, _ = self.window
         return self.world.render(t, (c0, r0 + top, w, bottom - top)).image
+
+    def look_at(
+        self,
+        t: float,
+        top: int,
+        bottom: int,
+        *,
+        nadir_xy: tuple[float, float],
+        altitude_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``top:bottom`` as the look-ahead sees them at ``t`` from over ``nadir_xy``.
+
+        A 3D world is rendered obliquely (:meth:`dyntarget.synth.dynamic.World.render_look`
+        on the strip's window of the world grid): each plume at its column's height and
+        each cloud at its height appears displaced away from the nadir by its parallax;
+        the mask is the displaced plume's (optical depth above the label threshold, as
+        the truth's label), of the same rendering at exactly ``t``. A flat world returns
+        exactly :meth:`image_at` and :meth:`label_rows`.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+        nadir_xy : tuple of float
+            The spacecraft's nadir ``(x, y)`` in strip high-resolution pixels.
+        altitude_m : float
+            The spacecraft's altitude, metres.
+
+        Returns
+        -------
+        image : numpy.ndarray
+            ``(4, bottom - top, W)`` reflectance.
+        mask : numpy.ndarray
+            Boolean ``(bottom - top, W)``: the plume the frame shows.
+
+        Examples
+        --------
+        >>> from dataclasses import replace
+        >>> spec, window = strip_spec(0, width=64, length=256, plumes=1, wind_mps=5.0)
+        >>> flat = MovingStrip(spec, window)
+        >>> im, m = flat.look_at(0.0, 0, 32, nadir_xy=(32.0, 9e4), altitude_m=500e3)
+        >>> bool((im == flat.image_at(0.0, 0, 32)).all()), flat.is_3d
+        (True, False)
+        >>> v = replace(spec.vents[0], top_height_m=10e3)
+        >>> s3 = MovingStrip(replace(spec, vents=(v,)), window)
+        >>> s3.is_3d, s3.look_at(0.0, 0, 32, nadir_xy=(32.0, 9e4), altitude_m=500e3)[1].shape
+        (True, (32, 64))
+        """
+        if not self.is_3d:
+            return self.image_at(t, top, bottom), self.label_rows(t, top, bottom)
+        c0, r0, w, _ = self.window
+        nx, ny = (float(v) for v in nadir_xy)
+        frame = self.world.render_look(
+            t, (c0, r0 + top, w, bottom - top), nadir_px=(c0 + nx, r0 + ny), altitude_m=altitude_m
+        )
+        return frame.image, frame.mask
+
+    def heights_at(self, t: float) -> np.ndarray | None:
+        """Top height of each truth plume at ``t``: the vents' columns, then volcanic clouds.
+
+        Indexed by plume id as :meth:`truth_at` numbers them (index 0, no plume: 0.0);
+        a vent's column rises from its onset (:meth:`dyntarget.synth.dynamic.World.column_height`,
+        at exactly ``t``); a feature without a height lies on the ground (0.0).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            float64 metres above sea level, ``1 + vents + volcanic clouds`` long;
+            ``None`` for a flat world.
+
+        Examples
+        --------
+        >>> from dataclasses import replace
+        >>> spec, window = strip_spec(0, width=64, length=256, plumes=1, wind_mps=5.0)
+        >>> v = replace(spec.vents[0], top_height_m=9000.0, rise_mps=30.0, eruption_age_s=100.0)
+        >>> MovingStrip(replace(spec, vents=(v,)), window).heights_at(0.0).tolist()
+        [0.0, 3000.0]
+        >>> MovingStrip(spec, window).heights_at(0.0) is None
+        True
+        """
+        if not self.is_3d:
+            return None
+        try:
+            tf = float(t)
+        except (TypeError, ValueError):
+            tf = math.nan
+        if not math.isfinite(tf):
+            raise InvalidParameterError(f"t: expected finite seconds, got {t!r:.40}")
+        s = self.spec
+        heights = [0.0] + [self.world.column_height(vi, tf) for vi in range(len(s.vents))]
+        heights += [float(c.height_m or 0.0) for c in s.clouds if c.volcanic]
+        return np.asarray(heights, np.float64)
 
     def _sources(self, t: float) -> np.ndarray:
         """``(n, 2)`` source positions (x, y) in strip pixels at ``t``: vents, then volcanic clouds."""
@@ -290,6 +391,7 @@ class LongStrip(MovingStrip):
         self._capacity = capacity
         self._frames: OrderedDict[tuple[float, int, int], Any] = OrderedDict()
         self._frame_capacity = frame_capacity
+        self.is_3d = spec.is_3d
 
     is_long = True
 

@@ -12,7 +12,15 @@ The pass loop talks to the world through one small interface, :class:`World`:
   label of some rows, the plumes there at t = 0, the truth's time grid;
 * ``is_long``: the truth is rendered by rows only (``truth_rows``, a long strip);
   ``spec``, ``wind``, ``truth_step_s``, ``acquired``: the synthetic world, its wind, the
-  truth's time step and when t = 0 is (``None`` where the strip has none).
+  truth's time step and when t = 0 is (``None`` where the strip has none);
+* ``is_3d``, ``look_at(t, top, bottom, nadir_xy=, altitude_m=)``, ``heights_at(t)``: a
+  world whose plumes and clouds have heights (:attr:`WorldSpec.is_3d
+  <dyntarget.synth.dynamic.WorldSpec.is_3d>`) is seen by the look-ahead displaced by
+  its parallax from where the spacecraft is (``look_at``: the frame and the plume mask it
+  shows), and the truth's plumes have top heights (``heights_at``, per plume id). The
+  truth (``truth_at``, ``label_rows``) stays the plumes' true ground positions. A flat
+  world's ``look_at`` is exactly ``image_at`` and ``label_rows``, its ``heights_at``
+  ``None``.
 
 :class:`WorldBase` answers all but ``image_at`` and ``truth_at`` from the truth (a
 world built whole); :class:`StaticWorld` and the moving strips
@@ -209,6 +217,59 @@ class World(Protocol):
         """
         ...
 
+    @property
+    def is_3d(self) -> bool:
+        """Whether plumes or clouds have heights (seen displaced by their parallax)."""
+        ...
+
+    def look_at(
+        self,
+        t: float,
+        top: int,
+        bottom: int,
+        *,
+        nadir_xy: tuple[float, float],
+        altitude_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``top:bottom`` as the look-ahead sees them at ``t`` from over ``nadir_xy``.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+        nadir_xy : tuple of float
+            The spacecraft's nadir ``(x, y)`` in strip high-resolution pixels.
+        altitude_m : float
+            The spacecraft's altitude, metres.
+
+        Returns
+        -------
+        image : numpy.ndarray
+            ``(4, bottom - top, W)`` reflectance, raised features displaced by their parallax.
+        mask : numpy.ndarray
+            Boolean ``(bottom - top, W)``: the plume the frame shows (displaced). A flat
+            world: exactly ``image_at`` and ``label_rows``.
+        """
+        ...
+
+    def heights_at(self, t: float) -> np.ndarray | None:
+        """Top height of each truth plume at ``t``, ``None`` for a flat world.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            float64, metres above sea level, indexed by plume id (:attr:`Truth.ids`;
+            index 0, no plume, is 0.0); ``None`` when the world is flat.
+        """
+        ...
+
 
 def plume_ids(label: np.ndarray, *, min_fraction: float = MIN_PLUME_FRACTION) -> np.ndarray:
     """Number the plumes of a label: 8-connected components, small fragments merged away.
@@ -260,6 +321,8 @@ class WorldBase:
 
     is_long = False
     """Whether the truth is rendered by rows only (a long strip: ``truth_rows``)."""
+    is_3d = False
+    """Whether plumes or clouds have heights (a flat world: no parallax)."""
     spec: WorldSpec | None = None
     wind: Wind | None = None
     truth_step_s: float | None = None
@@ -324,6 +387,77 @@ class WorldBase:
 
     def vent_pixels(self) -> np.ndarray | None:
         """No vents known (no synthetic world behind the strip).
+
+        Returns
+        -------
+        None
+            Always ``None``.
+        """
+        return None
+
+    def image_at(self, t: float, top: int, bottom: int) -> np.ndarray:
+        """Rows ``top:bottom`` as the look-ahead sees them at ``t`` (a subclass implements it).
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(4, bottom - top, W)`` reflectance.
+        """
+        raise NotImplementedError
+
+    def look_at(
+        self,
+        t: float,
+        top: int,
+        bottom: int,
+        *,
+        nadir_xy: tuple[float, float],
+        altitude_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A flat world seen from anywhere: :meth:`image_at` and :meth:`label_rows`.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
+        top, bottom : int
+            Rows of the strip, high resolution.
+        nadir_xy : tuple of float
+            The spacecraft's nadir ``(x, y)``, strip high-resolution pixels (no effect).
+        altitude_m : float
+            The spacecraft's altitude, metres (no effect).
+
+        Returns
+        -------
+        image : numpy.ndarray
+            ``image_at(t, top, bottom)``.
+        mask : numpy.ndarray
+            ``label_rows(t, top, bottom)``.
+
+        Examples
+        --------
+        >>> img = np.zeros((4, 4, 4), np.float32); lab = np.eye(4, dtype=bool)
+        >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
+        >>> im, m = w.look_at(0.0, 1, 3, nadir_xy=(2.0, 9e4), altitude_m=500e3)
+        >>> im.shape, m.tolist()
+        ((4, 2, 4), [[False, True, False, False], [False, False, True, False]])
+        """
+        return self.image_at(t, top, bottom), self.label_rows(t, top, bottom)
+
+    def heights_at(self, t: float) -> np.ndarray | None:
+        """``None``: a flat world's plumes lie on the ground.
+
+        Parameters
+        ----------
+        t : float
+            Seconds into the pass.
 
         Returns
         -------

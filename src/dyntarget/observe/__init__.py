@@ -10,11 +10,12 @@ from dyntarget.observe.nfov import (
     observed_pixels,
     pointing_truth,
 )
-from dyntarget.observe.pointings import PointingScores, score_pointings
+from dyntarget.observe.pointings import PointingScores, Sight, score_pointings
 
 __all__ = [
     "ObservationMetrics",
     "PointingScores",
+    "Sight",
     "UpperBound",
     "UtilityMaps",
     "observe",
