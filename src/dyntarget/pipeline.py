@@ -22,6 +22,7 @@ from dyntarget.scene import check_image
 from dyntarget.schedule import (
     Agility,
     OrbitGeometry,
+    ParallaxAim,
     iterate_on_prediction,
     make_feasible,
     schedule,
@@ -403,6 +404,7 @@ def plan_scene(
     fallback: Predictor | None = None,
     kinematics: Kinematics | None = None,
     prediction: Prediction | None = None,
+    aim_height_m: float | None = None,
 ) -> PlanResult:
     """Plan an NFOV trajectory for a WFOV image (Algorithm 1).
 
@@ -426,6 +428,12 @@ def plan_scene(
         there and the planner runs on it (``PlanResult.predicted_mask``). With
         ``kinematics``, each pointing is moved on to the plume at its own scheduled
         time (:func:`iterate_on_prediction`).
+    aim_height_m : with ``kinematics``, correct every scheduled pointing for the
+        parallax of a plume top this high (metres above sea level, constant over the
+        frame: a prior): the image is the look-ahead's view from ``kinematics.geometry``
+        (``look_ahead_m`` ahead at the acquisition), and each pointing is moved to where
+        the NFOV meets that top at its own time (:class:`dyntarget.schedule.ParallaxAim`).
+        The schedule's ``params`` record ``parallax_height_m``. ``None``: no correction.
 
     Returns
     -------
@@ -434,6 +442,15 @@ def plan_scene(
     """
     config = config or PipelineConfig()
     image = check_image(image)
+    aim, aim_m = None, 0.0
+    if aim_height_m is not None:
+        if kinematics is None:
+            raise InvalidParameterError(
+                "aim_height_m: the parallax correction moves scheduled pointings; "
+                "give kinematics as well"
+            )
+        aim = ParallaxAim.constant(kinematics.geometry, image.shape[1:], aim_height_m)
+        aim_m = float(aim_height_m)
     if deadline_s is not None:
         result = _plan_with_deadline(
             image, classifier, planner, mask, valid, denoise, config, deadline_s, fallback,
@@ -449,13 +466,21 @@ def plan_scene(
         def fly(trajectory: Trajectory):
             return schedule_plan(trajectory, shape, result.planner, kinematics)
 
-        if result.prediction is None:
+        if result.prediction is None and aim is None:
             flown = fly(result.trajectory)
         else:  # each pointing moved on to the plume at its own scheduled time
-            attached = result.prediction.attached_mask(result.mask)
-            _, flown = iterate_on_prediction(
-                result.trajectory, result.prediction, fly, attached=attached
+            p = result.prediction
+            attached = None if p is None else p.attached_mask(result.mask)
+
+            def in_order(trajectory: Trajectory):
+                k = kinematics
+                return schedule(trajectory, shape, k.geometry, k.agility, budget_s=k.budget_s)
+
+            _, flown = iterate_on_prediction(  # with an aim: where the NFOV meets the top then
+                result.trajectory, p, fly, attached=attached, aim=aim, in_order=in_order
             )
+            if aim is not None:
+                flown.trajectory.params["parallax_height_m"] = aim_m
         result = replace(result, schedule=flown)
     return result
 

@@ -52,10 +52,12 @@ def write_outputs(
     probability=None,
     title: str = "",
     properties: dict | None = None,
+    polygon_properties: dict | None = None,
 ) -> None:
     """Write ``--out`` (GeoJSON or CSV), ``--polygons`` and ``--html``; print each path.
 
-    ``properties`` (e.g. ``{"prediction": ...}``) join the GeoJSON collections' properties."""
+    ``properties`` (e.g. ``{"prediction": ...}``) join the GeoJSON collections' properties;
+    ``polygon_properties`` join every plume polygon's own (e.g. its top height)."""
     from dyntarget.errors import InvalidParameterError
     from dyntarget.io.geojson import write_polygons, write_trajectory
 
@@ -89,7 +91,12 @@ def write_outputs(
     if args.polygons:
         print(
             write_polygons(
-                args.polygons, polygons, crs_mode=args.crs, properties=properties, **georef
+                args.polygons,
+                polygons,
+                crs_mode=args.crs,
+                properties=properties,
+                feature_properties=polygon_properties,
+                **georef,
             )
         )
     if args.html:

@@ -336,6 +336,39 @@ def height_range(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+def plume_height_km(text: str) -> float:
+    """One plume-top height in km (a prior), finite, ``0 < H <= 25``.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    float
+        The height, km.
+
+    Examples
+    --------
+    >>> plume_height_km("10")
+    10.0
+    >>> plume_height_km("0")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a plume-top height in km with 0 < H <= 25, got '0'
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and 0.0 < value <= MAX_HEIGHT_KM):
+        raise argparse.ArgumentTypeError(
+            f"expected a plume-top height in km with 0 < H <= {MAX_HEIGHT_KM:g}, got {text!r}"
+        )
+    return value
+
+
 MAX_ONSET_MIN = 1440.0
 """Onsets and durations within a day, minutes (:data:`dyntarget.synth.dynamic.MAX_SECONDS`)."""
 
@@ -541,6 +574,18 @@ LOOK_AHEAD_KM = _opt(
     default=defaults.LOOK_AHEAD_M / 1e3,
     help="ground distance from nadir to the WFOV scene centre at acquisition (default %(default)g)",
 )
+PLUME_HEIGHT_KM = _opt(
+    "--plume-height-km",
+    type=plume_height_km,
+    metavar="H",
+    help="correct the NFOV pointings for the parallax of a plume top H km above sea level "
+    "(a prior, e.g. from a volcanic ash advisory; 0 < H <= 25)",
+)
+NO_PARALLAX = _opt(
+    "--no-parallax",
+    action="store_true",
+    help="no parallax correction: aim where the look-ahead saw the plume",
+)
 NO_PICTURE = _opt("--no-picture", action="store_true", help="skip the picture (PNG)")
 NO_HTML = _opt("--no-html", action="store_true", help="skip the interactive view (HTML)")
 STEP = _opt(
@@ -620,3 +665,78 @@ def add_sensor_options(p: Any) -> None:
     BANDS.add(p)
     SCALE.add(p)
     OFFSET.add(p)
+
+
+def add_parallax_options(
+    p: Any, *, height_help: str | None = None, no_parallax_help: str | None = None
+) -> None:
+    """``--plume-height-km H`` (a prior) and ``--no-parallax``, excluding each other.
+
+    Giving both is one line and exit 2 (argparse names them). Read the choice back
+    with :func:`parallax_height_m`.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser or argument group
+        Where to add them.
+    height_help, no_parallax_help : str or None
+        Help texts where the command's meaning differs (e.g. its default).
+
+    Examples
+    --------
+    >>> parser = argparse.ArgumentParser()
+    >>> add_parallax_options(parser)
+    >>> parallax_height_m(parser.parse_args(["--plume-height-km", "8.5"]))
+    8500.0
+    >>> parallax_height_m(parser.parse_args(["--no-parallax"])) is None
+    True
+    """
+    group = p.add_mutually_exclusive_group()
+    PLUME_HEIGHT_KM.add(group, **({"help": height_help} if height_help else {}))
+    NO_PARALLAX.add(group, **({"help": no_parallax_help} if no_parallax_help else {}))
+
+
+def parallax_height_m(args: argparse.Namespace) -> float | None:
+    """The prior plume-top height of :func:`add_parallax_options`, metres (``None``: none given).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed with :func:`add_parallax_options`.
+
+    Returns
+    -------
+    float or None
+        ``--plume-height-km`` x 1000, or ``None`` (``--no-parallax`` or neither).
+
+    Examples
+    --------
+    >>> parallax_height_m(argparse.Namespace(plume_height_km=2.0, no_parallax=False))
+    2000.0
+    """
+    km = getattr(args, "plume_height_km", None)
+    return None if km is None else float(km) * 1000.0
+
+
+def parallax_choice(args: argparse.Namespace) -> str | None:
+    """Which of :func:`add_parallax_options` was given: ``"prior"``, ``"off"`` or ``None``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed with :func:`add_parallax_options`.
+
+    Returns
+    -------
+    str or None
+        ``"prior"`` (``--plume-height-km``), ``"off"`` (``--no-parallax``) or ``None``
+        (neither: the command's default).
+
+    Examples
+    --------
+    >>> parallax_choice(argparse.Namespace(plume_height_km=None, no_parallax=True))
+    'off'
+    """
+    if getattr(args, "plume_height_km", None) is not None:
+        return "prior"
+    return "off" if getattr(args, "no_parallax", False) else None

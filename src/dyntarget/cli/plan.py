@@ -56,11 +56,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 f"--classifier {args.classifier} needs --model PATH (train one with 'dyntarget train')"
             )
         raise InvalidParameterError("give --mask MASK or --model PATH")
-    if args.budget_s is not None and not args.agility:
-        raise InvalidParameterError(
-            f"--budget-s {args.budget_s:g} limits the time under an agility preset: "
-            "give --agility PRESET as well (without it the budget would be ignored)"
-        )
+    height_m = _check_needs_agility(args)
     wfov = read_any(
         args.image,
         label=args.mask,
@@ -124,7 +120,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         fallback=fallback,
         kinematics=kinematics,
         prediction=prediction,
+        aim_height_m=height_m,
     )
+    _log_parallax(args, height_m)
     if args.deadline_s is not None:
         met = "met" if result.deadline_met else "MISSED"
         log(
@@ -143,10 +141,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         _log_schedule(result.planner, result.schedule)
         traj = result.schedule.trajectory
         infeasible = len(traj) == 0 and result.schedule.planned > 0
+    properties = None if prediction is None else {"prediction": prediction_record(prediction)}
     write_outputs(
         args, wfov, traj, polygons=result.polygons, probability=result.probability,
         title=f"{wfov.id}: {result.planner}" + (f", '{args.agility}' agility" if args.agility else ""),
-        properties=None if prediction is None else {"prediction": prediction_record(prediction)},
+        properties=properties, polygon_properties=_height_properties(args, height_m),
     )  # fmt: skip
     if args.figure:
         from dyntarget.evaluate.figures import trajectories_figure
@@ -172,6 +171,49 @@ def cmd_plan(args: argparse.Namespace) -> int:
         )
         return EXIT_NOTHING_FEASIBLE
     return EXIT_OK
+
+
+def _check_needs_agility(args: argparse.Namespace) -> float | None:
+    """Refuse ``--budget-s`` or ``--plume-height-km`` without ``--agility``; the prior height, m."""
+    from dyntarget.errors import InvalidParameterError
+
+    if args.budget_s is not None and not args.agility:
+        raise InvalidParameterError(
+            f"--budget-s {args.budget_s:g} limits the time under an agility preset: "
+            "give --agility PRESET as well (without it the budget would be ignored)"
+        )
+    height_m = o.parallax_height_m(args)
+    if height_m is not None and not args.agility:
+        raise InvalidParameterError(
+            f"--plume-height-km {args.plume_height_km:g} corrects the scheduled pointings for "
+            "parallax: give --agility PRESET as well (without it nothing would be corrected)"
+        )
+    return height_m
+
+
+def _log_parallax(args: argparse.Namespace, height_m: float | None) -> None:
+    if height_m is not None:
+        log(
+            f"parallax: every pointing aimed at a plume top {height_m / 1e3:g} km above sea level "
+            f"(prior) as the NFOV sees it at its time, from a look-ahead {args.look_ahead_km:g} km "
+            "ahead at acquisition"
+        )
+
+
+def _height_properties(args: argparse.Namespace, height_m: float | None) -> dict | None:
+    """Every plume polygon's top height (``--plume-height-km``/``--no-parallax``), else ``None``.
+
+    A frame carries no height of its own: every polygon gets the prior (``height_source``
+    ``prior``) or none (``none``); ``top_height_sigma_m`` and ``rise_mps`` are not measured.
+    """
+    if o.parallax_choice(args) is None:
+        return None
+    return {
+        "top_height_m": height_m,
+        "top_height_sigma_m": None,
+        "rise_mps": None,
+        "height_source": "none" if height_m is None else "prior",
+    }
 
 
 PLAN_BYTES_PER_PIXEL = 160
@@ -324,3 +366,11 @@ def _add_kinematics(p: argparse.ArgumentParser) -> None:
         help="pointing budget (utility-max; needed when unlimited)",
     )
     o.OBJECTIVE.add(k)
+    o.add_parallax_options(
+        k,
+        height_help="correct the scheduled pointings for the parallax of a plume top H km above "
+        "sea level, seen by the look-ahead --look-ahead-km ahead (a prior, e.g. from a volcanic "
+        "ash advisory; 0 < H <= 25; needs --agility); the polygons get top_height_m",
+        no_parallax_help="no parallax correction (the default for plan: one frame carries no "
+        "heights); the polygons get height_source none",
+    )

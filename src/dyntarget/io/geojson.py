@@ -496,6 +496,7 @@ def polygons_geojson(
     crs_mode: str = "rfc7946",
     acquired: datetime | str | None = None,
     properties: Mapping[str, Any] | None = None,
+    feature_properties: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Plume polygons (shapely, in WFOV pixel coordinates) as a GeoJSON FeatureCollection.
 
@@ -506,13 +507,25 @@ def polygons_geojson(
         :func:`dyntarget.denoise.denoise` returns them).
     transform, crs, crs_mode, acquired, properties
         As for :func:`trajectory_geojson`.
+    feature_properties : mapping, sequence of mapping, or None
+        Extra properties of each polygon, after the standard ones: one mapping for
+        every polygon, or one per polygon (e.g. ``top_height_m``, ``top_height_sigma_m``,
+        ``rise_mps``, ``height_source``); a NaN is written as null. ``None``: none (the
+        document is exactly as without the argument).
 
     Returns
     -------
     dict
         One feature per polygon with ``kind="plume"``, ``index`` (largest first as
         given), ``area_px`` (WFOV pixels) and, when the CRS is projected in metres,
-        ``area_m2``. Rings follow the right-hand rule in the output coordinates.
+        ``area_m2``, then any ``feature_properties``. Rings follow the right-hand rule
+        in the output coordinates.
+
+    Raises
+    ------
+    InvalidParameterError
+        For something that is not a polygon, an empty one, or ``feature_properties``
+        of another length than ``polygons`` or overriding a standard property.
 
     Examples
     --------
@@ -522,6 +535,10 @@ def polygons_geojson(
     [[2.0, 0.0], [2.0, 1.0], [0.0, 1.0], [0.0, 0.0], [2.0, 0.0]]
     >>> doc["features"][0]["properties"]["area_px"]
     2.0
+    >>> doc = polygons_geojson([box(0, 0, 2, 1)], feature_properties={"top_height_m": 9000.0,
+    ...                        "rise_mps": None, "height_source": "prior"})
+    >>> doc["features"][0]["properties"]["top_height_m"], doc["features"][0]["properties"]["rise_mps"]
+    (9000.0, None)
     """
     import shapely
     from rasterio.crs import CRS
@@ -530,6 +547,7 @@ def polygons_geojson(
 
     form = coordinate_form(transform, crs, crs_mode)
     when = None if acquired is None else parse_acquired(acquired)
+    per_feature = _feature_extras(feature_properties, len(polygons))
     metres = None
     if form != "pixels":
         c = CRS.from_user_input(crs)
@@ -575,12 +593,51 @@ def polygons_geojson(
         p: dict[str, Any] = {"kind": "plume", "index": i, "area_px": round(float(poly.area), 3)}
         if metres is not None:
             p["area_m2"] = round(float(poly.area) * metres, 3)
+        if per_feature is not None:
+            p |= per_feature[i]
         feats.append({"type": "Feature", "geometry": _lists(mapping(out)), "properties": p})
     props = _collection_properties(transform, crs, form, when)
     props |= {"polygons": len(feats)} | dict(properties or {})
     doc = {"type": "FeatureCollection", "features": feats, "properties": props}
     coords = np.concatenate(everything) if everything else np.zeros((0, 2))
     return _finish(doc, coords, form, crs)
+
+
+_POLYGON_FIELDS = ("kind", "index", "area_px", "area_m2")
+
+
+def _feature_extras(
+    extras: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None, n: int
+) -> list[dict[str, Any]] | None:
+    """``feature_properties`` as one JSON-ready dict per polygon (``None``: none given)."""
+    if extras is None:
+        return None
+    if isinstance(extras, Mapping):
+        rows: list[Any] = [extras] * n
+    elif isinstance(extras, Sequence) and not isinstance(extras, str):
+        rows = list(extras)
+        if len(rows) != n:
+            raise InvalidParameterError(
+                f"feature_properties: expected {n} mappings (one per polygon), got {len(rows)}"
+            )
+    else:
+        raise InvalidParameterError(
+            f"feature_properties: expected a mapping or one per polygon, got {type(extras).__name__}"
+        )
+    out = []
+    for i, row in enumerate(rows):
+        if not isinstance(row, Mapping):
+            raise InvalidParameterError(
+                f"feature_properties[{i}]: expected a mapping, got {type(row).__name__}"
+            )
+        clash = [k for k in row if k in _POLYGON_FIELDS]
+        if clash:
+            raise InvalidParameterError(
+                f"feature_properties: {clash[0]!r} is a standard polygon property; expected "
+                "other names"
+            )
+        out.append({str(k): _json_value(v) for k, v in row.items()})
+    return out
 
 
 def _path_geometry(points_px, coords: np.ndarray, transform, crs, form: str) -> dict[str, Any]:
@@ -764,13 +821,14 @@ def write_polygons(
     crs_mode: str = "rfc7946",
     acquired: datetime | str | None = None,
     properties: Mapping[str, Any] | None = None,
+    feature_properties: Mapping[str, Any] | Sequence[Mapping[str, Any]] | None = None,
 ) -> Path:
     """Write plume polygons as GeoJSON (``.geojson``/``.json``), atomically.
 
     Parameters
     ----------
     path : path-like
-    polygons, transform, crs, crs_mode, acquired, properties
+    polygons, transform, crs, crs_mode, acquired, properties, feature_properties
         As for :func:`polygons_geojson`.
 
     Returns
@@ -797,6 +855,7 @@ def write_polygons(
         crs_mode=crs_mode,
         acquired=acquired,
         properties=properties,
+        feature_properties=feature_properties,
     )
     return write_geojson(path, doc)
 
@@ -891,3 +950,165 @@ def write_plumes(
     if path.suffix.lower() not in (".geojson", ".json"):
         raise InvalidParameterError(f"{path}: plume files must end in .geojson or .json")
     return write_geojson(path, plumes_geojson(plumes, transform=transform, crs=crs))
+
+
+HEIGHT_FIELDS = ("plume_id", "top_height_m", "top_height_sigma_m", "rise_mps", "height_source")
+"""Properties of each Point of a pass's ``plumes.geojson`` (height estimates), in order."""
+HEIGHT_SOURCES = ("estimated", "prior", "none")
+"""``height_source`` values: measured from the look-ahead frames, a prior, or no height."""
+
+
+def _field(estimate: Any, name: str) -> Any:
+    if isinstance(estimate, Mapping):
+        return estimate.get(name)
+    return getattr(estimate, name, None)
+
+
+def _optional_metres(i: int, name: str, v: Any) -> float | None:
+    if v is None:
+        return None
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"estimates[{i}].{name}: expected a number or None, got {v!r:.40}"
+        ) from None
+    if np.isnan(f):
+        return None
+    if not np.isfinite(f):
+        raise InvalidParameterError(f"estimates[{i}].{name}: expected a finite number, got {v!r}")
+    return round(f, 6)
+
+
+def height_estimates_geojson(
+    estimates: Sequence[Any], *, transform: Affine | None, crs: object | None
+) -> dict[str, Any]:
+    """Per-plume top heights measured on a pass, as a GeoJSON FeatureCollection.
+
+    One Point Feature per estimate at the ground position of the plume top it measured
+    (parallax-corrected), in WGS 84 ``(longitude, latitude)`` (RFC 7946, as
+    :func:`plumes_geojson`), with :data:`HEIGHT_FIELDS` (``top_height_m`` metres above
+    sea level, ``top_height_sigma_m`` its one-sigma uncertainty, ``rise_mps`` m/s; null
+    where not measured; ``height_source`` one of :data:`HEIGHT_SOURCES`) and the grid
+    position ``x_px``, ``y_px``. Without ``transform`` and ``crs`` the coordinates stay in
+    pixels of the grid and the collection's ``properties.coordinates`` says so.
+
+    Parameters
+    ----------
+    estimates : sequence of mapping or object
+        Each with ``plume_id``, ``x_px``, ``y_px`` (on the grid of ``transform``, pixel
+        centres at integers), ``top_height_m``, ``top_height_sigma_m``, ``rise_mps``
+        (``None`` or NaN: not measured) and ``height_source``, as keys or attributes.
+    transform : affine.Affine or None
+        Pixel-corner transform of the grid.
+    crs : str, rasterio CRS or None
+        The grid's CRS.
+
+    Returns
+    -------
+    dict
+        The FeatureCollection (with a ``bbox`` when georeferenced and not empty).
+
+    Raises
+    ------
+    InvalidParameterError
+        For a missing or non-finite position, a non-finite height, or an unknown
+        ``height_source``.
+
+    Examples
+    --------
+    >>> doc = height_estimates_geojson(
+    ...     [{"plume_id": 1, "x_px": 0.0, "y_px": 0.0, "top_height_m": 9120.5,
+    ...       "top_height_sigma_m": 310.0, "rise_mps": None, "height_source": "estimated"}],
+    ...     transform=Affine(10, 0, 500000, 0, -10, 0), crs="EPSG:32632")
+    >>> doc["features"][0]["geometry"]["coordinates"]
+    [9.0000449, -4.52e-05]
+    >>> p = doc["features"][0]["properties"]
+    >>> p["top_height_m"], p["rise_mps"], p["height_source"]
+    (9120.5, None, 'estimated')
+    """
+    georef = transform is not None and crs is not None
+    rows: list[dict[str, Any]] = []
+    pts = np.zeros((len(estimates), 2))
+    for i, e in enumerate(estimates):
+        try:
+            pts[i] = [float(_field(e, "x_px")), float(_field(e, "y_px"))]
+        except (TypeError, ValueError):
+            raise InvalidParameterError(
+                f"estimates[{i}]: expected numbers x_px and y_px, got "
+                f"{_field(e, 'x_px')!r:.30}, {_field(e, 'y_px')!r:.30}"
+            ) from None
+        if not np.isfinite(pts[i]).all():
+            raise InvalidParameterError(f"estimates[{i}]: x_px, y_px: expected finite pixels")
+        source = _field(e, "height_source")
+        if source not in HEIGHT_SOURCES:
+            raise InvalidParameterError(
+                f"estimates[{i}].height_source: expected one of {', '.join(HEIGHT_SOURCES)}, "
+                f"got {source!r:.40}"
+            )
+        pid = _field(e, "plume_id")
+        props: dict[str, Any] = {"plume_id": _json_value(pid)}
+        for name in ("top_height_m", "top_height_sigma_m", "rise_mps"):
+            props[name] = _optional_metres(i, name, _field(e, name))
+        props["height_source"] = source
+        props["x_px"] = round(float(pts[i, 0]), PIXEL_DECIMALS)
+        props["y_px"] = round(float(pts[i, 1]), PIXEL_DECIMALS)
+        rows.append(props)
+    if georef and len(pts):
+        assert transform is not None
+        coords = np.round(crs_to_lonlat(pixels_to_crs(pts, transform), crs), LONLAT_DECIMALS)
+    else:
+        coords = pts.round(PIXEL_DECIMALS)
+    features = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [float(c[0]), float(c[1])]},
+            "properties": props,
+        }
+        for props, c in zip(rows, coords, strict=True)
+    ]
+    doc: dict[str, Any] = {"type": "FeatureCollection", "features": features}
+    if not georef:
+        doc["properties"] = {
+            "coordinates": "pixels (column, row) of the grid, pixel centres at integers; "
+            "no CRS known"
+        }
+    elif len(pts):
+        doc["bbox"] = lonlat_bbox(coords)
+    return doc
+
+
+def write_height_estimates(
+    path: str | os.PathLike[str],
+    estimates: Sequence[Any],
+    *,
+    transform: Affine | None,
+    crs: object | None,
+) -> Path:
+    """Write :func:`height_estimates_geojson` to ``path`` (``.geojson``), atomically.
+
+    Parameters
+    ----------
+    path : path-like
+    estimates, transform, crs
+        As for :func:`height_estimates_geojson`.
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = write_height_estimates(pathlib.Path(tempfile.mkdtemp()) / "plumes.geojson", [],
+    ...                              transform=Affine.identity(), crs="EPSG:32632")
+    >>> json.loads(out.read_text())["features"]
+    []
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".geojson", ".json"):
+        raise InvalidParameterError(
+            f"{path}: height estimate files must end in .geojson or .json, got "
+            f"{path.suffix or 'no suffix'!r}"
+        )
+    return write_geojson(path, height_estimates_geojson(estimates, transform=transform, crs=crs))

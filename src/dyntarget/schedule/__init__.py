@@ -11,12 +11,15 @@ The model (documented in ``docs/onboard.md``) is in
   (:func:`schedule`, :func:`make_feasible`, :class:`Schedule`).
 * :mod:`~dyntarget.schedule.predicted`: a plan drawn on a predicted plume,
   each pointing moved on to its own time (:func:`schedule_on_prediction`).
+* :mod:`~dyntarget.schedule.aim`: pointings corrected for the parallax of a plume
+  top between the look-ahead's view and the NFOV's at its time (:class:`ParallaxAim`).
 * :mod:`~dyntarget.schedule.sensor`: the sensor's state between plans
   (:class:`SensorState`; a pass's sensor as one frame sees it, the lead time).
 """
 
 from __future__ import annotations
 
+from dyntarget.schedule.aim import ParallaxAim, nadir_xy
 from dyntarget.schedule.feasibility import CHUNK, Schedule, Timer, make_feasible, schedule
 from dyntarget.schedule.kinematics import (
     AGILITY,
@@ -48,6 +51,7 @@ __all__ = [
     "REACH_CACHE_SIZE",
     "Agility",
     "OrbitGeometry",
+    "ParallaxAim",
     "PlumeForecast",
     "Schedule",
     "SensorState",
@@ -59,6 +63,7 @@ __all__ = [
     "lead_s",
     "look_vectors",
     "make_feasible",
+    "nadir_xy",
     "off_nadir_deg",
     "pitch_deg",
     "schedule",

@@ -6,16 +6,23 @@ and scheduled again, until the times settle (:func:`schedule_on_prediction`). Th
 prediction is anything with ``lead_s`` and ``pointing_shift`` (:class:`PlumeForecast`,
 e.g. :class:`dyntarget.predict.Prediction`): the schedule stage does not import the
 predict stage.
+
+With a :class:`~dyntarget.schedule.ParallaxAim` every pointing is moved as well by the
+parallax between the look-ahead's view and the NFOV's at its scheduled time (the plume
+top it aims at is seen elsewhere from there); the two moves add, and the iteration runs
+with the aim alone too.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
 
 from dyntarget.errors import InvalidParameterError
+from dyntarget.schedule.aim import ParallaxAim
 from dyntarget.schedule.feasibility import Schedule, make_feasible, schedule
 from dyntarget.schedule.kinematics import Agility, OrbitGeometry
 from dyntarget.schedule.sensor import SensorState
@@ -62,7 +69,7 @@ class PlumeForecast(Protocol):
         ...
 
 
-def schedule_on_prediction(
+def schedule_on_prediction(  # noqa: PLR0913 (the scheduling seam: every caller's options, keyword-only)
     trajectory: Trajectory,
     shape: tuple[int, int],
     geometry: OrbitGeometry,
@@ -76,6 +83,7 @@ def schedule_on_prediction(
     sensor: SensorState | None = None,
     keep_order: bool = False,
     as_planned: Schedule | None = None,
+    aim: ParallaxAim | None = None,
 ) -> Schedule:
     """Schedule a plan drawn on a prediction, each pointing placed for its own time.
 
@@ -89,6 +97,11 @@ def schedule_on_prediction(
     ``prediction_residual_px`` (the largest gap, in pixels, between where a kept
     pointing aims and where the plume is at its final time). Without a
     prediction: :func:`~dyntarget.schedule.make_feasible` once.
+
+    With an ``aim``, each pointing is also moved by ``aim.shift`` at its time (the
+    parallax correction, :class:`~dyntarget.schedule.ParallaxAim`), with or without a
+    prediction; the params then record ``parallax_iterations`` and
+    ``parallax_residual_px`` (the largest gap, both moves together).
 
     Parameters
     ----------
@@ -120,6 +133,11 @@ def schedule_on_prediction(
     as_planned : Schedule or None
         The schedule of the plan in its own order, when already at hand (without a
         prediction only: :func:`~dyntarget.schedule.make_feasible` reuses it).
+    aim : dyntarget.schedule.ParallaxAim or None
+        Also correct every pointing for parallax at its own time (``None``: no
+        correction, exactly as before). When moving the pointings keeps changing which
+        fit, the last selection is settled flown in its order (see
+        :func:`iterate_on_prediction`).
 
     Returns
     -------
@@ -147,7 +165,7 @@ def schedule_on_prediction(
         chosen.append(s.reordered)
         return s
 
-    if prediction is None:
+    if prediction is None and aim is None:
         return make_feasible(
             trajectory, shape, geometry, agility, budget_s=budget_s, sensor=sensor,
             as_planned=as_planned,
@@ -159,18 +177,22 @@ def schedule_on_prediction(
         max_iterations=max_iterations,
         tolerance_s=tolerance_s,
         attached=attached,
+        aim=aim,
+        in_order=lambda t: schedule(t, shape, geometry, agility, budget_s=budget_s, sensor=sensor),
     )
     return sched
 
 
 def iterate_on_prediction(
     trajectory: Trajectory,
-    prediction: PlumeForecast,
+    prediction: PlumeForecast | None,
     schedule: Callable[[Trajectory], Schedule],
     *,
     max_iterations: int = 8,
     tolerance_s: float = 0.05,
     attached: np.ndarray | None = None,
+    aim: ParallaxAim | None = None,
+    in_order: Callable[[Trajectory], Schedule] | None = None,
 ) -> tuple[Trajectory, Schedule]:
     """:func:`schedule_on_prediction` with any scheduler ``schedule(trajectory) -> Schedule``.
 
@@ -181,8 +203,8 @@ def iterate_on_prediction(
     ----------
     trajectory : dyntarget.trajectory.Trajectory
         The plan drawn on the prediction.
-    prediction : dyntarget.predict.Prediction
-        The one the plan was drawn on.
+    prediction : dyntarget.predict.Prediction or None
+        The one the plan was drawn on (``None`` only with an ``aim``).
     schedule : callable
         ``schedule(trajectory) -> Schedule``.
     max_iterations : int
@@ -192,6 +214,19 @@ def iterate_on_prediction(
     attached : numpy.ndarray or None
         Boolean ``(H, W)`` mask (``prediction.attached_mask``): with ``mixed``
         plumes, pointings inside it are not moved.
+    aim : dyntarget.schedule.ParallaxAim or None
+        Also move every pointing by ``aim.shift`` of where it aims (the planned point
+        plus the prediction's move) at its time. The first round uses ``lead_s``
+        (without a prediction ``0``, the acquisition: no move); a pointing never kept
+        keeps its estimate (the times its neighbours in the plan are flown). Moving a
+        pointing can change which pointings fit, and in which order: when the rounds do not
+        settle, the last round's selection is settled alone, flown in its order by
+        ``in_order`` (dropping what no longer fits), so the pointings flown aim for their
+        own times (up to ``max_iterations`` rounds more).
+    in_order : callable or None
+        With an ``aim``: ``in_order(trajectory) -> Schedule`` flying the pointings in the
+        order given (no reordering; e.g. :func:`dyntarget.schedule.schedule`), used to
+        settle; ``None``: ``schedule`` itself.
 
     Returns
     -------
@@ -199,7 +234,9 @@ def iterate_on_prediction(
         Every planned pointing moved on to its time.
     schedule : dyntarget.schedule.Schedule
         ``schedule(moved)``, with ``prediction_iterations`` and
-        ``prediction_residual_px`` in its trajectory's ``params``.
+        ``prediction_residual_px`` in its trajectory's ``params`` (with an ``aim``,
+        ``parallax_iterations`` and ``parallax_residual_px``, and the prediction's two
+        where there is one).
 
     Examples
     --------
@@ -213,6 +250,12 @@ def iterate_on_prediction(
     """
     if not isinstance(max_iterations, int) or max_iterations < 1:
         raise InvalidParameterError(f"max_iterations: expected an int >= 1, got {max_iterations!r}")
+    if aim is not None:
+        return _iterate_with_aim(
+            trajectory, prediction, schedule, aim, max_iterations, tolerance_s, attached, in_order
+        )
+    if prediction is None:
+        raise InvalidParameterError("prediction: expected a prediction (or an aim), got None")
     base = trajectory.points
     times = np.full(len(trajectory), prediction.lead_s)
     iterations = 0
@@ -239,3 +282,97 @@ def iterate_on_prediction(
         prediction_iterations=iterations, prediction_residual_px=residual
     )
     return moved, sched
+
+
+def _iterate_with_aim(
+    trajectory: Trajectory,
+    prediction: PlumeForecast | None,
+    schedule: Callable[[Trajectory], Schedule],
+    aim: ParallaxAim,
+    max_iterations: int,
+    tolerance_s: float,
+    attached: np.ndarray | None,
+    in_order: Callable[[Trajectory], Schedule] | None,
+) -> tuple[Trajectory, Schedule]:
+    """:func:`iterate_on_prediction` with a parallax aim (and maybe no prediction)."""
+    if not isinstance(aim, ParallaxAim):
+        raise InvalidParameterError(f"aim: expected a ParallaxAim, got {type(aim).__name__}")
+    base = trajectory.points
+    lead = 0.0 if prediction is None else prediction.lead_s
+
+    def target(points: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Where pointings planned at ``points`` must aim when flown at ``t``."""
+        seen: np.ndarray = points
+        if prediction is not None:
+            seen = points + prediction.pointing_shift(t - lead, points, attached)
+        out: np.ndarray = seen + aim.shift(seen, t)
+        return out
+
+    def rounds(
+        idx: np.ndarray, times: np.ndarray, fly: Callable[[Trajectory], Schedule], *, shrink: bool
+    ) -> _Rounds:
+        """Schedule-and-move rounds over the pointings ``idx`` (``times``: first estimates);
+        ``shrink``: each round keeps only the pointings the last one kept, in its order."""
+        iterations = 0
+        while True:
+            iterations += 1
+            moved = target(base[idx], times)
+            sched = fly(
+                Trajectory(moved, trajectory.part[idx], trajectory.planner, dict(trajectory.params))
+            )
+            used = times[sched.kept]
+            change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
+            times = times.copy()
+            times[sched.kept] = sched.times
+            done = change <= tolerance_s and (not shrink or len(sched.kept) == len(idx))
+            if done or iterations >= max_iterations or not len(sched.kept):
+                return _Rounds(idx, moved, sched, used, iterations, change)
+            if shrink:
+                idx, times = idx[sched.kept], sched.times.copy()
+            else:  # the dropped: about when their neighbours in the plan are flown
+                order = np.argsort(sched.kept)
+                dropped = np.setdiff1d(np.arange(len(times)), sched.kept)
+                times[dropped] = np.interp(dropped, sched.kept[order], sched.times[order])
+
+    first = rounds(
+        np.arange(len(trajectory)), np.full(len(trajectory), lead), schedule, shrink=False
+    )
+    moved, sched, used, iterations = first.moved, first.schedule, first.used, first.iterations
+    if first.change > tolerance_s and len(sched.kept):
+        # the rounds cycle between selections (moving the pointings changes which fit, and
+        # in which order): settle the last selection alone, flown in its order, dropping
+        # what no longer fits, until its times settle
+        last = rounds(sched.kept, sched.times.copy(), in_order or schedule, shrink=True)
+        moved = moved.copy()
+        moved[last.idx] = last.moved
+        sched = replace(
+            last.schedule,
+            kept=last.idx[last.schedule.kept],
+            planned=len(trajectory),
+            window_end_s=sched.window_end_s,
+        )
+        used, iterations = last.used, iterations + last.iterations
+    gap = target(base[sched.kept], sched.times) - sched.trajectory.points
+    residual = float(np.max(np.hypot(*gap.T), initial=0.0))
+    params = sched.trajectory.params
+    if prediction is not None:
+        only = prediction.pointing_shift(sched.times - used, base[sched.kept], attached)
+        params.update(
+            prediction_iterations=iterations,
+            prediction_residual_px=float(np.max(np.hypot(*only.T), initial=0.0)),
+        )
+    params.update(parallax_iterations=iterations, parallax_residual_px=residual)
+    whole = Trajectory(moved, trajectory.part, trajectory.planner, dict(trajectory.params))
+    return whole, sched
+
+
+@dataclass(frozen=True)
+class _Rounds:
+    """What :func:`_iterate_with_aim`'s rounds end with (over a subset's own indices)."""
+
+    idx: np.ndarray
+    moved: np.ndarray
+    schedule: Schedule
+    used: np.ndarray
+    iterations: int
+    change: float

@@ -1,0 +1,280 @@
+"""Aiming corrected for parallax: where the NFOV must point to meet a plume top at its own time.
+
+The look-ahead (WFOV) frame is taken from the spacecraft over the nadir at the
+acquisition (``t = 0``), looking ``look_ahead_m`` ahead: a plume top at height ``h``
+shows in it displaced away from that nadir by its parallax. The NFOV flies a pointing
+``t`` seconds later from a nadir ``ground_speed * t`` further along, and meets the same
+top along its own line of sight, which crosses the ground elsewhere. A pointing planned
+on the frame at pixel ``p`` (what the look-ahead saw) must therefore be moved:
+
+* the true position under the top: ``true = unshift(p, h)`` in the look-ahead's view
+  (:func:`dyntarget.parallax.unshift_xy` about the nadir at ``t = 0``);
+* the ground point the NFOV aims at: ``aim = true + shift(true, h)`` in the NFOV's view
+  at ``t`` (:func:`dyntarget.parallax.shift_xy` about the nadir at ``t``).
+
+:class:`ParallaxAim` gives ``aim - p`` in WFOV pixels; the schedule adds it to every
+pointing at its scheduled time (:func:`dyntarget.schedule.schedule_on_prediction`).
+Exact on the sphere of :mod:`dyntarget.parallax`; positions follow the frame geometry of
+:class:`~dyntarget.schedule.OrbitGeometry` (``along - ground_speed * t`` from the nadir
+at ``t``). A pointing flown at ``t = 0`` sees what the look-ahead saw: it does not move.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from dyntarget import parallax
+from dyntarget.errors import InvalidParameterError
+from dyntarget.schedule.kinematics import OrbitGeometry
+
+HeightField = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""``heights_m(points, t_s) -> (N,)`` metres: the top height each pointing aims at."""
+
+
+def nadir_xy(
+    geometry: OrbitGeometry, frame_shape: tuple[int, int], t_s: float
+) -> tuple[float, float]:
+    """The nadir ``t_s`` seconds after a frame's acquisition, in that frame's WFOV pixels.
+
+    ``x = (W - 1) / 2`` (the ground track runs down the frame's middle) and ``y`` is the
+    row whose along-track distance ``look_ahead_m + ((H - 1) / 2 - y) * gsd`` equals
+    ``ground_speed * t_s`` (rows below the frame, ``y > H - 1``, while the spacecraft
+    has not reached it).
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The frame's view geometry.
+    frame_shape : tuple of int
+        The frame's ``(H, W)``, WFOV pixels.
+    t_s : float
+        Seconds after the acquisition.
+
+    Returns
+    -------
+    tuple of float
+        ``(x, y)``, WFOV pixels of the frame (column, row).
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For a non-finite ``t_s`` or a bad ``frame_shape``.
+
+    Examples
+    --------
+    >>> g = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=100.0)
+    >>> nadir_xy(g, (101, 11), 0.0)  # at the acquisition: 500 km = 5000 rows behind the centre
+    (5.0, 5050.0)
+    >>> x, y = nadir_xy(g, (101, 11), 500e3 / g.ground_speed)  # over the frame's centre
+    >>> x, round(y, 9)
+    (5.0, 50.0)
+    """
+    h, w = _shape(frame_shape)
+    t = float(t_s)
+    if not math.isfinite(t):
+        raise InvalidParameterError(f"t_s: expected a finite number of seconds, got {t_s!r}")
+    gsd = geometry.wfov_gsd_m
+    y = (h - 1) / 2.0 + (geometry.look_ahead_m - geometry.ground_speed * t) / gsd
+    return (w - 1) / 2.0, y
+
+
+def _shape(frame_shape: tuple[int, int]) -> tuple[int, int]:
+    try:
+        h, w = (int(v) for v in frame_shape)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(
+            f"frame_shape: expected (rows, columns), got {frame_shape!r:.60}"
+        ) from None
+    if h < 1 or w < 1 or (h, w) != tuple(frame_shape):
+        raise InvalidParameterError(
+            f"frame_shape: expected two positive integers (rows, columns), got {frame_shape!r:.60}"
+        )
+    return h, w
+
+
+@dataclass(frozen=True)
+class ParallaxAim:
+    """Parallax correction of pointings planned on a look-ahead frame (see the module).
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The frame's view geometry: the spacecraft's altitude, the look-ahead distance at
+        the acquisition, the WFOV GSD and the ground speed (``start_s`` is not used).
+    frame_shape : tuple of int
+        The frame's ``(H, W)``, WFOV pixels.
+    heights_m : callable
+        ``heights_m(points, t_s) -> (N,)``: the plume-top height, metres above the
+        sphere, that each pointing (``(N, 2)`` frame pixels as planned, flown at
+        ``t_s``, ``(N,)`` seconds after the acquisition) aims at. NaN or 0: no
+        correction for that pointing. Negative or infinite heights are refused.
+
+    Examples
+    --------
+    A 10 km top planned in a frame 500 km ahead of a spacecraft 500 km up (100 m pixels),
+    flown when the spacecraft is straight above it: the NFOV looks straight down at the
+    top's true position, which the look-ahead saw about 11.5 km (115 px) further ahead.
+
+    >>> g = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=100.0)
+    >>> aim = ParallaxAim.constant(g, (101, 101), 10e3)
+    >>> t = 500e3 / g.ground_speed  # when the nadir is under the true top
+    >>> d = aim.shift(np.array([[50.0, 50.0 - 115.01447]]), t)
+    >>> np.round(d, 2).tolist()  # back towards the spacecraft (down the frame), no cross-track move
+    [[0.0, 115.01]]
+    >>> bool(np.abs(aim.shift(np.array([[50.0, 50.0]]), 0.0)).max() < 1e-6)  # flown at t = 0: no move
+    True
+    """
+
+    geometry: OrbitGeometry
+    frame_shape: tuple[int, int]
+    heights_m: HeightField
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.geometry, OrbitGeometry):
+            raise InvalidParameterError(
+                f"geometry: expected an OrbitGeometry, got {type(self.geometry).__name__}"
+            )
+        object.__setattr__(self, "frame_shape", _shape(self.frame_shape))
+        if not callable(self.heights_m):
+            raise InvalidParameterError(
+                f"heights_m: expected a callable (points, t_s) -> heights, got "
+                f"{type(self.heights_m).__name__}"
+            )
+
+    @classmethod
+    def constant(
+        cls, geometry: OrbitGeometry, frame_shape: tuple[int, int], height_m: float
+    ) -> ParallaxAim:
+        """An aim at one height for every pointing (a prior, e.g. a volcanic ash advisory's).
+
+        Parameters
+        ----------
+        geometry : OrbitGeometry
+            The frame's view geometry.
+        frame_shape : tuple of int
+            The frame's ``(H, W)``.
+        height_m : float
+            The plume-top height, metres above the sphere, finite and > 0 (at most
+            :data:`dyntarget.parallax.MAX_HEIGHT_M`).
+
+        Returns
+        -------
+        ParallaxAim
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For a height that is not finite, not positive or above the limit.
+
+        Examples
+        --------
+        >>> ParallaxAim.constant(OrbitGeometry(), (8, 8), 5e3).heights_m(np.zeros((2, 2)), np.zeros(2))
+        array([5000., 5000.])
+        """
+        h = _height(height_m)
+        if not h > 0:
+            raise InvalidParameterError(f"height_m: expected metres > 0, got {height_m!r}")
+
+        def heights(points: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+            return np.full(len(points), h)
+
+        return cls(geometry, frame_shape, heights)
+
+    def shift(self, points: npt.ArrayLike, t_s: npt.ArrayLike) -> np.ndarray:
+        """WFOV-pixel moves to add to pointings planned at ``points`` and flown at ``t_s``.
+
+        Parameters
+        ----------
+        points : array_like
+            ``(N, 2)`` pointings ``(x, y)``, pixels of the frame as the look-ahead saw
+            it (column, row).
+        t_s : float or array_like
+            When each pointing is flown, seconds after the frame's acquisition: one
+            value for all or ``(N,)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, 2)`` float64 ``(dx, dy)``, WFOV pixels: zero where the height is NaN
+            or 0, and where the top or its aim lies beyond the horizon.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For non-finite points or times, a times array of another length, or heights
+            that are negative, infinite, above the spacecraft or of the wrong length.
+
+        Examples
+        --------
+        A 10 km top 500 km ahead and 300 km to the right, flown 10 s after the
+        acquisition: the look-ahead saw it further out than the NFOV will, so the aim
+        moves back towards the spacecraft and towards the track.
+
+        >>> g = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=100.0)
+        >>> aim = ParallaxAim.constant(g, (101, 6001), 10e3)
+        >>> dx, dy = aim.shift(np.array([[6000.0, 50.0]]), 10.0)[0]
+        >>> bool(dx < 0 and dy > 0)
+        True
+        """
+        pts = np.asarray(points, np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise InvalidParameterError(
+                f"points: expected an (N, 2) array of (x, y) pixels, got shape {pts.shape}"
+            )
+        n = len(pts)
+        t = np.asarray(t_s, np.float64)
+        if t.ndim == 0:
+            t = np.full(n, float(t))
+        if t.shape != (n,):
+            raise InvalidParameterError(
+                f"t_s: expected one time or {n} times (one per pointing), got shape {t.shape}"
+            )
+        if not (np.isfinite(pts).all() and np.isfinite(t).all()):
+            raise InvalidParameterError("points, t_s: expected finite pixels and seconds")
+        out = np.zeros((n, 2))
+        if n == 0:
+            return out
+        h = np.asarray(self.heights_m(pts, t), np.float64)
+        if h.shape != (n,):
+            raise InvalidParameterError(
+                f"heights_m: expected {n} heights (one per pointing), got shape {h.shape}"
+            )
+        if np.any(np.isinf(h)) or np.any(h < 0):
+            bad = h[np.isinf(h) | (h < 0)][0]
+            raise InvalidParameterError(f"heights_m: expected metres >= 0 (or NaN), got {bad!r}")
+        on = np.isfinite(h) & (h > 0)
+        if not on.any():
+            return out
+        g = self.geometry
+        along, cross = g.ground(pts[on], self.frame_shape)
+        alt = g.altitude_m
+        true_a, true_c = parallax.unshift_xy(alt, along, cross, h[on])  # look-ahead at t = 0
+        moved = g.ground_speed * t[on]  # the NFOV's nadir at t, along the track
+        rel_a = true_a - moved
+        finite = np.isfinite(true_a) & np.isfinite(true_c)
+        da, dc = parallax.shift_xy(
+            alt, np.where(finite, rel_a, 0.0), np.where(finite, true_c, 0.0), h[on]
+        )
+        aim_a, aim_c = true_a + da, true_c + dc
+        gsd = g.wfov_gsd_m
+        d = np.stack([(aim_c - cross) / gsd, -(aim_a - along) / gsd], axis=1)
+        d[~np.isfinite(d).all(axis=1)] = 0.0  # beyond the horizon: nothing to correct for
+        out[on] = d
+        return out
+
+
+def _height(value: float) -> float:
+    try:
+        h = float(value)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(f"height_m: expected metres, got {value!r:.60}") from None
+    if not (math.isfinite(h) and h <= parallax.MAX_HEIGHT_M):
+        raise InvalidParameterError(
+            f"height_m: expected finite metres up to {parallax.MAX_HEIGHT_M:g}, got {value!r}"
+        )
+    return h

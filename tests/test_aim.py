@@ -1,0 +1,274 @@
+"""Parallax-corrected aiming (dyntarget.schedule.aim) against ray-sphere vector algebra.
+
+The module composes dyntarget.parallax's closed-form angles; the reference here builds the
+spacecraft, the plume top and the lines of sight as 3D vectors and intersects rays with
+spheres (the method of tests/test_parallax.py), then reads the aim off the ground.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dyntarget.errors import InvalidParameterError
+from dyntarget.predict import Motion, Prediction
+from dyntarget.schedule import (
+    OrbitGeometry,
+    ParallaxAim,
+    iterate_on_prediction,
+    make_feasible,
+    nadir_xy,
+    schedule,
+    schedule_on_prediction,
+)
+from dyntarget.trajectory import Trajectory
+
+R = 6_371_008.7714  # the sphere of dyntarget.parallax: WGS 84 mean radius (2a + b) / 3
+H_SC = 500e3
+H_TOP = 10e3
+GSD = 30.0
+G = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD)
+SHAPE = (101, 201)  # rows, columns: the frame's centre pixel is (100, 50)
+
+
+def _ray_hits_sphere(s: np.ndarray, through: np.ndarray, radius: float) -> np.ndarray:
+    """First point where the ray from ``s`` through ``through`` meets the sphere ``radius``."""
+    d = (through - s) / np.linalg.norm(through - s)
+    b = float(s @ d)
+    c = float(s @ s) - radius**2
+    t = -b - math.sqrt(b * b - c)
+    return s + t * d
+
+
+def _unit(along: float, cross: float) -> np.ndarray:
+    """Direction from the Earth's centre of the map point (along, cross): azimuthal
+    equidistant about the nadir at t = 0 (+z), the track along +x, cross-track along +y."""
+    d = math.hypot(along, cross)
+    if d == 0:
+        return np.array([0.0, 0.0, 1.0])
+    g = d / R
+    return np.array(
+        [math.sin(g) * along / d, math.sin(g) * cross / d, math.cos(g)],
+    )
+
+
+def _map(p: np.ndarray) -> tuple[float, float]:
+    """The map point (along, cross) of the ground point under ``p``."""
+    u = p / np.linalg.norm(p)
+    d = R * math.atan2(math.hypot(u[0], u[1]), u[2])
+    az = math.atan2(u[1], u[0])
+    return d * math.cos(az), d * math.sin(az)
+
+
+def _vector_aim(along: float, cross: float, t_s: float) -> tuple[float, float]:
+    """The ground point an NFOV flown at ``t_s`` must aim at to meet the top the look-ahead
+    saw at (along, cross): the top is where the ray from the spacecraft at t = 0 through
+    the apparent ground point crosses R + h; the aim is where the ray from the spacecraft
+    at t through that top meets the ground."""
+    s0 = np.array([0.0, 0.0, R + H_SC])
+    top = _ray_hits_sphere(s0, R * _unit(along, cross), R + H_TOP)
+    g = G.ground_speed * t_s / R  # the nadir's central angle along the track at t
+    s_t = (R + H_SC) * np.array([math.sin(g), 0.0, math.cos(g)])
+    return _map(_ray_hits_sphere(s_t, top, R))
+
+
+def _pixel(along: float, cross: float) -> np.ndarray:
+    """The frame pixel of a map point (OrbitGeometry.ground, inverted by hand)."""
+    h, w = SHAPE
+    return np.array([(w - 1) / 2 + cross / GSD, (h - 1) / 2 - (along - G.look_ahead_m) / GSD])
+
+
+def _aim(height_m: float = H_TOP) -> ParallaxAim:
+    return ParallaxAim.constant(G, SHAPE, height_m)
+
+
+def test_top_at_nadir_when_flown_moves_back_by_its_whole_parallax():
+    # A 10 km top whose true ground point lies 500 km ahead at the acquisition: the
+    # look-ahead (500 km up) saw it D_app - 500 km further ahead, about 11.5 km. Flown
+    # when the nadir is under it, the NFOV looks straight down at the true point.
+    s0 = np.array([0.0, 0.0, R + H_SC])
+    top = (R + H_TOP) * _unit(500e3, 0.0)
+    d_app, _ = _map(_ray_hits_sphere(s0, top, R))
+    assert 11.4e3 < d_app - 500e3 < 11.6e3
+    t = 500e3 / G.ground_speed
+    shift = _aim().shift(_pixel(d_app, 0.0)[None], t)[0]
+    # back towards the spacecraft = down the frame (+rows), 383 px at 30 m; no cross move
+    assert shift[1] == pytest.approx((d_app - 500e3) / GSD, abs=1e-4)
+    assert 380 < shift[1] < 387
+    assert shift[0] == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("t_s", [5.0, 28.0, 60.0, 80.0])
+@pytest.mark.parametrize("along", [380e3, 500e3, 620e3])
+def test_on_track_aims_match_the_vector_method(along, t_s):
+    want_a, want_c = _vector_aim(along, 0.0, t_s)
+    got = _aim().shift(_pixel(along, 0.0)[None], t_s)[0]
+    assert got[1] == pytest.approx(-(want_a - along) / GSD, abs=1e-4)  # 3 mm
+    assert got[0] == pytest.approx(want_c / GSD, abs=1e-9)
+
+
+def test_flown_at_the_look_aheads_own_time_and_position_nothing_moves():
+    pts = np.array([_pixel(500e3, 0.0), _pixel(480e3, 2e3), _pixel(510e3, -3e3), [0.0, 0.0]])
+    assert np.abs(_aim().shift(pts, 0.0)).max() < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("along", "cross", "t_s"),
+    [
+        (500e3, 3e3, 500e3 / 7062.3),  # the nadir abeam, just right of the track
+        (500e3, 50e3, 500e3 / 7062.3),
+        (500e3, 300e3, 10.0),  # far out to the right, early
+        (500e3, 300e3, 70.0),
+        (400e3, -200e3, 30.0),  # to the left
+    ],
+)
+def test_cross_track_sign_and_size_against_vectors(along, cross, t_s):
+    # On a flat Earth the two views differ by h / (H - h) times the nadir's move, along the
+    # track only; the cross-track move is the sphere's: the NFOV, nearer, sees the top less
+    # far out across the track than the look-ahead did, so the aim moves towards the track
+    # (-x right of it, +x left of it), and back (+rows) as on the track.
+    want_a, want_c = _vector_aim(along, cross, t_s)
+    want = np.array([(want_c - cross) / GSD, -(want_a - along) / GSD])
+    aim = _aim()
+    got = aim.shift(_pixel(along, cross)[None], t_s)[0]
+    assert np.sign(got).tolist() == [-np.sign(cross), 1.0] == np.sign(want).tolist()
+    # the design's frame at t is the map shifted along the track (not re-centred on the
+    # sphere): at most 8 m (0.3 px) from the vectors here, 300 km off the track
+    assert got == pytest.approx(want, abs=0.3)
+    mirror = aim.shift(_pixel(along, -cross)[None], t_s)[0]
+    assert mirror == pytest.approx([-got[0], got[1]], abs=1e-9)
+
+
+def test_nan_and_zero_heights_do_not_move_their_pointing():
+    pts = np.array([_pixel(500e3, 0.0)] * 3)
+    aim = ParallaxAim(G, SHAPE, lambda p, t: np.array([np.nan, 0.0, H_TOP]))
+    got = aim.shift(pts, 30.0)
+    assert got[:2].tolist() == [[0.0, 0.0], [0.0, 0.0]]
+    assert got[2, 1] > 100
+
+
+def test_heights_are_asked_per_pointing_with_its_time():
+    seen = {}
+
+    def heights(points, t_s):
+        seen["points"], seen["t"] = points.copy(), t_s.copy()
+        return np.full(len(points), H_TOP)
+
+    pts = np.array([_pixel(500e3, 0.0), _pixel(505e3, 0.0)])
+    ParallaxAim(G, SHAPE, heights).shift(pts, [10.0, 20.0])
+    assert seen["points"].tolist() == pts.tolist() and seen["t"].tolist() == [10.0, 20.0]
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: ParallaxAim.constant(G, SHAPE, -1.0),
+        lambda: ParallaxAim.constant(G, SHAPE, float("nan")),
+        lambda: ParallaxAim.constant(G, SHAPE, 0.0),
+        lambda: ParallaxAim.constant(G, SHAPE, float("inf")),
+        lambda: ParallaxAim(G, (0, 5), lambda p, t: np.zeros(len(p))),
+        lambda: ParallaxAim(G, SHAPE, 5.0),  # not callable
+        lambda: ParallaxAim(G, SHAPE, lambda p, t: np.full(len(p), -5.0)).shift([[1.0, 1.0]], 1.0),
+        lambda: ParallaxAim(G, SHAPE, lambda p, t: np.zeros(3)).shift([[1.0, 1.0]], 1.0),
+        lambda: _aim().shift([[1.0, 1.0]], [1.0, 2.0]),
+        lambda: _aim().shift([[np.nan, 1.0]], 1.0),
+        lambda: _aim().shift([1.0, 1.0], 1.0),
+        lambda: nadir_xy(G, SHAPE, float("inf")),
+    ],
+)
+def test_bad_input_is_refused(call):
+    with pytest.raises(InvalidParameterError):
+        call()
+
+
+def test_nadir_xy_by_hand():
+    # at the acquisition the nadir is 500 km = 16,666.67 rows of 30 m behind the centre row 50
+    x, y = nadir_xy(G, SHAPE, 0.0)
+    assert (x, y) == pytest.approx((100.0, 50.0 + 500e3 / 30.0))
+    # 500 km / 7062.3 m/s = 70.8 s later it is under the centre
+    assert nadir_xy(G, SHAPE, 500e3 / G.ground_speed) == pytest.approx((100.0, 50.0))
+
+
+# -- the schedule: each pointing moved for its own time --------------------------------------
+
+
+def test_schedule_with_an_aim_moves_every_pointing_for_its_time():
+    # unlimited agility flies every pointing when the plan starts: start_s = 70.8 s, the
+    # nadir under the frame's centre, where a 10 km top seen at the centre truly lies
+    # ~11.5 km behind
+    t = 500e3 / G.ground_speed
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=t)
+    along = [500e3, 490e3, 515e3]
+    base = np.array([_pixel(a, 0.0) for a in along])
+    traj = Trajectory(base, np.zeros(3), "demo")
+    s = schedule_on_prediction(traj, SHAPE, g, "unlimited", None, aim=_aim())
+    assert s.times.tolist() == [t, t, t]
+    for j, i in enumerate(s.kept):
+        want_a, _ = _vector_aim(along[i], 0.0, t)
+        assert s.trajectory.points[j, 1] == pytest.approx(
+            base[i, 1] - (want_a - along[i]) / GSD, abs=1e-4
+        )
+        assert s.trajectory.points[j, 0] == pytest.approx(base[i, 0], abs=1e-9)
+    # the first round flies the plan as seen (the acquisition's time: no move), the second
+    # at the times it found, which no longer change
+    assert s.trajectory.params["parallax_iterations"] == 2
+    assert s.trajectory.params["parallax_residual_px"] < 1e-9
+
+
+def test_no_aim_is_the_old_path_exactly():
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=3.0)
+    traj = Trajectory(np.array([[10.0, 10.0], [150.0, 80.0], [60.0, 5.0]]), np.zeros(3), "demo")
+    a = schedule_on_prediction(traj, SHAPE, g, "slow", None, aim=None)
+    b = make_feasible(traj, SHAPE, g, "slow")
+    assert a.trajectory.points.tobytes() == b.trajectory.points.tobytes()
+    assert a.times.tobytes() == b.times.tobytes() and a.trajectory.params == b.trajectory.params
+    p = Prediction(Motion((0.5, 0.0)), 0.0)
+    c = schedule_on_prediction(traj, SHAPE, g, "slow", p)
+    d = schedule_on_prediction(traj, SHAPE, g, "slow", p, aim=None)
+    assert c.trajectory.points.tobytes() == d.trajectory.points.tobytes()
+    assert "parallax_iterations" not in d.trajectory.params
+
+
+def test_prediction_and_aim_moves_add():
+    t = 40.0
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=t)
+    base = np.array([_pixel(500e3, 0.0), _pixel(505e3, 900.0)])
+    traj = Trajectory(base, np.zeros(2), "demo")
+    p = Prediction(Motion((0.0, -0.5)), 0.0)  # 0.5 px/s up the frame
+    s = schedule_on_prediction(traj, SHAPE, g, "unlimited", p, aim=_aim())
+    seen = base + np.array([0.0, -0.5 * t])  # where the plume is at t, as the look-ahead sees
+    want = seen + _aim().shift(seen, t)
+    assert s.trajectory.points == pytest.approx(want[s.kept], abs=1e-9)
+    assert {"prediction_iterations", "parallax_iterations"} <= set(s.trajectory.params)
+
+
+def test_kept_and_dropped_pointings_keep_their_own_times():
+    # slow agility drops some pointings, and moving them (4.8 px/s here: a 10 km top seen
+    # from 500 km up slides back at 10/490 of the ground speed) changes which fit and in
+    # which order: the schedule still flies every kept pointing aimed for its own time
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=2.0)
+    rng = np.random.default_rng(0)
+    base = np.column_stack([rng.uniform(0, 200, 40), rng.uniform(0, 100, 40)])
+    traj = Trajectory(base, np.zeros(40), "demo")
+
+    def fly(t: Trajectory):
+        return make_feasible(t, SHAPE, g, "slow")
+
+    def in_order(t: Trajectory):
+        return schedule(t, SHAPE, g, "slow")
+
+    moved, s = iterate_on_prediction(traj, None, fly, aim=_aim(), in_order=in_order)
+    assert len(moved) == 40 and 0 < len(s.kept) < 40 and s.planned == 40
+    assert len(set(s.kept.tolist())) == len(s.kept)
+    assert s.trajectory.points == pytest.approx(moved.points[s.kept], abs=0)
+    want = base[s.kept] + _aim().shift(base[s.kept], s.times)
+    gap = np.hypot(*(want - s.trajectory.points).T).max()
+    assert gap == pytest.approx(s.trajectory.params["parallax_residual_px"], abs=1e-9)
+    assert gap < 0.5  # within half a pixel of where the top is seen from there
+    # the same through schedule_on_prediction (which knows how to fly in order)
+    s2 = schedule_on_prediction(traj, SHAPE, g, "slow", None, aim=_aim())
+    assert s2.trajectory.params["parallax_residual_px"] < 0.5
+    with pytest.raises(InvalidParameterError, match="prediction"):
+        iterate_on_prediction(traj, None, fly)
