@@ -151,7 +151,7 @@ def test_a_geo_target_at_the_look_ahead_point_is_drawn_mid_first_frame():
     )
     data = _overview_data(result, views)
     gsd_km = fp.geometry.wfov_gsd_m / 1e3
-    along, across = data["targets"]
+    along, across = data.targets
     assert along[0] == pytest.approx(fp.frame_px / 2 * gsd_km)
     assert across[0] == pytest.approx(fp.wfov_shape[1] / 2 * gsd_km)
     views.close()

@@ -1,5 +1,10 @@
 """What a pass leaves in its output directory: timeline, pointings, summary, picture.
 
+The text, CSV and JSON outputs are written here; the picture and the HTML pages are
+drawn by :mod:`dyntarget.view` (:mod:`~dyntarget.view.pass_figure`,
+:mod:`~dyntarget.view.pass_html`), from plain arrays and frames this module takes out
+of the pass.
+
 Every file is written atomically (:mod:`dyntarget.io.atomic`); ``timeline.csv``
 and ``pointings.geojson`` are rewritten after every frame, so a pass stopped at
 any moment leaves complete files for the frames it finished.
@@ -22,20 +27,23 @@ import csv
 import io
 import itertools
 import json
-import math
 import os
 import shutil
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dyntarget.fly.loop import STAGES, TIMELINE_COLUMNS, FrameView, PassResult
 from dyntarget.fly.world import World
-from dyntarget.io.atomic import atomic_path, write_text
+from dyntarget.io.atomic import write_text
+
+if TYPE_CHECKING:
+    from dyntarget.view.html import PassFrame
+    from dyntarget.view.pass_figure import PassOverview, PassPicture
 
 TIMELINE = "timeline.csv"
 POINTINGS = "pointings.geojson"
@@ -60,9 +68,6 @@ SEGMENTS = "pass-segments"
 """Folder (beside ``pass.html``) of a long pass's full-resolution views, one per segment."""
 OVERVIEW_ROWS = 4096
 """Most along-track rows of a long pass's overview (each the mean of a run of WFOV rows)."""
-LANE_KM = 300.0
-"""Along-track kilometres per lane of a long pass's overview picture (up to 5 % more; at most
-12 lanes)."""
 
 
 def timeline_csv(result: PassResult) -> str:
@@ -290,109 +295,36 @@ def _s(v: float | None) -> str:
     return "-" if v is None else f"{v:.3f}"
 
 
-def draw_pass(result: PassResult, world: World, path: str | os.PathLike[str]) -> Path | None:
-    """Draw the strip with its frames, true plumes and flown pointings to a PNG.
+def _pass_picture(result: PassResult, world: World) -> PassPicture:
+    """What :func:`~dyntarget.view.pass_figure.draw_pass_picture` draws of a short pass.
 
-    Returns ``None`` (and draws nothing) when matplotlib is not installed
-    (the lean onboard install).
-
-    Parameters
-    ----------
-    result : dyntarget.fly.loop.PassResult
-        The pass.
-    world : dyntarget.fly.world.World
-        The strip it flew over.
-    path : str or os.PathLike
-        The PNG to write.
-
-    Returns
-    -------
-    pathlib.Path or None
-        The PNG written, or ``None`` without matplotlib.
+    The strip at t = 0 (and its true plumes) averaged onto the WFOV grid, the
+    frames flown, and the flown pointings.
     """
-    try:
-        import matplotlib
+    from dyntarget.scene import block_mean
+    from dyntarget.view.pass_figure import PassPicture
 
-        matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-        from matplotlib.patches import Rectangle
-    except ImportError:
-        return None
-    if world.is_long:
-        return None  # a long strip: no whole-strip picture (it is never rendered whole)
     f = result.config.factor
     fp = result.frames
     hw, ww = fp.wfov_shape
     image = world.image_at(0.0, 0, hw * f)[:, :, : ww * f]
-    from dyntarget.scene import block_mean
-
-    rgb = np.clip(block_mean(np.asarray(image, np.float32), f)[:3].transpose(1, 2, 0) * 2.5, 0, 1)
+    rgb = block_mean(np.asarray(image, np.float32), f)[:3].transpose(1, 2, 0)
     label = world.truth_at(0.0).maps.label[: hw * f, : ww * f]
-    lab = block_mean(label[None].astype(np.float32), f)[0]
-    # the strip lies on its side: flight direction to the right
-    fig, ax = plt.subplots(figsize=(min(16.0, 2.0 + hw / ww * 2.4), 4.6), dpi=110)
-    ax.imshow(np.rot90(rgb, -1), origin="upper", interpolation="nearest")
-    ax.contour(np.rot90(lab, -1), levels=[0.5], colors="orange", linewidths=0.8)
-    for k, top in enumerate(fp.tops[: len(result.records)]):
-        # rotated: strip row r -> x = hw - 1 - r; frames as bars under the strip, two lanes
-        colour = "red" if result.records[k].dropped else "tab:blue"
-        lane = ww + 1.0 + (k % 2) * 0.11 * ww
-        ax.add_patch(
-            Rectangle(
-                (hw - (top + fp.frame_px) - 0.5, lane),
-                fp.frame_px,
-                0.1 * ww,
-                facecolor=colour,
-                edgecolor="white",
-                linewidth=0.6,
-            )
-        )
-        ax.text(hw - top - fp.frame_px / 2 - 0.5, lane + 0.05 * ww, str(k), fontsize=8,
-                color="w", fontweight="bold", ha="center", va="center")  # fmt: skip
-    ax.set_ylim(ww + 1.5 + 0.22 * ww, -0.5)
-    fl = result.flown
-    if fl.x:
-        sc = ax.scatter(
-            hw - 1 - np.asarray(fl.y), fl.x, c=fl.t, s=6, cmap="viridis", edgecolors="none"
-        )
-        fig.colorbar(sc, ax=ax, label="pointing time (s)", fraction=0.03, pad=0.01)
     t = result.totals()
-    ax.set_title(
-        f"{result.world_id}: {result.config.planner}, {result.config.agility} agility — "
-        f"{t['pointings_flown']} pointings, {t['plumes_observed']} of {t['plumes_total']} plumes "
-        "observed; flight →",
-        fontsize=9,
+    fl = result.flown
+    return PassPicture(
+        rgb=rgb,
+        plume=block_mean(label[None].astype(np.float32), f)[0],
+        frame_px=fp.frame_px,
+        tops=fp.tops[: len(result.records)],
+        dropped=[rec.dropped for rec in result.records],
+        pointings=(fl.x, fl.y, fl.t),
+        title=(
+            f"{result.world_id}: {result.config.planner}, {result.config.agility} agility — "
+            f"{t['pointings_flown']} pointings, {t['plumes_observed']} of {t['plumes_total']} "
+            "plumes observed; flight →"
+        ),
     )
-    from matplotlib.lines import Line2D
-
-    ax.legend(
-        handles=[
-            Line2D([], [], color="orange", lw=1.2, label="true plumes at t = 0"),
-            Rectangle((0, 0), 1, 1, facecolor="tab:blue", label="frame k (planned)"),
-            Rectangle((0, 0), 1, 1, facecolor="red", label="frame k (dropped: late)"),
-            Line2D(
-                [],
-                [],
-                color="tab:green",
-                lw=0,
-                marker="o",
-                ms=4,
-                label="pointing flown (colour: time)",
-            ),
-        ],
-        loc="upper left",
-        bbox_to_anchor=(0, -0.22),
-        ncol=4,
-        fontsize=8,
-        frameon=False,
-    )
-    ax.set_xlabel("along track (WFOV px)")
-    ax.set_ylabel("across (px)")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
 
 
 class _Overview:
@@ -591,50 +523,11 @@ class ViewCollector:
         self.spill.close()
 
 
-def write_view(
-    result: PassResult,
-    views: list[FrameView],
-    path: str | os.PathLike[str],
-    *,
-    crs: object | None = None,
-    plotlyjs: bool | str = True,
-    title: str | None = None,
-) -> Path | None:
-    """The interactive HTML view of the pass: one slider step per frame (plotly, inline).
-
-    Each step shows the frame's WFOV image, the classifier's probability, the
-    denoised polygons and the pointings flown from that frame's plan (frame
-    pixels, coloured by their time in the pass). ``None`` when plotly is not
-    installed (the lean onboard install).
-
-    Parameters
-    ----------
-    result : dyntarget.fly.loop.PassResult
-        The pass.
-    views : list of dyntarget.fly.loop.FrameView
-        The frames to show.
-    path : str or os.PathLike
-        The HTML file to write.
-    crs : object or None
-        The strip's CRS, named on the page (the frames are drawn in their own pixels).
-    plotlyjs : bool or str
-        plotly.js inline (``True``) or the name of a shared copy beside the page.
-    title : str or None
-        The page's title (default: the strip, planner and agility).
-
-    Returns
-    -------
-    pathlib.Path or None
-        The page written, or ``None`` without plotly.
-    """
-    try:
-        from dyntarget.view.html import PassFrame, write_pass_view
-        from dyntarget.view.html import _plotly as need_plotly
-
-        need_plotly()
-    except Exception:  # plotly absent: no view
-        return None
+def _pass_frames(result: PassResult, views: Sequence[FrameView]) -> list[PassFrame]:
+    """The frames of the slider view: each frame's image, probability and polygons, and the
+    pointings flown from its plan (frame pixels, coloured by their time in the pass)."""
     from dyntarget.trajectory import Trajectory
+    from dyntarget.view.html import PassFrame
 
     fl = result.flown
     steps = []
@@ -658,11 +551,11 @@ def write_view(
                 label=f"frame {v.frame}: {n} flown",
             )
         )
-    if not steps:
-        return None
-    if title is None:
-        title = f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
-    return write_pass_view(path, steps, title=title, crs=crs, plotlyjs=plotlyjs)
+    return steps
+
+
+def _view_title(result: PassResult) -> str:
+    return f"{result.world_id}: {result.config.planner}, {result.config.agility} agility"
 
 
 def _long(result: PassResult, world: World) -> bool:
@@ -670,8 +563,10 @@ def _long(result: PassResult, world: World) -> bool:
     return world.is_long or result.frames.n_frames > MAX_VIEW_FRAMES
 
 
-def _overview_data(result: PassResult, views: ViewCollector) -> dict[str, Any] | None:
+def _overview_data(result: PassResult, views: ViewCollector) -> PassOverview | None:
     """The overview in kilometres: along-track (flight direction) and across."""
+    from dyntarget.view.pass_figure import PassOverview
+
     got = views.overview.arrays()
     if got is None:
         return None
@@ -683,36 +578,40 @@ def _overview_data(result: PassResult, views: ViewCollector) -> dict[str, Any] |
     n = rgb.shape[0]
     # flight from the strip's last row to its first: along = (hw - row) * gsd, increasing
     rows0, rows1 = first * d, (first + n) * d  # WFOV rows covered
-    rgb, plume = rgb[::-1], plume[::-1]  # along-track increasing
-    a0, a1 = (hw - rows1) * gsd_km, (hw - rows0) * gsd_km
     fl = result.flown
     along = (hw - 0.5 - np.asarray(fl.y, np.float64)) * gsd_km
     across = (np.asarray(fl.x, np.float64) + 0.5) * gsd_km
-    targets = None
-    geo = result.geo or {}
-    if geo.get("target_along_cross_m"):
-        ac = np.asarray(geo["target_along_cross_m"], np.float64).reshape(-1, 2)
-        g = fp.geometry
-        row = (
-            (hw - fp.frame_px)
-            + (fp.frame_px - 1) / 2.0
-            - (ac[:, 0] - g.look_ahead_m) / (g.wfov_gsd_m)
-        )
-        col = ac[:, 1] / g.wfov_gsd_m + (ww - 1) / 2.0
-        targets = ((hw - 0.5 - row) * gsd_km, (col + 0.5) * gsd_km)
     dropped = np.array(
         [(hw - fp.tops[r.frame] - fp.frame_px / 2) * gsd_km for r in result.records if r.dropped]
     )
-    return {
-        "rgb": rgb,
-        "plume": plume,
-        "extent": (a0, a1, 0.0, ww * gsd_km),
-        "pointings": (along, across, np.asarray(fl.t, np.float64)),
-        "targets": targets,
-        "dropped": dropped,
-        "rows_per_cell": d,
-        "km_per_cell": d * gsd_km,
-    }
+    return PassOverview(
+        rgb=rgb[::-1],  # along-track increasing
+        plume=plume[::-1],
+        extent=((hw - rows1) * gsd_km, (hw - rows0) * gsd_km, 0.0, ww * gsd_km),
+        pointings=(along, across, np.asarray(fl.t, np.float64)),
+        targets=_geo_targets_km(result),
+        dropped=dropped,
+        rows_per_cell=d,
+        km_per_cell=d * gsd_km,
+        title=_overview_title(result),
+    )
+
+
+def _geo_targets_km(result: PassResult) -> tuple[np.ndarray, np.ndarray] | None:
+    """The GEO targets of the pass (along, across) in the overview's kilometres, or None."""
+    geo = result.geo or {}
+    if not geo.get("target_along_cross_m"):
+        return None
+    ac = np.asarray(geo["target_along_cross_m"], np.float64).reshape(-1, 2)
+    fp = result.frames
+    g = fp.geometry
+    hw, ww = fp.wfov_shape
+    gsd_km = g.wfov_gsd_m / 1e3
+    row = (
+        (hw - fp.frame_px) + (fp.frame_px - 1) / 2.0 - (ac[:, 0] - g.look_ahead_m) / (g.wfov_gsd_m)
+    )
+    col = ac[:, 1] / g.wfov_gsd_m + (ww - 1) / 2.0
+    return (hw - 0.5 - row) * gsd_km, (col + 0.5) * gsd_km
 
 
 def _overview_title(result: PassResult) -> str:
@@ -722,159 +621,6 @@ def _overview_title(result: PassResult) -> str:
         f"{t['frames']} frames, {t['pointings_flown']} pointings, "
         f"{t['plumes_observed']} of {t['plumes_total']} plumes observed"
     )
-
-
-def draw_overview(
-    result: PassResult, views: ViewCollector, path: str | os.PathLike[str]
-) -> Path | None:
-    """Draw a long pass's overview to a PNG: the strip in lanes of :data:`LANE_KM`.
-
-    Each lane is a stretch of the pass, flight to the right, across-track
-    stretched to be seen: the decimated strip (RGB), the plume each frame planned
-    on (orange: the fraction of each decimated cell), the flown pointings
-    (coloured by time), GEO targets (red crosses) and dropped frames (red marks).
-    ``None`` (nothing drawn) without matplotlib or without frames.
-
-    Parameters
-    ----------
-    result : dyntarget.fly.loop.PassResult
-        The pass.
-    views : ViewCollector
-        What it collected during the pass.
-    path : str or os.PathLike
-        The PNG to write.
-
-    Returns
-    -------
-    pathlib.Path or None
-        The PNG written.
-    """
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-        from matplotlib.lines import Line2D
-    except ImportError:
-        return None
-    data = _overview_data(result, views)
-    if data is None:
-        return None
-    a0, a1, c0, c1 = data["extent"]
-    n_lanes = int(min(12, max(1, math.ceil((a1 - a0) / LANE_KM - 0.05))))  # lanes <= 1.05 x
-    lane = (a1 - a0) / n_lanes
-    rgb = np.clip(np.nan_to_num(data["rgb"]) * 2.0, 0, 1)
-    plume = np.nan_to_num(data["plume"])
-    na = rgb.shape[0]
-    along, across, t = data["pointings"]
-    fig, axes = plt.subplots(n_lanes, 1, figsize=(16, 1.2 + 1.1 * n_lanes), dpi=110, squeeze=False)
-    fig.subplots_adjust(hspace=0.55)
-    tmax = float(t.max()) if len(t) else 1.0
-    sc = None
-    for i, ax in enumerate(axes[:, 0]):
-        lo, hi = a0 + i * lane, a0 + (i + 1) * lane
-        j0 = int(np.floor((lo - a0) / (a1 - a0) * na))
-        j1 = int(np.ceil((hi - a0) / (a1 - a0) * na))
-        e0, e1 = a0 + j0 * (a1 - a0) / na, a0 + j1 * (a1 - a0) / na
-        ext = (e0, e1, c1, c0)  # across: 0 at the top
-        ax.imshow(rgb[j0:j1].transpose(1, 0, 2), extent=ext, aspect="auto", interpolation="nearest")
-        overlay = np.zeros((*plume[j0:j1].T.shape, 4))
-        overlay[..., 0], overlay[..., 1], overlay[..., 2] = 1.0, 0.0, 1.0  # magenta
-        overlay[..., 3] = np.where(plume[j0:j1].T > 0, 0.35 + 0.6 * plume[j0:j1].T, 0.0)
-        ax.imshow(overlay, extent=ext, aspect="auto", interpolation="nearest")
-        sel = (along >= lo) & (along < hi)
-        if sel.any():
-            sc = ax.scatter(along[sel], across[sel], c=t[sel], s=3, cmap="viridis", vmin=0,
-                            vmax=tmax, edgecolors="none")  # fmt: skip
-        if data["targets"] is not None:
-            ta, tc = data["targets"]
-            tsel = (ta >= lo) & (ta < hi)
-            ax.scatter(ta[tsel], tc[tsel], marker="x", s=30, c="red", linewidths=1.2)
-        dr = data["dropped"]
-        if len(dr):
-            dsel = (dr >= lo) & (dr < hi)
-            ax.scatter(dr[dsel], np.full(int(dsel.sum()), c1), marker="v", s=25, c="red")
-        ax.set_xlim(lo, hi)
-        ax.set_ylim(c1, c0)
-        ax.set_yticks([c0, c1])
-        ax.tick_params(labelsize=7)
-        ax.set_ylabel("km", fontsize=7)
-    axes[-1, 0].set_xlabel(
-        "along track (km), flight to the right; each lane continues the one above"
-    )
-    if sc is not None:
-        fig.colorbar(sc, ax=axes[:, 0].tolist(), label="pointing time (s)", fraction=0.02, pad=0.01)
-    fig.suptitle(
-        _overview_title(result)
-        + f" (overview: {data['km_per_cell']:.2f} km per column, across-track stretched)",
-        fontsize=10,
-        y=0.9 + 0.5 / fig.get_figheight(),  # above the legend, which sits above the lanes
-    )
-    handles = [
-        Line2D([], [], color="magenta", lw=4, alpha=0.7, label="plume planned on (opacity: fraction)"),
-        Line2D([], [], color="tab:green", lw=0, marker="o", ms=4,
-               label="pointing flown (colour: time)"),
-        Line2D([], [], color="red", lw=0, marker="x", ms=6, label="GEO target"),
-        Line2D([], [], color="red", lw=0, marker="v", ms=6, label="frame dropped (late)"),
-    ]  # fmt: skip
-    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.45, 0.9), ncol=4,
-               fontsize=8, frameon=False, bbox_transform=fig.transFigure)  # fmt: skip
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", bbox_inches="tight")
-    plt.close(fig)
-    return Path(path)
-
-
-def write_overview_view(
-    result: PassResult,
-    views: ViewCollector,
-    path: str | os.PathLike[str],
-    *,
-    segments: Sequence[tuple[str, str]] = (),
-) -> Path | None:
-    """A long pass's ``pass.html``: the zoomable overview and links to its segments.
-
-    Parameters
-    ----------
-    result : dyntarget.fly.loop.PassResult
-        The pass.
-    views : ViewCollector
-        What it collected during the pass.
-    path : str or os.PathLike
-        The page to write.
-    segments : sequence of (href, text)
-        The per-segment pages to link.
-
-    Returns
-    -------
-    pathlib.Path or None
-        The page written; ``None`` without plotly or without frames.
-    """
-    try:
-        from dyntarget.view.html import overview_html, require_plotly
-
-        require_plotly()
-    except Exception:  # plotly absent: no view
-        return None
-    data = _overview_data(result, views)
-    if data is None:
-        return None
-    note = (
-        f"decimated: {data['km_per_cell']:.2f} km per column ({data['rows_per_cell']} WFOV rows); "
-        "zoom in, or open a segment below at full resolution"
-    )
-    page = overview_html(
-        data["rgb"],
-        data["extent"],
-        plume=data["plume"],
-        pointings=data["pointings"],
-        targets=data["targets"],
-        dropped=data["dropped"],
-        links=segments,
-        title=_overview_title(result),
-        note=note,
-    )
-    return write_text(path, page)
 
 
 def write_segments(
@@ -898,23 +644,16 @@ def write_segments(
     list of (str, str)
         ``(relative href, text)`` per page written (empty without plotly).
     """
-    try:
-        from dyntarget.view.html import PLOTLYJS, write_plotlyjs
+    from dyntarget.view.pass_html import write_segment_pages
 
-        write_plotlyjs(folder)
-    except Exception:  # plotly absent
-        return []
-    folder = Path(folder)
-    links = []
-    for i, seg in enumerate(views.segment_views()):
-        a, b = seg[0].frame, seg[-1].frame
-        name = f"segment-{i:04d}.html"
-        title = f"{result.world_id}: frames {a}-{b} of {result.frames.n_frames}"
-        page = write_view(result, seg, folder / name, crs=crs, plotlyjs=PLOTLYJS, title=title)
-        if page is not None:
+    def segments() -> Iterator[tuple[str, list[PassFrame], str]]:
+        for seg in views.segment_views():  # read back one at a time
+            a, b = seg[0].frame, seg[-1].frame
             n = sum(v.end - v.first for v in seg)
-            links.append((f"{folder.name}/{name}", f"frames {a}-{b}: {n} pointings flown"))
-    return links
+            title = f"{result.world_id}: frames {a}-{b} of {result.frames.n_frames}"
+            yield title, _pass_frames(result, seg), f"frames {a}-{b}: {n} pointings flown"
+
+    return write_segment_pages(segments(), folder, crs=crs)
 
 
 def write_pass(
@@ -932,7 +671,7 @@ def write_pass(
     and for the overview picture of a long pass (see the module docstring). A
     picture or view skipped for want of matplotlib or plotly (the lean onboard
     install) is said in one line on stderr and in ``summary.md``; the rest of the
-    pass is written.
+    pass is written. The pictures and pages are drawn by :mod:`dyntarget.view`.
 
     Parameters
     ----------
@@ -960,65 +699,103 @@ def write_pass(
     written = [out / TIMELINE, out / POINTINGS]
     if not result.measured:
         written.append(out / MEASURED)
-    notes = []
+    notes: list[str] = []
     missing: list[tuple[str, str]] = []  # (file, library)
     long_pass = _long(result, world)
     pic = None
     if picture:
-        if not _importable("matplotlib"):
-            missing.append((PICTURE, "matplotlib"))
-            notes.append(f"No {PICTURE}: matplotlib is not installed (the lean onboard install).")
-        elif long_pass and views is not None:
-            pic = draw_overview(result, views, out / PICTURE)
-        elif long_pass:
-            notes.append(
-                f"No {PICTURE}: a long pass's overview is drawn from its frames (HTML on)."
-            )
-        else:
-            pic = draw_pass(result, world, out / PICTURE)
+        pic = _write_picture(result, world, out, views, long_pass, notes, missing)
     if pic is not None:
         written.append(pic)
     if views is not None and not views.keep_segments:
         views.close()  # collected for the overview picture only (no HTML view)
     elif views is not None:
         try:
-            if not _importable("plotly"):
-                missing.append((VIEW, "plotly"))
-                notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
-            elif long_pass or views.overflow:
-                seg_dir = out / SEGMENTS
-                if seg_dir.is_dir():
-                    shutil.rmtree(seg_dir)  # a rerun's old segments
-                links = write_segments(result, views, seg_dir, crs=world.crs)
-                page = write_overview_view(result, views, out / VIEW, segments=links)
-                if page is not None:
-                    written.append(page)
-                    written.append(seg_dir)
-                    notes.append(
-                        f"Interactive overview: [{VIEW}]({VIEW}); full resolution, "
-                        f"{views.max_frames} frames a page: `{SEGMENTS}/` ({len(links)} pages)."
-                    )
-            else:
-                page = write_view(result, views.views, out / VIEW, crs=world.crs)
-                if page is not None:
-                    written.append(page)
-                    notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")
+            written += _write_views(result, world, out, views, long_pass, notes, missing)
         finally:
             views.close()
     if missing:
-        files = " and ".join(f for f, _ in missing)
-        libs = " and ".join(lib for _, lib in missing)
-        verb = "is" if len(missing) == 1 else "are"
-        print(
-            f'dyntarget: {files} skipped: {libs} {verb} not installed (pip install "dyntarget[full]"); '
-            "the rest of the pass is written",
-            file=sys.stderr,
-            flush=True,
-        )
+        _say_skipped(missing)
     write_text(out / SUMMARY, summary_md(result, PICTURE if pic else None, " ".join(notes) or None))
     written.append(out / SUMMARY)
     written.append(write_text(out / SUMMARY_JSON, summary_json(result)))
     return written
+
+
+def _write_picture(
+    result: PassResult,
+    world: World,
+    out: Path,
+    views: ViewCollector | None,
+    long_pass: bool,
+    notes: list[str],
+    missing: list[tuple[str, str]],
+) -> Path | None:
+    """``pass.png``: the whole strip, or a long pass's overview; a skip noted in ``notes``."""
+    from dyntarget.view.pass_figure import draw_pass_overview, draw_pass_picture
+
+    if not _importable("matplotlib"):
+        missing.append((PICTURE, "matplotlib"))
+        notes.append(f"No {PICTURE}: matplotlib is not installed (the lean onboard install).")
+        return None
+    if long_pass and views is not None:
+        data = _overview_data(result, views)
+        return None if data is None else draw_pass_overview(data, out / PICTURE)
+    if long_pass:
+        notes.append(f"No {PICTURE}: a long pass's overview is drawn from its frames (HTML on).")
+        return None
+    return draw_pass_picture(_pass_picture(result, world), out / PICTURE)
+
+
+def _write_views(
+    result: PassResult,
+    world: World,
+    out: Path,
+    views: ViewCollector,
+    long_pass: bool,
+    notes: list[str],
+    missing: list[tuple[str, str]],
+) -> list[Path]:
+    """``pass.html`` (and a long pass's segment pages); what was written, noted in ``notes``."""
+    from dyntarget.view.pass_html import write_overview_page, write_pass_page
+
+    if not _importable("plotly"):
+        missing.append((VIEW, "plotly"))
+        notes.append(f"No {VIEW}: plotly is not installed (the lean onboard install).")
+        return []
+    if not (long_pass or views.overflow):
+        frames = _pass_frames(result, views.views)
+        page = write_pass_page(frames, out / VIEW, title=_view_title(result), crs=world.crs)
+        if page is None:
+            return []
+        notes.append(f"Interactive view (a slider over the frames): [{VIEW}]({VIEW}).")
+        return [page]
+    seg_dir = out / SEGMENTS
+    if seg_dir.is_dir():
+        shutil.rmtree(seg_dir)  # a rerun's old segments
+    links = write_segments(result, views, seg_dir, crs=world.crs)
+    data = _overview_data(result, views)
+    page = None if data is None else write_overview_page(data, out / VIEW, segments=links)
+    if page is None:
+        return []
+    notes.append(
+        f"Interactive overview: [{VIEW}]({VIEW}); full resolution, "
+        f"{views.max_frames} frames a page: `{SEGMENTS}/` ({len(links)} pages)."
+    )
+    return [page, seg_dir]
+
+
+def _say_skipped(missing: list[tuple[str, str]]) -> None:
+    """One line on stderr naming the files skipped and the libraries they need."""
+    files = " and ".join(f for f, _ in missing)
+    libs = " and ".join(lib for _, lib in missing)
+    verb = "is" if len(missing) == 1 else "are"
+    print(
+        f'dyntarget: {files} skipped: {libs} {verb} not installed (pip install "dyntarget[full]"); '
+        "the rest of the pass is written",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _importable(module: str) -> bool:
