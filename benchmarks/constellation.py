@@ -5,8 +5,14 @@ Run from the repository root (the GVP catalog is read where the shared data lies
     nice python benchmarks/constellation.py --out docs/benchmarks/constellation.json \\
         --figure docs/img/constellation_curve.png --day-figure docs/img/constellation_day.png
 
+The curve runs on the two-level eruption model (``--eruption-model eruptions``, the
+default); ``--eruption-model episodes --parts curve --figure OTHER.png`` reruns the
+earlier episode-only table (kept as ``curve_episodes``).
+
 Parts (``--parts`` picks some): ``curve`` (1..500 satellites x 4 cueing modes x seeds,
-distributed allocation, plus greedy at 20 satellites), ``bound`` (greedy and distributed
+``--seeds-20`` of them at 20 satellites, distributed allocation, plus greedy at 20
+satellites), ``sensitivity`` (``none``, ``cross`` and ``cross+geo`` at 20 satellites under
+other plume-episode parameters), ``bound`` (greedy and distributed
 against the exact MILP on <= 10 satellites, 6 h), ``scale`` (the whole CLI process from
 the shell under ``/usr/bin/time -v`` at 50/100/200/500 satellites, 24 h, 1,250 volcanoes),
 ``sweep`` (24 configurations serially and on a ``dask.distributed`` LocalCluster of
@@ -53,8 +59,11 @@ SHIM = (
 """Runs ``dyntarget ...`` whether or not the command is registered in this checkout yet."""
 
 
-def config(n: int, cueing: str, allocation: str, seed: int, hours: float = 24.0) -> dict:
+def config(
+    n: int, cueing: str, allocation: str, seed: int, hours: float = 24.0, model: str = "eruptions"
+) -> dict:
     return {
+        "eruption_model": model,
         "walker": WALKERS[n],
         "altitude_km": 500.0,
         "inclination_deg": "sso",
@@ -66,20 +75,45 @@ def config(n: int, cueing: str, allocation: str, seed: int, hours: float = 24.0)
     }
 
 
-def run_curve(catalog, seeds: int) -> list[dict]:
+def run_curve(catalog, seeds: int, seeds20: int, model: str) -> list[dict]:
     from dyntarget.constellation.run import sweep
 
     configs = [
-        config(n, m, "distributed", s)
+        config(n, m, "distributed", s, model=model)
         for n in (1, 7, 20, 60, 200, 500)
         for m in MODES
-        for s in range(seeds)
+        for s in range(seeds20 if n == 20 else seeds)
     ]
-    configs += [config(20, m, "greedy", s) for m in MODES for s in range(seeds)]
+    configs += [config(20, m, "greedy", s, model=model) for m in MODES for s in range(seeds20)]
     t = time.perf_counter()
     out = sweep(configs, catalog, progress=True)
     print(f"curve: {len(configs)} runs in {time.perf_counter() - t:.0f} s", file=sys.stderr)
     return out
+
+
+SENSITIVITY = (
+    {"episodes_per_day": 3.0, "episode_median_h": 3.0},
+    {"episodes_per_day": 1.5, "episode_median_h": 3.0},
+    {"episodes_per_day": 6.0, "episode_median_h": 3.0},
+    {"episodes_per_day": 3.0, "episode_median_h": 1.0},
+    {"episodes_per_day": 3.0, "episode_median_h": 9.0},
+    {"episodes_per_day": 1.0, "episode_median_h": 24.0},
+)
+"""Plume-episode parameters (assumptions of the two-level model) the 20-satellite targets
+are re-measured under."""
+
+
+def run_sensitivity(catalog, seeds: int) -> list[dict]:
+    """``none``, ``cross`` and ``cross+geo`` at 20 satellites under other episode parameters."""
+    from dyntarget.constellation.run import sweep
+
+    configs = [
+        {**config(20, m, "distributed", s), **p}
+        for p in SENSITIVITY
+        for m in ("none", "cross", "cross+geo")
+        for s in range(seeds)
+    ]
+    return sweep(configs, catalog, progress=True)
 
 
 def run_bound(catalog, seeds: int) -> list[dict]:
@@ -93,7 +127,10 @@ def run_bound(catalog, seeds: int) -> list[dict]:
         for s in range(seeds)
     ]
     # a busy world (400 episodes a day) and body-pointing agility: contention to allocate
-    busy = [{**c, "eruptions_per_day": 400.0, "agility": "slow"} for c in configs]
+    busy = [
+        {**c, "eruption_model": "episodes", "eruptions_per_day": 400.0, "agility": "slow"}
+        for c in configs
+    ]
     return sweep(configs + busy, catalog, progress=True)
 
 
@@ -191,6 +228,16 @@ def day_figure(path: Path) -> dict:
     }
 
 
+def _cell(rows: list[dict], m: str, n: int) -> list[dict]:
+    return [
+        r
+        for r in rows
+        if r["options"]["cueing"] == m
+        and r["satellites"] == n
+        and r["options"]["allocation"] == "distributed"
+    ]
+
+
 def curve_figure(rows: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -198,38 +245,42 @@ def curve_figure(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    two = rows[0]["options"].get("eruption_model", "episodes") == "eruptions"
+    panels = (
+        (
+            ("eruptions_observed", "eruptions", "GVP eruptions observed in the day (%)"),
+            (
+                "episodes_observed_within_6h",
+                "episodes_started",
+                "plume episodes observed within 6 h of their onset (%)",
+            ),
+        )
+        if two
+        else (("observed_within_6h", "eruptions", "eruptions observed within 6 h of onset (%)"),)
+    )
+    fig, axes = plt.subplots(1, len(panels) + 1, figsize=(5.5 * (len(panels) + 1), 4.2))
     ns = (1, 7, 20, 60, 200, 500)
     for m in MODES:
-        within, per6 = [], []
+        for ax, (num, den, _) in zip(axes, panels, strict=False):
+            y = [np.mean([r[num] / max(r[den], 1) for r in _cell(rows, m, n)]) for n in ns]
+            ax.plot(ns, 100 * np.array(y), marker="o", label=m)
+        per6 = []
         for n in ns:
-            sel = [
-                r
-                for r in rows
-                if r["options"]["cueing"] == m
-                and r["satellites"] == n
-                and r["options"]["allocation"] == "distributed"
-            ]
-            within.append(np.mean([r["observed_within_6h"] / max(r["eruptions"], 1) for r in sel]))
-            vals = [r["observations_per_eruption_6h"] for r in sel]
+            vals = [r["observations_per_eruption_6h"] for r in _cell(rows, m, n)]
             vals = [v for v in vals if v is not None]  # None: nothing detected that day
             per6.append(np.mean(vals) if vals else np.nan)
-        axes[0].plot(ns, 100 * np.array(within), marker="o", label=m)
-        axes[1].plot(ns, per6, marker="o", label=m)
-    for ax, label in zip(
-        axes,
-        (
-            "eruptions observed within 6 h of onset (%)",
-            "observations per eruption, 6 h after first detection",
-        ),
-        strict=True,
-    ):
+        axes[-1].plot(ns, per6, marker="o", label=m)
+    labels = [p[2] for p in panels] + ["observations per eruption, 6 h after first detection"]
+    for ax, label in zip(axes, labels, strict=True):
         ax.set_xscale("log")
         ax.set_xlabel("satellites (Walker, 500 km, sun-synchronous)")
         ax.set_ylabel(label)
         ax.grid(lw=0.3)
         ax.legend(title="cueing", fontsize=8)
-    fig.suptitle("dyntarget constellation: 24 h, GVP Holocene volcanoes, distributed allocation")
+    world = "GVP eruptions holding plume episodes" if two else "independent plume episodes"
+    fig.suptitle(
+        f"dyntarget constellation: 24 h, GVP Holocene volcanoes, {world}, distributed allocation"
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, metadata={"Software": None})
@@ -423,7 +474,14 @@ def main() -> None:
     p.add_argument("--figure", default="docs/img/constellation_curve.png")
     p.add_argument("--day-figure", default="docs/img/constellation_day.png")
     p.add_argument("--seeds", type=int, default=3)
-    p.add_argument("--parts", default="curve,bound,scale,sweep,day,fidelity")
+    p.add_argument("--seeds-20", type=int, default=5, help="seeds at 20 satellites")
+    p.add_argument(
+        "--eruption-model",
+        choices=("eruptions", "episodes"),
+        default="eruptions",
+        help="the curve's world (episodes: the earlier table, kept as curve_episodes)",
+    )
+    p.add_argument("--parts", default="curve,sensitivity,bound,scale,sweep,day,fidelity")
     args = p.parse_args()
     if not GVP.is_file():
         sys.exit(f"benchmark: the GVP catalog is not at {GVP}")
@@ -442,8 +500,12 @@ def main() -> None:
         out.write_text(json.dumps(result, indent=1, sort_keys=True) + "\n")
 
     if "curve" in parts:
-        result["curve"] = run_curve(catalog, args.seeds)
-        curve_figure(result["curve"], Path(args.figure))
+        key = "curve" if args.eruption_model == "eruptions" else "curve_episodes"
+        result[key] = run_curve(catalog, args.seeds, args.seeds_20, args.eruption_model)
+        curve_figure(result[key], Path(args.figure))
+        save()
+    if "sensitivity" in parts:
+        result["sensitivity"] = run_sensitivity(catalog, args.seeds_20)
         save()
     if "bound" in parts:
         result["bound"] = run_bound(catalog, 2 * args.seeds)

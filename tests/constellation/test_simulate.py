@@ -68,7 +68,11 @@ def test_overflight_of_a_volcano_under_the_track_by_hand():
 
 def test_geo_is_blind_beyond_its_view_and_sees_within():
     er = Eruptions(
-        *(np.concatenate([getattr(_eruption(), f)] * 2) for f in Eruptions.__dataclass_fields__)
+        *(
+            np.concatenate([getattr(_eruption(), f)] * 2)
+            for f in Eruptions.__dataclass_fields__
+            if not f.startswith("episode")  # the episode model
+        )
     )
     cloud = np.zeros((2, 10))
     # (0 N, 0 E) under Meteosat; (0 N, 70 E): 70 deg from Meteosat and Himawari, zenith ~78 deg
@@ -114,7 +118,18 @@ def _day(run_cli, tmp_path, name, *extra):
 
 
 def test_day_outputs_columns_and_summary_keys(cli, tmp_path, gvp, capsys):
-    rc, out = _day(cli, tmp_path, "a", gvp, "--cueing", "cross+geo", "--eruptions-per-day", "80")
+    rc, out = _day(
+        cli,
+        tmp_path,
+        "a",
+        gvp,
+        "--cueing",
+        "cross+geo",
+        "--eruption-model",
+        "episodes",
+        "--eruptions-per-day",
+        "80",
+    )
     assert rc == 0
     with open(out / "observations.csv") as f:
         rows = list(csv.DictReader(f))
@@ -183,6 +198,15 @@ BAD_TLE = (
         ),
         (["--walker", "6/3/1", "--volcanoes", "MISSING"], "nope.csv"),
         (["--walker", "6/3/1", "--agility", "unlimited"], "needs a field of regard"),
+        (
+            ["--walker", "6/3/1", "--eruptions-per-day", "80"],
+            "--eruptions-per-day applies to --eruption-model episodes, not eruptions",
+        ),
+        (
+            ["--walker", "6/3/1", "--eruption-model", "episodes", "--episodes-per-day", "2"],
+            "--episodes-per-day applies to --eruption-model eruptions, not episodes",
+        ),
+        (["--walker", "6/3/1", "--episode-median-h", "100"], "--episode-median-h"),
         pytest.param(
             [
                 "--walker",
@@ -193,6 +217,8 @@ BAD_TLE = (
                 "24",
                 "--cueing",
                 "cross+geo",
+                "--eruption-model",
+                "episodes",
                 "--eruptions-per-day",
                 "2000",
             ],
@@ -269,3 +295,32 @@ def test_sweep_on_a_local_cluster_matches_serial(gvp):
     local = sweep(configs, cat, scheduler="local")
     assert json.dumps(serial, sort_keys=True) == json.dumps(local, sort_keys=True)
     assert [s["options"]["walker"] for s in serial] == ["1/1/0", "1/1/0", "6/3/1", "6/3/1"]
+
+
+def test_two_level_day_keeps_in_progress_eruptions_out_of_onset_figures(cli, tmp_path, gvp):
+    rc, out = _day(cli, tmp_path, "two", gvp, "--cueing", "cross+geo")
+    assert rc == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["options"]["eruption_model"] == "eruptions"
+    assert s["eruptions"] == s["eruptions_in_progress_at_start"] + s["eruptions_started"]
+    assert s["eruptions_in_progress_at_start"] > 10  # mean 45
+    assert s["observed_within_6h"] <= s["eruptions_started"]
+    assert s["episodes_observed_within_6h"] <= s["episodes_observed"] <= s["episodes_started"]
+    with open(out / "eruptions.csv") as f:
+        rows = list(csv.DictReader(f))
+    before = [r for r in rows if r["onset_utc"] < "2026-06-01"]
+    assert len(before) == s["eruptions_in_progress_at_start"]  # onsets before the start
+
+
+def test_geo_sees_a_plume_only_during_an_episode():
+    one = np.array
+    base = _eruption(onset=-1e6, end=1e6, wind=8.0)
+    kw = {f: getattr(base, f) for f in base.__dataclass_fields__ if not f.startswith("episode")}
+    quiet = Eruptions(**kw, episode_eruption=one([0]), episode_onset_s=one([-5000.0]),
+                      episode_end_s=one([-1000.0]))  # fmt: skip
+    lat, lon = one([0.0]), one([-75.2])
+    assert geo_detections(quiet, lat, lon, np.zeros((1, 3)), seconds=7200.0, seed=0) == []
+    busy = Eruptions(**kw, episode_eruption=one([0]), episode_onset_s=one([3000.0]),
+                     episode_end_s=one([7000.0]))  # fmt: skip
+    (d,) = geo_detections(busy, lat, lon, np.zeros((1, 3)), seconds=7200.0, seed=0)
+    assert d[1] >= 3000.0 and d[1] % 600.0 == 0.0  # a GOES-East image in the episode

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from dyntarget.cli import options as o
 from dyntarget.cli._common import EXIT_OK, log, writes
@@ -25,7 +26,8 @@ def cmd_constellation(args: argparse.Namespace) -> int:
         agility=args.agility,
         swath_km=args.swath_km,
         look_ahead_km=args.look_ahead_km,
-        eruptions_per_day=args.eruptions_per_day,
+        eruption_model=args.eruption_model,
+        **model_options(args),
     )
     sats = constellation(
         tle=args.tle,
@@ -64,9 +66,66 @@ def cmd_constellation(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+MODEL_OPTIONS = {
+    "episodes": ("eruptions_per_day",),
+    "eruptions": (
+        "eruptions_in_progress",
+        "eruption_onsets_per_year",
+        "episodes_per_day",
+        "episode_median_h",
+    ),
+}
+"""The options of each ``--eruption-model`` (given with the other model: refused)."""
+
+
+def model_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The eruption-model options given, refusing those of the model not chosen.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``dyntarget constellation`` arguments.
+
+    Returns
+    -------
+    dict
+        ``Settings`` field -> value, for the options given.
+
+    Examples
+    --------
+    >>> ns = argparse.Namespace(eruption_model="eruptions", eruptions_per_day=None,
+    ...     eruptions_in_progress=30.0, eruption_onsets_per_year=None, episodes_per_day=None,
+    ...     episode_median_h=None)
+    >>> model_options(ns)
+    {'eruptions_in_progress': 30.0}
+    """
+    from dyntarget.errors import InvalidParameterError
+
+    out: dict[str, Any] = {}
+    for model, names in MODEL_OPTIONS.items():
+        for name in names:
+            value = getattr(args, name, None)
+            if value is None:
+                continue
+            if model != args.eruption_model:
+                raise InvalidParameterError(
+                    f"--{name.replace('_', '-')} applies to --eruption-model {model}, "
+                    f"not {args.eruption_model}"
+                )
+            out[name] = value
+    return out
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this module's command(s) to the ``dyntarget`` sub-commands."""
     from dyntarget.constellation.simulate import ALLOCATIONS, CUEING, RELAYS
+    from dyntarget.constellation.world import (
+        EPISODES_PER_DAY,
+        ERUPTIONS_IN_PROGRESS,
+        MEDIAN_DURATION_S,
+        MODELS,
+        ONSETS_PER_YEAR,
+    )
 
     p = sub.add_parser(
         "constellation",
@@ -120,10 +179,41 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="look-ahead distance ahead of nadir (default 500)",
     )
     p.add_argument(
+        "--eruption-model",
+        choices=MODELS,
+        default="eruptions",
+        help="eruptions: GVP eruptions (in progress and new) holding plume episodes (default); "
+        "episodes: independent plume episodes only (the earlier model)",
+    )
+    p.add_argument(
+        "--eruptions-in-progress",
+        type=o.float_range(0, 100_000, "a number of eruptions"),
+        default=None,
+        help=f"mean GVP eruptions in progress at the start (default {ERUPTIONS_IN_PROGRESS:g})",
+    )
+    p.add_argument(
+        "--eruption-onsets-per-year",
+        type=o.float_range(0, 1e6, "a number of onsets a year"),
+        default=None,
+        help=f"new GVP eruptions a year, world-wide (default {ONSETS_PER_YEAR:g})",
+    )
+    p.add_argument(
+        "--episodes-per-day",
+        type=o.positive_float,
+        default=None,
+        help=f"plume episodes a day within an eruption (default {EPISODES_PER_DAY:g})",
+    )
+    p.add_argument(
+        "--episode-median-h",
+        type=o.positive_float,
+        default=None,
+        help=f"median plume-episode duration, hours (default {MEDIAN_DURATION_S / 3600:g})",
+    )
+    p.add_argument(
         "--eruptions-per-day",
         type=o.positive_float,
-        default=40.0,
-        help="expected eruptive episodes per day, world-wide (default 40)",
+        default=None,
+        help="--eruption-model episodes: expected episodes per day, world-wide (default 40)",
     )
     o.SCHEDULER.add(p)
     o.OUT.add(p)

@@ -42,7 +42,17 @@ from dyntarget.constellation.allocate import (
 )
 from dyntarget.constellation.geometry import ENC_FIELDS, MIN_SUN_DEG, PLAN_S, overflights
 from dyntarget.constellation.orbits import Satellite, geodetic_to_ecef
-from dyntarget.constellation.world import Catalog, Eruptions, cloud_state, hidden
+from dyntarget.constellation.world import (
+    EPISODES_PER_DAY,
+    ERUPTIONS_IN_PROGRESS,
+    MEDIAN_DURATION_S,
+    MODELS,
+    ONSETS_PER_YEAR,
+    Catalog,
+    Eruptions,
+    cloud_state,
+    hidden,
+)
 from dyntarget.errors import InvalidParameterError
 
 CUEING = ("none", "self", "cross", "cross+geo")
@@ -84,7 +94,14 @@ class Settings:
     memory_s : float
         How long a detection stays on the board (and in a satellite's memory).
     eruptions_per_day : float
-        Expected eruptive-episode onsets per day, world-wide.
+        Expected eruptive-episode onsets per day, world-wide (``eruption_model``
+        ``episodes`` only).
+    eruption_model : str
+        :data:`dyntarget.constellation.world.MODELS`: ``eruptions`` (GVP eruptions holding
+        plume episodes) or ``episodes`` (episodes only, the earlier model).
+    eruptions_in_progress, eruption_onsets_per_year, episodes_per_day, episode_median_h : float
+        The two-level model's parameters
+        (:func:`dyntarget.constellation.world.draw_gvp_eruptions`; ``eruptions`` only).
     geo : dict
         Overrides of :class:`dyntarget.fly.geo.GeoSettings` fields (GEO detection).
     """
@@ -100,15 +117,26 @@ class Settings:
     dup_window_s: float = 600.0
     memory_s: float = 12 * 3600.0
     eruptions_per_day: float = 40.0
+    eruption_model: str = "eruptions"
+    eruptions_in_progress: float = ERUPTIONS_IN_PROGRESS
+    eruption_onsets_per_year: float = ONSETS_PER_YEAR
+    episodes_per_day: float = EPISODES_PER_DAY
+    episode_median_h: float = MEDIAN_DURATION_S / 3600.0
     geo: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         from dyntarget.schedule import get_agility
 
-        for name, allowed in (("cueing", CUEING), ("allocation", ALLOCATIONS), ("relay", RELAYS)):
+        for name, allowed in (
+            ("cueing", CUEING),
+            ("allocation", ALLOCATIONS),
+            ("relay", RELAYS),
+            ("eruption_model", MODELS),
+        ):
             if getattr(self, name) not in allowed:
                 raise InvalidParameterError(
-                    f"--{name}: expected one of {', '.join(allowed)}, got {getattr(self, name)!r}"
+                    f"--{name.replace('_', '-')}: expected one of {', '.join(allowed)}, "
+                    f"got {getattr(self, name)!r}"
                 )
         if get_agility(self.agility).field_of_regard_deg is None:
             raise InvalidParameterError(
@@ -123,6 +151,10 @@ class Settings:
             ("dup_window_s", 0.0, 86400.0),
             ("memory_s", 0.0, 30 * 86400.0),
             ("eruptions_per_day", 1e-6, 10_000.0),
+            ("eruptions_in_progress", 0.0, 100_000.0),
+            ("eruption_onsets_per_year", 0.0, 1e6),
+            ("episodes_per_day", 1e-6, 10_000.0),
+            ("episode_median_h", 1 / 60, 72.0),
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and lo <= v <= hi):
@@ -209,7 +241,7 @@ def geo_detections(
         for e in range(len(eruptions)):
             if cos_z[e] < math.cos(math.radians(GEO_MAX_ZENITH_DEG)):
                 continue
-            first = math.ceil(eruptions.onset_s[e] / cadence)
+            first = math.ceil(max(eruptions.onset_s[e], 0.0) / cadence)
             last = min(eruptions.end_s[e], seconds)
             t = np.arange(first, math.floor(last / cadence) + 1) * cadence
             if not len(t):
@@ -224,6 +256,8 @@ def geo_detections(
             seen = (anomaly + rng.normal(0.0, gs.noise, len(t)) > gs.threshold) & ~hidden(
                 eruptions, cloud_top, idx, t
             )
+            if eruptions.episodic:  # no plume between episodes (noise alone detects nothing)
+                seen &= eruptions.active(idx, t)
             if seen.any():
                 t0 = float(t[int(np.argmax(seen))])
                 out.append((e, t0, t0 + gs.latency_s, g))
@@ -477,7 +511,7 @@ def run_day(
         opp, chosen, enc_of, col, names, catalog, eruptions, settings
     )
     table = _table(eruptions, catalog, first_det, observations)
-    summary = _summary(len(sats), eruptions, first_det, observations, table)
+    summary = _summary(len(sats), eruptions, first_det, observations, table, seconds)
     summary.update(duplicates=dups, wasted_pointings=wasted, opportunities=len(opp))
     cues = [
         {"eruption": e, "time_s": t, "source": names[src] if src >= 0 else GEO_IMAGERS[-1 - src][0]}
@@ -493,8 +527,18 @@ def _never(src: int, t: float, dst: int) -> float:
 
 
 def _draw(catalog: Catalog, seconds: float, seed: int, settings: Settings) -> Eruptions:
-    from dyntarget.constellation.world import draw_eruptions
+    from dyntarget.constellation.world import draw_eruptions, draw_gvp_eruptions
 
+    if settings.eruption_model == "eruptions":
+        return draw_gvp_eruptions(
+            catalog,
+            seconds=seconds,
+            seed=seed,
+            in_progress=settings.eruptions_in_progress,
+            onsets_per_year=settings.eruption_onsets_per_year,
+            episodes_per_day=settings.episodes_per_day,
+            episode_median_s=settings.episode_median_h * 3600.0,
+        )
     return draw_eruptions(
         catalog, seconds=seconds, seed=seed, eruptions_per_day=settings.eruptions_per_day
     )
@@ -638,11 +682,13 @@ def _quantile(values: list[float], q: float) -> float | None:
     return round(float(np.quantile(np.asarray(values, np.float64), q)), 3)
 
 
-def _summary(n_sats, eruptions, first_det, observations, table) -> dict[str, Any]:
+def _summary(n_sats, eruptions, first_det, observations, table, seconds) -> dict[str, Any]:
+    # onset-based figures: eruptions that start in the period (one in progress at the
+    # start has an onset before it, unknown to any sensor: excluded)
     delays = [
         r["first_observation_s"] - r["onset_s"]
         for r in table
-        if r["first_observation_s"] is not None
+        if r["first_observation_s"] is not None and r["onset_s"] >= 0.0
     ]
     per6 = [
         sum(
@@ -654,7 +700,7 @@ def _summary(n_sats, eruptions, first_det, observations, table) -> dict[str, Any
         if r["first_detection_s"] is not None
     ]
     gaps = [b - a for r in table for a, b in zip(r["obs_times"], r["obs_times"][1:], strict=False)]
-    return {
+    out = {
         "satellites": n_sats,
         "eruptions": len(eruptions),
         "eruptions_observed": sum(1 for r in table if r["observations"]),
@@ -666,6 +712,42 @@ def _summary(n_sats, eruptions, first_det, observations, table) -> dict[str, Any
         "median_revisit_s": _quantile(gaps, 0.5),
         "utility": round(math.fsum(o["utility"] for o in observations), 6),
         "observations": len(observations),
+    }
+    if eruptions.episodic:
+        out.update(_episode_summary(eruptions, table, seconds))
+    return out
+
+
+def _episode_summary(eruptions: Eruptions, table, seconds: float) -> dict[str, Any]:
+    """Figures of the two-level model: eruptions started in the period, and per episode.
+
+    An episode's delay is from its onset to the first observation of its eruption at or
+    after that onset and before the episode's end (an observation is taken only while a
+    plume is there); only episodes that start in the period count.
+    """
+    assert eruptions.episode_onset_s is not None and eruptions.episode_end_s is not None
+    assert eruptions.episode_eruption is not None
+    ep_delays = []
+    started = 0
+    for e, t0, t1 in zip(
+        eruptions.episode_eruption.tolist(),
+        eruptions.episode_onset_s.tolist(),
+        eruptions.episode_end_s.tolist(),
+        strict=True,
+    ):
+        if not 0.0 <= t0 < seconds:
+            continue
+        started += 1
+        seen = [t for t in table[e]["obs_times"] if t0 <= t < t1]
+        if seen:
+            ep_delays.append(seen[0] - t0)
+    return {
+        "eruptions_in_progress_at_start": int((eruptions.onset_s < 0.0).sum()),
+        "eruptions_started": int((eruptions.onset_s >= 0.0).sum()),
+        "episodes_started": started,
+        "episodes_observed": len(ep_delays),
+        "episodes_observed_within_6h": sum(1 for d in ep_delays if d <= HOUR6),
+        "median_episode_onset_to_first_obs_s": _quantile(ep_delays, 0.5),
     }
 
 
