@@ -6,6 +6,7 @@ import argparse
 import csv
 import sys
 from pathlib import Path
+from typing import Any
 
 from dyntarget.cli import options as o
 from dyntarget.cli._common import EXIT_OK, log, plan_config, writes
@@ -110,7 +111,47 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
         wind_from_deg=args.wind_from_deg,
         ground=args.ground,
         pipeline=PipelineConfig(plan=plan_config(args)),
+        **_parallax_settings(args),
     )
+
+
+def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """``PassConfig`` parallax fields from ``--parallax``, ``--plume-height-km``,
+    ``--no-parallax`` and ``--relook-km`` (none given: none set, the defaults)."""
+    kw: dict[str, Any] = {}
+    mode, choice = args.parallax, o.parallax_choice(args)
+    if choice == "off":
+        if mode not in (None, "off"):
+            raise InvalidParameterError(f"--no-parallax and --parallax {mode} exclude each other")
+        mode = "off"
+    height = o.parallax_height_m(args)
+    if height is not None:
+        if mode in ("off", "true"):
+            raise InvalidParameterError(
+                f"--plume-height-km: has no effect with --parallax {mode} (no prior is used); "
+                "leave it out or give --parallax prior or estimated"
+            )
+        kw["plume_height_m"] = height
+    if mode is not None:
+        kw["parallax"] = mode
+    if args.relook_km is not None:
+        kw["relook_km"] = args.relook_km
+    return kw
+
+
+def _km_list(text: str) -> tuple[float, ...]:
+    """``--relook-km A,B``: distances ahead of the nadir, km, finite and > 0."""
+    import math
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected distances in km, comma-separated (e.g. 400,300), got {text!r}"
+        ) from None
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected finite distances in km > 0, got {text!r}")
+    return values
 
 
 @writes(dirs=("out",))
@@ -247,8 +288,20 @@ def _write_outputs(args: argparse.Namespace, result, world, views, stage: Path) 
     )
     if (stage / MEASURED).is_file() and stage / MEASURED not in written:
         written.insert(2, stage / MEASURED)  # the measured stage times (a fixed-budget pass)
+    if result.is_3d:  # the plume-top heights of a 3D strip (a flat strip: as before)
+        from dyntarget.io.geojson import write_height_estimates
+
+        written.append(
+            write_height_estimates(
+                stage / PLUMES_GEOJSON, result.heights, transform=world.transform, crs=world.crs
+            )
+        )
     times = write_times(result, stage)
     return written if times is None else [*written, times]
+
+
+PLUMES_GEOJSON = "plumes.geojson"
+"""Per-plume top heights of a pass over a 3D strip (:func:`dyntarget.io.geojson.write_height_estimates`)."""
 
 
 def _holds_a_pass(out: Path) -> bool:
@@ -351,11 +404,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "Writes timeline.csv, pointings.geojson, summary.md, summary.json (the totals), pass.png "
         "(the picture) and pass.html (the interactive view, with a time slider) into --out; "
         "with a fixed --compute-budget-s also stage_times.csv (the measured times), with a GEO "
-        "blueprint geo.timing.json. A rerun replaces the earlier pass only when it is complete.",
+        "blueprint geo.timing.json, on a 3D strip plumes.geojson (per-plume top heights, "
+        "--parallax). A rerun replaces the earlier pass only when it is complete.",
     )
     _add_sources(p)
     _add_pass_options(p)
     _add_prediction_options(p)
+    _add_parallax_options(p)
     _add_geo_options(p)
     _add_output_options(p)
     _add_live_options(p)
@@ -431,6 +486,32 @@ def _add_pass_options(p: argparse.ArgumentParser) -> None:
         "upper_bound_utility; minutes per 1000 km; computed for every other --truth pass)",
     )
     o.NO_DENOISE.add(p)
+
+
+def _add_parallax_options(p: argparse.ArgumentParser) -> None:
+    """How the aim is corrected for the plumes' parallax on a 3D strip (a flat one has none)."""
+    par = p.add_argument_group(
+        "parallax (3D strips: plume tops seen displaced by the oblique look-ahead)"
+    )
+    o.add_parallax_options(
+        par,
+        height_help="a prior plume-top height, km above sea level (0 < H <= 25): the aim's "
+        "height until (or where) the pass measures one; with --parallax prior, the only one",
+    )
+    par.add_argument(
+        "--parallax",
+        choices=("auto", "off", "prior", "true", "estimated"),
+        help="auto (default): estimated on a 3D strip, off on a flat one; off: aim where the "
+        "look-ahead saw the plume; prior: every plume at --plume-height-km; true: the strip's "
+        "true heights (a benchmark's reference); estimated: heights measured from re-looks",
+    )
+    par.add_argument(
+        "--relook-km",
+        type=_km_list,
+        metavar="A,B",
+        help="how far ahead of the nadir the look-ahead re-looks at a new plume, km, nearest "
+        "last (default 400,300); each re-look costs look-ahead time (frames not taken)",
+    )
 
 
 def _add_prediction_options(p: argparse.ArgumentParser) -> None:

@@ -38,6 +38,18 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   time* (``World.truth_at``) over its NFOV footprint
   (:func:`dyntarget.observe.score_pointings`): plume fraction, intensity and
   gradient utility (the paper's metrics, summed over the pass).
+* **3D worlds** (plumes with heights, ``world.is_3d``; a flat world skips all of
+  this and flies exactly as before). Frame ``k`` is the oblique look from the nadir at
+  ``t_k`` (``World.look_at``; with ``--truth`` the mask it shows, parallax included);
+  pointings are scored as lines of sight (:class:`dyntarget.observe.Sight`: the
+  highest plume top the line meets, at the pointing's time); and the aim is corrected
+  for the parallax (:class:`dyntarget.schedule.ParallaxAim` in the schedule) with a
+  height per pointing by :attr:`PassConfig.parallax`: none (``"off"``), the prior,
+  the world's true heights (``"true"``) or heights measured on the pass from
+  re-looks of the look-ahead (``"estimated"``, :mod:`dyntarget.fly.heights`, whose
+  cost is frames not taken while it re-looks). The schedule is decided once, at the
+  frame's plan time, with the aim each pointing will have when flown (the estimate
+  from when it is usable, the prior before); a flight system would re-plan then.
 * **Prediction.** ``predict`` asks the predict stage's entry point
   (:func:`dyntarget.predict.plume_motion`) for the motion, and plans once on the
   frame's segmentation carried to the lead (:func:`dyntarget.schedule.lead_s`).
@@ -45,7 +57,9 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
 
 from __future__ import annotations
 
+import itertools
 import math
+import sys
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -58,6 +72,7 @@ import numpy as np
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
+from dyntarget.fly.heights import RELOOK_KM, Geometry3D, HeightEstimate, HeightTracker, Plume
 from dyntarget.fly.world import WfovTruth, World, wfov_truth
 from dyntarget.masks import mask_to_polygons
 from dyntarget.observe import score_pointings
@@ -88,7 +103,9 @@ if TYPE_CHECKING:
     from affine import Affine
 
     from dyntarget.fly.geo import GeoSettings
+    from dyntarget.observe import Sight
     from dyntarget.observe.bound import UpperBound
+    from dyntarget.schedule import ParallaxAim
 
 STAGES = ("classify", "denoise", "predict", "plan", "schedule")
 """Stages whose wall time each timeline row reports."""
@@ -101,6 +118,12 @@ MIN_OVERLAP_ROWS = 8
 
 COVERED_PLUME_FRACTION = 0.5
 """A plume at least this fraction of whose planned pointings were flown counts as covered."""
+
+PARALLAX_MODES = ("auto", "off", "prior", "true", "estimated")
+"""How a pass corrects its aim for the plumes' parallax (see :class:`PassConfig`)."""
+
+MAX_PRIOR_HEIGHT_M = 25_000.0
+"""Highest prior plume-top height accepted, metres."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +153,22 @@ class PassConfig:
         ``"fixed"`` or ``"moving"`` background (:func:`dyntarget.predict.estimate_motion`).
     pipeline : settings of the pipeline run on each frame
         (:class:`~dyntarget.pipeline.PipelineConfig`).
+    parallax : how the NFOV's aim is corrected for the plumes' parallax on a 3D world
+        (plumes at heights, seen displaced by the oblique look-ahead):
+        ``"auto"`` (``"estimated"`` on a 3D world, ``"off"`` on a flat one), ``"off"``
+        (aim at the plume where the look-ahead saw it), ``"prior"`` (every plume at
+        ``plume_height_m``), ``"true"`` (the world's true heights: the benchmark's
+        "corrected with the true height") or ``"estimated"`` (measured on the pass from
+        re-looks of the look-ahead, :mod:`dyntarget.fly.heights`; the prior until then).
+        A flat world has no parallax: every mode resolves to ``"off"`` there and the
+        pass is flown exactly as without these settings.
+    plume_height_m : the prior plume-top height, metres above sea level (0 < h <= 25 km);
+        in ``"estimated"`` mode the fallback before or without an estimate (``None``: no
+        correction until estimated).
+    relook_km : how far ahead of the nadir each re-look sees the plume, km, nearest last
+        (``"estimated"`` mode).
+    relook_s : look-ahead time per re-look, seconds (``None``: from the agility preset's
+        slew model, :func:`dyntarget.fly.heights.relook_seconds`).
     """
 
     planner: str = "lawnmower-transect"
@@ -148,9 +187,14 @@ class PassConfig:
     wind_from_deg: float | None = None
     ground: str = "auto"
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+    parallax: str = "auto"
+    plume_height_m: float | None = None
+    relook_km: tuple[float, ...] = RELOOK_KM
+    relook_s: float | None = None
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
+        self._check_parallax()
         if self.predict not in PREDICT_MODES:
             raise InvalidParameterError(
                 f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
@@ -183,6 +227,60 @@ class PassConfig:
                 f"footprint: expected an odd positive number of WFOV pixels, got {fp!r}"
             )
 
+    def _check_parallax(self) -> None:
+        """Refuse a bad parallax mode, prior height or re-look setting, in one line."""
+        if self.parallax not in PARALLAX_MODES:
+            raise InvalidParameterError(
+                f"parallax: expected one of {', '.join(PARALLAX_MODES)}, got {self.parallax!r}"
+            )
+        h = self.plume_height_m
+        if h is not None and not (
+            isinstance(h, int | float) and math.isfinite(h) and 0 < h <= MAX_PRIOR_HEIGHT_M
+        ):
+            raise InvalidParameterError(
+                f"plume_height_m: expected metres in (0, {MAX_PRIOR_HEIGHT_M:g}], got {h!r}"
+            )
+        if self.parallax == "prior" and h is None:
+            raise InvalidParameterError(
+                "parallax: 'prior' needs a prior height: give plume_height_m (--plume-height-km)"
+            )
+        km = self.relook_km
+        ok = isinstance(km, tuple) and len(km) > 0
+        ok = ok and all(
+            isinstance(v, int | float) and math.isfinite(v) and 0 < v * 1e3 < self.look_ahead_m
+            for v in km
+        )
+        if not ok or any(b >= a for a, b in itertools.pairwise(km)):
+            raise InvalidParameterError(
+                f"relook_km: expected distances in (0, {self.look_ahead_m / 1e3:g}) km ahead of "
+                f"the nadir, nearest last, got {km!r}"
+            )
+        r = self.relook_s
+        if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
+            raise InvalidParameterError(f"relook_s: expected seconds > 0, got {r!r}")
+
+    def resolved_parallax(self, is_3d: bool) -> str:
+        """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
+
+        Parameters
+        ----------
+        is_3d : bool
+            Whether the world's plumes have heights.
+
+        Returns
+        -------
+        str
+            ``"off"``, ``"prior"``, ``"true"`` or ``"estimated"``.
+
+        Examples
+        --------
+        >>> PassConfig().resolved_parallax(True), PassConfig().resolved_parallax(False)
+        ('estimated', 'off')
+        """
+        if not is_3d:
+            return "off"
+        return "estimated" if self.parallax == "auto" else self.parallax
+
     @cached_property
     def limits(self) -> Agility:
         """The agility preset :attr:`agility` names (looked up once per pass settings).
@@ -197,6 +295,10 @@ class PassConfig:
     def as_dict(self) -> dict[str, Any]:
         """The settings as a plain dict, without ``pipeline`` (recorded with the flown trajectory).
 
+        The parallax settings are left out when none was given (``parallax`` ``"auto"``
+        or ``"off"``, the rest at their defaults): the record of a flat world's pass is
+        what it was before them.
+
         Returns
         -------
         dict
@@ -204,6 +306,13 @@ class PassConfig:
         """
         d = asdict(self)
         d.pop("pipeline")
+        if self.parallax in ("auto", "off") and (
+            self.plume_height_m is None and self.relook_km == RELOOK_KM and self.relook_s is None
+        ):  # no parallax settings given (or a flat world's): the record as before them
+            for k in ("parallax", "plume_height_m", "relook_km", "relook_s"):
+                d.pop(k)
+        else:
+            d["relook_km"] = list(self.relook_km)
         return d
 
 
@@ -394,6 +503,9 @@ class FrameRecord:
         return out
 
 
+RELOOK_DROP = "dropped: look-ahead re-looking"
+"""The path of a frame not taken because the look-ahead was re-looking at a plume."""
+
 TIMELINE_COLUMNS = tuple(
     FrameRecord(0, 0, 0, 0, 0, {}, None, "", 0, 0, 0, 0, 0, 0, 0).row(measured=True)
 )
@@ -540,6 +652,15 @@ class PassResult:
     """Wall-clock seconds of the GEO targets and blueprint (kept out of :attr:`geo`)."""
     upper_bound: dict[str, Any] | None = None
     """The pass's true upper bound (:func:`pass_upper_bound`; ``None``: not computed)."""
+    heights: tuple[HeightEstimate, ...] = ()
+    """Per-plume top heights (``"estimated"`` or ``"prior"`` mode on a 3D world; empty otherwise)."""
+    is_3d: bool = False
+    """Whether the world's plumes have heights (the parallax figures enter :meth:`totals`)."""
+    parallax: str = "off"
+    """The parallax mode flown (:meth:`PassConfig.resolved_parallax`)."""
+    relook_windows: tuple[tuple[float, float], ...] = ()
+    """``(start, end)`` pass seconds of every re-look the look-ahead took (``"estimated"``
+    mode on a 3D world): frames acquired inside one are not taken."""
 
     @property
     def measured(self) -> bool:
@@ -553,7 +674,12 @@ class PassResult:
         -------
         dict
             Strip, planner, agility, frame and pointing counts, plume pixels, utility,
-            ratio plume, plumes observed and in total, median and largest latency.
+            ratio plume, plumes observed and in total, median and largest latency,
+            ``parallax`` (the mode flown); on a 3D world also ``relooks``,
+            ``frames_lost_to_relooks``, ``plumes_height_estimated``, ``height_rmse_m`` and
+            ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
+            ``heights_median_s`` (the height work's median wall time per frame; ``None``
+            with a fixed compute budget).
         """
         lat = np.array([r.latency_s for r in self.records if not r.dropped], np.float64)
         observed = {i for i in self.flown.plume_id if i > 0}
@@ -572,6 +698,26 @@ class PassResult:
             "plumes_total": len(self.plumes_at_start | observed),  # a cloud may drift in later
             "latency_median_s": round(float(np.median(lat)), 4) if len(lat) else None,
             "latency_max_s": round(float(np.max(lat)), 4) if len(lat) else None,
+            "parallax": self.parallax,
+            **(self._parallax_totals() if self.is_3d else {}),
+        }
+
+    def _parallax_totals(self) -> dict[str, Any]:
+        """Re-looks, frames they cost, plumes measured and the height error against the truth."""
+        est = [e for e in self.heights if e.height_source == "estimated"]
+        err = np.array(
+            [e.top_height_m - e.true_height_m for e in est
+             if e.top_height_m is not None and e.true_height_m is not None],
+            np.float64,
+        )  # fmt: skip
+        hs = [r.stage_s["heights"] for r in self.records if "heights" in r.stage_s]
+        return {
+            "relooks": len(self.relook_windows),
+            "frames_lost_to_relooks": sum(r.path == RELOOK_DROP for r in self.records),
+            "plumes_height_estimated": len(est),
+            "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
+            "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,
+            "heights_median_s": round(float(np.median(hs)), 4) if hs and self.measured else None,
         }
 
 
@@ -726,6 +872,12 @@ class _Pass:
     agility: Agility
     truth: _TruthCache
     gate: Gate | None
+    mode: str = "off"
+    """The parallax mode flown (:meth:`PassConfig.resolved_parallax`)."""
+    where: Geometry3D | None = None
+    """The spacecraft's track on the strip (a 3D world only)."""
+    tracker: HeightTracker | None = None
+    """Plumes, re-looks and heights (``"estimated"``/``"prior"`` on a 3D world)."""
 
 
 def fly_pass(
@@ -782,9 +934,14 @@ def fly_pass(
     def result(stopped: bool = False) -> PassResult:
         gate = ctx.gate
         info = None if geo_info is None else {**geo_info, **(gate.report() if gate else {})}
+        tracker = ctx.tracker
         return PassResult(
-            world.id, config, ctx.frames, list(state.records), state.flown, plumes_at_start,
-            stopped, info, geo_times,
+            world.id, config, ctx.frames, list(state.records), state.flown,
+            plumes_at_start, stopped, info, geo_times,
+            parallax=ctx.mode,
+            heights=() if tracker is None else tracker.estimates(_true_height(ctx)),
+            is_3d=ctx.where is not None,
+            relook_windows=() if tracker is None else tuple(sorted(tracker.busy)),
         )  # fmt: skip
 
     stopped = _fly_frames(ctx, state, result, on_frame, should_stop, progress, frame_sink)
@@ -826,7 +983,28 @@ def _prepare(
         if gate is None:
             geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
     ctx = _Pass(world, classifier, fallback, config, frames, config.limits, truth, gate)
+    mode = config.resolved_parallax(bool(getattr(world, "is_3d", False)))
+    if getattr(world, "is_3d", False):
+        where = Geometry3D(
+            frames.geometry, frames.wfov_shape, frames.frame_px, frames.tops[0], config.factor
+        )
+        tracker = None
+        if mode in ("estimated", "prior"):
+            wind = _wind(config, world)
+            prior = None
+            if wind is not None:
+                rad = math.radians(wind[1])  # blows from: moves the other way
+                prior = (-wind[0] * math.sin(rad), -wind[0] * math.cos(rad))
+            tracker = HeightTracker(
+                where, config.limits, config.relook_km, config.relook_s, config.plume_height_m,
+                prior, measure=mode == "estimated", log=_stderr,
+            )  # fmt: skip
+        ctx = replace(ctx, mode=mode, where=where, tracker=tracker)
     return ctx, geo_info, geo_times
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr)
 
 
 def _fly_frames(
@@ -925,12 +1103,170 @@ def _look(
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Frame ``k``'s WFOV image, valid pixels and (the oracle: no classifier) true mask."""
     config, frames = ctx.config, ctx.frames
+    if ctx.where is not None:
+        return _look_3d(ctx, k, t_k)
     image, valid = _frame_image(ctx.world, frames, k, config.factor, t_k)
     if ctx.classifier is not None:
         return image, valid, None
     f, width, top = config.factor, frames.wfov_shape[1] * config.factor, frames.tops[k]
     label = ctx.world.label_rows(t_k, top * f, (top + frames.frame_px) * f)[:, :width]
     return image, valid, block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
+
+
+def _look_3d(
+    ctx: _Pass, k: int, t_k: float
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """A 3D world's frame ``k``: the oblique look from the nadir at ``t_k`` (and the mask it shows)."""
+    config, frames, world = ctx.config, ctx.frames, ctx.world
+    assert ctx.where is not None
+    f, top = config.factor, frames.tops[k]
+    width = frames.wfov_shape[1] * f
+    hr, label = world.look_at(
+        t_k, top * f, (top + frames.frame_px) * f,
+        nadir_xy=ctx.where.nadir_hr(t_k), altitude_m=config.altitude_m,
+    )  # fmt: skip
+    expected = (4, frames.frame_px * f, width)
+    if hr.shape[0] != 4 or hr.shape[1] != expected[1] or hr.shape[2] < expected[2]:
+        raise InvalidSceneError(
+            f"world {world.id!r}: frame {k} image has shape {hr.shape}, expected {expected}"
+        )
+    image = block_mean(np.asarray(hr, np.float32)[:, :, :width], f)
+    valid = None
+    if world.valid is not None:
+        v = world.valid[top * f : (top + frames.frame_px) * f, :width]
+        valid = block_mean(v[None].astype(np.float32), f)[0] == 1.0
+    if ctx.classifier is not None:
+        return image, valid, None
+    mask = block_mean(np.asarray(label)[None, :, :width].astype(np.float32), f)[0]
+    return image, valid, mask >= LABEL_FRACTION
+
+
+def _render(
+    ctx: _Pass, spent: list[float]
+) -> Callable[[float, int, int, tuple[float, float]], np.ndarray]:
+    """The world's look for the re-looks (its wall time added to ``spent``: the simulator's)."""
+
+    def render(t: float, top: int, bottom: int, nadir: tuple[float, float]) -> np.ndarray:
+        t0 = time.perf_counter()
+        image, _ = ctx.world.look_at(
+            t, top, bottom, nadir_xy=nadir, altitude_m=ctx.config.altitude_m
+        )
+        spent[0] += time.perf_counter() - t0
+        return image
+
+    return render
+
+
+def _heights(
+    ctx: _Pass, k: int, result: PlanResult, image: np.ndarray, stage: dict[str, float]
+) -> np.ndarray | None:
+    """Track frame ``k``'s plumes and measure new ones (``stage["heights"]``: the compute, not
+    the simulator's rendering of the re-looks); the frame's plume-id map (``None``: no tracker)."""
+    tracker, frames = ctx.tracker, ctx.frames
+    if tracker is None:
+        return None
+    spent = [0.0]
+    t0 = time.perf_counter()
+    target = result.mask if result.predicted_mask is None else result.predicted_mask
+    pids = tracker.frame(
+        k, frames.acquired_s(k), frames.tops[k], target, image, _render(ctx, spent),
+        last=k == frames.n_frames - 1,
+    )  # fmt: skip
+    stage["heights"] = time.perf_counter() - t0 - spent[0]
+    return pids
+
+
+def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
+    """The parallax correction of frame ``k``'s pointings (``None``: not corrected).
+
+    Each pointing's height: ``"prior"``, the prior; ``"estimated"``, its plume's estimate
+    from when it is usable (:meth:`~dyntarget.fly.heights.HeightTracker.height_at`), the
+    prior before (NaN without one: not corrected); ``"true"``, the true top height, at the
+    pointing's time, of the truth's plume whose top the look-ahead saw there (of the
+    plumes with a height, the highest whose true position under the pointing, seen from
+    the look-ahead at the acquisition, holds it).
+    """
+    if ctx.where is None or ctx.mode == "off":
+        return None
+    from dyntarget.schedule import ParallaxAim
+
+    frames, where, tracker = ctx.frames, ctx.where, ctx.tracker
+    t_k, top = frames.acquired_s(k), frames.tops[k]
+    shape = (frames.frame_px, frames.wfov_shape[1])
+
+    def heights_m(points: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        ts = np.broadcast_to(np.asarray(t_s, np.float64), (len(pts),))
+        if ctx.mode == "true":
+            return _true_heights(ctx, pts, ts, t_k, top)
+        assert tracker is not None
+        if ctx.mode == "prior" or pids is None:
+            return np.full(len(pts), tracker.height_at(0, t_k), np.float64)
+        rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
+        cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
+        inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+        pid = np.zeros(len(pts), np.int64)
+        pid[inside] = pids[rows[inside], cols[inside]]
+        return np.array(
+            [tracker.height_at(int(i), t_k + float(t)) for i, t in zip(pid, ts, strict=True)],
+            np.float64,
+        )
+
+    del where
+    return ParallaxAim(frames.geometry, shape, heights_m)
+
+
+def _true_heights(ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: int) -> np.ndarray:
+    """``"true"`` mode: each pointing's true plume-top height (:func:`_aim`), NaN where none."""
+    from dyntarget import parallax
+
+    world, where = ctx.world, ctx.where
+    assert where is not None
+    out = np.full(len(pts), np.nan)
+    at_look = world.heights_at(t_k)
+    if at_look is None or not len(pts):
+        return out
+    g = where.geometry
+    nx, ny = where.nadir(t_k)
+    along = (ny - (pts[:, 1] + top)) * g.wfov_gsd_m
+    cross = (pts[:, 0] - nx) * g.wfov_gsd_m
+    best = np.full(len(pts), -1.0)
+    hw, ww = ctx.frames.wfov_shape
+    for i in np.argsort(at_look)[::-1]:
+        h = float(at_look[i])
+        if i == 0 or h <= 0:
+            continue
+        ta, tc = parallax.unshift_xy(g.altitude_m, along, cross, h)
+        r = np.floor(ny - ta / g.wfov_gsd_m + 0.5).astype(np.int64)
+        c = np.floor(nx + tc / g.wfov_gsd_m + 0.5).astype(np.int64)
+        ok = (r >= 0) & (r < hw) & (c >= 0) & (c < ww) & (best < 0)
+        for j in np.flatnonzero(ok):
+            truth, r0 = ctx.truth.at(t_k, int(r[j]))
+            if int(truth.ids[int(r[j]) - r0, int(c[j])]) == int(i):
+                best[j] = float(i)
+    for j in np.flatnonzero(best > 0):
+        now = world.heights_at(t_k + float(ts[j]))
+        out[j] = float(now[int(best[j])]) if now is not None else np.nan
+    return out
+
+
+def _true_height(ctx: _Pass) -> Callable[[Plume], float | None]:
+    """The true top height of the truth plume a tracked plume shows (the most common id
+    under its pixels' true positions, with each plume's height at its first frame's time)."""
+
+    def true_height(p: Plume) -> float | None:
+        if ctx.where is None:
+            return None
+        top = ctx.frames.tops[p.frame]
+        pts = np.column_stack([p.cols, p.rows - top]).astype(np.float64)
+        h = _true_heights(ctx, pts, np.zeros(len(pts)), p.t_k, top)
+        h = h[np.isfinite(h)]
+        if not len(h):
+            return None
+        vals, counts = np.unique(h, return_counts=True)
+        return float(vals[np.argmax(counts)])
+
+    return true_height
 
 
 @dataclass(frozen=True, eq=False)
@@ -955,6 +1291,11 @@ def _fly_frame(
     t_k, top = frames.acquired_s(k), frames.tops[k]
     start = max(t_k, state.busy_until)
     wait = start - t_k
+    if ctx.tracker is not None and ctx.tracker.busy_at(t_k):  # the look-ahead is re-looking
+        record = FrameRecord(
+            k, t_k, start, start, wait, {}, None, RELOOK_DROP, 0, 0, 0, 0, 0, 0, 0, True
+        )
+        return record, None, None
     if config.deadline_s is not None and wait >= config.deadline_s:  # too far behind: skip it
         record = FrameRecord(
             k, t_k, start, start, wait, {}, False, "dropped: loop behind", 0, 0, 0, 0, 0, 0, 0, True
@@ -963,14 +1304,17 @@ def _fly_frame(
     image, valid, mask = _look(ctx, k, t_k)
     t_loop = time.perf_counter()
     result, stage, prediction = _plan_frame(ctx, k, image, valid, mask, start, state)
+    heights: dict[str, float] = {}
+    aim = _aim(ctx, k, _heights(ctx, k, result, image, heights)) if ctx.where else None
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
-    flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state)
+    flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
     loop_s = time.perf_counter() - t_loop
     if config.compute_budget_s is None:  # the plan is ready after all the measured work
         ready = start + sum(stage.values())
         state.schedule_s = stage["schedule"]
+    stage |= heights  # the height work is off the plan's critical path (its own stage)
     _commit(flown, ready, t_k, frames.geometry, state)
     gains = _score(ctx, k, flown, todo, state)
     flown_local = todo.keep[flown.kept[flown.kept < len(todo.keep)]]  # of this frame's plan
@@ -1118,8 +1462,12 @@ def _schedule_frame(
     start: float,
     stage: dict[str, float],
     state: PassState,
+    aim: ParallaxAim | None = None,
 ) -> tuple[Schedule, float]:
     """Schedule the frame's pointings behind what the NFOV has committed to, once.
+
+    With ``aim`` (a 3D world), every pointing is moved by the parallax correction for
+    its time (:func:`~dyntarget.schedule.schedule_on_prediction` ``aim=``).
 
     Returns the schedule and when the plan is ready: ``start + compute_budget_s``, or
     without a budget ``start`` + the stages measured so far + the previous frame's
@@ -1131,6 +1479,7 @@ def _schedule_frame(
     attached = None
     if prediction is not None and prediction.motion.regime == "mixed":
         attached = prediction.attached_mask(result.mask)
+    kw: dict[str, Any] = {} if aim is None else {"aim": aim}
     flown = schedule_on_prediction(
         todo.trajectory,
         (frames.frame_px, frames.wfov_shape[1]),
@@ -1140,6 +1489,7 @@ def _schedule_frame(
         attached=attached,
         sensor=sensor_in_frame(state.timer_t, state.target, frames.geometry, t_k, ready),
         keep_order=True,
+        **kw,
     )
     return flown, ready
 
@@ -1168,7 +1518,12 @@ def _score(
     points = flown.trajectory.points
     assert flown.times is not None  # a scheduled trajectory is timed
     t_pass = [t_k + float(t) for t in flown.times]
-    scores = score_pointings(points, t_pass, top, frames.wfov_shape, ctx.truth.at)
+    if ctx.where is None:
+        scores = score_pointings(points, t_pass, top, frames.wfov_shape, ctx.truth.at)
+    else:  # a 3D world: each pointing is a line of sight meeting the highest plume first
+        scores = score_pointings(
+            points, t_pass, top, frames.wfov_shape, ctx.truth.at, sight=_sight(ctx)
+        )
     new_plumes = 0
     for pid in scores.plume_id:
         if pid and pid not in state.plumes_seen:
@@ -1191,6 +1546,25 @@ def _score(
     fl.plume_id.extend(scores.plume_id)
     state.covered[scores.rows[scores.inside], scores.cols[scores.inside]] = True
     return (*scores.totals(), new_plumes)
+
+
+def _sight(ctx: _Pass) -> Sight:
+    """The NFOV's lines of sight on a 3D world (:class:`dyntarget.observe.Sight`)."""
+    from dyntarget.observe import Sight
+
+    where, world = ctx.where, ctx.world
+    assert where is not None
+
+    def heights(t: float) -> np.ndarray:
+        h = world.heights_at(t)
+        return np.zeros(1) if h is None else h
+
+    return Sight(
+        nadir=where.nadir,
+        gsd_m=where.geometry.wfov_gsd_m,
+        altitude_m=where.geometry.altitude_m,
+        heights=heights,
+    )
 
 
 def _frame_transform(world: World, config: PassConfig, top: int) -> Affine | None:

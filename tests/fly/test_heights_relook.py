@@ -1,0 +1,154 @@
+"""Re-looks of the look-ahead: their cost, when an estimate is usable, the CLI's options."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from dyntarget.cli import main
+from dyntarget.fly import PassConfig, fly_pass
+from dyntarget.fly.heights import Geometry3D, HeightTracker, Plume, relook_seconds
+from dyntarget.fly.loop import RELOOK_DROP
+from dyntarget.io import write_scene
+from dyntarget.scene import Scene
+from dyntarget.schedule import OrbitGeometry, get_agility
+
+R, H = 6_371_000.0, 500e3
+
+
+def _off_nadir_deg(d_m: float) -> float:
+    """Angle at the spacecraft between nadir and a ground point d_m ahead (sphere, by hand)."""
+    g = d_m / R
+    return math.degrees(math.atan2(R * math.sin(g), R + H - R * math.cos(g)))
+
+
+@pytest.mark.parametrize("preset", ["fast", "slow"])
+@pytest.mark.parametrize("d_km", [400.0, 300.0])
+def test_a_relook_costs_the_slew_there_and_back(preset, d_km):
+    a = get_agility(preset)
+    phi = _off_nadir_deg(500e3) - _off_nadir_deg(d_km * 1e3)
+    w, acc = a.max_rate_deg_s, a.max_accel_deg_s2
+    slew = 2 * math.sqrt(phi / acc) if phi <= w * w / acc else phi / w + w / acc
+    want = 2 * (slew + a.settle_s) + a.dwell_s
+    assert relook_seconds(OrbitGeometry(), a, d_km * 1e3) == pytest.approx(want, rel=1e-9)
+    if preset == "fast" and d_km == 300.0:  # 13.27 deg: 1.83 s each way at 10 deg/s
+        assert phi == pytest.approx(13.27, abs=0.01) and want == pytest.approx(3.80, abs=0.01)
+
+
+def _tracker(prior_m):
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=32.0), (256, 64), 64, 192, 4)
+    return HeightTracker(
+        where, get_agility("fast"), (400.0, 300.0), None, prior_m, (0.0, 0.0),
+        measure=True, log=lambda s: None,
+    )  # fmt: skip
+
+
+def test_the_estimate_is_used_from_when_it_is_known():
+    tr = _tracker(5000.0)
+    p = Plume(1, 0, 0.0, np.array([10]), np.array([10]), height_m=9000.0, ready_s=30.0)
+    p.source = "estimated"
+    tr.plumes.append(p)
+    assert tr.height_at(1, 29.99) == 5000.0  # before t_e: the prior
+    assert tr.height_at(1, 30.0) == 9000.0
+    assert tr.height_at(0, 40.0) == 5000.0  # a pointing on no tracked plume: the prior
+    no_prior = _tracker(None)
+    no_prior.plumes.append(p)
+    assert math.isnan(no_prior.height_at(1, 10.0)) and no_prior.height_at(1, 31.0) == 9000.0
+
+
+def test_the_nadir_follows_the_design_formula():
+    g = OrbitGeometry(wfov_gsd_m=32.0)
+    where = Geometry3D(g, (256, 64), 64, 192, 4)
+    # y_n = top_0 + (H_f - 1) / 2 + (look_ahead - v T) / gsd; x_n = (W - 1) / 2
+    assert where.nadir(0.0) == (31.5, 192 + 31.5 + 500e3 / 32.0)
+    _x, y = where.nadir(10.0)
+    assert y == pytest.approx(192 + 31.5 + (500e3 - 10.0 * g.ground_speed) / 32.0)
+    assert where.nadir_hr(0.0) == (31.5 * 4 + 1.5, (192 + 31.5 + 500e3 / 32.0) * 4 + 1.5)
+
+
+def test_frames_acquired_while_the_look_ahead_re_looks_are_not_taken(capsys):
+    from tests.fly.test_pass_3d import _world
+
+    world = _world()
+    # re-looks 1 and 3 km nearer than the frame, 0.2 s each: inside the pass
+    config = PassConfig(
+        agility="fast", compute_budget_s=0.05, relook_km=(499.0, 497.0), relook_s=0.2
+    )
+    r = fly_pass(world, None, config)
+    windows = r.relook_windows
+    assert len(windows) == 2 and all(b - a == pytest.approx(0.2) for a, b in windows)
+    lost = {rec.frame for rec in r.records if any(a <= rec.acquired_s < b for a, b in windows)}
+    dropped = {rec.frame for rec in r.records if rec.path == RELOOK_DROP}
+    assert dropped == lost and len(lost) >= 2  # cadence 0.145 s: one or two per window
+    assert all(rec.dropped and rec.flown == 0 for rec in r.records if rec.frame in lost)
+    assert r.totals()["frames_lost_to_relooks"] == len(lost) and r.totals()["relooks"] == 2
+    e = r.heights[0]
+    if e.height_source != "estimated":  # looks 2 km apart barely move the top: said on stderr
+        assert f"plume 1 (frame {e.frame}): no height estimated" in capsys.readouterr().err
+        assert e.height_source == "none" and e.reason
+
+
+def _flat_strip(tmp_path):
+    image = np.full((4, 512, 128), 0.05, np.float32)
+    label = np.zeros((512, 128), bool)
+    label[200:260, 20:80] = True
+    image[:, label] = 0.8
+    write_scene(Scene(image, label=label, gsd=8.0, id="strip"), tmp_path)
+    return tmp_path / "strip.tif"
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--parallax", "sideways"], "--parallax"),
+        (["--relook-km", "400,abc"], "--relook-km"),
+        (["--relook-km", "400,-3"], "--relook-km"),
+        (["--relook-km", "300,400"], "nearest last"),
+        (["--plume-height-km", "0"], "--plume-height-km"),
+        (["--no-parallax", "--parallax", "true"], "exclude each other"),
+        (["--no-parallax", "--plume-height-km", "8"], "--plume-height-km"),
+        (["--plume-height-km", "8", "--parallax", "off"], "has no effect"),
+    ],
+)
+def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
+    strip = _flat_strip(tmp_path / "in")
+    args = ["fly", "--scene", str(strip), "--truth", "--out", str(tmp_path / "o"), "--quiet"]
+    with pytest.raises(SystemExit) as ex:
+        code = main([*args, *extra])
+        raise SystemExit(code)
+    err = capsys.readouterr().err.strip()
+    assert ex.value.code == 2 and needle in err and len(err.splitlines()) == 1, err
+
+
+def test_a_3d_strip_writes_plumes_geojson(tmp_path):
+    data, out = tmp_path / "strips", tmp_path / "out"
+    synth = ["synth", "--strip", "--scenes", "1", "--size", "64", "--plumes", "2", "--seed", "3"]
+    assert main([*synth, "--plume-height-km", "3", "--out", str(data), "--quiet"]) == 0
+    fly = ["fly", "--scene", str(data / "strip-0003.tif"), "--truth", "--no-picture", "--no-html"]
+    assert main([*fly, "--compute-budget-s", "0.1", "--out", str(out), "--quiet"]) == 0
+    doc = json.loads((out / "plumes.geojson").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    assert doc["type"] == "FeatureCollection" and summary["parallax"] == "estimated"
+    assert len(doc["features"]) == summary["plumes_height_estimated"] + sum(
+        f["properties"]["height_source"] != "estimated" for f in doc["features"]
+    )
+    for key in ("relooks", "frames_lost_to_relooks", "height_rmse_m", "height_bias_m"):
+        assert key in summary
+    # --no-parallax: off, no plume is measured
+    assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
+    off = json.loads((tmp_path / "off" / "summary.json").read_text())
+    assert off["parallax"] == "off" and off["relooks"] == 0
+
+
+def test_prior_mode_aims_every_plume_at_the_prior():
+    from tests.fly.test_pass_3d import TOP_M, _world
+
+    world = _world()
+    r = fly_pass(world, None, PassConfig(compute_budget_s=0.05, parallax="prior",
+                                         plume_height_m=TOP_M))  # fmt: skip
+    assert [e.height_source for e in r.heights] == ["prior"] and r.relook_windows == ()
+    assert r.heights[0].top_height_m == TOP_M and r.totals()["plumes_observed"] == 1
+    assert r.config.as_dict()["parallax"] == "prior" and r.parallax == "prior"
