@@ -1,8 +1,8 @@
 """Passes of real length: whole-process time, CPU time and peak memory of ``fly`` on long strips.
 
-For every length (``--lengths``, km) one strip is synthesised (``synth --strip --length-km``,
-``--density`` vents per 100 km, 256 px at 8 m), then flown once per preset (``--presets``)
-the way a user flies it, from the shell::
+For every length (``--lengths``, km) one flat strip is synthesised (``synth --strip
+--length-km --flat``, ``--density`` vents per 100 km, 256 px at 8 m), then flown once per
+preset (``--presets``) the way a user flies it, from the shell::
 
     python -m dyntarget.cli fly --scene STRIP --truth --agility PRESET --out DIR --quiet
 
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
             strips = work / f"strip-{km:g}km"
             synth = [*py, "synth", "--strip", "--length-km", f"{km:g}", "--plumes-per-100km",
                      f"{args.density:g}", "--scenes", "1", "--seed", str(args.seed),
-                     "--out", str(strips), "--quiet"]  # fmt: skip
+                     "--flat", "--out", str(strips), "--quiet"]  # fmt: skip
             s_wall, _, _, rc = _run(synth, env)
             if rc:
                 return rc

@@ -1,7 +1,7 @@
 """The pass loop's time per frame, before and after a change, as whole processes side by side.
 
 Each run is a fresh ``python`` process with one checkout's ``src`` first on
-``PYTHONPATH`` that flies one strip (``dyntarget synth --strip``, 256 px wide,
+``PYTHONPATH`` that flies one strip (``dyntarget synth --strip --flat``, 256 px wide,
 ``--length`` px long, factor 4: 15 frames at the default 2048) and prints every frame's ``loop_s`` (all onboard work on a frame:
 classify, denoise, predict, plan, de-duplicate, schedule; :class:`dyntarget.fly.loop.FrameRecord`).
 The two checkouts alternate, ``--repeats`` times, on the same machine in one run;
@@ -78,7 +78,7 @@ def main() -> None:
         env = {**os.environ, "PYTHONPATH": str(after / "src")}
         synth = [sys.executable, "-m", "dyntarget.cli", "synth", "--quiet", "--seed", "0"]
         subprocess.run([*synth, "--strip", "--scenes", "1", "--size", "256", "--plumes", "4",
-                        "--length", str(args.length), "--out", str(work / "strips")],
+                        "--length", str(args.length), "--flat", "--out", str(work / "strips")],
                        env=env, check=True)  # fmt: skip
         subprocess.run([*synth, "--scenes", "2", "--size", "256", "--out", str(work / "sc")],
                        env=env, check=True)  # fmt: skip

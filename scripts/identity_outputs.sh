@@ -16,9 +16,11 @@ SRC=$(cd "$SRC" && pwd)
 export PYTHONPATH=$SRC/src
 rm -rf $OUT; mkdir -p $OUT
 cd $OUT
+# moving worlds are 3D by default since --flat exists; the flat world is what is compared
+FLAT=; [[ $(dyntarget synth --help) == *--flat* ]] && FLAT=--flat
 dyntarget synth --scenes 6 --size 128 --seed 0 --out scenes --quiet
 dyntarget reproduce --data scenes --out repro --folds 2 --epochs 1 --quiet > repro.log 2>&1
-dyntarget synth --strip --scenes 1 --size 256 --plumes 4 --seed 0 --out strips --quiet
+dyntarget synth --strip --scenes 1 --size 256 --plumes 4 --seed 0 $FLAT --out strips --quiet
 dyntarget synth --scenes 2 --size 256 --seed 1 --out flyscenes --quiet
 dyntarget train --data flyscenes --classifier logistic-regression --out model > train.log 2>&1
 STRIP=strips/strip-0000.tif
@@ -38,7 +40,7 @@ fly geo-truth-two-looks --truth --geo --planner lawnmower-transect --agility fas
 fly geo-lr-slow --model model --geo --planner track-center --agility slow --predict two-looks
 fly geo-truth-omniscient --truth --geo-omniscient --planner lawnmower-transect --agility slow
 # moving scenes: evaluate dynamic (static, predictive, wind-prior under an agility preset) and plan
-dyntarget synth --scenes 3 --size 64 --frames 3 --seed 2 --out seqs --quiet
+dyntarget synth --scenes 3 --size 64 --frames 3 --seed 2 $FLAT --out seqs --quiet
 dyntarget evaluate dynamic --data seqs --out dynamic --folds 2 --epochs 1 --classifiers logistic-regression --modes static,predictive,wind-prior --latencies 0,30 --agility fast --planners lawnmower-transect,track-center --quiet > dynamic.log 2>&1 || echo "evaluate dynamic rc=$?"
 S=seqs/dyn-0002-0000
 dyntarget plan $S/f002.tif --mask $S/f002_mask.tif --previous $S/f001.tif --previous-mask $S/f001_mask.tif --interval-s 10 --lead-s 30 --planner lawnmower-transect --agility fast --html plan-masks.html --out plan-masks.geojson > plan-masks.log 2>&1 || echo "plan masks rc=$?"

@@ -48,6 +48,7 @@ def test_a_synthetic_strip_flies_from_the_cli(tmp_path):
     assert main([*args, "--out", str(data), "--quiet"]) == 0
     assert sorted(p.name for p in data.iterdir()) == [
         ".dyntarget-output",  # marks the folder as dyntarget's (docs/reliability.md)
+        "strip-0003.plumes.geojson",  # moving worlds are 3D by default: the per-vent truth
         "strip-0003.tif",
         "strip-0003.world.json",
         "strip-0003_mask.tif",

@@ -54,7 +54,7 @@ def test_rows_render_as_the_whole_window_does():
 def test_a_long_strip_flies_and_counts_its_vents(tmp_path):
     out = tmp_path / "s"
     assert main(["synth", "--strip", "--length-km", "20", "--plumes", "2", "--scenes", "1",
-                 "--out", str(out), "--quiet"]) == 0  # fmt: skip
+                 "--flat", "--out", str(out), "--quiet"]) == 0  # fmt: skip
     doc = json.loads((out / "strip-0000.world.json").read_text())
     assert doc["version"] == 2 and doc["window"] == [0, 0, 256, 2500]
     world = load_world(out / "strip-0000.tif")

@@ -37,8 +37,9 @@ def _synth(capsys, *argv) -> tuple[int, str]:
 def test_flat_spec_json_has_no_height_keys_and_the_recorded_bytes(tmp_path, capsys):
     # sha256 of strip-0000.world.json of `synth --strip --scenes 1 --size 256 --seed 0`,
     # recorded before worlds had heights (the same on any machine: plain JSON of floats)
+    # (moving worlds are 3D by default since; --flat gives these bytes)
     rc, _ = _synth(capsys, "synth", "--strip", "--scenes", 1, "--size", 256, "--seed", 0,
-                   "--out", tmp_path / "s", "--quiet")  # fmt: skip
+                   "--flat", "--out", tmp_path / "s", "--quiet")  # fmt: skip
     assert rc == 0
     text = (tmp_path / "s" / "strip-0000.world.json").read_bytes()
     assert hashlib.sha256(text).hexdigest() == (
@@ -48,18 +49,125 @@ def test_flat_spec_json_has_no_height_keys_and_the_recorded_bytes(tmp_path, caps
     assert not (tmp_path / "s" / "strip-0000.plumes.geojson").exists()
 
 
-@pytest.mark.slow
-def test_flat_option_gives_the_default_bytes(tmp_path, capsys):
+def _files(root) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(root)): p.read_bytes()
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.name != ".dyntarget-output"
+    }
+
+
+def test_flat_frames_are_the_flat_generators_bytes(tmp_path, capsys):
+    # synth --frames --flat writes what the (flat) Python generator and writer write
+    from dyntarget.io import write_sequence
+    from dyntarget.synth import generate_sequences
+
+    rc, _ = _synth(capsys, "synth", "--frames", 2, "--scenes", 2, "--size", 32, "--seed", 3,
+                   "--flat", "--out", tmp_path / "cli", "--quiet")  # fmt: skip
+    assert rc == 0
+    for seq in generate_sequences(2, size=32, seed=3, frames=2):
+        write_sequence(seq, tmp_path / "lib")
+    cli, lib = _files(tmp_path / "cli"), _files(tmp_path / "lib")
+    assert len(cli) == 2 * (2 * 2 + 1)  # per sequence: 2 frames, 2 masks, sequence.json
+    assert cli == lib
+    assert not any(name.endswith(".plumes.geojson") for name in cli)
+
+
+def test_flat_strip_is_the_flat_generators_bytes(tmp_path, capsys):
+    from dyntarget.synth.strip import strip_spec, write_strip
+
+    rc, _ = _synth(capsys, "synth", "--strip", "--scenes", 1, "--size", 64, "--length", 256,
+                   "--plumes", 2, "--seed", 3, "--flat", "--out", tmp_path / "cli",
+                   "--quiet")  # fmt: skip
+    assert rc == 0
+    write_strip(*strip_spec(3, width=64, length=256, plumes=2), tmp_path / "lib")
+    cli = _files(tmp_path / "cli")
+    assert sorted(cli) == ["strip-0003.tif", "strip-0003.world.json", "strip-0003_mask.tif"]
+    assert cli == _files(tmp_path / "lib")
+
+
+# -------------------------------------------------------------------- 3D by default
+
+
+def _strip_heights(world: dict) -> dict:
+    """The world spec without its height keys (what a flat world writes)."""
+    flat = json.loads(json.dumps(world))
+    for v in flat["vents"]:
+        del v["top_height_m"], v["rise_mps"]
+    for c in flat["clouds"]:
+        del c["height_m"]
+    return flat
+
+
+def _check_3d(world: dict, plumes_geojson) -> None:
+    """Every vent and cloud has a height in the default ranges; the truth file has each vent."""
+    assert world["vents"]
+    for v in world["vents"]:
+        assert 2000.0 <= v["top_height_m"] <= 15000.0 and 10.0 <= v["rise_mps"] <= 100.0
+    for c in world["clouds"]:
+        assert 1000.0 <= c["height_m"] <= 12000.0
+    doc = json.loads(plumes_geojson.read_text())
+    assert doc["type"] == "FeatureCollection"
+    props = [f["properties"] for f in doc["features"]]
+    assert [p["plume_id"] for p in props] == list(range(len(world["vents"])))
+    assert [p["top_height_m"] for p in props] == pytest.approx(
+        [v["top_height_m"] for v in world["vents"]], abs=1e-6
+    )
+    assert [p["rise_mps"] for p in props] == pytest.approx(
+        [v["rise_mps"] for v in world["vents"]], abs=1e-6
+    )
+    assert all(f["geometry"]["type"] == "Point" for f in doc["features"])
+
+
+def test_strip_is_3d_by_default_and_only_its_heights_differ_from_flat(tmp_path, capsys):
+    common = ("--strip", "--scenes", 1, "--size", 64, "--length", 256, "--plumes", 3,
+              "--seed", 5, "--quiet")  # fmt: skip
+    assert _synth(capsys, "synth", *common, "--out", tmp_path / "d")[0] == 0
+    assert _synth(capsys, "synth", *common, "--flat", "--out", tmp_path / "f")[0] == 0
+    d = json.loads((tmp_path / "d" / "strip-0005.world.json").read_text())
+    f = json.loads((tmp_path / "f" / "strip-0005.world.json").read_text())
+    assert len(d["world"]["vents"]) == 3 and d["world"]["clouds"]
+    _check_3d(d["world"], tmp_path / "d" / "strip-0005.plumes.geojson")
+    # the same world, vent for vent and cloud for cloud, with heights added
+    assert _strip_heights(d["world"]) == f["world"] and d["window"] == f["window"]
+    assert not (tmp_path / "f" / "strip-0005.plumes.geojson").exists()
+
+
+def test_pass_length_strip_is_3d_by_default(tmp_path, capsys):
+    rc, _ = _synth(capsys, "synth", "--strip", "--length-km", 20, "--plumes", 2, "--scenes", 1,
+                   "--clouds-per-100km", 30, "--seed", 1, "--out", tmp_path / "l",
+                   "--quiet")  # fmt: skip
+    assert rc == 0
+    doc = json.loads((tmp_path / "l" / "strip-0001.world.json").read_text())
+    assert len(doc["world"]["vents"]) == 2 and doc["world"]["clouds"]
+    _check_3d(doc["world"], tmp_path / "l" / "strip-0001.plumes.geojson")
+
+
+def test_frames_are_3d_by_default_and_only_their_heights_differ_from_flat(tmp_path, capsys):
+    common = ("--frames", 1, "--scenes", 2, "--size", 32, "--seed", 2, "--quiet")
+    assert _synth(capsys, "synth", *common, "--out", tmp_path / "d")[0] == 0
+    assert _synth(capsys, "synth", *common, "--flat", "--out", tmp_path / "f")[0] == 0
+    for sid in ("dyn-0002-0000", "dyn-0002-0001"):
+        d = json.loads((tmp_path / "d" / sid / "sequence.json").read_text())["meta"]["world"]
+        f = json.loads((tmp_path / "f" / sid / "sequence.json").read_text())["meta"]["world"]
+        _check_3d(d, tmp_path / "d" / f"{sid}.plumes.geojson")
+        assert _strip_heights(d) == f
+        assert not (tmp_path / "f" / f"{sid}.plumes.geojson").exists()
+
+
+def test_static_scenes_stay_flat_and_flat_changes_nothing(tmp_path, capsys):
     for name, extra in (("a", []), ("b", ["--flat"])):
-        rc, _ = _synth(capsys, "synth", "--frames", 2, "--scenes", 1, "--size", 64, "--seed", 3,
+        rc, _ = _synth(capsys, "synth", "--scenes", 2, "--size", 32, "--seed", 4,
                        "--out", tmp_path / name, "--quiet", *extra)  # fmt: skip
         assert rc == 0
-    files = sorted(
-        p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file()
-    )
-    assert len(files) >= 5
-    for f in files:
-        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes(), f
+    a = _files(tmp_path / "a")
+    assert sorted(a) == [
+        "synth-0004-0000.tif",
+        "synth-0004-0000_mask.tif",
+        "synth-0004-0001.tif",
+        "synth-0004-0001_mask.tif",
+    ]
+    assert a == _files(tmp_path / "b")
 
 
 def test_flat_world_looks_the_same_from_any_angle():

@@ -101,7 +101,8 @@ def test_synth_strip_draws_onsets_and_refuses_bad_options(tmp_path):
 
     out = tmp_path / "s"
     r = synth("--strip", "--length-km", "20", "--plumes", "3", "--scenes", "1", "--seed", "1",
-              "--onset-fraction", "1", "--onset-window-min=-30,10", "--out", str(out))  # fmt: skip
+              "--onset-fraction", "1", "--onset-window-min=-30,10", "--flat",
+              "--out", str(out))  # fmt: skip
     assert r.returncode == 0, r.stderr
     doc = json.loads((out / "strip-0001.world.json").read_text())
     onsets = [-v["eruption_age_s"] for v in doc["world"]["vents"]]

@@ -34,23 +34,27 @@ Heights = tuple[tuple[float, float], tuple[float, float]]
 def _heights(args: argparse.Namespace) -> Heights | None:
     """The height ranges of a 3D world (plume, cloud; km), or ``None`` for a flat world.
 
-    For now a moving world is 3D only when a height option is given: the pipeline does not
-    correct parallax yet (issue 40's next step), and 3D by default before it does would
-    silently degrade every pass. Static scenes stay flat (the paper's setting).
+    Moving worlds (``--frames``, ``--strip``) are 3D by default, their heights drawn in the
+    given ranges or the defaults (:data:`PLUME_HEIGHT_KM`, :data:`CLOUD_HEIGHT_KM`);
+    ``--flat`` keeps them flat (the bytes written before worlds had heights). Static scenes
+    stay flat (the paper's setting), and a height option there is refused.
     """
     plume = getattr(args, "plume_height_km", None)
     cloud = getattr(args, "cloud_height_km", None)
-    if plume is None and cloud is None:
-        return None
-    if getattr(args, "flat", False):
+    given = plume is not None or cloud is not None
+    if given and getattr(args, "flat", False):
         raise InvalidParameterError(
             "--flat and --plume-height-km/--cloud-height-km exclude each other"
         )
     if not getattr(args, "strip", False) and getattr(args, "frames", None) is None:
-        raise InvalidParameterError(
-            "--plume-height-km/--cloud-height-km: static scenes stay flat; heights apply to "
-            "moving worlds (--frames, --strip)"
-        )
+        if given:
+            raise InvalidParameterError(
+                "--plume-height-km/--cloud-height-km: static scenes stay flat; heights apply "
+                "to moving worlds (--frames, --strip)"
+            )
+        return None
+    if getattr(args, "flat", False):
+        return None
     return (plume or PLUME_HEIGHT_KM, cloud or CLOUD_HEIGHT_KM)
 
 
@@ -378,29 +382,32 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     d = p.add_argument_group(
         "3D worlds (docs/plumes-3d.md)",
-        "heights of the plume tops and clouds of moving worlds (--frames, --strip), written in "
-        "the world spec and as <id>.plumes.geojson beside the images (one Point per vent: "
-        "plume_id, top_height_m, rise_mps, onset_s). For now a world is 3D only when a "
-        "height option is given, and its frames are still rendered from straight above",
+        "moving worlds (--frames, --strip) are 3D by default: plume tops and clouds carry "
+        "heights, written in the world spec and as <id>.plumes.geojson beside the images (one "
+        "Point per vent: plume_id, top_height_m, rise_mps, onset_s). The images written here are "
+        "rendered from straight above; 'dyntarget fly' renders its look-ahead frames of a 3D "
+        "strip obliquely. Static scenes stay flat (the paper's setting); --flat gives a flat "
+        "moving world",
     )
     d.add_argument(
         "--plume-height-km",
         type=o.height_range,
         metavar="LO,HI",
-        help="each vent's column-top height drawn in LO..HI km (makes the world 3D; with "
-        f"--cloud-height-km alone: {PLUME_HEIGHT_KM[0]:g},{PLUME_HEIGHT_KM[1]:g}); the column "
-        "rises at 10-100 m/s from the eruption's onset until it reaches it",
+        help="each vent's column-top height drawn in LO..HI km (default "
+        f"{PLUME_HEIGHT_KM[0]:g},{PLUME_HEIGHT_KM[1]:g}); the column rises at 10-100 m/s from "
+        "the eruption's onset until it reaches it",
     )
     d.add_argument(
         "--cloud-height-km",
         type=o.height_range,
         metavar="LO,HI",
-        help="each cloud's height drawn in LO..HI km (makes the world 3D; with "
-        f"--plume-height-km alone: {CLOUD_HEIGHT_KM[0]:g},{CLOUD_HEIGHT_KM[1]:g})",
+        help="each cloud's height drawn in LO..HI km (default "
+        f"{CLOUD_HEIGHT_KM[0]:g},{CLOUD_HEIGHT_KM[1]:g})",
     )
     d.add_argument(
         "--flat",
         action="store_true",
-        help="a flat world (every feature on the ground; today's bytes, the default for now)",
+        help="a flat moving world (every feature on the ground, no plumes.geojson: the bytes "
+        "written before worlds had heights, for the published flat-world results)",
     )
     p.set_defaults(func=cmd_synth, size_given=False, plumes_given=False)
