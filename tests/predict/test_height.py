@@ -14,7 +14,7 @@ import pytest
 
 from dyntarget import parallax
 from dyntarget.errors import InvalidParameterError
-from dyntarget.predict.height import Look, fit_height, fit_rise, plume_disparity
+from dyntarget.predict.height import Look, envelope_disparity, fit_height, fit_rise, plume_disparity
 
 R = 6_371_008.7714
 H = 500e3
@@ -198,3 +198,58 @@ def test_bad_looks_are_refused():
         fit_height([Look(0.0, 0.0, 0.0, 0.0, -5e5, H)])
     with pytest.raises(InvalidParameterError):
         fit_rise([0, 1], [1, 2])
+
+
+# -- the envelope (masked NCC of the masks) and a rising top ---------------------------------
+
+
+def _disc(shape, cx, cy, r, ss=8):
+    """A disc's area fraction per pixel (supersampled ss x ss): sub-pixel edges, by hand."""
+    h, w = shape
+    o = (np.arange(ss) + 0.5) / ss - 0.5
+    yy = np.arange(h)[:, None, None, None] + o[None, None, :, None]
+    xx = np.arange(w)[None, :, None, None] + o[None, None, None, :]
+    return (((xx - cx) ** 2 + (yy - cy) ** 2) <= r * r).mean(axis=(2, 3))
+
+
+@pytest.mark.parametrize(("dx", "dy"), [(0.3, 17.6), (-1.7, 24.25), (2.0, -5.5)])
+def test_envelope_disparity_recovers_a_sub_pixel_shift(dx, dy):
+    # a 4 px radius disc (about 50 px) moved by a known sub-pixel amount; the second frame
+    # holds a second plume 20 px away that the search must not take; 0.15 px allowed
+    a = _disc((64, 64), 20.0, 20.0, 4.0)
+    b = _disc((64, 64), 20.0 + dx, 20.0 + dy, 4.0) + _disc((64, 64), 44.0, 40.0, 4.0)
+    weight = np.zeros((64, 64), bool)
+    weight[10:31, 10:31] = True
+    d, why = envelope_disparity(a, b, weight=weight, guess_px=(0.0, dy - 2.6), search_px=(4, 6))
+    assert why == "" and d.quality > 0.9
+    assert abs(d.dx_px - dx) <= 0.15 and abs(d.dy_px - dy) <= 0.15
+
+
+def test_envelope_disparity_refuses_what_it_cannot_measure():
+    a = _disc((32, 32), 10.0, 10.0, 0.6)  # about 1 px: too small
+    assert envelope_disparity(a, a)[1].startswith("plume too small")
+    big = _disc((32, 32), 10.0, 10.0, 3.0)
+    far = _disc((32, 32), 10.0, 22.0, 3.0)  # 12 px down, searched within 4 px
+    why = envelope_disparity(big, far, search_px=(4, 4))[1]
+    assert "edge" in why or "do not match" in why
+    with pytest.raises(InvalidParameterError, match="shape"):
+        envelope_disparity(big, big[:30])
+
+
+def test_a_rising_top_is_fitted_with_its_rise():
+    # a top at 6 km rising 40 m/s, still (a vent-attached envelope), seen 500, 400 and 300 km
+    # ahead: positions from parallax.py's exact forward model with the height of each look's
+    # time. A fit without the rise is biased low (the rise moves the top away from the
+    # nadir while the approach moves it closer); with it, h(t0) and w come back.
+    t = np.array([0.0, 100e3, 200e3]) / V_GROUND
+    looks = []
+    for ti in t:
+        h = 6000.0 + 40.0 * ti
+        d = 500e3 - V_GROUND * ti  # the feature's true distance ahead at ti
+        s = float(parallax.parallax_shift(H, d, h))
+        looks.append(Look(float(ti), 0.0, float(s), 0.0, float(-d), H, 10.0))
+    flat = fit_height(looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=1.0)
+    rising = fit_height(looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=1.0, rise=True)
+    assert flat.ok and flat.height_m < 6000.0 - 500.0 and flat.rise_mps is None
+    assert rising.ok and abs(rising.height_m - 6000.0) < 20.0
+    assert abs(rising.rise_mps - 40.0) < 1.0 and rising.rms_residual_m < 1.0

@@ -7,34 +7,44 @@ measured here, from the look-ahead stream itself.
 
 Model (what is and is not modelled):
 
-* **Plumes.** A connected component of a frame's denoised mask with at least
-  :data:`MIN_PLUME_PX` WFOV pixels is a plume. It is the plume already tracked when
-  it overlaps (within :data:`MATCH_PX` pixels) the apparent footprint of one tracked
-  plume on the strip's WFOV grid (the look-ahead's parallax changes by a fraction of a
-  pixel between overlapping frames); otherwise it is new, and measured at once (the
-  frame's own pointings need its height). A new plume too small for a re-look and
-  touching the frame's top edge (the side ahead, cut by the frame) waits for the next
-  frame, which sees more of it (the last frame does not wait).
+* **Plumes.** The components of a frame's denoised mask within :data:`GROUP_PX`
+  pixels of each other (a fragmented envelope) are one plume when they hold at least
+  :data:`MIN_PLUME_PX` WFOV pixels. It is the plume already tracked when it lies within
+  :data:`MATCH_PX` pixels of the apparent footprint of a tracked plume on the strip's WFOV
+  grid (the look-ahead's parallax changes by a fraction of a pixel between overlapping
+  frames); otherwise it is new, and measured at once (the frame's own pointings need its
+  height). A new plume whose upwind end (where its vent is) is cut by the frame's top
+  edge (the side ahead) is measured again on the first frame that sees that end, and
+  that estimate replaces the first (sharing its re-looks where their windows hold it).
 * **Re-looks.** For a new plume of at least :data:`MIN_RELOOK_PX` pixels the
   look-ahead re-points at it when its apparent centre (as frame ``k`` saw it) is
   ``relook_km[i]`` ahead of the nadir, one re-look per distance: at ``t_k + (along_k -
   d_i) / v``. A re-look sees a window of the frame's size on the strip: frame ``k``'s
-  rows moved by the disparity the prior height predicts (where the plume will appear),
-  clipped to the strip. It occupies the look-ahead for ``relook_s`` (the pitch change
-  there and back on the agility preset's slew model, two settles and one exposure:
-  :func:`relook_seconds`); a regular frame acquired meanwhile is not taken (the loop
-  records it dropped) - that is the cost. A re-look that would start while the
-  look-ahead is busy with another waits for it, at most one re-look's duration, else
-  it is not taken. All the plumes of one frame share its re-looks.
-* **Measurement.** The plume's apparent displacement between frame ``k`` and each
-  re-look is :func:`dyntarget.predict.height.plume_disparity` (inside the component,
-  the prior's disparity as the guess, searched over the frame's height); the looks'
-  apparent positions (the component's centroid, moved by each disparity) and the
-  nadir at each look's time go to :func:`~dyntarget.predict.height.fit_height` with a
-  Gaussian wind prior (the pass's wind, else the world's own wind: an ideal forecast,
-  sigma :data:`WIND_PRIOR_SIGMA_MPS`). Positions are given a standard deviation of
-  :data:`POSITION_SIGMA_PX` WFOV pixels (the fit scales its covariance up when the
-  residuals say more). Everything is measured at the look-ahead's WFOV resolution.
+  rows moved by the disparity the height known so far predicts (where the plume will
+  appear), clipped to the strip. It occupies the look-ahead for ``relook_s`` (the pitch
+  change there and back on the agility preset's slew model, two settles and one
+  exposure: :func:`relook_seconds`); a regular frame acquired meanwhile is not taken (the
+  loop records it dropped) - that is the cost. A re-look that would start while the
+  look-ahead is busy with another waits for it, at most one re-look's duration, else it
+  is not taken. The plumes of one frame share its re-looks, and a plume of a later frame
+  shares a re-look already taken within one re-look's duration of the time it wants
+  whose window holds it (a margin included).
+* **Measurement: the envelope.** A plume attached to its vent keeps its envelope (the
+  mask's shape) at the vent while the wind blows its texture through it; so the
+  envelope is measured, not the texture: the displacement between frame ``k``'s mask
+  (before denoising) and each re-look's mask (the oracle's, or the pass's classifier on
+  the re-look's image) is :func:`dyntarget.predict.height.envelope_disparity` (masked
+  normalised correlation, sub-pixel), on the plume's upwind part (:data:`UPWIND_SHARE`
+  of its length along the wind; the downwind end grows between the looks) and a margin
+  of background. The looks' apparent positions (the component's centroid, moved by each
+  displacement) and the nadir at each look's time go to
+  :func:`~dyntarget.predict.height.fit_height` with a **zero-drift prior** (sigma
+  :data:`ENVELOPE_DRIFT_SIGMA_MPS`). Where the three looks' track is curved beyond their
+  noise (:data:`RISE_TEST_PX`) the top is rising: the fit adds a linear rise, which
+  gives ``rise_mps`` and the height at frame ``k``'s time (the aim then follows the
+  rise). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
+  pixels (the fit scales its covariance up when the residuals say more). Everything is
+  measured at the look-ahead's WFOV resolution.
 * **When it is known.** The simulator renders a plume's re-looks as soon as its frame
   is planned (the world is known), but the estimate is usable only from ``t_e`` = the
   last re-look's time + the measured compute time of the measurement and fit: the
@@ -43,18 +53,19 @@ Model (what is and is not modelled):
   with the aim each pointing will have when flown; a flight system would re-plan at
   ``t_e``.
 * **Failures.** A plume too small for a re-look, one whose re-looks the look-ahead
-  had no time for, one too thin or without texture for the flow, a degenerate fit or
-  one whose standard deviation exceeds :data:`MAX_SIGMA_M`
+  had no time for, one whose envelope is not found in a re-look (no match above
+  :data:`~dyntarget.predict.height.MIN_ENVELOPE_NCC`, or the best on the search's
+  edge), a degenerate fit or one whose standard deviation exceeds :data:`MAX_SIGMA_M`
   keeps the prior (``height_source`` ``"prior"``) or nothing (``"none"``), with one
   line on stderr naming the plume and the reason.
-* **Known bias:** the wind prior is the wind, but the shape of a plume attached to
-  its vent does not drift with the wind between looks (the wind blows through it):
-  an along-track wind then biases the height by about 60 m per m/s at the default
-  geometry (``docs/plumes-3d.md``); cross-track wind does not.
-* **Not modelled:** the rise velocity (a rise needs a longer sequence of heights than
-  two re-looks give: ``rise_mps`` is ``None``), the plume's change of shape between
-  looks beyond a translation, re-looks of several plumes in one window across frames,
-  and the look-ahead's own scanning being re-planned around the re-looks.
+* **Known limits:** the loop does not tell a detached cloud (which drifts with the wind
+  as a whole) from a vent-attached plume: it is fitted with the zero-drift prior too,
+  and an along-track drift ``v`` biases its height by about ``v dt / (tan_0 - tan_2)``
+  (60 m per m/s at the default geometry, ``docs/plumes-3d.md``); a cross-track drift is
+  measured by the looks. A plume cut by the strip's side keeps a cut envelope.
+* **Not modelled:** the plume's change of shape between looks beyond a translation (and
+  the growth of its downwind end, left out of the match), and the look-ahead's own
+  scanning being re-planned around the re-looks.
 """
 
 from __future__ import annotations
@@ -69,21 +80,29 @@ import numpy as np
 
 from dyntarget import parallax
 from dyntarget.errors import InvalidParameterError
-from dyntarget.predict.height import Look, fit_height, plume_disparity
-from dyntarget.scene import block_mean
+from dyntarget.predict.height import Look, envelope_disparity, fit_height
 from dyntarget.schedule import Agility, OrbitGeometry
 from dyntarget.schedule.kinematics import angle_between_deg, look_vectors
 
-MIN_PLUME_PX = 16
-"""Fewest WFOV pixels of a component tracked as a plume."""
-MIN_RELOOK_PX = 64
-"""Fewest WFOV pixels of a plume worth a re-look (smaller: no interior to measure)."""
-MATCH_PX = 2
+MIN_PLUME_PX = 6
+"""Fewest WFOV pixels of a plume (its components grouped, :data:`GROUP_PX`) tracked."""
+MIN_RELOOK_PX = 6
+"""Fewest WFOV pixels of a plume worth a re-look (its envelope is measured on its mask)."""
+MATCH_PX = 4
 """A component within this many WFOV pixels of a tracked plume's footprint is that plume."""
+GROUP_PX = 3
+"""Components of one frame within this many WFOV pixels of each other are one plume."""
+UPWIND_SHARE = 0.5
+"""Share of a plume's length along the wind (from its upwind end) whose envelope is matched."""
+MARGIN_PX = 6
+"""Margin of background around a plume's mask compared by the envelope match, WFOV px."""
+RISE_TEST_PX = 0.3
+"""Root mean square residual (WFOV px) of the three looks' fit above which a rise is fitted."""
 POSITION_SIGMA_PX = 0.5
 """Standard deviation of a look's measured position, WFOV pixels."""
-WIND_PRIOR_SIGMA_MPS = 3.0
-"""Standard deviation of the wind prior, m/s per axis."""
+ENVELOPE_DRIFT_SIGMA_MPS = 1.0
+"""Standard deviation of the zero-drift prior of a vent-attached plume's envelope, m/s
+per axis (the envelope stays at the vent; its downwind end grows, its edges flicker)."""
 MAX_SIGMA_M = 1500.0
 """A fit less certain than this (one sigma, metres) is not used: the looks disagree
 (e.g. the flow followed something else than the plume in a re-look)."""
@@ -148,7 +167,7 @@ class HeightEstimate:
     top_height_m, top_height_sigma_m : float or None
         Top height above sea level and its standard deviation, metres (``None``: none).
     rise_mps : float or None
-        Rise velocity: not measured (``None``; a rise needs a longer sequence).
+        Rise velocity where the looks showed one (``None``: not measured).
     height_source : str
         ``"estimated"``, ``"prior"`` or ``"none"``.
     true_height_m : float or None
@@ -189,38 +208,96 @@ class HeightEstimate:
 
 @dataclass
 class Relook:
-    """A re-look the look-ahead took: when, which rows (strip WFOV), what it saw."""
+    """A re-look the look-ahead took: when, which rows (strip WFOV), what it saw.
+
+    Parameters
+    ----------
+    t_s : float
+        Pass time of the re-look, seconds.
+    duration_s : float
+        Look-ahead time it took, seconds.
+    top : int
+        Its window's top strip WFOV row (the window has the frame's size).
+    mask : numpy.ndarray or None
+        ``(H_f, W)`` plume mask (fraction 0..1) it showed.
+    """
 
     t_s: float
     duration_s: float
     top: int
-    image: np.ndarray | None = None
+    mask: np.ndarray | None = None
 
 
 @dataclass
 class Plume:
-    """A plume tracked over the pass (apparent footprint, re-looks, estimate)."""
+    """A plume tracked over the pass (apparent footprint, re-looks, estimate).
+
+    Parameters
+    ----------
+    pid : int
+        Its number over the pass, from 1.
+    frame : int
+        The frame it was measured on (the first that saw its upwind end).
+    t_k : float
+        That frame's acquisition time, pass seconds.
+    rows, cols : numpy.ndarray
+        Strip WFOV pixels of its mask in that frame.
+    relooks : list of Relook
+        The re-looks that saw it.
+    height_m, sigma_m : float or None
+        Its height and standard deviation (or the prior), metres.
+    ground_xy : tuple of float or None
+        Strip WFOV px of the top's ground position at the first frame's time.
+    ready_s : float
+        When its estimate is usable, pass seconds (``inf``: never).
+    source : str
+        ``"estimated"``, ``"prior"`` or ``"none"``.
+    reason : str
+        Why no height was estimated.
+    true_id : int
+        The truth's id (unused by the tracker).
+    pending : bool
+        Measured provisionally (its upwind end cut by the frame's edge): measured again
+        on the first frame that sees that end, whose index, time and view replace
+        ``frame``, ``t_k``, ``rows`` and ``cols``, and whose estimate replaces this one.
+    rise_mps : float or None
+        The top's measured rise, m/s (``None``: not measured).
+    """
 
     pid: int
     frame: int
     t_k: float
     rows: np.ndarray
-    """Strip WFOV rows of its component in the frame that first saw it."""
     cols: np.ndarray
     relooks: list[Relook] = field(default_factory=list)
     height_m: float | None = None
     sigma_m: float | None = None
     ground_xy: tuple[float, float] | None = None
-    """Strip WFOV px of the top's ground position at the first frame's time."""
     ready_s: float = math.inf
     source: str = "none"
     reason: str = ""
     true_id: int = 0
+    pending: bool = False
+    rise_mps: float | None = None
 
 
 @dataclass(frozen=True)
 class Geometry3D:
-    """Where the spacecraft is during a pass, on the strip's WFOV grid."""
+    """Where the spacecraft is during a pass, on the strip's WFOV grid.
+
+    Parameters
+    ----------
+    geometry : dyntarget.schedule.OrbitGeometry
+        The orbit and look-ahead.
+    wfov_shape : tuple of int
+        The strip's WFOV shape ``(rows, cols)``.
+    frame_px : int
+        Frame rows.
+    top0 : int
+        The first frame's top strip WFOV row.
+    factor : int
+        High-resolution pixels per WFOV pixel.
+    """
 
     geometry: OrbitGeometry
     wfov_shape: tuple[int, int]
@@ -229,7 +306,18 @@ class Geometry3D:
     factor: int
 
     def nadir(self, t: float) -> tuple[float, float]:
-        """The nadir at pass time ``t``, strip WFOV px ``(x, y)`` (``docs``' formula)."""
+        """The nadir at pass time ``t``, strip WFOV px (``docs``' formula).
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        tuple of float
+            ``(x, y)`` strip WFOV px.
+        """
         g = self.geometry
         x = (self.wfov_shape[1] - 1) / 2.0
         y = (
@@ -240,18 +328,58 @@ class Geometry3D:
         return x, y
 
     def nadir_hr(self, t: float) -> tuple[float, float]:
-        """The nadir at ``t`` in strip high-resolution px (WFOV px ``i`` centres at ``i f + (f-1)/2``)."""
+        """The nadir at ``t`` in strip high-resolution px.
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        tuple of float
+            ``(x, y)`` high-resolution px (WFOV px ``i`` centres at ``i f + (f-1)/2``).
+        """
         x, y = self.nadir(t)
         f = self.factor
         return x * f + (f - 1) / 2.0, y * f + (f - 1) / 2.0
 
     def along(self, y: float, t: float) -> float:
-        """Metres ahead of the nadir at ``t`` of strip WFOV row ``y``."""
+        """Metres ahead of the nadir at ``t`` of strip WFOV row ``y``.
+
+        Parameters
+        ----------
+        y : float
+            Strip WFOV row.
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        float
+            Metres.
+        """
         return (self.nadir(t)[1] - y) * self.geometry.wfov_gsd_m
 
     def disparity_rows(self, y: float, t0: float, t1: float, height_m: float) -> float:
-        """Rows a feature at ``height_m`` seen at row ``y`` at ``t0`` appears lower at ``t1``
-        (its parallax shrinks as the nadir approaches; the drift with the wind not counted)."""
+        """Rows a feature at ``height_m`` seen at row ``y`` at ``t0`` appears lower at ``t1``.
+
+        Its parallax shrinks as the nadir approaches; no drift is counted.
+
+        Parameters
+        ----------
+        y : float
+            Strip WFOV row where it appeared at ``t0``.
+        t0, t1 : float
+            Pass seconds of the two looks.
+        height_m : float
+            The feature's height.
+
+        Returns
+        -------
+        float
+            WFOV rows (positive: towards the nadir).
+        """
         g = self.geometry
         true_along = float(parallax.sight_at_height(g.altitude_m, self.along(y, t0), height_m))
         s0 = self.along(y, t0) - true_along
@@ -260,8 +388,10 @@ class Geometry3D:
         return (s0 - s1) / g.wfov_gsd_m
 
 
-Render = Callable[[float, int, int, tuple[float, float]], np.ndarray]
-"""``render(t, top_hr, bottom_hr, nadir_hr) -> (4, rows, W)`` high-res look of the world."""
+Render = Callable[[float, int, tuple[float, float]], np.ndarray]
+"""``render(t, top, nadir_hr) -> (H_f, W)`` plume mask (fraction 0..1) that a look of the
+world at pass time ``t`` from above ``nadir_hr`` (strip high-res px) shows on the frame-sized
+window whose top strip WFOV row is ``top`` (the oracle's, or the pass's classifier's)."""
 
 
 class HeightTracker:
@@ -280,7 +410,8 @@ class HeightTracker:
     prior_m : float or None
         The prior height (also the disparity's guess; :data:`GUESS_HEIGHT_M` without one).
     wind : tuple of float or None
-        ``(east, north)`` wind prior, m/s (``None``: no prior; two looks then degenerate).
+        ``(east, north)`` wind, m/s: kept for a feature that drifts with the wind; the
+        envelope of a vent-attached plume is fitted with a zero-drift prior instead.
     measure : bool
         Take re-looks and estimate heights (``"estimated"`` mode); otherwise only track.
     log : callable
@@ -311,12 +442,25 @@ class HeightTracker:
         self.plumes: list[Plume] = []
         self.busy: list[tuple[float, float]] = []
         """``(start, end)`` of every re-look taken, pass seconds."""
+        self.taken: list[Relook] = []
+        """Every re-look taken (shared by the plumes its window holds)."""
         if measure:  # loaded before the pass (as at boot), not in the first plume's time
             import scipy.optimize  # noqa: F401
 
     # -- the look-ahead's time -------------------------------------------------------
     def busy_at(self, t: float) -> bool:
-        """Whether the look-ahead is re-looking at pass time ``t``."""
+        """Whether the look-ahead is re-looking at pass time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        bool
+            True inside a re-look's window.
+        """
         return any(a <= t < b for a, b in self.busy)
 
     def _free_from(self, t: float, duration: float) -> float:
@@ -334,57 +478,85 @@ class HeightTracker:
         t_k: float,
         top: int,
         mask: np.ndarray,
-        image: np.ndarray,
         render: Render,
         *,
         last: bool,
+        raw: np.ndarray | None = None,
     ) -> np.ndarray:
         """Track frame ``k``'s plumes, take and measure re-looks of new ones.
 
         Parameters
         ----------
-        k, t_k, top : frame index, acquisition time and top strip WFOV row.
-        mask : ``(H_f, W)`` bool denoised mask the plan used.
-        image : ``(4, H_f, W)`` the frame's WFOV image.
-        render : the world's look (:data:`Render`), for the re-looks.
-        last : the pass's last frame (no plume waits for a next one).
+        k : int
+            Frame index.
+        t_k : float
+            Its acquisition time, pass seconds.
+        top : int
+            Its top strip WFOV row.
+        mask : numpy.ndarray
+            ``(H_f, W)`` bool denoised mask the plan used.
+        render : callable
+            The world's look (:data:`Render`), for the re-looks.
+        last : bool
+            The pass's last frame (no plume waits for a next one).
+        raw : numpy.ndarray or None
+            ``(H_f, W)`` bool mask before denoising (``None``: ``mask``): the envelope is
+            matched on it, as the re-looks' masks are not denoised either.
 
         Returns
         -------
         numpy.ndarray
             ``(H_f, W)`` int32: the tracked plume (1-based) of each component pixel, 0 elsewhere.
         """
-        n, comp, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+        m8 = mask.astype(np.uint8)
+        # components within GROUP_PX of each other are one plume (a fragmented envelope)
+        grow = np.ones((GROUP_PX + 1, GROUP_PX + 1), np.uint8)
+        n, comp = cv2.connectedComponents(cv2.dilate(m8, grow), connectivity=8)
+        comp = np.where(mask, comp, 0).astype(np.int32)
+        areas = np.bincount(comp.ravel(), minlength=n)
         out = np.zeros(mask.shape, np.int32)
         new: list[tuple[int, np.ndarray, np.ndarray]] = []
+        ready: list[Plume] = []
         near = np.ones((2 * MATCH_PX + 1, 2 * MATCH_PX + 1), np.uint8)
         for i in range(1, n):
-            if stats[i, cv2.CC_STAT_AREA] < MIN_PLUME_PX:
+            if areas[i] < MIN_PLUME_PX:
                 continue
             on = comp == i
-            grown = cv2.dilate(on.astype(np.uint8), near) > 0
-            under = self.labels[top : top + mask.shape[0]][grown]
-            under = under[under > 0]
             rows, cols = np.nonzero(on)
+            r0, r1 = max(int(rows.min()) - MATCH_PX, 0), int(rows.max()) + MATCH_PX + 1
+            c0, c1 = max(int(cols.min()) - MATCH_PX, 0), int(cols.max()) + MATCH_PX + 1
+            r1, c1 = min(r1, mask.shape[0]), min(c1, mask.shape[1])
+            grown = cv2.dilate(on[r0:r1, c0:c1].astype(np.uint8), near) > 0
+            under = self.labels[top + r0 : top + r1, c0:c1][grown]
+            under = under[under > 0]
             if len(under):
                 pid = int(np.bincount(under).argmax())
                 out[on] = pid
                 self.labels[rows + top, cols] = np.where(
                     self.labels[rows + top, cols] == 0, pid, self.labels[rows + top, cols]
                 )
+                p = self.plumes[pid - 1]
+                if p.pending and p not in ready and (last or not self._cut_upwind(rows, cols)):
+                    # its upwind end is in view now: measured again on this frame's view (the
+                    # re-looks already taken shared where their windows hold it)
+                    p.pending, p.frame, p.t_k, p.rows, p.cols = False, k, t_k, rows + top, cols
+                    p.relooks, p.source, p.reason, p.ready_s = [], "none", "", math.inf
+                    ready.append(p)
                 continue
-            small = stats[i, cv2.CC_STAT_AREA] < MIN_RELOOK_PX
-            if small and stats[i, cv2.CC_STAT_TOP] == 0 and not last:
-                continue  # too small, cut by the frame's top edge: the next frame sees more
             new.append((i, rows, cols))
         for i, rows, cols in new:
             plume = Plume(len(self.plumes) + 1, k, t_k, rows + top, cols)
+            # its upwind end (the vent's) cut by the frame's top edge (the side ahead):
+            # measured now (this frame's pointings need a height) and again on the first
+            # frame that sees that end
+            plume.pending = bool(not last and self._cut_upwind(rows, cols))
             self.plumes.append(plume)
             self.labels[rows + top, cols] = plume.pid
             out[comp == i] = plume.pid
-        if not new:
+            ready.append(plume)
+        if not ready:
             return out
-        fresh = [self.plumes[-len(new) + j] for j in range(len(new))]
+        fresh = ready
         if not self.measure:
             for p in fresh:
                 self._fallback(p, "")
@@ -395,27 +567,75 @@ class HeightTracker:
                            f"{MIN_RELOOK_PX}")  # fmt: skip
         big = [p for p in fresh if len(p.rows) >= MIN_RELOOK_PX]
         if big:
-            self._relook(big, k, t_k, top, mask.shape, image, render)
+            self._relook(big, t_k, top, comp, mask if raw is None else raw, render)
         return out
+
+    def _cut_upwind(self, rows: np.ndarray, cols: np.ndarray) -> bool:
+        """Whether a component (frame rows, columns) has its upwind end (the quarter of its
+        length along the wind at the upwind side; all of it without a wind) on the frame's
+        top row: a later frame, further north, sees more of that end."""
+        on_top = rows == 0
+        if not on_top.any():
+            return False
+        if self.wind is None or math.hypot(*self.wind) < 0.5:
+            return True
+        ux, uy = self.wind[0], -self.wind[1]  # east, north -> column, row
+        along = cols * ux + rows * uy
+        lo, hi = float(along.min()), float(along.max())
+        return bool(on_top[along <= lo + 0.25 * (hi - lo) + 1.0].any())
+
+    def _upwind(self, p: Plume, top: int, shape: tuple[int, int]) -> np.ndarray:
+        """The frame's pixels on the upwind side of plume ``p`` (all without a wind): those
+        whose distance along the wind is at most :data:`UPWIND_SHARE` of the plume's length
+        along it (and a margin) past its upwind end. Its vent end stays where it is while the
+        wind stretches the downwind end between the looks."""
+        if self.wind is None or math.hypot(*self.wind) < 0.5:
+            return np.ones(shape, bool)
+        ux, uy = self.wind[0], -self.wind[1]  # east, north -> column, row
+        norm = math.hypot(ux, uy)
+        ux, uy = ux / norm, uy / norm
+        along = p.cols * ux + (p.rows - top) * uy
+        lo, hi = float(along.min()), float(along.max())
+        cut = lo + UPWIND_SHARE * (hi - lo) + 1.0
+        rr, cc = np.mgrid[0 : shape[0], 0 : shape[1]]
+        return np.asarray(cc * ux + rr * uy <= cut)
+
+    def _window_for(
+        self, plumes: list[Plume], t_k: float, at: float, guess: float, tol: float
+    ) -> Relook | None:
+        """A re-look already taken within ``tol`` s of ``at`` whose window holds the plumes
+        where ``guess`` puts them (their rows and a margin), or ``None``."""
+        w = self.where
+        rows = np.concatenate([p.rows for p in plumes])
+        lo, hi = float(rows.min()), float(rows.max())
+        for r in self.taken:
+            if abs(r.t_s - at) > tol:
+                continue
+            a = lo + w.disparity_rows(lo, t_k, r.t_s, guess) - MARGIN_PX
+            b = hi + w.disparity_rows(hi, t_k, r.t_s, guess) + MARGIN_PX
+            if a >= r.top and b < r.top + w.frame_px:
+                return r
+        return None
 
     def _relook(
         self,
         plumes: list[Plume],
-        k: int,
         t_k: float,
         top: int,
-        shape: tuple[int, int],
-        image: np.ndarray,
+        comp: np.ndarray,
+        raw: np.ndarray,
         render: Render,
     ) -> None:
-        """Take frame ``k``'s re-looks in order, measure each plume on each, fit at the end.
+        """Take (or share) the re-looks in order, measure each plume's envelope on each, fit.
 
         Each re-look's window is centred where the plumes will appear, by the height
         known so far: the prior (or :data:`GUESS_HEIGHT_M`) for the first, then the fit of
-        the looks taken so far of the largest plume (two looks and the wind prior).
+        the looks taken so far of the largest plume. A re-look already taken (for an
+        earlier frame's plumes) near the wanted time whose window holds these plumes is
+        shared instead of taking another.
         """
         w = self.where
-        hw, gsd = w.wfov_shape[0], w.geometry.wfov_gsd_m
+        hw, gsd, shape = w.wfov_shape[0], w.geometry.wfov_gsd_m, comp.shape
         centre = float(np.mean(np.concatenate([p.rows for p in plumes])))
         along = w.along(centre, t_k)
         guess = self.prior_m if self.prior_m is not None else GUESS_HEIGHT_M
@@ -423,67 +643,94 @@ class HeightTracker:
         alt, sig = w.geometry.altitude_m, POSITION_SIGMA_PX * gsd
         looks: dict[int, list[Look]] = {}
         failed: dict[int, str] = {}
+        first: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        margin = np.ones((2 * MARGIN_PX + 1, 2 * MARGIN_PX + 1), np.uint8)
+        near = np.ones((2 * GROUP_PX + 1, 2 * GROUP_PX + 1), np.uint8)
+        raw = np.asarray(raw, bool)
         for p in plumes:
             cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
             looks[p.pid] = [Look(t_k, cx * gsd, -cy * gsd, nx * gsd, -ny0 * gsd, alt, sig)]
+            comp_p = np.zeros(shape, np.uint8)
+            comp_p[p.rows - top, p.cols] = 1
+            own = raw & (cv2.dilate(comp_p, near) > 0)  # its raw mask (not denoised)
+            weight = (cv2.dilate(own.astype(np.uint8), margin) > 0) & (own | ~raw)
+            first[p.pid] = (own, weight & self._upwind(p, top, shape))
         main = max(plumes, key=lambda p: len(p.rows))
-        why, last_t, last_compute = "", math.nan, 0.0
+        why, last_t, last_compute, fitted = "", math.nan, 0.0, False
         for d, dur in zip(self.distances_m, self.durations_s, strict=True):
             want = t_k + (along - d) / w.geometry.ground_speed
             if want <= t_k:
                 why = why or f"already nearer than {d / 1e3:g} km when seen"
                 continue
-            at = self._free_from(want, dur)
-            if at - want > dur:
-                why = why or "the look-ahead was busy re-looking at other plumes"
-                continue
-            shift = w.disparity_rows(centre, t_k, at, guess)
-            r0 = int(min(max(round(centre + shift - (shape[0] - 1) / 2.0), 0), hw - shape[0]))
-            self.busy.append((at, at + dur))
-            f = w.factor
-            hr = render(at, r0 * f, (r0 + shape[0]) * f, w.nadir_hr(at))
-            second = block_mean(np.asarray(hr, np.float32)[:, :, : shape[1] * f], f)
+            shared = self._window_for(plumes, t_k, want, guess, dur)
+            if shared is None:
+                at = self._free_from(want, dur)
+                if at - want > dur:
+                    why = why or "the look-ahead was busy re-looking at other plumes"
+                    continue
+                shift = w.disparity_rows(centre, t_k, at, guess)
+                r0 = int(min(max(round(centre + shift - (shape[0] - 1) / 2.0), 0), hw - shape[0]))
+                self.busy.append((at, at + dur))
+                shared = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
+                self.taken.append(shared)
+            at, r0, second = shared.t_s, shared.top, shared.mask
+            assert second is not None
             t0 = time.perf_counter()
             _, ny = w.nadir(at)
+            # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted), a margin
+            span = (
+                abs(w.disparity_rows(centre, t_k, at, guess)) * (0.3 if fitted else 0.8) + MARGIN_PX
+            )
+            search = (MATCH_PX, int(min(span, shape[0] // 2)))
             for p in plumes:
-                p.relooks.append(Relook(at, dur, r0))
+                p.relooks.append(shared)
                 if p.pid in failed:
                     continue
-                mask = np.zeros(shape, bool)
-                mask[p.rows - top, p.cols] = True
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
-                expect = cy + w.disparity_rows(cy, t_k, at, guess) - r0  # in the re-look
-                disp, reason = plume_disparity(
-                    image, second, mask, guess_px=(0.0, expect - (cy - top)), search_px=shape[0]
+                expect = w.disparity_rows(cy, t_k, at, guess) - (r0 - top)  # in array rows
+                own, weight = first[p.pid]
+                disp, reason = envelope_disparity(
+                    own, second, weight=weight, guess_px=(0.0, expect), search_px=search
                 )
                 if disp is None:
                     failed[p.pid] = reason.split("; no height")[0]
                     continue
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
                 looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
-            if main.pid not in failed and self.wind is not None:
-                fit = fit_height(looks[main.pid], wind_prior=self.wind,
-                                 wind_prior_sigma_mps=WIND_PRIOR_SIGMA_MPS)  # fmt: skip
+            if main.pid not in failed:
+                fit = fit_height(looks[main.pid], wind_prior=(0.0, 0.0),
+                                 wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS)  # fmt: skip
                 if fit.ok and 0 < fit.height_m < parallax.MAX_HEIGHT_M:
-                    guess = fit.height_m
+                    guess, fitted = fit.height_m, True
             last_t, last_compute = at, time.perf_counter() - t0
         for p in plumes:
             t0 = time.perf_counter()
-            if not p.relooks:
-                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
-            elif p.pid in failed:
+            if p.pid in failed:
                 self._fallback(p, failed[p.pid])
+            elif len(looks[p.pid]) < 2:
+                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
             else:
                 self._fit(p, looks[p.pid])
             if p.source == "estimated":
                 p.ready_s = last_t + last_compute + time.perf_counter() - t0
 
     def _fit(self, p: Plume, looks: list[Look]) -> None:
-        """Height and ground position of plume ``p`` from its looks, or the fallback."""
-        if self.wind is None and len(looks) < 3:
-            self._fallback(p, "two looks and no wind prior: drift and height cannot be separated")
-            return
-        fit = fit_height(looks, wind_prior=self.wind, wind_prior_sigma_mps=WIND_PRIOR_SIGMA_MPS)
+        """Height and ground position of plume ``p`` from its envelope's looks (zero-drift
+        prior: the envelope of a vent-attached plume), or the fallback."""
+        fit = fit_height(
+            looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS
+        )
+        gsd = self.where.geometry.wfov_gsd_m
+        if len(looks) >= 3 and fit.ok and fit.rms_residual_m > RISE_TEST_PX * gsd:
+            # the looks' track is curved beyond their noise: a rising top (its parallax
+            # grows while the approach shrinks it); fit the rise as well
+            rising = fit_height(
+                looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS,
+                rise=True,
+            )  # fmt: skip
+            up = rising.rise_mps is not None and rising.rise_mps > 0  # tops do not sink
+            if rising.ok and up and rising.rms_residual_m < fit.rms_residual_m:
+                fit = rising
         if not fit.ok or not math.isfinite(fit.height_m) or fit.height_m <= 0:
             self._fallback(p, fit.reason or f"the fit gave no usable height ({fit.height_m:.0f} m)")
             return
@@ -494,8 +741,8 @@ class HeightTracker:
                 f"disagree; more than {MAX_SIGMA_M:g} m)",
             )
             return
-        gsd = self.where.geometry.wfov_gsd_m
         p.height_m, p.sigma_m, p.source = fit.height_m, fit.height_sigma_m, "estimated"
+        p.rise_mps = fit.rise_mps
         p.ground_xy = (fit.position_m[0] / gsd, -fit.position_m[1] / gsd)
 
     def _fallback(self, p: Plume, reason: str) -> None:
@@ -504,7 +751,7 @@ class HeightTracker:
         p.height_m = self.prior_m
         p.sigma_m = None
         p.reason = reason
-        if reason:
+        if reason and not p.pending:
             self.log(
                 f"plume {p.pid} (frame {p.frame}): no height estimated: {reason}; "
                 + (f"using the prior {self.prior_m:g} m" if self.prior_m is not None else
@@ -513,16 +760,30 @@ class HeightTracker:
 
     # -- what the aim reads ----------------------------------------------------------
     def height_at(self, pid: int, t: float) -> float:
-        """The height plume ``pid`` (1-based; 0: none) is aimed with at pass time ``t``.
+        """The height plume ``pid`` is aimed with at pass time ``t``.
 
-        The estimate from its ``ready_s`` on; before that (or without one) the prior,
-        else NaN (not corrected).
+        The estimate from its ``ready_s`` on (with its rise, where measured); before that
+        (or without one) the prior, else NaN (not corrected).
+
+        Parameters
+        ----------
+        pid : int
+            The plume (1-based; 0: none).
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        float
+            Metres (NaN: not corrected).
         """
         prior = math.nan if self.prior_m is None else self.prior_m
         if pid <= 0 or pid > len(self.plumes):
             return prior
         p = self.plumes[pid - 1]
         if p.source == "estimated" and t >= p.ready_s and p.height_m is not None:
+            if p.rise_mps is not None:  # a rising top, up to the highest height modelled
+                return float(min(p.height_m + p.rise_mps * (t - p.t_k), parallax.MAX_HEIGHT_M))
             return p.height_m
         return prior
 
@@ -559,7 +820,7 @@ class HeightTracker:
                     round(gy * f + (f - 1) / 2.0, 3),
                     None if p.height_m is None else round(float(p.height_m), 1),
                     None if p.sigma_m is None else round(float(p.sigma_m), 1),
-                    None,
+                    None if p.rise_mps is None else round(float(p.rise_mps), 2),
                     p.source,
                     true_height(p),
                     p.frame,

@@ -636,6 +636,14 @@ class PassResult:
         (:meth:`~dyntarget.observe.bound.UpperBound.as_dict`), or
         ``{"value": None, "why": ...}`` when it could not be computed (``None``: not
         asked for).
+    heights : tuple of dyntarget.fly.heights.HeightEstimate
+        Per-plume top heights (``"estimated"`` or ``"prior"`` mode on a 3D world).
+    is_3d : bool
+        Whether the world's plumes have heights.
+    parallax : str
+        The parallax mode flown (:meth:`PassConfig.resolved_parallax`).
+    relook_windows : tuple of (float, float)
+        ``(start, end)`` pass seconds of every re-look the look-ahead took.
     """
 
     world_id: str
@@ -1143,16 +1151,26 @@ def _look_3d(
 
 def _render(
     ctx: _Pass, spent: list[float]
-) -> Callable[[float, int, int, tuple[float, float]], np.ndarray]:
-    """The world's look for the re-looks (its wall time added to ``spent``: the simulator's)."""
+) -> Callable[[float, int, tuple[float, float]], np.ndarray]:
+    """The plume mask a re-look shows (:data:`dyntarget.fly.heights.Render`): the oracle's
+    (the look's label, as a frame's) or the pass's classifier's on the look's WFOV image;
+    the world's rendering time is added to ``spent`` (the simulator's, not the height work's).
+    """
+    config, frames = ctx.config, ctx.frames
+    f, width, rows = config.factor, frames.wfov_shape[1] * config.factor, frames.frame_px
 
-    def render(t: float, top: int, bottom: int, nadir: tuple[float, float]) -> np.ndarray:
+    def render(t: float, top: int, nadir: tuple[float, float]) -> np.ndarray:
         t0 = time.perf_counter()
-        image, _ = ctx.world.look_at(
-            t, top, bottom, nadir_xy=nadir, altitude_m=ctx.config.altitude_m
+        hr, label = ctx.world.look_at(
+            t, top * f, (top + rows) * f, nadir_xy=nadir, altitude_m=config.altitude_m
         )
+        if ctx.classifier is None:
+            mask = block_mean(np.asarray(label)[None, :, :width].astype(np.float32), f)[0]
+            spent[0] += time.perf_counter() - t0
+            return np.asarray(mask >= LABEL_FRACTION)
+        image = block_mean(np.asarray(hr, np.float32)[:, :, :width], f)
         spent[0] += time.perf_counter() - t0
-        return image
+        return np.asarray(ctx.classifier.predict(image), bool)
 
     return render
 
@@ -1169,8 +1187,8 @@ def _heights(
     t0 = time.perf_counter()
     target = result.mask if result.predicted_mask is None else result.predicted_mask
     pids = tracker.frame(
-        k, frames.acquired_s(k), frames.tops[k], target, image, _render(ctx, spent),
-        last=k == frames.n_frames - 1,
+        k, frames.acquired_s(k), frames.tops[k], target, _render(ctx, spent),
+        last=k == frames.n_frames - 1, raw=result.raw_mask,
     )  # fmt: skip
     stage["heights"] = time.perf_counter() - t0 - spent[0]
     return pids
@@ -1239,11 +1257,15 @@ def _true_heights(ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: 
         ta, tc = parallax.unshift_xy(g.altitude_m, along, cross, h)
         r = np.floor(ny - ta / g.wfov_gsd_m + 0.5).astype(np.int64)
         c = np.floor(nx + tc / g.wfov_gsd_m + 0.5).astype(np.int64)
-        ok = (r >= 0) & (r < hw) & (c >= 0) & (c < ww) & (best < 0)
-        for j in np.flatnonzero(ok):
-            truth, r0 = ctx.truth.at(t_k, int(r[j]))
-            if int(truth.ids[int(r[j]) - r0, int(c[j])]) == int(i):
-                best[j] = float(i)
+        todo = np.flatnonzero((r >= 0) & (r < hw) & (c >= 0) & (c < ww) & (best < 0))
+        while len(todo):  # one truth band at a time, its pointings at once
+            truth, r0 = ctx.truth.at(t_k, int(r[todo[0]]))
+            band = (r[todo] >= r0) & (r[todo] < r0 + truth.ids.shape[0])
+            band[0] = True
+            js = todo[band]
+            hit = truth.ids[r[js] - r0, c[js]] == int(i)
+            best[js[hit]] = float(i)
+            todo = todo[~band]
     for j in np.flatnonzero(best > 0):
         now = world.heights_at(t_k + float(ts[j]))
         out[j] = float(now[int(best[j])]) if now is not None else np.nan

@@ -136,6 +136,8 @@ class HeightFit:
         Whether a wind prior entered the fit.
     reason : str
         Why the fit is not ``ok`` (empty otherwise).
+    rise_mps, rise_sigma_mps : float or None
+        The top's rise and its standard deviation, m/s (``None``: not fitted).
     """
 
     ok: bool
@@ -148,13 +150,18 @@ class HeightFit:
     looks: int
     wind_prior: bool
     reason: str = ""
+    rise_mps: float | None = None
+    rise_sigma_mps: float | None = None
 
 
 def _apparent(params: np.ndarray, looks: Sequence[Look]) -> np.ndarray:
-    """Model positions ``(n, 2)`` for ``params = (x0, y0, vx, vy, h)``."""
-    x0, y0, vx, vy, h = params
+    """Model positions ``(n, 2)`` for ``params = (x0, y0, vx, vy, h[, w])`` (``w``: the
+    rise, the height at look ``i`` being ``h + w (t_i - t_0)``)."""
+    x0, y0, vx, vy, h0 = params[:5]
+    w = float(params[5]) if len(params) > 5 else 0.0
     out = np.empty((len(looks), 2))
     for i, lk in enumerate(looks):
+        h = h0 + w * (lk.t_s - looks[0].t_s)
         px = x0 + vx * lk.t_s
         py = y0 + vy * lk.t_s
         rx, ry = px - lk.nadir_x_m, py - lk.nadir_y_m
@@ -180,6 +187,7 @@ def fit_height(
     *,
     wind_prior: tuple[float, float] | None = None,
     wind_prior_sigma_mps: float = 3.0,
+    rise: bool = False,
 ) -> HeightFit:
     """Solve a plume top's height jointly with its drift from two or more looks.
 
@@ -197,6 +205,10 @@ def fit_height(
         ``(east, north)`` wind, m/s, as a Gaussian prior (needed with two looks).
     wind_prior_sigma_mps : float
         Its standard deviation per axis, m/s.
+    rise : bool
+        Also fit a linear rise of the top, ``h + w (t - t_0)`` (``t_0`` the first look's
+        time; ``height_m`` is then the height at ``t_0``): needs three or more looks;
+        the rise shows as the curvature of the apparent track.
 
     Returns
     -------
@@ -240,18 +252,33 @@ def fit_height(
     rows, rhs = [], []
     for i, lk in enumerate(looks):
         kx, ky = _parallax_rate(lk)
-        rows += [[1, 0, t[i], 0, kx], [0, 1, 0, t[i], ky]]
+        dt = t[i] - t[0]
+        rows += [[1, 0, t[i], 0, kx, kx * dt], [0, 1, 0, t[i], ky, ky * dt]]
         rhs += [obs[i, 0], obs[i, 1]]
-    a = np.array(rows, np.float64) / np.repeat(sig, 2)[:, None]
+    n_par = 6 if rise else 5
+    a = np.array(rows, np.float64)[:, :n_par] / np.repeat(sig, 2)[:, None]
     b = np.array(rhs) / np.repeat(sig, 2)
     if wind_prior is not None:
         a = np.vstack(
-            [a, [[0, 0, 1 / wind_prior_sigma_mps, 0, 0], [0, 0, 0, 1 / wind_prior_sigma_mps, 0]]]
+            [
+                a,
+                np.array(
+                    [
+                        [0, 0, 1 / wind_prior_sigma_mps, 0, 0, 0],
+                        [0, 0, 0, 1 / wind_prior_sigma_mps, 0, 0],
+                    ]
+                )[:, :n_par],
+            ]
         )
         b = np.concatenate([b, np.asarray(wind_prior) / wind_prior_sigma_mps])
     nan2 = (math.nan, math.nan)
-    cond = np.linalg.cond(a * _column_scale(t))
-    if a.shape[0] < 5 or not math.isfinite(cond) or cond > MAX_CONDITION:
+    cond = np.linalg.cond(a * _column_scale(t)[:n_par])
+    if (
+        a.shape[0] < n_par
+        or (rise and len(looks) < 3)
+        or not math.isfinite(cond)
+        or cond > MAX_CONDITION
+    ):
         why = (
             "degenerate: two looks give four equations for five unknowns (position, drift, "
             "height): give a wind prior"
@@ -281,11 +308,16 @@ def fit_height(
         return r
 
     sol = least_squares(
-        residuals, x_lin, method="lm", x_scale=_column_scale(t) ** -1, xtol=1e-12, ftol=1e-12
+        residuals,
+        x_lin,
+        method="lm",
+        x_scale=_column_scale(t)[:n_par] ** -1,
+        xtol=1e-12,
+        ftol=1e-12,
     )
     jac = sol.jac
     cov = np.linalg.pinv(jac.T @ jac)
-    dof = jac.shape[0] - 5
+    dof = jac.shape[0] - n_par
     if dof > 0:
         chi2 = float(sol.fun @ sol.fun) / dof
         cov *= max(chi2, 1.0)
@@ -301,13 +333,15 @@ def fit_height(
         rms_residual_m=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))),
         looks=len(looks),
         wind_prior=wind_prior is not None,
+        rise_mps=float(sol.x[5]) if rise else None,
+        rise_sigma_mps=float(sd[5]) if rise else None,
     )
 
 
 def _column_scale(t: np.ndarray) -> np.ndarray:
     """Typical sizes of the unknowns' effects (so the condition number means something)."""
     span = max(float(np.ptp(t)), 1.0)
-    return np.array([1.0, 1.0, span, span, 1.0])
+    return np.array([1.0, 1.0, span, span, 1.0, span])
 
 
 @dataclass(frozen=True)
@@ -544,3 +578,153 @@ def _coarse_match(
     score = np.nan_to_num(score, nan=-1.0)
     iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
     return float(x0 + ix - c0), float(y0 + iy - r0)
+
+
+MIN_ENVELOPE_PX = 4
+"""Fewest mask pixels :func:`envelope_disparity` measures on (a few WFOV pixels)."""
+MIN_ENVELOPE_NCC = 0.5
+"""Least normalised correlation of the envelopes at the best shift."""
+
+
+def envelope_disparity(
+    first: np.ndarray,
+    second: np.ndarray,
+    *,
+    weight: np.ndarray | None = None,
+    guess_px: tuple[float, float] = (0.0, 0.0),
+    search_px: tuple[int, int] = (8, 8),
+    blur_px: float = 1.0,
+) -> tuple[Disparity | None, str]:
+    """How far a plume's envelope (its mask) moved between two frames: masked NCC, sub-pixel.
+
+    Unlike :func:`plume_disparity`, which follows the plume's texture (carried by the
+    wind through an attached plume), this follows the envelope: the shape of the mask,
+    which for a plume attached to its vent stays at the vent while the wind blows
+    through it. Both masks are blurred (Gaussian, ``blur_px``) so their edges carry
+    sub-pixel information; the normalised cross-correlation is computed over the
+    overlap of ``weight`` (where the first frame is compared: the plume and a margin
+    around it, other plumes left out) and the second frame, for every shift within
+    ``search_px`` (``(dx, dy)``) of ``guess_px`` (masked NCC, Padfield 2012, by FFT);
+    the peak is refined by a parabola through its neighbours in each axis.
+
+    Parameters
+    ----------
+    first, second : numpy.ndarray
+        ``(H, W)`` plume masks (bool or a plume fraction 0..1) of the two frames, on
+        the same grid (the second frame's window may be anywhere: give the offset of its
+        origin from the first's in ``guess_px``).
+    weight : numpy.ndarray or None
+        ``(H, W)`` bool: the first frame's pixels compared (``None``: all).
+    guess_px : tuple of float
+        Predicted displacement ``(dx, dy)``, pixels (searched around).
+    search_px : tuple of int
+        Half-widths of the search, pixels, ``(x, y)``.
+    blur_px : float
+        Standard deviation of the blur, pixels (0: none).
+
+    Returns
+    -------
+    (Disparity or None, str)
+        The displacement (``quality``: the correlation at the peak; ``pixels``: mask
+        pixels of the first frame inside ``weight``) and ``""``; or ``None`` and the
+        reason (fewer than :data:`MIN_ENVELOPE_PX` mask pixels, no overlap, a peak on
+        the search's edge or a correlation below :data:`MIN_ENVELOPE_NCC`).
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        For masks of different shapes or a bad search.
+
+    Examples
+    --------
+    A 6 x 3 px blob moved 2.5 px right and 1 px down (its edges anti-aliased):
+
+    >>> a = np.zeros((40, 40)); a[10:16, 10:13] = 1.0
+    >>> b = np.zeros((40, 40)); b[11:17, 13:15] = 1.0; b[11:17, 12] = 0.5; b[11:17, 15] = 0.5
+    >>> d, why = envelope_disparity(a, b, search_px=(6, 6))
+    >>> round(d.dx_px, 1), round(d.dy_px, 1), why
+    (2.5, 1.0, '')
+    """
+    import cv2
+
+    a = np.asarray(first, np.float32)
+    b = np.asarray(second, np.float32)
+    if a.ndim != 2 or a.shape != b.shape:
+        raise InvalidParameterError("envelope_disparity: expected two (H, W) masks of one shape")
+    wa = np.ones(a.shape, bool) if weight is None else np.asarray(weight, bool)
+    if wa.shape != a.shape:
+        raise InvalidParameterError("envelope_disparity: weight must have the masks' shape")
+    sx, sy = int(search_px[0]), int(search_px[1])
+    if sx < 1 or sy < 1:
+        raise InvalidParameterError(f"envelope_disparity: search_px must be >= 1, got {search_px}")
+    n = int(np.count_nonzero((a > 0.5) & wa))
+    if n < MIN_ENVELOPE_PX:
+        return None, (
+            f"plume too small: {n} mask px, fewer than {MIN_ENVELOPE_PX}; no height is measured"
+        )
+    if blur_px > 0:
+        a = np.asarray(cv2.GaussianBlur(a, (0, 0), blur_px), np.float32)
+        b = np.asarray(cv2.GaussianBlur(b, (0, 0), blur_px), np.float32)
+    gx, gy = round(float(guess_px[0])), round(float(guess_px[1]))
+    # template: the first frame's weighted box; image: the second around the guess
+    rows, cols = np.nonzero(wa)
+    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    h, w = a.shape
+    tpl, tm = a[r0:r1, c0:c1], wa[r0:r1, c0:c1].astype(np.float32)
+    pad = ((sy + h, sy + h), (sx + w, sx + w))
+    bp = np.pad(b, pad)
+    bm = np.pad(np.ones_like(b), pad)
+    y0, x0 = r0 + gy - sy + pad[0][0], c0 + gx - sx + pad[1][0]
+    y0, x0 = (
+        min(max(y0, 0), bp.shape[0] - tpl.shape[0] - 2 * sy),
+        min(max(x0, 0), bp.shape[1] - tpl.shape[1] - 2 * sx),
+    )
+    win = bp[y0 : y0 + tpl.shape[0] + 2 * sy, x0 : x0 + tpl.shape[1] + 2 * sx]
+    wm = bm[y0 : y0 + tpl.shape[0] + 2 * sy, x0 : x0 + tpl.shape[1] + 2 * sx]
+    score = _masked_ncc(tpl, tm, win, wm, min_overlap=0.5 * float(tm.sum()))
+    iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
+    best = float(score[iy, ix])
+    if not best > MIN_ENVELOPE_NCC:
+        return None, f"envelopes do not match (correlation {best:.2f}); no height is measured"
+    if iy in (0, score.shape[0] - 1) or ix in (0, score.shape[1] - 1):
+        return None, "the envelope's best match lies on the search's edge; no height is measured"
+
+    def vertex(m: float, c: float, p: float) -> float:
+        den = m - 2.0 * c + p
+        return 0.0 if den >= 0 else float(np.clip(0.5 * (m - p) / den, -0.5, 0.5))
+
+    fy = vertex(score[iy - 1, ix], best, score[iy + 1, ix])
+    fx = vertex(score[iy, ix - 1], best, score[iy, ix + 1])
+    dx = x0 - pad[1][0] + ix - c0 + fx
+    dy = y0 - pad[0][0] + iy - r0 + fy
+    return Disparity(float(dx), float(dy), best, n), ""
+
+
+def _masked_ncc(
+    tpl: np.ndarray, tm: np.ndarray, img: np.ndarray, im: np.ndarray, *, min_overlap: float
+) -> np.ndarray:
+    """Normalised cross-correlation of ``tpl`` (weights ``tm``) at every position inside
+    ``img`` (weights ``im``), over each overlap only (Padfield 2012); -1 where the overlap
+    is below ``min_overlap`` or flat."""
+    import cv2
+
+    def corr(x: np.ndarray, k: np.ndarray) -> np.ndarray:
+        return cv2.matchTemplate(
+            np.ascontiguousarray(x, np.float32), np.ascontiguousarray(k, np.float32), cv2.TM_CCORR
+        ).astype(np.float64)
+
+    t = tpl * tm
+    overlap = corr(im, tm)
+    s_i = corr(img * im, tm)
+    s_ii = corr(img * img * im, tm)
+    s_t = corr(im, t)
+    s_tt = corr(im, t * tpl)
+    s_it = corr(img * im, t)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nn = np.maximum(overlap, 1e-9)
+        num = s_it - s_i * s_t / nn
+        var_i = s_ii - s_i**2 / nn
+        var_t = s_tt - s_t**2 / nn
+        ncc = num / np.sqrt(np.maximum(var_i, 0.0) * np.maximum(var_t, 0.0))
+    bad = (overlap < min_overlap) | ~np.isfinite(ncc) | (var_i <= 1e-9) | (var_t <= 1e-9)
+    return np.where(bad, -1.0, ncc)
