@@ -132,7 +132,13 @@ def _synth_scenes(args: argparse.Namespace, dest: Path) -> int:
 def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None) -> int:
     """``synth --strip``: long moving strips with several plumes, to fly (``dyntarget fly``)."""
     from dyntarget.synth.dynamic import with_heights
-    from dyntarget.synth.strip import long_strip_spec, strip_spec, write_long_strip, write_strip
+    from dyntarget.synth.strip import (
+        long_strip_spec,
+        strip_spec,
+        with_parallax_margin,
+        write_long_strip,
+        write_strip,
+    )
 
     out = Path(args.out)
     t0 = time.perf_counter()
@@ -173,6 +179,7 @@ def _synth_strips(args: argparse.Namespace, dest: Path, heights: Heights | None)
         spec = _onsets(spec, args)
         if heights is not None:
             spec = with_heights(spec, plume_height_km=heights[0], cloud_height_km=heights[1])
+            spec, window = with_parallax_margin(spec, window)  # displaced plumes stay on it
             _write_plumes(spec, dest)
         write_strip(spec, window, dest)
     log(f"wrote {args.scenes} strip(s) to {out} in {time.perf_counter() - t0:.1f} s")

@@ -759,7 +759,7 @@ class HeightTracker:
             )  # fmt: skip
 
     # -- what the aim reads ----------------------------------------------------------
-    def height_at(self, pid: int, t: float) -> float:
+    def height_at(self, pid: int, t: float, at: float | None = None) -> float:
         """The height plume ``pid`` is aimed with at pass time ``t``.
 
         The estimate from its ``ready_s`` on (with its rise, where measured); before that
@@ -770,7 +770,10 @@ class HeightTracker:
         pid : int
             The plume (1-based; 0: none).
         t : float
-            Pass seconds.
+            Pass seconds: what is known then.
+        at : float or None
+            The time whose top height is wanted (e.g. the look-ahead's acquisition, to
+            place the top the look-ahead saw); ``None``: ``t``.
 
         Returns
         -------
@@ -783,7 +786,8 @@ class HeightTracker:
         p = self.plumes[pid - 1]
         if p.source == "estimated" and t >= p.ready_s and p.height_m is not None:
             if p.rise_mps is not None:  # a rising top, up to the highest height modelled
-                return float(min(p.height_m + p.rise_mps * (t - p.t_k), parallax.MAX_HEIGHT_M))
+                when = t if at is None else at
+                return float(min(p.height_m + p.rise_mps * (when - p.t_k), parallax.MAX_HEIGHT_M))
             return p.height_m
         return prior
 

@@ -1068,8 +1068,19 @@ def pass_upper_bound(
     Returns
     -------
     dyntarget.observe.bound.UpperBound
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        On a 3D world (:attr:`World.is_3d`): the bound is computed for flat worlds only.
     """
     from dyntarget.observe.bound import upper_bound_utility, values_from_bands
+
+    if world.is_3d:
+        raise InvalidParameterError(
+            f"world {world.id!r} is 3D: the upper bound is computed for flat worlds only (a line "
+            "of sight meets plume tops away from its aim, which the bound's reach does not model)"
+        )
 
     agility = config.limits
     truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
@@ -1212,30 +1223,40 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
     t_k, top = frames.acquired_s(k), frames.tops[k]
     shape = (frames.frame_px, frames.wfov_shape[1])
 
-    def heights_m(points: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        pts = np.asarray(points, np.float64).reshape(-1, 2)
-        ts = np.broadcast_to(np.asarray(t_s, np.float64), (len(pts),))
-        if ctx.mode == "true":
-            return _true_heights(ctx, pts, ts, t_k, top)
-        assert tracker is not None
-        if ctx.mode == "prior" or pids is None:
-            return np.full(len(pts), tracker.height_at(0, t_k), np.float64)
-        rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
-        cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
-        inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
-        pid = np.zeros(len(pts), np.int64)
-        pid[inside] = pids[rows[inside], cols[inside]]
-        return np.array(
-            [tracker.height_at(int(i), t_k + float(t)) for i, t in zip(pid, ts, strict=True)],
-            np.float64,
-        )
+    def field(look: bool) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        def heights_m(points: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+            pts = np.asarray(points, np.float64).reshape(-1, 2)
+            ts = np.broadcast_to(np.asarray(t_s, np.float64), (len(pts),))
+            if ctx.mode == "true":
+                return _true_heights(ctx, pts, ts, t_k, top, look=look)
+            assert tracker is not None
+            if ctx.mode == "prior" or pids is None:
+                return np.full(len(pts), tracker.height_at(0, t_k), np.float64)
+            rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
+            cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
+            inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+            pid = np.zeros(len(pts), np.int64)
+            pid[inside] = pids[rows[inside], cols[inside]]
+            at = t_k if look else None
+            return np.array(
+                [
+                    tracker.height_at(int(i), t_k + float(t), None if at is None else at)
+                    for i, t in zip(pid, ts, strict=True)
+                ],
+                np.float64,
+            )
 
-    del where
-    return ParallaxAim(frames.geometry, shape, heights_m)
+        return heights_m
+
+    del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
+    return ParallaxAim(frames.geometry, shape, field(look=False), field(look=True))
 
 
-def _true_heights(ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: int) -> np.ndarray:
-    """``"true"`` mode: each pointing's true plume-top height (:func:`_aim`), NaN where none."""
+def _true_heights(
+    ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: int, *, look: bool = False
+) -> np.ndarray:
+    """``"true"`` mode: each pointing's true plume-top height (:func:`_aim`), NaN where none;
+    ``look``: its height when the look-ahead saw it (``t_k``), else at the pointing's time."""
     from dyntarget import parallax
 
     world, where = ctx.world, ctx.where
@@ -1267,7 +1288,7 @@ def _true_heights(ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: 
             best[js[hit]] = float(i)
             todo = todo[~band]
     for j in np.flatnonzero(best > 0):
-        now = world.heights_at(t_k + float(ts[j]))
+        now = at_look if look else world.heights_at(t_k + float(ts[j]))
         out[j] = float(now[int(best[j])]) if now is not None else np.nan
     return out
 
@@ -1566,8 +1587,26 @@ def _score(
     fl.plume.extend(scores.plume)
     fl.intensity.extend(scores.intensity)
     fl.plume_id.extend(scores.plume_id)
-    state.covered[scores.rows[scores.inside], scores.cols[scores.inside]] = True
+    if ctx.where is None:
+        state.covered[scores.rows[scores.inside], scores.cols[scores.inside]] = True
+    else:  # 3D: the aim is not where the look-ahead saw the plume; cover what was planned
+        _cover_planned(todo.trajectory.points[flown.kept], top, state)
     return (*scores.totals(), new_plumes)
+
+
+def _cover_planned(planned: np.ndarray, top: int, state: PassState) -> None:
+    """Mark the look-ahead pixels of flown pointings as covered (a 3D world's pass).
+
+    The next frames see a plume where the look-ahead sees it (its parallax included), and
+    their plans are checked against ``covered`` there: marking the aims (moved by the
+    parallax correction, kilometres away) would let every overlapping frame plan the same
+    plume again.
+    """
+    hw, ww = state.covered.shape
+    rows = np.floor(planned[:, 1] + 0.5).astype(np.int64) + top
+    cols = np.floor(planned[:, 0] + 0.5).astype(np.int64)
+    inside = (rows >= 0) & (rows < hw) & (cols >= 0) & (cols < ww)
+    state.covered[rows[inside], cols[inside]] = True
 
 
 def _sight(ctx: _Pass) -> Sight:

@@ -97,6 +97,19 @@ def _shape(frame_shape: tuple[int, int]) -> tuple[int, int]:
     return h, w
 
 
+def _heights(name: str, field: HeightField, pts: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``field(pts, t)`` as ``(N,)`` float64 metres >= 0 (or NaN), or a refusal naming it."""
+    h = np.asarray(field(pts, t), np.float64)
+    if h.shape != (len(pts),):
+        raise InvalidParameterError(
+            f"{name}: expected {len(pts)} heights (one per pointing), got shape {h.shape}"
+        )
+    if np.any(np.isinf(h)) or np.any(h < 0):
+        bad = h[np.isinf(h) | (h < 0)][0]
+        raise InvalidParameterError(f"{name}: expected metres >= 0 (or NaN), got {bad!r}")
+    return h
+
+
 @dataclass(frozen=True)
 class ParallaxAim:
     """Parallax correction of pointings planned on a look-ahead frame (see the module).
@@ -113,6 +126,14 @@ class ParallaxAim:
         sphere, that each pointing (``(N, 2)`` frame pixels as planned, flown at
         ``t_s``, ``(N,)`` seconds after the acquisition) aims at. NaN or 0: no
         correction for that pointing. Negative or infinite heights are refused.
+    look_heights_m : callable or None
+        ``look_heights_m(points, t_s) -> (N,)``: the height the same tops had when the
+        look-ahead saw them (at the acquisition), as known to a pointing flown at
+        ``t_s``; it places each top's true position under what the look-ahead saw, and
+        ``heights_m`` then aims the NFOV at it. ``None``: the same as ``heights_m`` (a
+        top that does not rise between the look and the pointing). A rising column
+        needs it: using its later height for both views misplaces it by the rise times
+        the look-ahead's ``tan`` of its view zenith angle.
 
     Examples
     --------
@@ -133,6 +154,7 @@ class ParallaxAim:
     geometry: OrbitGeometry
     frame_shape: tuple[int, int]
     heights_m: HeightField
+    look_heights_m: HeightField | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, OrbitGeometry):
@@ -140,11 +162,12 @@ class ParallaxAim:
                 f"geometry: expected an OrbitGeometry, got {type(self.geometry).__name__}"
             )
         object.__setattr__(self, "frame_shape", _shape(self.frame_shape))
-        if not callable(self.heights_m):
-            raise InvalidParameterError(
-                f"heights_m: expected a callable (points, t_s) -> heights, got "
-                f"{type(self.heights_m).__name__}"
-            )
+        for name in ("heights_m", "look_heights_m"):
+            f = getattr(self, name)
+            if not callable(f) and not (name == "look_heights_m" and f is None):
+                raise InvalidParameterError(
+                    f"{name}: expected a callable (points, t_s) -> heights, got {type(f).__name__}"
+                )
 
     @classmethod
     def constant(
@@ -239,21 +262,17 @@ class ParallaxAim:
         out = np.zeros((n, 2))
         if n == 0:
             return out
-        h = np.asarray(self.heights_m(pts, t), np.float64)
-        if h.shape != (n,):
-            raise InvalidParameterError(
-                f"heights_m: expected {n} heights (one per pointing), got shape {h.shape}"
-            )
-        if np.any(np.isinf(h)) or np.any(h < 0):
-            bad = h[np.isinf(h) | (h < 0)][0]
-            raise InvalidParameterError(f"heights_m: expected metres >= 0 (or NaN), got {bad!r}")
-        on = np.isfinite(h) & (h > 0)
+        h = _heights("heights_m", self.heights_m, pts, t)
+        h_look = h if self.look_heights_m is None else _heights(
+            "look_heights_m", self.look_heights_m, pts, t
+        )  # fmt: skip
+        on = np.isfinite(h) & (h > 0) & np.isfinite(h_look) & (h_look > 0)
         if not on.any():
             return out
         g = self.geometry
         along, cross = g.ground(pts[on], self.frame_shape)
         alt = g.altitude_m
-        true_a, true_c = parallax.unshift_xy(alt, along, cross, h[on])  # look-ahead at t = 0
+        true_a, true_c = parallax.unshift_xy(alt, along, cross, h_look[on])  # look-ahead, t = 0
         moved = g.ground_speed * t[on]  # the NFOV's nadir at t, along the track
         rel_a = true_a - moved
         finite = np.isfinite(true_a) & np.isfinite(true_c)

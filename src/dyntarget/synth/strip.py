@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.io.atomic import write_text
 from dyntarget.synth.dynamic import World as MovingWorld
@@ -93,6 +94,63 @@ def strip_spec(
         wind_from_deg=wind_from_deg,
     )
     return replace(spec, id=f"strip-{seed:04d}"), window
+
+
+def with_parallax_margin(
+    spec: WorldSpec,
+    window: tuple[int, int, int, int],
+    *,
+    altitude_m: float = defaults.ALTITUDE_M,
+    look_ahead_m: float = defaults.LOOK_AHEAD_M,
+) -> tuple[WorldSpec, tuple[int, int, int, int]]:
+    """A 3D strip lengthened to the north by the parallax of its highest plume top.
+
+    A look-ahead ``look_ahead_m`` ahead sees a plume top at height ``h`` displaced away
+    from the spacecraft (north, towards row 0) by its parallax (17.3 km for a 15 km top at
+    the default geometry): on a short strip the plumes of its northern vents would be seen
+    beyond its end. The strip gains that many rows at its top, with no vent of its own
+    (every vent moves down by the same rows; the ground, clouds and wind are the world's
+    as before). A flat spec is returned unchanged.
+
+    Parameters
+    ----------
+    spec : WorldSpec
+        A strip's world (:func:`strip_spec`), 3D (``spec.is_3d``) or flat.
+    window : tuple of int
+        Its window ``(col0, row0, width, length)``, ``row0 == 0``.
+    altitude_m, look_ahead_m : float
+        The geometry the margin is sized for (the project's defaults).
+
+    Returns
+    -------
+    (WorldSpec, window)
+        The spec with its vents moved south by the margin, and the longer window.
+
+    Examples
+    --------
+    >>> from dyntarget.synth.dynamic import with_heights
+    >>> spec, window = strip_spec(0, width=64, length=256, plumes=1, wind_mps=5.0)
+    >>> spec3 = with_heights(spec, plume_height_km=(10.0, 10.0))
+    >>> _, longer = with_parallax_margin(spec3, window)
+    >>> longer  # 11.50 km of parallax at 8 m: 1438 rows more
+    (0, 0, 64, 1694)
+    >>> with_parallax_margin(spec, window) == (spec, window)
+    True
+    """
+    if not spec.is_3d:
+        return spec, window
+    from dyntarget import parallax
+
+    top = max((float(v.top_height_m or 0.0) for v in spec.vents), default=0.0)
+    top = max([top, *(float(c.height_m or 0.0) for c in spec.clouds if c.volcanic)])
+    shift = float(parallax.parallax_shift(altitude_m, look_ahead_m, top))
+    margin = math.ceil(shift / spec.gsd)
+    if margin <= 0:
+        return spec, window
+    c0, r0, w, length = window
+    vents = tuple(replace(v, y=v.y + margin) for v in spec.vents)
+    clouds = tuple(replace(c, y=c.y + margin) if c.volcanic else c for c in spec.clouds)
+    return replace(spec, vents=vents, clouds=clouds), (c0, r0, w, length + margin)
 
 
 def long_strip_spec(
