@@ -128,8 +128,23 @@ def test_strip_is_3d_by_default_and_only_its_heights_differ_from_flat(tmp_path, 
     f = json.loads((tmp_path / "f" / "strip-0005.world.json").read_text())
     assert len(d["world"]["vents"]) == 3 and d["world"]["clouds"]
     _check_3d(d["world"], tmp_path / "d" / "strip-0005.plumes.geojson")
-    # the same world, vent for vent and cloud for cloud, with heights added
-    assert _strip_heights(d["world"]) == f["world"] and d["window"] == f["window"]
+    # the same world, vent for vent and cloud for cloud, with heights added, and a northern
+    # margin as long as the parallax of its highest top 500 km ahead from 500 km up
+    # (tan 48.37 deg = 1.125, 2.2 % more with the curvature at this angle: checked in
+    # tests/test_parallax.py), its vents moved down by as many rows
+    from dyntarget.parallax import parallax_shift
+
+    top = max(v["top_height_m"] for v in d["world"]["vents"])
+    margin = d["window"][3] - f["window"][3]
+    assert margin == math.ceil(float(parallax_shift(500e3, 500e3, top)) / 8.0)
+    assert 1.125 * top / 8.0 < margin < 1.16 * top / 8.0
+    flat3 = _strip_heights(d["world"])
+    moved = [*flat3["vents"], *(c for c in flat3["clouds"] if c.get("volcanic", True))]
+    before = [*f["world"]["vents"], *(c for c in f["world"]["clouds"] if c.get("volcanic", True))]
+    for a, b in zip(moved, before, strict=True):
+        assert a["y"] - margin == pytest.approx(b["y"], abs=1e-9)
+        a["y"] = b["y"]
+    assert flat3 == f["world"] and d["window"][:3] == f["window"][:3]
     assert not (tmp_path / "f" / "strip-0005.plumes.geojson").exists()
 
 
