@@ -253,3 +253,20 @@ def test_a_rising_top_is_fitted_with_its_rise():
     assert flat.ok and flat.height_m < 6000.0 - 500.0 and flat.rise_mps is None
     assert rising.ok and abs(rising.height_m - 6000.0) < 20.0
     assert abs(rising.rise_mps - 40.0) < 1.0 and rising.rms_residual_m < 1.0
+
+
+@pytest.mark.parametrize("rise", [False, True])
+def test_looks_no_height_below_100_km_explains_give_a_fit_that_is_not_ok(rise):
+    # the feature appears to jump 150 km back and 100 km forth between looks 14 s apart:
+    # the search walks past the 100 km the geometry accepts; the fit says so, never raises
+    from dyntarget.predict.height import Look, fit_height
+
+    v = 7062.0
+    looks = [
+        Look(0.0, 0.0, 500e3, 0.0, 0.0, 500e3, 30.0),
+        Look(14.0, 0.0, 350e3, 0.0, 14 * v, 500e3, 30.0),
+        Look(28.0, 0.0, 450e3, 0.0, 28 * v, 500e3, 30.0),
+    ]
+    fit = fit_height(looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=1.0, rise=rise)
+    assert not fit.ok and math.isnan(fit.height_m)
+    assert fit.reason.startswith("the fit diverged")

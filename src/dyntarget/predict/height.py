@@ -307,14 +307,20 @@ def fit_height(
             r = np.concatenate([r, (p[2:4] - np.asarray(wind_prior)) / wind_prior_sigma_mps])
         return r
 
-    sol = least_squares(
-        residuals,
-        x_lin,
-        method="lm",
-        x_scale=_column_scale(t)[:n_par] ** -1,
-        xtol=1e-12,
-        ftol=1e-12,
-    )
+    try:
+        sol = least_squares(
+            residuals,
+            x_lin,
+            method="lm",
+            x_scale=_column_scale(t)[:n_par] ** -1,
+            xtol=1e-12,
+            ftol=1e-12,
+        )
+    except InvalidParameterError as exc:  # the search left the geometry (a height > 100 km)
+        return HeightFit(
+            False, math.nan, math.nan, nan2, nan2, nan2, math.nan, len(looks),
+            wind_prior is not None, f"the fit diverged: {exc}",
+        )  # fmt: skip
     jac = sol.jac
     cov = np.linalg.pinv(jac.T @ jac)
     dof = jac.shape[0] - n_par
