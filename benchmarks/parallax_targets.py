@@ -1,0 +1,336 @@
+"""Plumes in 3D, issue 40's targets: measured heights, targeting against the flat world, speed.
+
+Every pass is ``dyntarget fly``'s loop (:func:`dyntarget.fly.loop.fly_pass`) at its
+defaults (``lawnmower-transect``, factor 4, overlap 0.5, 500 km up, no prediction), with
+the oracle classifier (``--truth``: each look-ahead frame's mask is what a perfect
+classifier puts there, the parallax displacement included; never its heights), on
+synthetic strips (:func:`dyntarget.synth.strip.strip_spec`, 8 m, ``--width`` px wide)
+made 3D by :func:`dyntarget.synth.dynamic.with_heights` (tops 2-15 km, clouds 1-12 km,
+rise 10-100 m/s). A 3D plume is seen up to ~17 km north of its vent, so each strip has
+``MARGIN_PX`` rows north of its vents with no vent of its own: there the look-ahead sees
+the displaced plumes of the vents further south (a flat world shows nothing there).
+
+Parts (``--part``):
+
+``heights``
+    ``--strips`` strips, wind drawn 0-20 m/s, the look-ahead distance drawn so that its view
+    zenith angle is 30-50 deg; ``fly``'s default parallax mode (``estimated``: re-looks at
+    80 % and 60 % of the look-ahead distance, the strip's own wind as the wind prior),
+    ``fast`` agility. Every plume whose height was estimated against its vent's true top
+    (at the time of its last look): RMSE, bias, share measured.
+``targeting``
+    The same strips at the default geometry (500 km ahead), ``slow`` and ``fast``, flown
+    flat (the same world without heights), and in 3D uncorrected (``off``), corrected with
+    the true heights (``true``), with the estimated ones (``estimated``, re-looks and the
+    frames they cost included) and with a fixed prior of 8.5 km (``prior``). Utility is
+    the loop's (line-of-sight scoring on the 3D worlds).
+``long``
+    What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km, 256 px wide
+    at 8 m, 2 vents / 100 km: :func:`dyntarget.synth.strip.long_strip_spec`, 3D), long
+    enough that a re-look falls while later frames are due: each mode's utility, re-looks
+    and the look-ahead frames they cost, ``slow`` and ``fast``.
+``speed``
+    The estimate's own time per frame (the ``heights`` stage) and the loop's time per frame
+    (``loop_s``) of the ``estimated`` passes.
+
+Usage::
+
+    python benchmarks/parallax_targets.py --strips 12 --out docs/benchmarks
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from dyntarget import defaults, parallax
+from dyntarget.evaluate.bench import machine
+from dyntarget.fly.loop import PassConfig, fly_pass
+from dyntarget.fly.strip import LongStrip, MovingStrip
+from dyntarget.synth.dynamic import with_heights
+from dyntarget.synth.strip import long_strip_spec, strip_spec
+
+MARGIN_PX = 2400
+"""Rows (8 m) north of the vents: the parallax of a 15 km top 560 km ahead, 20 km."""
+MODES = ("flat", "off", "prior", "true", "estimated")
+PRIOR_M = 8500.0
+
+
+def look_ahead_for_zenith(zenith_deg: float, altitude_m: float = defaults.ALTITUDE_M) -> float:
+    """The ground distance ahead at which the view zenith angle is ``zenith_deg`` (bisection)."""
+    lo, hi = 0.0, 2.0e6
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if float(np.degrees(parallax.view_zenith(altitude_m, mid))) < zenith_deg:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def make_strip(seed: int, width: int, length: int, plumes: int, wind: float | None):
+    """A 3D strip and its flat twin: vents only south of the northern margin."""
+    spec, window = strip_spec(
+        seed, width=width, length=length + MARGIN_PX, plumes=plumes, wind_mps=wind
+    )
+    _, r0, _, _ = window
+    vents = tuple(v for v in spec.vents if v.y - r0 >= MARGIN_PX)
+    flat = replace(spec, vents=vents)
+    return (
+        flat,
+        with_heights(flat, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0)),
+        window,
+    )
+
+
+def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
+    world = LongStrip(spec, window) if long else MovingStrip(spec, window)
+    t0 = time.perf_counter()
+    result = fly_pass(world, None, config)
+    wall = time.perf_counter() - t0
+    totals = result.totals()
+    estimates = [e.as_dict() for e in getattr(result, "heights", ()) or ()]
+    frames = [r for r in result.records if not r.dropped]
+    return {
+        "utility": totals["utility"],
+        "plumes_observed": totals["plumes_observed"],
+        "plumes_total": totals["plumes_total"],
+        "pointings_flown": totals["pointings_flown"],
+        "parallax": totals.get("parallax"),
+        "relooks": totals.get("relooks"),
+        "frames_lost_to_relooks": totals.get("frames_lost_to_relooks"),
+        "frames": len(result.records),
+        "estimates": estimates,
+        "heights_s": [float(r.stage_s.get("heights", 0.0)) for r in frames],
+        "loop_s": [float(r.loop_s) for r in frames if r.loop_s is not None],
+        "wall_s": round(wall, 2),
+    }
+
+
+def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
+    relook = (round(0.8 * look_ahead_m / 1e3, 3), round(0.6 * look_ahead_m / 1e3, 3))
+    parallax_mode = "off" if mode == "flat" else mode
+    return PassConfig(
+        agility=agility,
+        look_ahead_m=look_ahead_m,
+        parallax=parallax_mode,
+        plume_height_m=PRIOR_M if mode == "prior" else None,
+        relook_km=relook,
+    )
+
+
+def part_heights(args) -> dict:
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    for i in range(args.strips):
+        wind = float(rng.uniform(0.0, 20.0))
+        zenith = float(rng.uniform(30.0, 50.0))
+        ahead = look_ahead_for_zenith(zenith)
+        _, spec3, window = make_strip(args.seed + i, args.width, args.length, args.plumes, wind)
+        r = fly(spec3, window, config_for("estimated", "fast", ahead))
+        rows.append(
+            {"strip": i, "wind_mps": wind, "zenith_deg": zenith, "look_ahead_m": ahead, **r}
+        )
+        print(
+            json.dumps({k: v for k, v in rows[-1].items() if k not in ("heights_s", "loop_s")}),
+            flush=True,
+        )
+    return {"rows": rows, "summary": height_summary(rows), "speed": speed_summary(rows)}
+
+
+def height_summary(rows: list[dict]) -> dict:
+    err, measured, total = [], 0, 0
+    for r in rows:
+        for e in r["estimates"]:
+            total += 1
+            if e.get("height_source") == "estimated" and e.get("true_height_m") is not None:
+                measured += 1
+                err.append(float(e["top_height_m"]) - float(e["true_height_m"]))
+    a = np.asarray(err)
+    return {
+        "plumes": total,
+        "estimated": measured,
+        "rmse_m": None if not len(a) else round(float(np.sqrt(np.mean(a**2))), 1),
+        "bias_m": None if not len(a) else round(float(a.mean()), 1),
+        "median_abs_m": None if not len(a) else round(float(np.median(np.abs(a))), 1),
+        "worst_abs_m": None if not len(a) else round(float(np.abs(a).max()), 1),
+    }
+
+
+def part_targeting(args) -> dict:
+    rng = np.random.default_rng(args.seed + 1)
+    rows = []
+    for i in range(args.strips):
+        wind = float(rng.uniform(0.0, 20.0))
+        flat, spec3, window = make_strip(args.seed + i, args.width, args.length, args.plumes, wind)
+        for agility in ("slow", "fast"):
+            for mode in MODES:
+                spec = flat if mode == "flat" else spec3
+                r = fly(spec, window, config_for(mode, agility, defaults.LOOK_AHEAD_M))
+                rows.append({"strip": i, "agility": agility, "mode": mode, **r})
+                print(
+                    json.dumps(
+                        {
+                            k: rows[-1][k]
+                            for k in (
+                                "strip",
+                                "agility",
+                                "mode",
+                                "utility",
+                                "plumes_observed",
+                                "relooks",
+                                "frames_lost_to_relooks",
+                                "wall_s",
+                            )
+                        }
+                    ),
+                    flush=True,
+                )
+    summary = {}
+    for agility in ("slow", "fast"):
+        flat_u = sum(r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat")
+        summary[agility] = {
+            mode: {
+                "utility": round(
+                    u := sum(
+                        r["utility"] for r in rows if r["agility"] == agility and r["mode"] == mode
+                    ),
+                    2,
+                ),
+                "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
+                "plumes_observed": sum(
+                    r["plumes_observed"]
+                    for r in rows
+                    if r["agility"] == agility and r["mode"] == mode
+                ),
+            }
+            for mode in MODES
+        }
+    est = [r for r in rows if r["mode"] == "estimated"]
+    return {
+        "rows": rows, "summary": summary, "speed": speed_summary(est),
+        "heights": height_summary(est),
+    }  # fmt: skip
+
+
+def speed_summary(rows: list[dict]) -> dict:
+    """The height estimate's time per frame and the loop's, over every frame of ``rows``."""
+    heights = [s for r in rows for s in r["heights_s"]]
+    loops = [s for r in rows for s in r["loop_s"]]
+    return {
+        "frames": len(heights),
+        "heights_median_ms": round(1e3 * statistics.median(heights), 2) if heights else None,
+        "heights_p95_ms": round(1e3 * float(np.percentile(heights, 95)), 2) if heights else None,
+        "heights_max_ms": round(1e3 * max(heights), 2) if heights else None,
+        "frames_over_50ms": sum(h > 0.05 for h in heights),
+        "loop_median_s": round(statistics.median(loops), 4) if loops else None,
+    }
+
+
+def part_long(args) -> dict:
+    rows = []
+    for i in range(args.long_strips):
+        spec, window = long_strip_spec(
+            args.seed + 300 + i, args.long_km, plumes_per_100km=2.0, wind_mps=5.0
+        )
+        spec3 = with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
+        for agility in ("slow", "fast"):
+            for mode in MODES:
+                r = fly(spec if mode == "flat" else spec3, window,
+                        config_for(mode, agility, defaults.LOOK_AHEAD_M), long=True)  # fmt: skip
+                rows.append({"strip": i, "agility": agility, "mode": mode, **r})
+                print(
+                    json.dumps(
+                        {
+                            k: rows[-1][k]
+                            for k in (
+                                "strip",
+                                "agility",
+                                "mode",
+                                "utility",
+                                "plumes_observed",
+                                "plumes_total",
+                                "relooks",
+                                "frames_lost_to_relooks",
+                                "frames",
+                                "wall_s",
+                            )
+                        }
+                    ),
+                    flush=True,
+                )
+    summary = {}
+    for agility in ("slow", "fast"):
+        sel = [r for r in rows if r["agility"] == agility]
+        flat_u = sum(r["utility"] for r in sel if r["mode"] == "flat")
+        summary[agility] = {
+            mode: {
+                "utility": round(u := sum(r["utility"] for r in sel if r["mode"] == mode), 2),
+                "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
+                "relooks": sum(r["relooks"] or 0 for r in sel if r["mode"] == mode),
+                "frames_lost_to_relooks": sum(
+                    r["frames_lost_to_relooks"] or 0 for r in sel if r["mode"] == mode
+                ),
+                "frames": sum(r["frames"] for r in sel if r["mode"] == mode),
+            }
+            for mode in MODES
+        }
+    return {"rows": rows, "summary": summary}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--strips", type=int, default=12)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--width", type=int, default=1024, help="strip width, px (8 m)")
+    ap.add_argument("--length", type=int, default=4096, help="rows holding vents, px (8 m)")
+    ap.add_argument("--plumes", type=int, default=4)
+    ap.add_argument("--part", choices=("heights", "targeting", "long", "all"), default="all")
+    ap.add_argument("--long-strips", type=int, default=2)
+    ap.add_argument("--long-km", type=float, default=150.0)
+    ap.add_argument("--out", type=Path, default=Path("docs/benchmarks"))
+    args = ap.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    record: dict = {
+        "command": "python benchmarks/parallax_targets.py "
+        + " ".join(
+            f"--{k} {v}"
+            for k, v in (
+                ("strips", args.strips),
+                ("seed", args.seed),
+                ("width", args.width),
+                ("length", args.length),
+                ("plumes", args.plumes),
+                ("part", args.part),
+                ("long-strips", args.long_strips),
+                ("long-km", args.long_km),
+            )
+        )
+    }
+    t0 = time.perf_counter()
+    if args.part in ("heights", "all"):
+        record["heights"] = part_heights(args)
+    if args.part in ("targeting", "all"):
+        record["targeting"] = part_targeting(args)
+    if args.part in ("long", "all"):
+        record["long"] = part_long(args)
+    record["wall_s"] = round(time.perf_counter() - t0, 1)
+    record["machine"] = machine()
+    name = "parallax_targets.json" if args.part == "all" else f"parallax_{args.part}.json"
+    (args.out / name).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
+    print(args.out / name)
+    for part in ("heights", "targeting", "long"):
+        if part in record:
+            print(
+                part, json.dumps({k: v for k, v in record[part].items() if k != "rows"}, indent=1)
+            )
+
+
+if __name__ == "__main__":
+    main()
