@@ -322,7 +322,7 @@ def _pass_picture(result: PassResult, world: World) -> PassPicture:
         title=(
             f"{result.world_id}: {result.config.planner}, {result.config.agility} agility — "
             f"{t['pointings_flown']} pointings, {t['plumes_observed']} of {t['plumes_total']} "
-            "plumes observed; flight →"
+            "plumes observed; flight →" + _parallax_note(result)
         ),
     )
 
@@ -619,7 +619,17 @@ def _overview_title(result: PassResult) -> str:
     return (
         f"{result.world_id}: {result.config.planner}, {result.config.agility} agility: "
         f"{t['frames']} frames, {t['pointings_flown']} pointings, "
-        f"{t['plumes_observed']} of {t['plumes_total']} plumes observed"
+        f"{t['plumes_observed']} of {t['plumes_total']} plumes observed" + _parallax_note(result)
+    )
+
+
+def _parallax_note(result: PassResult) -> str:
+    """On a 3D pass: how to read the picture (the ground, with the pointings' ground aims)."""
+    if not result.is_3d:
+        return ""
+    return (
+        f"\n3D world, parallax {result.parallax}: plumes drawn on the ground, pointings where "
+        "they aim on it (each meets its plume's top along its line of sight)"
     )
 
 
