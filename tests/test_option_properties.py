@@ -241,3 +241,16 @@ def test_constellation_numeric_options_give_a_result_or_exit_2(catalog, capsys, 
         argv = ["constellation", "--walker", "2/1/0", "--volcanoes", str(catalog), *hours]
         argv += ["--out", str(Path(d) / "o"), "--quiet", "--no-picture", "--no-html"]
         _check([*argv, *CONSTELLATION_OPTIONS[option], f"{option}={value}"], capsys)
+
+
+@pytest.mark.parametrize("option", ["--step", "--width"])
+def test_a_spacing_whose_double_overflows_is_refused_in_one_line(inputs, capsys, option):
+    # found by the property test above: --step 1e308 made the default transect width
+    # (2 x step) infinite, and writing it to the GeoJSON failed with exit 1
+    with tempfile.TemporaryDirectory() as d:
+        argv = ["plan", str(inputs["now"]), "--mask", str(inputs["now_mask"])]
+        argv += ["--planner", "lawnmower-transect", "--out", str(Path(d) / "t.geojson")]
+        assert main([*argv, f"{option}=1e308"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "expected pixels in (0, 1e+06]" in err[0]
+        assert not (Path(d) / "t.geojson").exists()

@@ -588,10 +588,19 @@ NO_PARALLAX = _opt(
 )
 NO_PICTURE = _opt("--no-picture", action="store_true", help="skip the picture (PNG)")
 NO_HTML = _opt("--no-html", action="store_true", help="skip the interactive view (HTML)")
+MAX_SPACING_PX = 1e6
+"""Largest ``--step``/``--width``, pixels: far beyond any image, and small enough that the
+planners' derived spacings (a transect width of twice the step) stay finite."""
 STEP = _opt(
-    "--step", type=positive_float, help="pixels between pointings (default 1%% of the width)"
+    "--step",
+    type=float_range(0, MAX_SPACING_PX, "pixels", lo_open=True),
+    help="pixels between pointings (default 1%% of the width)",
 )
-WIDTH = _opt("--width", type=positive_float, help="pixels between transects (default 2 x step)")
+WIDTH = _opt(
+    "--width",
+    type=float_range(0, MAX_SPACING_PX, "pixels", lo_open=True),
+    help="pixels between transects (default 2 x step)",
+)
 
 
 def add_orbit_options(p: Any, *, look_ahead_positive: bool = False) -> None:
