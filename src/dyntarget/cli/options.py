@@ -336,37 +336,8 @@ def height_range(text: str) -> tuple[float, float]:
     return lo, hi
 
 
-def plume_height_km(text: str) -> float:
-    """One plume-top height in km (a prior), finite, ``0 < H <= 25``.
-
-    Parameters
-    ----------
-    text : str
-        The option's value.
-
-    Returns
-    -------
-    float
-        The height, km.
-
-    Examples
-    --------
-    >>> plume_height_km("10")
-    10.0
-    >>> plume_height_km("0")
-    Traceback (most recent call last):
-    ...
-    argparse.ArgumentTypeError: expected a plume-top height in km with 0 < H <= 25, got '0'
-    """
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and 0.0 < value <= MAX_HEIGHT_KM):
-        raise argparse.ArgumentTypeError(
-            f"expected a plume-top height in km with 0 < H <= {MAX_HEIGHT_KM:g}, got {text!r}"
-        )
-    return value
+plume_height_km = float_range(0.0, MAX_HEIGHT_KM, "a plume-top height in km", lo_open=True)
+"""One plume-top height in km (a prior): finite, ``0 < H <= 25`` (:func:`float_range`)."""
 
 
 MAX_ONSET_MIN = 1440.0

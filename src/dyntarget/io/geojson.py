@@ -899,23 +899,42 @@ def plumes_geojson(
     ([9.0000449, -4.52e-05], 9000.0)
     """
     pts = np.array([[float(p["x_px"]), float(p["y_px"])] for p in plumes], np.float64)
-    lonlat = crs_to_lonlat(pixels_to_crs(pts, transform), crs) if len(pts) else pts
-    lonlat = np.round(lonlat, LONLAT_DECIMALS)
-    features = []
-    for p, (lon, lat) in zip(plumes, lonlat, strict=True):
+    rows = []
+    for p in plumes:
         props = {k: _json_value(p.get(k)) for k in PLUME_TRUTH_FIELDS}
         props["x_px"] = round(float(p["x_px"]), PIXEL_DECIMALS)
         props["y_px"] = round(float(p["y_px"]), PIXEL_DECIMALS)
-        features.append(
-            {
-                "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
-                "properties": props,
-            }
-        )
+        rows.append(props)
+    return _point_collection(pts.reshape(-1, 2), rows, transform, crs)
+
+
+def _point_collection(
+    pts: np.ndarray, rows: list[dict[str, Any]], transform: Affine | None, crs: object | None
+) -> dict[str, Any]:
+    """Point Features at grid pixels ``pts`` with ``rows`` as properties: WGS 84 lon/lat and
+    a ``bbox`` where georeferenced, else pixels and a collection property saying so."""
+    georef = transform is not None and crs is not None
+    if georef and len(pts):
+        assert transform is not None
+        coords = np.round(crs_to_lonlat(pixels_to_crs(pts, transform), crs), LONLAT_DECIMALS)
+    else:
+        coords = pts.round(PIXEL_DECIMALS)
+    features = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [float(c[0]), float(c[1])]},
+            "properties": props,
+        }
+        for props, c in zip(rows, coords, strict=True)
+    ]
     doc: dict[str, Any] = {"type": "FeatureCollection", "features": features}
-    if len(pts):
-        doc["bbox"] = lonlat_bbox(lonlat)
+    if not georef:
+        doc["properties"] = {
+            "coordinates": "pixels (column, row) of the grid, pixel centres at integers; "
+            "no CRS known"
+        }
+    elif len(pts):
+        doc["bbox"] = lonlat_bbox(coords)
     return doc
 
 
@@ -1027,7 +1046,6 @@ def height_estimates_geojson(
     >>> p["top_height_m"], p["rise_mps"], p["height_source"]
     (9120.5, None, 'estimated')
     """
-    georef = transform is not None and crs is not None
     rows: list[dict[str, Any]] = []
     pts = np.zeros((len(estimates), 2))
     for i, e in enumerate(estimates):
@@ -1054,28 +1072,7 @@ def height_estimates_geojson(
         props["x_px"] = round(float(pts[i, 0]), PIXEL_DECIMALS)
         props["y_px"] = round(float(pts[i, 1]), PIXEL_DECIMALS)
         rows.append(props)
-    if georef and len(pts):
-        assert transform is not None
-        coords = np.round(crs_to_lonlat(pixels_to_crs(pts, transform), crs), LONLAT_DECIMALS)
-    else:
-        coords = pts.round(PIXEL_DECIMALS)
-    features = [
-        {
-            "type": "Feature",
-            "geometry": {"type": "Point", "coordinates": [float(c[0]), float(c[1])]},
-            "properties": props,
-        }
-        for props, c in zip(rows, coords, strict=True)
-    ]
-    doc: dict[str, Any] = {"type": "FeatureCollection", "features": features}
-    if not georef:
-        doc["properties"] = {
-            "coordinates": "pixels (column, row) of the grid, pixel centres at integers; "
-            "no CRS known"
-        }
-    elif len(pts):
-        doc["bbox"] = lonlat_bbox(coords)
-    return doc
+    return _point_collection(pts, rows, transform, crs)
 
 
 def write_height_estimates(
