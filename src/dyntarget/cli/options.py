@@ -336,8 +336,8 @@ def height_range(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+# one plume-top height in km (a prior): finite, 0 < H <= 25
 plume_height_km = float_range(0.0, MAX_HEIGHT_KM, "a plume-top height in km", lo_open=True)
-"""One plume-top height in km (a prior): finite, ``0 < H <= 25`` (:func:`float_range`)."""
 
 
 MAX_ONSET_MIN = 1440.0
