@@ -248,3 +248,79 @@ def test_components_of_one_plume_merge_and_plumes_in_one_window_share_its_relook
     a, b = tr.plumes
     assert a.relooks == b.relooks and a.source == b.source == "estimated"
     assert abs(a.height_m - h1) <= 250.0 and abs(b.height_m - h2) <= 250.0
+
+
+def _tall_and_low(frame_px):
+    """A frame holding a 3 km and a 14 km plume side by side, both seen 500 km ahead."""
+    g = OrbitGeometry(wfov_gsd_m=GSD)
+    where = Geometry3D(g, (20000, 96), frame_px, 0, 4)
+    seen = frame_px - 40.0
+    lo = (25.0, _true_row(where, seen, 3000.0), 5, 4, 3000.0)
+    hi = (70.0, _true_row(where, seen, 14000.0), 5, 4, 14000.0)
+    tr = HeightTracker(
+        where, get_agility("fast"), (400.0, 300.0), None, None, None,
+        measure=True, log=lambda s: None,
+    )  # fmt: skip
+
+    def render(t, top, nadir_hr):
+        return _blob_mask(where, t, top, [lo, hi])
+
+    tr.frame(0, 0.0, 0, _blob_mask(where, 0.0, 0, [lo, hi]), render, last=False)
+    return where, tr
+
+
+def test_plumes_of_one_frame_kilometres_apart_in_height_are_each_found_again():
+    # each plume is searched for where its own height puts it: between the looks at 500 and
+    # 300 km ahead tan(theta) falls by 0.468 (docs' worked example), so the 14 km top moves
+    # 11 km x 0.468 / 32 m = 161 px more than the 3 km one; a window of 256 rows holds both
+    _where, tr = _tall_and_low(256)
+    low, tall = sorted(tr.plumes, key=lambda p: p.height_m)
+    assert low.source == tall.source == "estimated" and len(tr.busy) == 2
+    assert abs(low.height_m - 3000.0) <= 250.0 and abs(tall.height_m - 14000.0) <= 250.0
+    assert low.reason == tall.reason == ""
+
+
+def test_a_plume_lost_by_the_second_relook_keeps_the_estimate_of_its_first():
+    # a 96-row window cannot hold both at the second re-look (161 px apart): the one it
+    # loses is measured from its first two looks (500 and 400 km ahead: tan(theta) falls by
+    # 0.239, half the baseline, so about twice the noise; 400 m allowed)
+    _where, tr = _tall_and_low(96)
+    assert all(p.source == "estimated" for p in tr.plumes)
+    lost = [p for p in tr.plumes if p.reason]
+    assert len(lost) == 1 and lost[0].reason.startswith("1 re-look(s) used;")
+    truth = 3000.0 if lost[0].cols.mean() < 48 else 14000.0
+    assert abs(lost[0].height_m - truth) <= 400.0
+
+
+def test_the_first_relook_gives_an_estimate_aimed_with_until_the_final_one():
+    _where, tr = _tall_and_low(256)
+    for p in tr.plumes:
+        truth = 3000.0 if p.cols.mean() < 48 else 14000.0
+        (ready1, h1), (ready2, _h2) = p.stages  # after the 400 km and the 300 km re-looks
+        first_relook, second_relook = sorted(a for a, _ in tr.busy)
+        assert first_relook <= ready1 < second_relook <= ready2 <= p.ready_s
+        assert abs(h1 - truth) <= 400.0  # two looks, half the baseline (above)
+        assert math.isnan(tr.height_at(p.pid, first_relook))  # no prior: not corrected yet
+        assert tr.height_at(p.pid, 0.5 * (ready1 + second_relook)) == h1
+        assert tr.height_at(p.pid, p.ready_s) == p.height_m
+
+
+def test_a_frame_too_short_to_find_a_plume_again_says_so():
+    # 16 rows (a 64 px strip at factor 4): an 8.5 km guess +- 80 % moves the plume between the
+    # looks by up to ~100 rows, far beyond what the frame can hold
+    logs = []
+    g = OrbitGeometry(wfov_gsd_m=GSD)
+    where = Geometry3D(g, (20000, 16), 16, 0, 4)
+    blob = [(8.0, _true_row(where, 8.0, 6000.0), 3, 3, 6000.0)]
+    tr = HeightTracker(
+        where, get_agility("fast"), (400.0, 300.0), None, None, None,
+        measure=True, log=logs.append,
+    )  # fmt: skip
+
+    def render(t, top, nadir_hr):
+        return _blob_mask(where, t, top, blob)
+
+    tr.frame(0, 0.0, 0, _blob_mask(where, 0.0, 0, blob), render, last=False)
+    (p,) = tr.plumes
+    assert p.source == "none" and "too short to find the plume again" in p.reason
+    assert len(logs) == 1 and "(16 WFOV rows)" in logs[0]

@@ -19,9 +19,11 @@ Model (what is and is not modelled):
 * **Re-looks.** For a new plume of at least :data:`MIN_RELOOK_PX` pixels the
   look-ahead re-points at it when its apparent centre (as frame ``k`` saw it) is
   ``relook_km[i]`` ahead of the nadir, one re-look per distance: at ``t_k + (along_k -
-  d_i) / v``. A re-look sees a window of the frame's size on the strip: frame ``k``'s
-  rows moved by the disparity the height known so far predicts (where the plume will
-  appear), clipped to the strip. It occupies the look-ahead for ``relook_s`` (the pitch
+  d_i) / v``. A re-look sees a window of the frame's size on the strip, centred where
+  the plumes still measured will appear by the heights known so far (each plume's own:
+  the prior or guess in the first re-look, its own fit after), clipped to the strip;
+  where they do not fit in one window, where the largest will. No re-look is taken once
+  none of the frame's plumes is left to measure. It occupies the look-ahead for ``relook_s`` (the pitch
   change there and back on the agility preset's slew model, two settles and one
   exposure: :func:`relook_seconds`); a regular frame acquired meanwhile is not taken (the
   loop records it dropped) - that is the cost. A re-look that would start while the
@@ -40,18 +42,22 @@ Model (what is and is not modelled):
   displacement) and the nadir at each look's time go to
   :func:`~dyntarget.predict.height.fit_height` with a **zero-drift prior** (sigma
   :data:`ENVELOPE_DRIFT_SIGMA_MPS`). Where the three looks' track is curved beyond their
-  noise (:data:`RISE_TEST_PX`) the top is rising: the fit adds a linear rise, which
-  gives ``rise_mps`` and the height at frame ``k``'s time (the aim then follows the
-  rise). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
+  noise (:data:`RISE_TEST_PX`) the top may be rising: the fit adds a linear rise, kept
+  when it is positive beyond :data:`RISE_SIGNIFICANCE` of its standard deviations and
+  fits better, which gives ``rise_mps`` and the height at frame ``k``'s time (the aim
+  then follows the rise). A young plume whose envelope changes its shape between the
+  looks can pass that test without rising (a known limit). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
   pixels (the fit scales its covariance up when the residuals say more). Everything is
   measured at the look-ahead's WFOV resolution.
 * **When it is known.** The simulator renders a plume's re-looks as soon as its frame
-  is planned (the world is known), but the estimate is usable only from ``t_e`` = the
-  last re-look's time + the measured compute time of the measurement and fit: the
-  NFOV's pointings flown at or after ``t_e`` aim with the estimate, earlier ones with
-  the prior (or not corrected). The schedule is decided once at the frame's plan time
-  with the aim each pointing will have when flown; a flight system would re-plan at
-  ``t_e``.
+  is planned (the world is known), but each estimate is usable only from its re-look's
+  time + the measured compute time of the measurement and fit: the first re-look gives
+  a two-look estimate (:attr:`Plume.stages`), the last the final one (from ``t_e``);
+  the NFOV's pointings aim with the latest estimate usable when each is flown, earlier
+  ones with the prior (or not corrected). A plume lost by a later re-look keeps the
+  estimate of the looks that saw it. The schedule is decided once at the frame's plan
+  time with the aim each pointing will have when flown; a flight system would re-plan
+  when an estimate arrives.
 * **Failures.** A plume too small for a re-look, one whose re-looks the look-ahead
   had no time for, one whose envelope is not found in a re-look (no match above
   :data:`~dyntarget.predict.height.MIN_ENVELOPE_NCC`, or the best on the search's
@@ -98,6 +104,10 @@ MARGIN_PX = 6
 """Margin of background around a plume's mask compared by the envelope match, WFOV px."""
 RISE_TEST_PX = 0.3
 """Root mean square residual (WFOV px) of the three looks' fit above which a rise is fitted."""
+RISE_SIGNIFICANCE = 1.5
+"""A fitted rise is kept only above this many of its standard deviations (a one-sided
+test at about 93 %): on the heights benchmark, smaller rises fitted to still columns
+(an envelope changing its shape between the looks) cost more than they gave."""
 POSITION_SIGMA_PX = 0.5
 """Standard deviation of a look's measured position, WFOV pixels."""
 ENVELOPE_DRIFT_SIGMA_MPS = 1.0
@@ -262,6 +272,10 @@ class Plume:
         ``frame``, ``t_k``, ``rows`` and ``cols``, and whose estimate replaces this one.
     rise_mps : float or None
         The top's measured rise, m/s (``None``: not measured).
+    stages : list of tuple of float
+        ``(ready_s, height_m)`` of the estimates made on the way, one per re-look whose
+        looks so far fitted (the first from two looks): aimed with from ``ready_s`` until
+        the final estimate is ready.
     """
 
     pid: int
@@ -279,6 +293,7 @@ class Plume:
     true_id: int = 0
     pending: bool = False
     rise_mps: float | None = None
+    stages: list[tuple[float, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -541,6 +556,7 @@ class HeightTracker:
                     # re-looks already taken shared where their windows hold it)
                     p.pending, p.frame, p.t_k, p.rows, p.cols = False, k, t_k, rows + top, cols
                     p.relooks, p.source, p.reason, p.ready_s = [], "none", "", math.inf
+                    p.stages = []
                     ready.append(p)
                 continue
             new.append((i, rows, cols))
@@ -601,19 +617,15 @@ class HeightTracker:
         return np.asarray(cc * ux + rr * uy <= cut)
 
     def _window_for(
-        self, plumes: list[Plume], t_k: float, at: float, guess: float, tol: float
+        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float], tol: float
     ) -> Relook | None:
         """A re-look already taken within ``tol`` s of ``at`` whose window holds the plumes
-        where ``guess`` puts them (their rows and a margin), or ``None``."""
-        w = self.where
-        rows = np.concatenate([p.rows for p in plumes])
-        lo, hi = float(rows.min()), float(rows.max())
+        where their ``guess`` heights put them (their rows and a margin), or ``None``."""
         for r in self.taken:
             if abs(r.t_s - at) > tol:
                 continue
-            a = lo + w.disparity_rows(lo, t_k, r.t_s, guess) - MARGIN_PX
-            b = hi + w.disparity_rows(hi, t_k, r.t_s, guess) + MARGIN_PX
-            if a >= r.top and b < r.top + w.frame_px:
+            a, b = self._expected_rows(plumes, t_k, r.t_s, guess)
+            if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.top + self.where.frame_px:
                 return r
         return None
 
@@ -628,17 +640,22 @@ class HeightTracker:
     ) -> None:
         """Take (or share) the re-looks in order, measure each plume's envelope on each, fit.
 
-        Each re-look's window is centred where the plumes will appear, by the height
-        known so far: the prior (or :data:`GUESS_HEIGHT_M`) for the first, then the fit of
-        the looks taken so far of the largest plume. A re-look already taken (for an
-        earlier frame's plumes) near the wanted time whose window holds these plumes is
-        shared instead of taking another.
+        Each plume is searched for around where its own height known so far puts it: the
+        prior (or :data:`GUESS_HEIGHT_M`) in the first re-look, then the fit of its own
+        looks so far (plumes of one frame differ in height by kilometres, which moves them
+        hundreds of pixels apart between looks). A re-look's window is centred on where
+        the plumes still measured will appear by those heights; a re-look already taken
+        (for an earlier frame's plumes) near the wanted time whose window holds them is
+        shared instead of taking another, and no re-look is taken once none of the
+        frame's plumes is left to measure. After each re-look, a plume whose looks so far
+        fit is given that estimate from then on (:attr:`Plume.stages`); a plume lost in a
+        later re-look keeps the fit of the looks that saw it.
         """
         w = self.where
-        hw, gsd, shape = w.wfov_shape[0], w.geometry.wfov_gsd_m, comp.shape
-        centre = float(np.mean(np.concatenate([p.rows for p in plumes])))
-        along = w.along(centre, t_k)
-        guess = self.prior_m if self.prior_m is not None else GUESS_HEIGHT_M
+        gsd, shape = w.geometry.wfov_gsd_m, comp.shape
+        prior = self.prior_m if self.prior_m is not None else GUESS_HEIGHT_M
+        guess = {p.pid: prior for p in plumes}
+        fitted: set[int] = set()
         nx, ny0 = w.nadir(t_k)
         alt, sig = w.geometry.altitude_m, POSITION_SIGMA_PX * gsd
         looks: dict[int, list[Look]] = {}
@@ -655,64 +672,112 @@ class HeightTracker:
             own = raw & (cv2.dilate(comp_p, near) > 0)  # its raw mask (not denoised)
             weight = (cv2.dilate(own.astype(np.uint8), margin) > 0) & (own | ~raw)
             first[p.pid] = (own, weight & self._upwind(p, top, shape))
-        main = max(plumes, key=lambda p: len(p.rows))
-        why, last_t, last_compute, fitted = "", math.nan, 0.0, False
+        why = ""
         for d, dur in zip(self.distances_m, self.durations_s, strict=True):
-            want = t_k + (along - d) / w.geometry.ground_speed
+            alive = [p for p in plumes if p.pid not in failed]
+            if not alive:
+                break
+            centre = float(np.mean(np.concatenate([p.rows for p in alive])))
+            want = t_k + (w.along(centre, t_k) - d) / w.geometry.ground_speed
             if want <= t_k:
                 why = why or f"already nearer than {d / 1e3:g} km when seen"
                 continue
-            shared = self._window_for(plumes, t_k, want, guess, dur)
+            shared = self._window_for(alive, t_k, want, guess, dur) or self._take(
+                alive, t_k, want, dur, guess, render
+            )
             if shared is None:
-                at = self._free_from(want, dur)
-                if at - want > dur:
-                    why = why or "the look-ahead was busy re-looking at other plumes"
-                    continue
-                shift = w.disparity_rows(centre, t_k, at, guess)
-                r0 = int(min(max(round(centre + shift - (shape[0] - 1) / 2.0), 0), hw - shape[0]))
-                self.busy.append((at, at + dur))
-                shared = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
-                self.taken.append(shared)
+                why = why or "the look-ahead was busy re-looking at other plumes"
+                continue
             at, r0, second = shared.t_s, shared.top, shared.mask
             assert second is not None
             t0 = time.perf_counter()
             _, ny = w.nadir(at)
-            # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted), a margin
-            span = (
-                abs(w.disparity_rows(centre, t_k, at, guess)) * (0.3 if fitted else 0.8) + MARGIN_PX
-            )
-            search = (MATCH_PX, int(min(span, shape[0] // 2)))
-            for p in plumes:
+            for p in alive:
                 p.relooks.append(shared)
-                if p.pid in failed:
-                    continue
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
-                expect = w.disparity_rows(cy, t_k, at, guess) - (r0 - top)  # in array rows
+                shift = w.disparity_rows(cy, t_k, at, guess[p.pid])
+                # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
+                span = abs(shift) * (0.3 if p.pid in fitted else 0.8) + MARGIN_PX
+                search = (MATCH_PX, int(min(span, shape[0] // 2)))
                 own, weight = first[p.pid]
                 disp, reason = envelope_disparity(
-                    own, second, weight=weight, guess_px=(0.0, expect), search_px=search
-                )
+                    own, second, weight=weight, guess_px=(0.0, shift - (r0 - top)),
+                    search_px=search,
+                )  # fmt: skip
                 if disp is None:
                     failed[p.pid] = reason.split("; no height")[0]
+                    if span > shape[0] // 2:  # the search was cut to the frame
+                        failed[p.pid] = (
+                            f"the frame ({shape[0]} WFOV rows) is too short to find the plume "
+                            f"again: its height's uncertainty moves it up to {span:.0f} rows"
+                        )
                     continue
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
                 looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
-            if main.pid not in failed:
-                fit = fit_height(looks[main.pid], wind_prior=(0.0, 0.0),
+                fit = fit_height(looks[p.pid], wind_prior=(0.0, 0.0),
                                  wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS)  # fmt: skip
                 if fit.ok and 0 < fit.height_m < parallax.MAX_HEIGHT_M:
-                    guess, fitted = fit.height_m, True
-            last_t, last_compute = at, time.perf_counter() - t0
+                    guess[p.pid] = fit.height_m
+                    fitted.add(p.pid)
+                    if fit.height_sigma_m <= MAX_SIGMA_M:  # usable from now on
+                        ready = at + time.perf_counter() - t0
+                        p.stages.append((ready, fit.height_m))
         for p in plumes:
-            t0 = time.perf_counter()
-            if p.pid in failed:
-                self._fallback(p, failed[p.pid])
-            elif len(looks[p.pid]) < 2:
-                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
-            else:
+            if len(looks[p.pid]) >= 2:
+                t0 = time.perf_counter()
                 self._fit(p, looks[p.pid])
-            if p.source == "estimated":
-                p.ready_s = last_t + last_compute + time.perf_counter() - t0
+                last = looks[p.pid][-1].t_s
+                known = max(last, p.stages[-1][0]) if p.stages else last
+                p.ready_s = known + time.perf_counter() - t0  # decided (estimate or not)
+                if p.source == "estimated":
+                    if p.pid in failed:  # measured on the looks that saw it
+                        p.reason = f"{len(looks[p.pid]) - 1} re-look(s) used; {failed[p.pid]}"
+            elif p.pid in failed:
+                self._fallback(p, failed[p.pid])
+            else:
+                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
+
+    def _take(
+        self,
+        plumes: list[Plume],
+        t_k: float,
+        want: float,
+        dur: float,
+        guess: dict[int, float],
+        render: Render,
+    ) -> Relook | None:
+        """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
+        free, within one re-look's duration; else ``None``), its window centred where their
+        guessed heights put them (where they do not fit in one window, the largest)."""
+        w = self.where
+        at = self._free_from(want, dur)
+        if at - want > dur:
+            return None
+        hw, rows = w.wfov_shape[0], w.frame_px
+        lo, hi = self._expected_rows(plumes, t_k, at, guess)
+        if hi - lo + 2 * MARGIN_PX > rows:  # not all in one window: the largest plume's
+            lo, hi = self._expected_rows([max(plumes, key=lambda p: len(p.rows))], t_k, at, guess)
+        r0 = int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), hw - rows))
+        self.busy.append((at, at + dur))
+        taken = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
+        self.taken.append(taken)
+        return taken
+
+    def _expected_rows(
+        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float]
+    ) -> tuple[float, float]:
+        """Strip WFOV rows spanned at ``at`` by ``plumes`` (seen at ``t_k``) at their guessed
+        heights."""
+        w = self.where
+        lo = min(
+            float(p.rows.min()) + w.disparity_rows(float(p.rows.min()), t_k, at, guess[p.pid])
+            for p in plumes
+        )
+        hi = max(
+            float(p.rows.max()) + w.disparity_rows(float(p.rows.max()), t_k, at, guess[p.pid])
+            for p in plumes
+        )
+        return lo, hi
 
     def _fit(self, p: Plume, looks: list[Look]) -> None:
         """Height and ground position of plume ``p`` from its envelope's looks (zero-drift
@@ -728,7 +793,12 @@ class HeightTracker:
                 looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS,
                 rise=True,
             )  # fmt: skip
-            up = rising.rise_mps is not None and rising.rise_mps > 0  # tops do not sink
+            # tops do not sink, and a rise within its noise is not one
+            up = (
+                rising.rise_mps is not None
+                and rising.rise_sigma_mps is not None
+                and rising.rise_mps > RISE_SIGNIFICANCE * rising.rise_sigma_mps
+            )
             if rising.ok and up and rising.rms_residual_m < fit.rms_residual_m:
                 fit = rising
         if not fit.ok or not math.isfinite(fit.height_m) or fit.height_m <= 0:
@@ -762,8 +832,9 @@ class HeightTracker:
     def height_at(self, pid: int, t: float, at: float | None = None) -> float:
         """The height plume ``pid`` is aimed with at pass time ``t``.
 
-        The estimate from its ``ready_s`` on (with its rise, where measured); before that
-        (or without one) the prior, else NaN (not corrected).
+        The final estimate from its ``ready_s`` on (with its rise, where measured); before
+        that the latest estimate made on the way (:attr:`Plume.stages`); without one (or
+        once the final fit is rejected) the prior, else NaN (not corrected).
 
         Parameters
         ----------
@@ -784,12 +855,15 @@ class HeightTracker:
         if pid <= 0 or pid > len(self.plumes):
             return prior
         p = self.plumes[pid - 1]
-        if p.source == "estimated" and t >= p.ready_s and p.height_m is not None:
+        if t >= p.ready_s:  # its final estimate is decided
+            if p.source != "estimated" or p.height_m is None:
+                return prior
             if p.rise_mps is not None:  # a rising top, up to the highest height modelled
                 when = t if at is None else at
                 return float(min(p.height_m + p.rise_mps * (when - p.t_k), parallax.MAX_HEIGHT_M))
             return p.height_m
-        return prior
+        known = [h for ready, h in p.stages if ready <= t]  # the estimates made on the way
+        return known[-1] if known else prior
 
     def estimates(self, true_height: Callable[[Plume], float | None]) -> tuple[HeightEstimate, ...]:
         """Every tracked plume's estimate (:class:`HeightEstimate`), in the order first seen.
@@ -829,7 +903,9 @@ class HeightTracker:
                     true_height(p),
                     p.frame,
                     len(p.relooks),
-                    None if not math.isfinite(p.ready_s) else round(p.ready_s, 4),
+                    None
+                    if p.source != "estimated" or not math.isfinite(p.ready_s)
+                    else round(p.ready_s, 4),
                     p.reason,
                 )
             )
