@@ -22,8 +22,9 @@ Parts (``--part``):
     The same strips at the default geometry (500 km ahead), ``slow`` and ``fast``, flown
     flat (the same world without heights), and in 3D uncorrected (``off``), corrected with
     the true heights (``true``), with the estimated ones (``estimated``, re-looks and the
-    frames they cost included) and with a fixed prior of 8.5 km (``prior``). Utility is
-    the loop's (line-of-sight scoring on the 3D worlds).
+    frames they cost included; ``estimated-1``: from one re-look, at 60 % of the distance,
+    instead of two) and with a fixed prior of 8.5 km (``prior``). Utility is the loop's
+    (line-of-sight scoring on the 3D worlds).
 ``long``
     What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km, 256 px wide
     at 8 m, 2 vents / 100 km: :func:`dyntarget.synth.strip.long_strip_spec`, 3D), long
@@ -58,7 +59,8 @@ from dyntarget.synth.strip import long_strip_spec, strip_spec
 
 MARGIN_PX = 2400
 """Rows (8 m) north of the vents: the parallax of a 15 km top 560 km ahead, 20 km."""
-MODES = ("flat", "off", "prior", "true", "estimated")
+MODES = ("flat", "off", "prior", "true", "estimated", "estimated-1")
+"""``estimated-1``: estimated from one re-look (at 60 % of the look-ahead distance) instead of two."""
 PRIOR_M = 8500.0
 
 
@@ -114,7 +116,12 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
 
 
 def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
-    relook = (round(0.8 * look_ahead_m / 1e3, 3), round(0.6 * look_ahead_m / 1e3, 3))
+    relook: tuple[float, ...] = (
+        round(0.8 * look_ahead_m / 1e3, 3),
+        round(0.6 * look_ahead_m / 1e3, 3),
+    )
+    if mode == "estimated-1":
+        mode, relook = "estimated", relook[1:]
     parallax_mode = "off" if mode == "flat" else mode
     return PassConfig(
         agility=agility,
