@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget import parallax
-from dyntarget.fly.heights import Geometry3D
 from dyntarget.fly.loop import PassConfig, fly_pass, frame_plan
 from dyntarget.fly.strip import MovingStrip
+from dyntarget.predict.relooks import Geometry3D
 from dyntarget.synth.dynamic import with_heights
 from dyntarget.synth.strip import strip_spec
 

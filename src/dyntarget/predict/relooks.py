@@ -1,0 +1,912 @@
+"""Plume-top heights measured on a pass: re-looks of the look-ahead, their cost, the estimates.
+
+A 3D world's plumes appear displaced by their parallax in the look-ahead frames
+(:mod:`dyntarget.parallax`). The pass loop (:mod:`dyntarget.fly.loop`) corrects its
+NFOV aim for it with a height per plume; in ``"estimated"`` mode that height is
+measured here, from the look-ahead stream itself.
+
+Model (what is and is not modelled):
+
+* **Plumes.** The components of a frame's denoised mask within :data:`GROUP_PX`
+  pixels of each other (a fragmented envelope) are one plume when they hold at least
+  :data:`MIN_PLUME_PX` WFOV pixels. It is the plume already tracked when it lies within
+  :data:`MATCH_PX` pixels of the apparent footprint of a tracked plume on the strip's WFOV
+  grid (the look-ahead's parallax changes by a fraction of a pixel between overlapping
+  frames); otherwise it is new, and measured at once (the frame's own pointings need its
+  height). A new plume whose upwind end (where its vent is) is cut by the frame's top
+  edge (the side ahead) is measured again on the first frame that sees that end, and
+  that estimate replaces the first (sharing its re-looks where their windows hold it).
+* **Re-looks.** For a new plume of at least :data:`MIN_RELOOK_PX` pixels the
+  look-ahead re-points at it when its apparent centre (as frame ``k`` saw it) is
+  ``relook_km[i]`` ahead of the nadir, one re-look per distance: at ``t_k + (along_k -
+  d_i) / v``. A re-look sees a window of the frame's size on the strip, centred where
+  the plumes still measured will appear by the heights known so far (each plume's own:
+  the prior or guess in the first re-look, its own fit after), clipped to the strip;
+  where they do not fit in one window, where the largest will. No re-look is taken once
+  none of the frame's plumes is left to measure. It occupies the look-ahead for ``relook_s`` (the pitch
+  change there and back on the agility preset's slew model, two settles and one
+  exposure: :func:`relook_seconds`); a regular frame acquired meanwhile is not taken (the
+  loop records it dropped) - that is the cost. A re-look that would start while the
+  look-ahead is busy with another waits for it, at most one re-look's duration, else it
+  is not taken. The plumes of one frame share its re-looks, and a plume of a later frame
+  shares a re-look already taken within one re-look's duration of the time it wants
+  whose window holds it (a margin included).
+* **Measurement: the envelope.** A plume attached to its vent keeps its envelope (the
+  mask's shape) at the vent while the wind blows its texture through it; so the
+  envelope is measured, not the texture: the displacement between frame ``k``'s mask
+  (before denoising) and each re-look's mask (the oracle's, or the pass's classifier on
+  the re-look's image) is :func:`dyntarget.predict.height.envelope_disparity` (masked
+  normalised correlation, sub-pixel), on the plume's upwind part (:data:`UPWIND_SHARE`
+  of its length along the wind; the downwind end grows between the looks) and a margin
+  of background. The looks' apparent positions (the component's centroid, moved by each
+  displacement) and the nadir at each look's time go to
+  :func:`~dyntarget.predict.height.fit_height` with a **zero-drift prior** (sigma
+  :data:`ENVELOPE_DRIFT_SIGMA_MPS`). Where the three looks' track is curved beyond their
+  noise (:data:`RISE_TEST_PX`) the top may be rising: the fit adds a linear rise, kept
+  when it is positive beyond :data:`RISE_SIGNIFICANCE` of its standard deviations and
+  fits better, which gives ``rise_mps`` and the height at frame ``k``'s time (the aim
+  then follows the rise). A young plume whose envelope changes its shape between the
+  looks can pass that test without rising (a known limit). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
+  pixels (the fit scales its covariance up when the residuals say more). Everything is
+  measured at the look-ahead's WFOV resolution.
+* **When it is known.** The simulator renders a plume's re-looks as soon as its frame
+  is planned (the world is known), but each estimate is usable only from its re-look's
+  time + the measured compute time of the measurement and fit: the first re-look gives
+  a two-look estimate (:attr:`Plume.stages`), the last the final one (from ``t_e``);
+  the NFOV's pointings aim with the latest estimate usable when each is flown, earlier
+  ones with the prior (or not corrected). A plume lost by a later re-look keeps the
+  estimate of the looks that saw it. The schedule is decided once at the frame's plan
+  time with the aim each pointing will have when flown; a flight system would re-plan
+  when an estimate arrives.
+* **Failures.** A plume too small for a re-look, one whose re-looks the look-ahead
+  had no time for, one whose envelope is not found in a re-look (no match above
+  :data:`~dyntarget.predict.height.MIN_ENVELOPE_NCC`, or the best on the search's
+  edge), a degenerate fit or one whose standard deviation exceeds :data:`MAX_SIGMA_M`
+  keeps the prior (``height_source`` ``"prior"``) or nothing (``"none"``), with one
+  line on stderr naming the plume and the reason.
+* **Known limits:** the loop does not tell a detached cloud (which drifts with the wind
+  as a whole) from a vent-attached plume: it is fitted with the zero-drift prior too,
+  and an along-track drift ``v`` biases its height by about ``v dt / (tan_0 - tan_2)``
+  (60 m per m/s at the default geometry, ``docs/plumes-3d.md``); a cross-track drift is
+  measured by the looks. A plume cut by the strip's side keeps a cut envelope.
+* **Not modelled:** the plume's change of shape between looks beyond a translation (and
+  the growth of its downwind end, left out of the match), and the look-ahead's own
+  scanning being re-planned around the re-looks.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from dyntarget import parallax
+from dyntarget.errors import InvalidParameterError
+from dyntarget.predict.height import Look, envelope_disparity, fit_height
+from dyntarget.schedule import Agility, OrbitGeometry
+from dyntarget.schedule.kinematics import angle_between_deg, look_vectors
+
+MIN_PLUME_PX = 6
+"""Fewest WFOV pixels of a plume (its components grouped, :data:`GROUP_PX`) tracked."""
+MIN_RELOOK_PX = 6
+"""Fewest WFOV pixels of a plume worth a re-look (its envelope is measured on its mask)."""
+MATCH_PX = 4
+"""A component within this many WFOV pixels of a tracked plume's footprint is that plume."""
+GROUP_PX = 3
+"""Components of one frame within this many WFOV pixels of each other are one plume."""
+UPWIND_SHARE = 0.5
+"""Share of a plume's length along the wind (from its upwind end) whose envelope is matched."""
+MARGIN_PX = 6
+"""Margin of background around a plume's mask compared by the envelope match, WFOV px."""
+RISE_TEST_PX = 0.3
+"""Root mean square residual (WFOV px) of the three looks' fit above which a rise is fitted."""
+RISE_SIGNIFICANCE = 1.5
+"""A fitted rise is kept only above this many of its standard deviations (a one-sided
+test at about 93 %): on the heights benchmark, smaller rises fitted to still columns
+(an envelope changing its shape between the looks) cost more than they gave."""
+POSITION_SIGMA_PX = 0.5
+"""Standard deviation of a look's measured position, WFOV pixels."""
+ENVELOPE_DRIFT_SIGMA_MPS = 1.0
+"""Standard deviation of the zero-drift prior of a vent-attached plume's envelope, m/s
+per axis (the envelope stays at the vent; its downwind end grows, its edges flicker)."""
+MAX_SIGMA_M = 1500.0
+"""A fit less certain than this (one sigma, metres) is not used: the looks disagree
+(e.g. the flow followed something else than the plume in a re-look)."""
+GUESS_HEIGHT_M = 8500.0
+"""Height guessed for the disparity's search when no prior is given (mid-range of 2-15 km)."""
+RELOOK_KM = (400.0, 300.0)
+"""Default re-look distances ahead of the nadir, km."""
+
+
+def relook_seconds(geometry: OrbitGeometry, agility: Agility, distance_m: float) -> float:
+    """Look-ahead time one re-look at ``distance_m`` ahead of the nadir costs, seconds.
+
+    The look-ahead pitches from its usual direction (``look_ahead_m`` ahead) to the
+    re-look's and back, on the preset's rest-to-rest slew model
+    (:meth:`~dyntarget.schedule.Agility.slew_time_one`), settling after each slew
+    (``settle_s`` twice), and exposes one frame (``dwell_s``).
+
+    Parameters
+    ----------
+    geometry : dyntarget.schedule.OrbitGeometry
+        The orbit (altitude, look-ahead distance).
+    agility : dyntarget.schedule.Agility
+        The pointing preset.
+    distance_m : float
+        Ground distance ahead of the nadir of the re-look, metres.
+
+    Returns
+    -------
+    float
+        Seconds the look-ahead is busy.
+
+    Examples
+    --------
+    500 km up, 500 -> 300 km ahead is a pitch change of 13.27 deg (41.61 to 28.34 deg off
+    nadir); ``fast`` (10 deg/s, 20 deg/s^2) slews it in 13.27 / 10 + 10 / 20 = 1.83 s,
+    twice, plus 2 x 0.05 s settling and a 0.05 s exposure (``slow``: 32.6 s):
+
+    >>> from dyntarget.schedule import get_agility
+    >>> round(relook_seconds(OrbitGeometry(), get_agility("fast"), 300e3), 2)
+    3.8
+    """
+    if not (math.isfinite(distance_m) and distance_m > 0):
+        raise InvalidParameterError(f"re-look distance: expected metres > 0, got {distance_m!r}")
+    a = look_vectors(geometry, np.array([geometry.look_ahead_m]), np.zeros(1), 0.0)
+    b = look_vectors(geometry, np.array([distance_m]), np.zeros(1), 0.0)
+    angle = float(angle_between_deg(a, b)[0])
+    slew = agility.slew_time_one(angle)
+    return 2.0 * (slew + agility.settle_s) + agility.dwell_s
+
+
+@dataclass(frozen=True)
+class HeightEstimate:
+    """One plume's top height as the pass measured it (or took it from the prior).
+
+    Parameters
+    ----------
+    plume_id : int
+        The plume, numbered over the pass from 1 (not the truth's id).
+    x_px, y_px : float
+        Ground position of the plume top (parallax-corrected), strip high-resolution
+        pixels (the apparent position where no height is known).
+    top_height_m, top_height_sigma_m : float or None
+        Top height above sea level and its standard deviation, metres (``None``: none).
+    rise_mps : float or None
+        Rise velocity where the looks showed one (``None``: not measured).
+    height_source : str
+        ``"estimated"``, ``"prior"`` or ``"none"``.
+    true_height_m : float or None
+        The true top height of the vent or cloud it belongs to, where the world knows it.
+    frame : int
+        The frame that first saw it.
+    relooks : int
+        Re-looks taken of it.
+    ready_s : float or None
+        When the estimate was usable (last re-look + compute), seconds into the pass.
+    reason : str
+        Why no height was estimated (empty when estimated).
+    """
+
+    plume_id: int
+    x_px: float
+    y_px: float
+    top_height_m: float | None
+    top_height_sigma_m: float | None
+    rise_mps: float | None
+    height_source: str
+    true_height_m: float | None
+    frame: int
+    relooks: int
+    ready_s: float | None
+    reason: str = ""
+
+    def as_dict(self) -> dict[str, object]:
+        """The estimate as plain JSON values.
+
+        Returns
+        -------
+        dict
+            Field name to value.
+        """
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass
+class Relook:
+    """A re-look the look-ahead took: when, which rows (strip WFOV), what it saw.
+
+    Parameters
+    ----------
+    t_s : float
+        Pass time of the re-look, seconds.
+    duration_s : float
+        Look-ahead time it took, seconds.
+    top : int
+        Its window's top strip WFOV row (the window has the frame's size).
+    mask : numpy.ndarray or None
+        ``(H_f, W)`` plume mask (fraction 0..1) it showed.
+    """
+
+    t_s: float
+    duration_s: float
+    top: int
+    mask: np.ndarray | None = None
+
+
+@dataclass
+class Plume:
+    """A plume tracked over the pass (apparent footprint, re-looks, estimate).
+
+    Parameters
+    ----------
+    pid : int
+        Its number over the pass, from 1.
+    frame : int
+        The frame it was measured on (the first that saw its upwind end).
+    t_k : float
+        That frame's acquisition time, pass seconds.
+    rows, cols : numpy.ndarray
+        Strip WFOV pixels of its mask in that frame.
+    relooks : list of Relook
+        The re-looks that saw it.
+    height_m, sigma_m : float or None
+        Its height and standard deviation (or the prior), metres.
+    ground_xy : tuple of float or None
+        Strip WFOV px of the top's ground position at the first frame's time.
+    ready_s : float
+        When its estimate is usable, pass seconds (``inf``: never).
+    source : str
+        ``"estimated"``, ``"prior"`` or ``"none"``.
+    reason : str
+        Why no height was estimated.
+    true_id : int
+        The truth's id (unused by the tracker).
+    pending : bool
+        Measured provisionally (its upwind end cut by the frame's edge): measured again
+        on the first frame that sees that end, whose index, time and view replace
+        ``frame``, ``t_k``, ``rows`` and ``cols``, and whose estimate replaces this one.
+    rise_mps : float or None
+        The top's measured rise, m/s (``None``: not measured).
+    stages : list of tuple of float
+        ``(ready_s, height_m)`` of the estimates made on the way, one per re-look whose
+        looks so far fitted (the first from two looks): aimed with from ``ready_s`` until
+        the final estimate is ready.
+    """
+
+    pid: int
+    frame: int
+    t_k: float
+    rows: np.ndarray
+    cols: np.ndarray
+    relooks: list[Relook] = field(default_factory=list)
+    height_m: float | None = None
+    sigma_m: float | None = None
+    ground_xy: tuple[float, float] | None = None
+    ready_s: float = math.inf
+    source: str = "none"
+    reason: str = ""
+    true_id: int = 0
+    pending: bool = False
+    rise_mps: float | None = None
+    stages: list[tuple[float, float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Geometry3D:
+    """Where the spacecraft is during a pass, on the strip's WFOV grid.
+
+    Parameters
+    ----------
+    geometry : dyntarget.schedule.OrbitGeometry
+        The orbit and look-ahead.
+    wfov_shape : tuple of int
+        The strip's WFOV shape ``(rows, cols)``.
+    frame_px : int
+        Frame rows.
+    top0 : int
+        The first frame's top strip WFOV row.
+    factor : int
+        High-resolution pixels per WFOV pixel.
+    """
+
+    geometry: OrbitGeometry
+    wfov_shape: tuple[int, int]
+    frame_px: int
+    top0: int
+    factor: int
+
+    def nadir(self, t: float) -> tuple[float, float]:
+        """The nadir at pass time ``t``, strip WFOV px (``docs``' formula).
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        tuple of float
+            ``(x, y)`` strip WFOV px.
+        """
+        g = self.geometry
+        x = (self.wfov_shape[1] - 1) / 2.0
+        y = (
+            self.top0
+            + (self.frame_px - 1) / 2.0
+            + (g.look_ahead_m - g.ground_speed * t) / g.wfov_gsd_m
+        )
+        return x, y
+
+    def nadir_hr(self, t: float) -> tuple[float, float]:
+        """The nadir at ``t`` in strip high-resolution px.
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        tuple of float
+            ``(x, y)`` high-resolution px (WFOV px ``i`` centres at ``i f + (f-1)/2``).
+        """
+        x, y = self.nadir(t)
+        f = self.factor
+        return x * f + (f - 1) / 2.0, y * f + (f - 1) / 2.0
+
+    def along(self, y: float, t: float) -> float:
+        """Metres ahead of the nadir at ``t`` of strip WFOV row ``y``.
+
+        Parameters
+        ----------
+        y : float
+            Strip WFOV row.
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        float
+            Metres.
+        """
+        return (self.nadir(t)[1] - y) * self.geometry.wfov_gsd_m
+
+    def disparity_rows(self, y: float, t0: float, t1: float, height_m: float) -> float:
+        """Rows a feature at ``height_m`` seen at row ``y`` at ``t0`` appears lower at ``t1``.
+
+        Its parallax shrinks as the nadir approaches; no drift is counted.
+
+        Parameters
+        ----------
+        y : float
+            Strip WFOV row where it appeared at ``t0``.
+        t0, t1 : float
+            Pass seconds of the two looks.
+        height_m : float
+            The feature's height.
+
+        Returns
+        -------
+        float
+            WFOV rows (positive: towards the nadir).
+        """
+        g = self.geometry
+        true_along = float(parallax.sight_at_height(g.altitude_m, self.along(y, t0), height_m))
+        s0 = self.along(y, t0) - true_along
+        d1 = true_along - g.ground_speed * (t1 - t0)
+        s1 = float(parallax.parallax_shift(g.altitude_m, d1, height_m))
+        return (s0 - s1) / g.wfov_gsd_m
+
+
+Render = Callable[[float, int, tuple[float, float]], np.ndarray]
+"""``render(t, top, nadir_hr) -> (H_f, W)`` plume mask (fraction 0..1) that a look of the
+world at pass time ``t`` from above ``nadir_hr`` (strip high-res px) shows on the frame-sized
+window whose top strip WFOV row is ``top`` (the oracle's, or the pass's classifier's)."""
+
+
+class HeightTracker:
+    """Plumes of a pass, their re-looks and height estimates (the module docstring's model).
+
+    Parameters
+    ----------
+    where : Geometry3D
+        The pass's geometry on the strip's WFOV grid.
+    agility : dyntarget.schedule.Agility
+        The preset whose slew model times a re-look.
+    relook_km : tuple of float
+        Re-look distances ahead of the nadir, km.
+    relook_s : float or None
+        Seconds per re-look (``None``: :func:`relook_seconds` per distance).
+    prior_m : float or None
+        The prior height (also the disparity's guess; :data:`GUESS_HEIGHT_M` without one).
+    wind : tuple of float or None
+        ``(east, north)`` wind, m/s: kept for a feature that drifts with the wind; the
+        envelope of a vent-attached plume is fitted with a zero-drift prior instead.
+    measure : bool
+        Take re-looks and estimate heights (``"estimated"`` mode); otherwise only track.
+    log : callable
+        Where a plume's fallback line goes (stderr in the pass loop).
+    """
+
+    def __init__(
+        self,
+        where: Geometry3D,
+        agility: Agility,
+        relook_km: tuple[float, ...],
+        relook_s: float | None,
+        prior_m: float | None,
+        wind: tuple[float, float] | None,
+        *,
+        measure: bool,
+        log: Callable[[str], None],
+    ) -> None:
+        self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
+        self.measure, self.log = measure, log
+        self.distances_m = tuple(float(d) * 1e3 for d in relook_km)
+        self.durations_s = tuple(
+            relook_s if relook_s is not None else relook_seconds(where.geometry, agility, d)
+            for d in self.distances_m
+        )
+        self.labels = np.zeros(where.wfov_shape, np.int32)
+        """Strip WFOV px -> tracked plume (1-based; 0: none), apparent footprints."""
+        self.plumes: list[Plume] = []
+        self.busy: list[tuple[float, float]] = []
+        """``(start, end)`` of every re-look taken, pass seconds."""
+        self.taken: list[Relook] = []
+        """Every re-look taken (shared by the plumes its window holds)."""
+        if measure:  # loaded before the pass (as at boot), not in the first plume's time
+            import scipy.optimize  # noqa: F401
+
+    # -- the look-ahead's time -------------------------------------------------------
+    def busy_at(self, t: float) -> bool:
+        """Whether the look-ahead is re-looking at pass time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Pass seconds.
+
+        Returns
+        -------
+        bool
+            True inside a re-look's window.
+        """
+        return any(a <= t < b for a, b in self.busy)
+
+    def _free_from(self, t: float, duration: float) -> float:
+        """The first time at or after ``t`` at which ``duration`` s of look-ahead are free."""
+        start = t
+        for a, b in sorted(self.busy):
+            if start < b and start + duration > a:
+                start = b
+        return start
+
+    # -- per frame -------------------------------------------------------------------
+    def frame(
+        self,
+        k: int,
+        t_k: float,
+        top: int,
+        mask: np.ndarray,
+        render: Render,
+        *,
+        last: bool,
+        raw: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Track frame ``k``'s plumes, take and measure re-looks of new ones.
+
+        Parameters
+        ----------
+        k : int
+            Frame index.
+        t_k : float
+            Its acquisition time, pass seconds.
+        top : int
+            Its top strip WFOV row.
+        mask : numpy.ndarray
+            ``(H_f, W)`` bool denoised mask the plan used.
+        render : callable
+            The world's look (:data:`Render`), for the re-looks.
+        last : bool
+            The pass's last frame (no plume waits for a next one).
+        raw : numpy.ndarray or None
+            ``(H_f, W)`` bool mask before denoising (``None``: ``mask``): the envelope is
+            matched on it, as the re-looks' masks are not denoised either.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(H_f, W)`` int32: the tracked plume (1-based) of each component pixel, 0 elsewhere.
+        """
+        m8 = mask.astype(np.uint8)
+        # components within GROUP_PX of each other are one plume (a fragmented envelope)
+        grow = np.ones((GROUP_PX + 1, GROUP_PX + 1), np.uint8)
+        n, comp = cv2.connectedComponents(cv2.dilate(m8, grow), connectivity=8)
+        comp = np.where(mask, comp, 0).astype(np.int32)
+        areas = np.bincount(comp.ravel(), minlength=n)
+        out = np.zeros(mask.shape, np.int32)
+        new: list[tuple[int, np.ndarray, np.ndarray]] = []
+        ready: list[Plume] = []
+        near = np.ones((2 * MATCH_PX + 1, 2 * MATCH_PX + 1), np.uint8)
+        for i in range(1, n):
+            if areas[i] < MIN_PLUME_PX:
+                continue
+            on = comp == i
+            rows, cols = np.nonzero(on)
+            r0, r1 = max(int(rows.min()) - MATCH_PX, 0), int(rows.max()) + MATCH_PX + 1
+            c0, c1 = max(int(cols.min()) - MATCH_PX, 0), int(cols.max()) + MATCH_PX + 1
+            r1, c1 = min(r1, mask.shape[0]), min(c1, mask.shape[1])
+            grown = cv2.dilate(on[r0:r1, c0:c1].astype(np.uint8), near) > 0
+            under = self.labels[top + r0 : top + r1, c0:c1][grown]
+            under = under[under > 0]
+            if len(under):
+                pid = int(np.bincount(under).argmax())
+                out[on] = pid
+                self.labels[rows + top, cols] = np.where(
+                    self.labels[rows + top, cols] == 0, pid, self.labels[rows + top, cols]
+                )
+                p = self.plumes[pid - 1]
+                if p.pending and p not in ready and (last or not self._cut_upwind(rows, cols)):
+                    # its upwind end is in view now: measured again on this frame's view (the
+                    # re-looks already taken shared where their windows hold it)
+                    p.pending, p.frame, p.t_k, p.rows, p.cols = False, k, t_k, rows + top, cols
+                    p.relooks, p.source, p.reason, p.ready_s = [], "none", "", math.inf
+                    p.stages = []
+                    ready.append(p)
+                continue
+            new.append((i, rows, cols))
+        for i, rows, cols in new:
+            plume = Plume(len(self.plumes) + 1, k, t_k, rows + top, cols)
+            # its upwind end (the vent's) cut by the frame's top edge (the side ahead):
+            # measured now (this frame's pointings need a height) and again on the first
+            # frame that sees that end
+            plume.pending = bool(not last and self._cut_upwind(rows, cols))
+            self.plumes.append(plume)
+            self.labels[rows + top, cols] = plume.pid
+            out[comp == i] = plume.pid
+            ready.append(plume)
+        if not ready:
+            return out
+        fresh = ready
+        if not self.measure:
+            for p in fresh:
+                self._fallback(p, "")
+            return out
+        small = [p for p in fresh if len(p.rows) < MIN_RELOOK_PX]
+        for p in small:
+            self._fallback(p, f"too small for a re-look: {len(p.rows)} WFOV px, fewer than "
+                           f"{MIN_RELOOK_PX}")  # fmt: skip
+        big = [p for p in fresh if len(p.rows) >= MIN_RELOOK_PX]
+        if big:
+            self._relook(big, t_k, top, comp, mask if raw is None else raw, render)
+        return out
+
+    def _cut_upwind(self, rows: np.ndarray, cols: np.ndarray) -> bool:
+        """Whether a component (frame rows, columns) has its upwind end (the quarter of its
+        length along the wind at the upwind side; all of it without a wind) on the frame's
+        top row: a later frame, further north, sees more of that end."""
+        on_top = rows == 0
+        if not on_top.any():
+            return False
+        if self.wind is None or math.hypot(*self.wind) < 0.5:
+            return True
+        ux, uy = self.wind[0], -self.wind[1]  # east, north -> column, row
+        along = cols * ux + rows * uy
+        lo, hi = float(along.min()), float(along.max())
+        return bool(on_top[along <= lo + 0.25 * (hi - lo) + 1.0].any())
+
+    def _upwind(self, p: Plume, top: int, shape: tuple[int, int]) -> np.ndarray:
+        """The frame's pixels on the upwind side of plume ``p`` (all without a wind): those
+        whose distance along the wind is at most :data:`UPWIND_SHARE` of the plume's length
+        along it (and a margin) past its upwind end. Its vent end stays where it is while the
+        wind stretches the downwind end between the looks."""
+        if self.wind is None or math.hypot(*self.wind) < 0.5:
+            return np.ones(shape, bool)
+        ux, uy = self.wind[0], -self.wind[1]  # east, north -> column, row
+        norm = math.hypot(ux, uy)
+        ux, uy = ux / norm, uy / norm
+        along = p.cols * ux + (p.rows - top) * uy
+        lo, hi = float(along.min()), float(along.max())
+        cut = lo + UPWIND_SHARE * (hi - lo) + 1.0
+        rr, cc = np.mgrid[0 : shape[0], 0 : shape[1]]
+        return np.asarray(cc * ux + rr * uy <= cut)
+
+    def _window_for(
+        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float], tol: float
+    ) -> Relook | None:
+        """A re-look already taken within ``tol`` s of ``at`` whose window holds the plumes
+        where their ``guess`` heights put them (their rows and a margin), or ``None``."""
+        for r in self.taken:
+            if abs(r.t_s - at) > tol:
+                continue
+            a, b = self._expected_rows(plumes, t_k, r.t_s, guess)
+            if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.top + self.where.frame_px:
+                return r
+        return None
+
+    def _relook(
+        self,
+        plumes: list[Plume],
+        t_k: float,
+        top: int,
+        comp: np.ndarray,
+        raw: np.ndarray,
+        render: Render,
+    ) -> None:
+        """Take (or share) the re-looks in order, measure each plume's envelope on each, fit.
+
+        Each plume is searched for around where its own height known so far puts it: the
+        prior (or :data:`GUESS_HEIGHT_M`) in the first re-look, then the fit of its own
+        looks so far (plumes of one frame differ in height by kilometres, which moves them
+        hundreds of pixels apart between looks). A re-look's window is centred on where
+        the plumes still measured will appear by those heights; a re-look already taken
+        (for an earlier frame's plumes) near the wanted time whose window holds them is
+        shared instead of taking another, and no re-look is taken once none of the
+        frame's plumes is left to measure. After each re-look, a plume whose looks so far
+        fit is given that estimate from then on (:attr:`Plume.stages`); a plume lost in a
+        later re-look keeps the fit of the looks that saw it.
+        """
+        w = self.where
+        gsd, shape = w.geometry.wfov_gsd_m, comp.shape
+        prior = self.prior_m if self.prior_m is not None else GUESS_HEIGHT_M
+        guess = {p.pid: prior for p in plumes}
+        fitted: set[int] = set()
+        nx, ny0 = w.nadir(t_k)
+        alt, sig = w.geometry.altitude_m, POSITION_SIGMA_PX * gsd
+        looks: dict[int, list[Look]] = {}
+        failed: dict[int, str] = {}
+        first: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        margin = np.ones((2 * MARGIN_PX + 1, 2 * MARGIN_PX + 1), np.uint8)
+        near = np.ones((2 * GROUP_PX + 1, 2 * GROUP_PX + 1), np.uint8)
+        raw = np.asarray(raw, bool)
+        for p in plumes:
+            cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
+            looks[p.pid] = [Look(t_k, cx * gsd, -cy * gsd, nx * gsd, -ny0 * gsd, alt, sig)]
+            comp_p = np.zeros(shape, np.uint8)
+            comp_p[p.rows - top, p.cols] = 1
+            own = raw & (cv2.dilate(comp_p, near) > 0)  # its raw mask (not denoised)
+            weight = (cv2.dilate(own.astype(np.uint8), margin) > 0) & (own | ~raw)
+            first[p.pid] = (own, weight & self._upwind(p, top, shape))
+        why = ""
+        for d, dur in zip(self.distances_m, self.durations_s, strict=True):
+            alive = [p for p in plumes if p.pid not in failed]
+            if not alive:
+                break
+            centre = float(np.mean(np.concatenate([p.rows for p in alive])))
+            want = t_k + (w.along(centre, t_k) - d) / w.geometry.ground_speed
+            if want <= t_k:
+                why = why or f"already nearer than {d / 1e3:g} km when seen"
+                continue
+            shared = self._window_for(alive, t_k, want, guess, dur) or self._take(
+                alive, t_k, want, dur, guess, render
+            )
+            if shared is None:
+                why = why or "the look-ahead was busy re-looking at other plumes"
+                continue
+            at, r0, second = shared.t_s, shared.top, shared.mask
+            assert second is not None
+            t0 = time.perf_counter()
+            _, ny = w.nadir(at)
+            for p in alive:
+                p.relooks.append(shared)
+                cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
+                shift = w.disparity_rows(cy, t_k, at, guess[p.pid])
+                # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
+                span = abs(shift) * (0.3 if p.pid in fitted else 0.8) + MARGIN_PX
+                search = (MATCH_PX, int(min(span, shape[0] // 2)))
+                own, weight = first[p.pid]
+                disp, reason = envelope_disparity(
+                    own, second, weight=weight, guess_px=(0.0, shift - (r0 - top)),
+                    search_px=search,
+                )  # fmt: skip
+                if disp is None:
+                    failed[p.pid] = reason.split("; no height")[0]
+                    if span > shape[0] // 2:  # the search was cut to the frame
+                        failed[p.pid] = (
+                            f"the frame ({shape[0]} WFOV rows) is too short to find the plume "
+                            f"again: its height's uncertainty moves it up to {span:.0f} rows"
+                        )
+                    continue
+                x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
+                looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
+                fit = fit_height(looks[p.pid], wind_prior=(0.0, 0.0),
+                                 wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS)  # fmt: skip
+                if fit.ok and 0 < fit.height_m < parallax.MAX_HEIGHT_M:
+                    guess[p.pid] = fit.height_m
+                    fitted.add(p.pid)
+                    if fit.height_sigma_m <= MAX_SIGMA_M:  # usable from now on
+                        ready = at + time.perf_counter() - t0
+                        p.stages.append((ready, fit.height_m))
+        for p in plumes:
+            if len(looks[p.pid]) >= 2:
+                t0 = time.perf_counter()
+                self._fit(p, looks[p.pid])
+                last = looks[p.pid][-1].t_s
+                known = max(last, p.stages[-1][0]) if p.stages else last
+                p.ready_s = known + time.perf_counter() - t0  # decided (estimate or not)
+                if p.source == "estimated":
+                    if p.pid in failed:  # measured on the looks that saw it
+                        p.reason = f"{len(looks[p.pid]) - 1} re-look(s) used; {failed[p.pid]}"
+            elif p.pid in failed:
+                self._fallback(p, failed[p.pid])
+            else:
+                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
+
+    def _take(
+        self,
+        plumes: list[Plume],
+        t_k: float,
+        want: float,
+        dur: float,
+        guess: dict[int, float],
+        render: Render,
+    ) -> Relook | None:
+        """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
+        free, within one re-look's duration; else ``None``), its window centred where their
+        guessed heights put them (where they do not fit in one window, the largest)."""
+        w = self.where
+        at = self._free_from(want, dur)
+        if at - want > dur:
+            return None
+        hw, rows = w.wfov_shape[0], w.frame_px
+        lo, hi = self._expected_rows(plumes, t_k, at, guess)
+        if hi - lo + 2 * MARGIN_PX > rows:  # not all in one window: the largest plume's
+            lo, hi = self._expected_rows([max(plumes, key=lambda p: len(p.rows))], t_k, at, guess)
+        r0 = int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), hw - rows))
+        self.busy.append((at, at + dur))
+        taken = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
+        self.taken.append(taken)
+        return taken
+
+    def _expected_rows(
+        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float]
+    ) -> tuple[float, float]:
+        """Strip WFOV rows spanned at ``at`` by ``plumes`` (seen at ``t_k``) at their guessed
+        heights."""
+        w = self.where
+        lo = min(
+            float(p.rows.min()) + w.disparity_rows(float(p.rows.min()), t_k, at, guess[p.pid])
+            for p in plumes
+        )
+        hi = max(
+            float(p.rows.max()) + w.disparity_rows(float(p.rows.max()), t_k, at, guess[p.pid])
+            for p in plumes
+        )
+        return lo, hi
+
+    def _fit(self, p: Plume, looks: list[Look]) -> None:
+        """Height and ground position of plume ``p`` from its envelope's looks (zero-drift
+        prior: the envelope of a vent-attached plume), or the fallback."""
+        fit = fit_height(
+            looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS
+        )
+        gsd = self.where.geometry.wfov_gsd_m
+        if len(looks) >= 3 and fit.ok and fit.rms_residual_m > RISE_TEST_PX * gsd:
+            # the looks' track is curved beyond their noise: a rising top (its parallax
+            # grows while the approach shrinks it); fit the rise as well
+            rising = fit_height(
+                looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS,
+                rise=True,
+            )  # fmt: skip
+            # tops do not sink, and a rise within its noise is not one
+            up = (
+                rising.rise_mps is not None
+                and rising.rise_sigma_mps is not None
+                and rising.rise_mps > RISE_SIGNIFICANCE * rising.rise_sigma_mps
+            )
+            if rising.ok and up and rising.rms_residual_m < fit.rms_residual_m:
+                fit = rising
+        if not fit.ok or not math.isfinite(fit.height_m) or fit.height_m <= 0:
+            self._fallback(p, fit.reason or f"the fit gave no usable height ({fit.height_m:.0f} m)")
+            return
+        if not fit.height_sigma_m <= MAX_SIGMA_M:
+            self._fallback(
+                p,
+                f"too uncertain: {fit.height_m:.0f} +- {fit.height_sigma_m:.0f} m (the looks "
+                f"disagree; more than {MAX_SIGMA_M:g} m)",
+            )
+            return
+        p.height_m, p.sigma_m, p.source = fit.height_m, fit.height_sigma_m, "estimated"
+        p.rise_mps = fit.rise_mps
+        p.ground_xy = (fit.position_m[0] / gsd, -fit.position_m[1] / gsd)
+
+    def _fallback(self, p: Plume, reason: str) -> None:
+        """No estimate: the prior, or nothing; say so (``reason`` empty: not measured by design)."""
+        p.source = "prior" if self.prior_m is not None else "none"
+        p.height_m = self.prior_m
+        p.sigma_m = None
+        p.reason = reason
+        if reason and not p.pending:
+            self.log(
+                f"plume {p.pid} (frame {p.frame}): no height estimated: {reason}; "
+                + (f"using the prior {self.prior_m:g} m" if self.prior_m is not None else
+                   "its pointings are not corrected")
+            )  # fmt: skip
+
+    # -- what the aim reads ----------------------------------------------------------
+    def height_at(self, pid: int, t: float, at: float | None = None) -> float:
+        """The height plume ``pid`` is aimed with at pass time ``t``.
+
+        The final estimate from its ``ready_s`` on (with its rise, where measured); before
+        that the latest estimate made on the way (:attr:`Plume.stages`); without one (or
+        once the final fit is rejected) the prior, else NaN (not corrected).
+
+        Parameters
+        ----------
+        pid : int
+            The plume (1-based; 0: none).
+        t : float
+            Pass seconds: what is known then.
+        at : float or None
+            The time whose top height is wanted (e.g. the look-ahead's acquisition, to
+            place the top the look-ahead saw); ``None``: ``t``.
+
+        Returns
+        -------
+        float
+            Metres (NaN: not corrected).
+        """
+        prior = math.nan if self.prior_m is None else self.prior_m
+        if pid <= 0 or pid > len(self.plumes):
+            return prior
+        p = self.plumes[pid - 1]
+        if t >= p.ready_s:  # its final estimate is decided
+            if p.source != "estimated" or p.height_m is None:
+                return prior
+            if p.rise_mps is not None:  # a rising top, up to the highest height modelled
+                when = t if at is None else at
+                return float(min(p.height_m + p.rise_mps * (when - p.t_k), parallax.MAX_HEIGHT_M))
+            return p.height_m
+        known = [h for ready, h in p.stages if ready <= t]  # the estimates made on the way
+        return known[-1] if known else prior
+
+    def estimates(self, true_height: Callable[[Plume], float | None]) -> tuple[HeightEstimate, ...]:
+        """Every tracked plume's estimate (:class:`HeightEstimate`), in the order first seen.
+
+        Parameters
+        ----------
+        true_height : callable
+            ``true_height(plume) -> metres or None`` (the world's truth, where known).
+
+        Returns
+        -------
+        tuple of HeightEstimate
+        """
+        w = self.where
+        f = w.factor
+        out = []
+        for p in self.plumes:
+            cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
+            if p.ground_xy is not None:
+                gx, gy = p.ground_xy
+            elif p.height_m is not None:  # the prior: the true position under the apparent one
+                along = float(
+                    parallax.sight_at_height(w.geometry.altitude_m, w.along(cy, p.t_k), p.height_m)
+                )
+                gx, gy = cx, w.nadir(p.t_k)[1] - along / w.geometry.wfov_gsd_m
+            else:
+                gx, gy = cx, cy
+            out.append(
+                HeightEstimate(
+                    p.pid,
+                    round(gx * f + (f - 1) / 2.0, 3),
+                    round(gy * f + (f - 1) / 2.0, 3),
+                    None if p.height_m is None else round(float(p.height_m), 1),
+                    None if p.sigma_m is None else round(float(p.sigma_m), 1),
+                    None if p.rise_mps is None else round(float(p.rise_mps), 2),
+                    p.source,
+                    true_height(p),
+                    p.frame,
+                    len(p.relooks),
+                    None
+                    if p.source != "estimated" or not math.isfinite(p.ready_s)
+                    else round(p.ready_s, 4),
+                    p.reason,
+                )
+            )
+        return tuple(out)
