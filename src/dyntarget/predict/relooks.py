@@ -709,7 +709,8 @@ class HeightTracker:
                     if span > shape[0] // 2:  # the search was cut to the frame
                         failed[p.pid] = (
                             f"the frame ({shape[0]} WFOV rows) is too short to find the plume "
-                            f"again: its height's uncertainty moves it up to {span:.0f} rows"
+                            f"again: its height's uncertainty asks a search of +-{span:.0f} "
+                            f"rows, the frame holds +-{shape[0] // 2}"
                         )
                     continue
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
