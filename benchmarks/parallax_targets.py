@@ -14,16 +14,16 @@ Parts (``--part``):
 
 ``heights``
     ``--strips`` strips, wind drawn 0-20 m/s, the look-ahead distance drawn so that its view
-    zenith angle is 30-50 deg; ``fly``'s default parallax mode (``estimated``: re-looks at
-    80 % and 60 % of the look-ahead distance, the strip's own wind as the wind prior),
+    zenith angle is 30-50 deg; ``fly``'s default parallax mode (``estimated``: one re-look
+    at 60 % of the look-ahead distance, as ``fly``'s default 300 of 500 km),
     ``fast`` agility. Every plume whose height was estimated against its vent's true top
     (at the time of its last look): RMSE, bias, share measured.
 ``targeting``
     The same strips at the default geometry (500 km ahead), ``slow`` and ``fast``, flown
     flat (the same world without heights), and in 3D uncorrected (``off``), corrected with
     the true heights (``true``), with the estimated ones (``estimated``, re-looks and the
-    frames they cost included; ``estimated-1``: from one re-look, at 60 % of the distance,
-    instead of two) and with a fixed prior of 8.5 km (``prior``). Utility is the loop's
+    frames they cost included: one re-look, ``fly``'s default; ``estimated-2``: two, at 80 %
+    and 60 % of the distance) and with a fixed prior of 8.5 km (``prior``). Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
     What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km, 256 px wide
@@ -59,8 +59,9 @@ from dyntarget.synth.strip import long_strip_spec, strip_spec
 
 MARGIN_PX = 2400
 """Rows (8 m) north of the vents: the parallax of a 15 km top 560 km ahead, 20 km."""
-MODES = ("flat", "off", "prior", "true", "estimated", "estimated-1")
-"""``estimated-1``: estimated from one re-look (at 60 % of the look-ahead distance) instead of two."""
+MODES = ("flat", "off", "prior", "true", "estimated", "estimated-2")
+"""``estimated``: ``fly``'s default, one re-look at 60 % of the look-ahead distance;
+``estimated-2``: two, at 80 % and 60 % (they also measure a rise)."""
 PRIOR_M = 8500.0
 
 
@@ -116,12 +117,9 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
 
 
 def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
-    relook: tuple[float, ...] = (
-        round(0.8 * look_ahead_m / 1e3, 3),
-        round(0.6 * look_ahead_m / 1e3, 3),
-    )
-    if mode == "estimated-1":
-        mode, relook = "estimated", relook[1:]
+    relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
+    if mode == "estimated-2":
+        mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)
     parallax_mode = "off" if mode == "flat" else mode
     return PassConfig(
         agility=agility,
@@ -223,6 +221,7 @@ def part_targeting(args) -> dict:
     return {
         "rows": rows, "summary": summary, "speed": speed_summary(est),
         "heights": height_summary(est),
+        "heights_2": height_summary([r for r in rows if r["mode"] == "estimated-2"]),
     }  # fmt: skip
 
 

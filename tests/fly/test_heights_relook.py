@@ -175,9 +175,10 @@ def _blob_mask(where, t, top, blobs):
     return out
 
 
-def _synthetic(blobs, prior=None):
+def _synthetic(blobs, prior=None, frame_px=128):
+    # 128 rows: the first search (+-0.8 of an 8.5 km guess at 400 km: 57 rows) fits in it
     g = OrbitGeometry(wfov_gsd_m=GSD)
-    where = Geometry3D(g, (20000, 96), 96, 0, 4)
+    where = Geometry3D(g, (20000, 96), frame_px, 0, 4)
     tr = HeightTracker(
         where, get_agility("fast"), (400.0, 300.0), None, prior, None,
         measure=True, log=lambda s: None,
@@ -228,13 +229,13 @@ def test_components_of_one_plume_merge_and_plumes_in_one_window_share_its_relook
     # frame 1, 40 rows further south, sees it again and a second plume 30 rows further
     # (outside frame 0): both fit one re-look window
     h1, h2 = 8000.0, 7000.0
-    where, _, _ = _synthetic([])
+    where, _, _ = _synthetic([], frame_px=96)
     top0 = 0
     y1 = _true_row(where, top0 + 80.0, h1)
     y2 = _true_row(where, top0 + 110.0, h2)
     first = [(30.0, y1 - 4, 5, 3, h1), (30.0, y1 + 2, 5, 2, h1)]  # rows 73-78, 81-84
     second = [(70.0, y2, 4, 3, h2)]
-    where, tr, render = _synthetic(first + second)
+    where, tr, render = _synthetic(first + second, frame_px=96)
     m0 = _blob_mask(where, 0.0, top0, first + second)
     assert not _blob_mask(where, 0.0, top0, second).any()
     pids = tr.frame(0, 0.0, top0, m0, render, last=False)
@@ -244,9 +245,14 @@ def test_components_of_one_plume_merge_and_plumes_in_one_window_share_its_relook
     pids1 = tr.frame(1, t1, top0 + 40, m1, render, last=False)
     # the first plume seen again (within MATCH_PX of its footprint) is the same plume
     assert len(tr.plumes) == 2 and set(np.unique(pids1[m1])) == {1, 2}
-    assert len(tr.busy) == 2  # the second plume shared the first's two re-looks
     a, b = tr.plumes
-    assert a.relooks == b.relooks and a.source == b.source == "estimated"
+    # the second plume shared the first's re-looks (a 96-row frame: one more, nearer in
+    # time, comes first, whose search fits in it)
+    assert (
+        len(tr.busy) == len(a.relooks) == 3
+        and a.relooks == b.relooks
+        and a.source == b.source == "estimated"
+    )
     assert abs(a.height_m - h1) <= 250.0 and abs(b.height_m - h2) <= 250.0
 
 
@@ -305,15 +311,12 @@ def test_the_first_relook_gives_an_estimate_aimed_with_until_the_final_one():
         assert tr.height_at(p.pid, p.ready_s) == p.height_m
 
 
-def test_a_frame_too_short_to_find_a_plume_again_says_so():
-    # 16 rows (a 64 px strip at factor 4): an 8.5 km guess +- 80 % moves the plume between the
-    # looks by up to ~100 rows, far beyond what the frame can hold
-    logs = []
+def _short_frame(frame_px, logs):
     g = OrbitGeometry(wfov_gsd_m=GSD)
-    where = Geometry3D(g, (20000, 16), 16, 0, 4)
-    blob = [(8.0, _true_row(where, 8.0, 6000.0), 3, 3, 6000.0)]
+    where = Geometry3D(g, (20000, 16), frame_px, 0, 4)
+    blob = [(8.0, _true_row(where, frame_px / 2.0, 6000.0), 2, 2, 6000.0)]
     tr = HeightTracker(
-        where, get_agility("fast"), (400.0, 300.0), None, None, None,
+        where, get_agility("fast"), (300.0,), None, None, None,
         measure=True, log=logs.append,
     )  # fmt: skip
 
@@ -321,6 +324,38 @@ def test_a_frame_too_short_to_find_a_plume_again_says_so():
         return _blob_mask(where, t, top, blob)
 
     tr.frame(0, 0.0, 0, _blob_mask(where, 0.0, 0, blob), render, last=False)
+    return tr
+
+
+def test_a_frame_too_short_for_the_search_is_helped_by_relooks_nearer_in_time():
+    # 16 rows (a 64 px strip at factor 4): an 8.5 km guess +- 80 % moves a plume by up to
+    # ~100 rows between 500 and 300 km ahead; re-looks nearer in time, whose searches fit in
+    # 8 rows, narrow the height first (each one asked for a search of at most 8 rows)
+    logs = []
+    tr = _short_frame(16, logs)
+    (p,) = tr.plumes
+    assert p.source == "estimated" and len(p.relooks) >= 2 and not logs
+    assert abs(p.height_m - 6000.0) <= 300.0
+
+
+def test_a_frame_too_short_to_find_a_plume_again_says_so():
+    # 8 rows: even a re-look a moment later asks more than the search's margin of 6 rows
+    # on each side fits in +-4
+    logs = []
+    tr = _short_frame(8, logs)
     (p,) = tr.plumes
     assert p.source == "none" and "too short to find the plume again" in p.reason
-    assert len(logs) == 1 and "(16 WFOV rows)" in logs[0]
+    assert len(logs) == 1 and "(8 WFOV rows)" in logs[0]
+
+
+@pytest.mark.parametrize(("frame_px", "relooks"), [(256, 1), (128, 2), (64, 3)])
+def test_relooks_nearer_in_time_are_added_only_where_the_search_does_not_fit(frame_px, relooks):
+    # asked: one re-look 300 km ahead. By hand, for a plume seen ~500 km ahead, guess 8.5 km:
+    # its disparity there is 8500 m x 0.468 / 32 m = 124 rows; searched over +-0.8 of it
+    # plus a 6-row margin: 105 rows. 256 rows (+-128) hold it: one re-look. 128 (+-64) do
+    # not: one nearer in time first, then +-0.3 of it plus 6 = 43 rows fit: two. 64 (+-32):
+    # 43 does not fit either: one more, three in all.
+    tr = _short_frame(frame_px, [])
+    (p,) = tr.plumes
+    assert len(tr.busy) == relooks and p.source == "estimated"
+    assert abs(p.height_m - 6000.0) <= 150.0

@@ -18,7 +18,12 @@ Model (what is and is not modelled):
   that estimate replaces the first (sharing its re-looks where their windows hold it).
 * **Re-looks.** For a new plume of at least :data:`MIN_RELOOK_PX` pixels the
   look-ahead re-points at it when its apparent centre (as frame ``k`` saw it) is
-  ``relook_km[i]`` ahead of the nadir, one re-look per distance: at ``t_k + (along_k -
+  ``relook_km[i]`` ahead of the nadir, one re-look per distance (:data:`RELOOK_KM`: one,
+  300 km ahead, by default), each preceded where needed by re-looks nearer in time
+  (at most :data:`MAX_INSERTED`) whose searches still fit in
+  the frame: a frame holds fewer rows than a long baseline's uncertainty asks for (the
+  search spans 0.2 to 1.8 times a guessed height), and a shorter baseline narrows the
+  height enough for the next. A re-look is taken at ``t_k + (along_k -
   d_i) / v``. A re-look sees a window of the frame's size on the strip, centred where
   the plumes still measured will appear by the heights known so far (each plume's own:
   the prior or guess in the first re-look, its own fit after), clipped to the strip;
@@ -42,7 +47,8 @@ Model (what is and is not modelled):
   displacement) and the nadir at each look's time go to
   :func:`~dyntarget.predict.height.fit_height` with a **zero-drift prior** (sigma
   :data:`ENVELOPE_DRIFT_SIGMA_MPS`). Where the three looks' track is curved beyond their
-  noise (:data:`RISE_TEST_PX`) the top may be rising: the fit adds a linear rise, kept
+  noise (:data:`RISE_TEST_PX`), and re-looks at two or more distances were asked for
+  (``relook_km``; not the default), the top may be rising: the fit adds a linear rise, kept
   when it is positive beyond :data:`RISE_SIGNIFICANCE` of its standard deviations and
   fits better, which gives ``rise_mps`` and the height at frame ``k``'s time (the aim
   then follows the rise). A young plume whose envelope changes its shape between the
@@ -104,6 +110,12 @@ MARGIN_PX = 6
 """Margin of background around a plume's mask compared by the envelope match, WFOV px."""
 RISE_TEST_PX = 0.3
 """Root mean square residual (WFOV px) of the three looks' fit above which a rise is fitted."""
+SPREAD_GUESS = 0.8
+"""Relative uncertainty of a guessed height searched over (0.2 to 1.8 times the guess)."""
+SPREAD_FITTED = 0.3
+"""Relative uncertainty searched over once a plume's own looks have fitted a height."""
+MAX_INSERTED = 3
+"""Most re-looks added before an asked one so that each search fits in the frame."""
 RISE_SIGNIFICANCE = 1.5
 """A fitted rise is kept only above this many of its standard deviations (a one-sided
 test at about 93 %): on the heights benchmark, smaller rises fitted to still columns
@@ -118,8 +130,13 @@ MAX_SIGMA_M = 1500.0
 (e.g. the flow followed something else than the plume in a re-look)."""
 GUESS_HEIGHT_M = 8500.0
 """Height guessed for the disparity's search when no prior is given (mid-range of 2-15 km)."""
-RELOOK_KM = (400.0, 300.0)
-"""Default re-look distances ahead of the nadir, km."""
+RELOOK_KM = (300.0,)
+"""Default re-look distances ahead of the nadir, km: one re-look, 300 km ahead (from
+500 km, tan(theta) falls by 0.468: the longest baseline the NFOV's lead leaves). Two
+(``(400.0, 300.0)``) also measure a rise and give a two-look estimate earlier, at twice
+the look-ahead time; on the targeting benchmark they kept 75 % (``fast``) and 49 %
+(``slow``) of the flat utility against 92 % and 95 % with one (``docs/plumes-3d.md``): a
+young plume's changing envelope is taken for a rise."""
 
 
 def relook_seconds(geometry: OrbitGeometry, agility: Agility, distance_m: float) -> float:
@@ -448,10 +465,9 @@ class HeightTracker:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log = measure, log
         self.distances_m = tuple(float(d) * 1e3 for d in relook_km)
-        self.durations_s = tuple(
-            relook_s if relook_s is not None else relook_seconds(where.geometry, agility, d)
-            for d in self.distances_m
-        )
+        self.relook_s = relook_s
+        self.fit_rise = len(self.distances_m) >= 2
+        """A rise is fitted only where re-looks at two or more distances were asked for."""
         self.labels = np.zeros(where.wfov_shape, np.int32)
         """Strip WFOV px -> tracked plume (1-based; 0: none), apparent footprints."""
         self.plumes: list[Plume] = []
@@ -673,7 +689,9 @@ class HeightTracker:
             weight = (cv2.dilate(own.astype(np.uint8), margin) > 0) & (own | ~raw)
             first[p.pid] = (own, weight & self._upwind(p, top, shape))
         why = ""
-        for d, dur in zip(self.distances_m, self.durations_s, strict=True):
+        main = max(plumes, key=lambda p: len(p.rows))
+        for d in self._chain(float(np.mean(main.rows)), t_k, prior):
+            dur = self._duration(d)
             alive = [p for p in plumes if p.pid not in failed]
             if not alive:
                 break
@@ -697,7 +715,8 @@ class HeightTracker:
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
                 shift = w.disparity_rows(cy, t_k, at, guess[p.pid])
                 # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
-                span = abs(shift) * (0.3 if p.pid in fitted else 0.8) + MARGIN_PX
+                spread = SPREAD_FITTED if p.pid in fitted else SPREAD_GUESS
+                span = abs(shift) * spread + MARGIN_PX
                 search = (MATCH_PX, int(min(span, shape[0] // 2)))
                 own, weight = first[p.pid]
                 disp, reason = envelope_disparity(
@@ -737,6 +756,48 @@ class HeightTracker:
                 self._fallback(p, failed[p.pid])
             else:
                 self._fallback(p, f"no re-look taken ({why or 'none asked'})")
+
+    def _duration(self, d: float) -> float:
+        """Look-ahead seconds of a re-look ``d`` metres ahead (given, or the slew model's)."""
+        if self.relook_s is not None:
+            return self.relook_s
+        return relook_seconds(self.where.geometry, self.agility, d)
+
+    def _span(self, y: float, t_k: float, d: float, guess: float, spread: float) -> float:
+        """Half-width (rows) of the search for a plume seen at row ``y`` at ``t_k`` in a
+        re-look ``d`` metres ahead, its height ``guess`` known to ``spread`` of itself."""
+        w = self.where
+        t = t_k + (w.along(y, t_k) - d) / w.geometry.ground_speed
+        return abs(w.disparity_rows(y, t_k, t, guess)) * spread + MARGIN_PX
+
+    def _chain(self, y: float, t_k: float, guess: float) -> list[float]:
+        """The re-look distances (metres ahead) for a plume seen at row ``y`` at ``t_k``:
+        the asked ones, each preceded where needed by one nearer in time whose search
+        still fits in the frame. The search spans 0.2 to 1.8 times the guessed height
+        before a fit (0.7 to 1.3 after): a disparity growing with the baseline can ask more
+        rows than a frame holds, and a first re-look at a shorter baseline narrows the
+        height enough for the next."""
+        half = self.where.frame_px // 2
+        seen = self.where.along(y, t_k)
+        chain: list[float] = []
+        spread = SPREAD_GUESS
+        for d in self.distances_m:
+            for _ in range(MAX_INSERTED):
+                prev = chain[-1] if chain else seen
+                if not (d < prev and self._span(y, t_k, d, guess, spread) > half):
+                    break
+                lo, hi = d, prev  # the span shrinks as the distance nears where it was seen
+                for _ in range(40):
+                    mid = 0.5 * (lo + hi)
+                    far = self._span(y, t_k, mid, guess, spread) > half
+                    lo, hi = (mid, hi) if far else (lo, mid)
+                if hi >= prev - 1.0:  # no re-look nearer in time narrows it
+                    break
+                chain.append(hi)
+                spread = SPREAD_FITTED
+            chain.append(d)
+            spread = SPREAD_FITTED
+        return chain
 
     def _take(
         self,
@@ -787,7 +848,7 @@ class HeightTracker:
             looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS
         )
         gsd = self.where.geometry.wfov_gsd_m
-        if len(looks) >= 3 and fit.ok and fit.rms_residual_m > RISE_TEST_PX * gsd:
+        if self.fit_rise and len(looks) >= 3 and fit.ok and fit.rms_residual_m > RISE_TEST_PX * gsd:
             # the looks' track is curved beyond their noise: a rising top (its parallax
             # grows while the approach shrinks it); fit the rise as well
             rising = fit_height(
