@@ -45,9 +45,9 @@ import numpy as np
 
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.strip import MovingStrip
 from dyntarget.io.atomic import write_text
 from dyntarget.synth.strip import strip_spec
+from dyntarget.synth.strip_world import MovingStrip
 
 
 def _classifier(model: str | None, onnx: bool):

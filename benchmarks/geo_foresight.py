@@ -55,14 +55,14 @@ import numpy as np
 from dyntarget import defaults
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.geo import GeoSettings
-from dyntarget.fly.strip import LongStrip
 from dyntarget.geo import plan_blueprint
 from dyntarget.io.atomic import write_text
 from dyntarget.observe.bound import upper_bound_utility
+from dyntarget.passes.geo import GeoSettings
 from dyntarget.schedule import get_agility
 from dyntarget.synth.dynamic import with_onsets
 from dyntarget.synth.strip import long_strip_spec
+from dyntarget.synth.strip_world import LongStrip
 
 DENSITIES = {"sparse": 0.2, "dense": 1.0}  # vents per 100 km: 1 / 500 km and 1 / 100 km
 
@@ -108,11 +108,11 @@ def _geo_prior(source: str):
     """GeoSettings of the catalog baseline (``fly --geo-prior SOURCE``)."""
     if "prior" in GeoSettings.__dataclass_fields__:
         return GeoSettings(prior=source)
-    return _PriorSettings(source)  # until fly.geo knows the prior: see _prior_prepare
+    return _PriorSettings(source)  # until passes.geo knows the prior: see _prior_prepare
 
 
 class _PriorSettings(GeoSettings):
-    """GeoSettings carrying a catalog prior, for a fly.geo without one (see _prior_prepare)."""
+    """GeoSettings carrying a catalog prior, for a passes.geo without one (see _prior_prepare)."""
 
     def __init__(self, source: str) -> None:
         super().__init__(blind=True)
@@ -120,7 +120,7 @@ class _PriorSettings(GeoSettings):
 
 
 def _prior_prepare(original):
-    """fly.geo.prepare, planning the blueprint on the catalog's targets for _PriorSettings."""
+    """passes.geo.prepare, planning the blueprint on the catalog's targets for _PriorSettings."""
     import dataclasses
 
     from dyntarget.geo.catalog import prior_targets
@@ -157,10 +157,10 @@ class _SparseValues:
     """The truth's utility per WFOV pixel at each time, kept sparse (shared by presets)."""
 
     def __init__(self, world, factor: int, frames) -> None:
-        from dyntarget.fly.loop import _TruthCache
         from dyntarget.observe.bound import values_from_bands
+        from dyntarget.synth.worlds import TruthBands
 
-        truth = _TruthCache(world, factor, 1, band=frames.frame_px)
+        truth = TruthBands(world, factor, 1, band=frames.frame_px)
         self.values = values_from_bands(truth.at, frames.wfov_shape[1])
         self.width = frames.wfov_shape[1]
         self.memo: dict[float, tuple[int, int, np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -195,7 +195,7 @@ class _SparseValues:
 
 def upper_bounds(spec, window, presets, cfgs) -> dict[str, dict]:
     """Each preset's upper bound on the strip (a fresh world: its truth is not the passes')."""
-    from dyntarget.fly.loop import frame_plan
+    from dyntarget.passes.record import frame_plan
 
     world = LongStrip(spec, window)  # small caches: the bound walks the whole pass
     frames = frame_plan(world, cfgs[presets[0]])
@@ -212,7 +212,7 @@ def upper_bounds(spec, window, presets, cfgs) -> dict[str, dict]:
 
 
 def run(args) -> dict:
-    import dyntarget.fly.geo as fly_geo
+    import dyntarget.passes.geo as fly_geo
 
     if "prior" not in GeoSettings.__dataclass_fields__:
         fly_geo.prepare = _prior_prepare(fly_geo.prepare)

@@ -3,7 +3,7 @@
 Each run is a fresh ``python`` process with one checkout's ``src`` first on
 ``PYTHONPATH`` that flies one strip (``dyntarget synth --strip --flat``, 256 px wide,
 ``--length`` px long, factor 4: 15 frames at the default 2048) and prints every frame's ``loop_s`` (all onboard work on a frame:
-classify, denoise, predict, plan, de-duplicate, schedule; :class:`dyntarget.fly.loop.FrameRecord`).
+classify, denoise, predict, plan, de-duplicate, schedule; :class:`dyntarget.passes.record.FrameRecord`).
 The two checkouts alternate, ``--repeats`` times, on the same machine in one run;
 the table gives, per case, the median over the runs of each run's median per frame.
 
@@ -30,8 +30,11 @@ from pathlib import Path
 
 CHILD = """
 import json, sys
-from dyntarget.fly.loop import PassConfig, fly_pass
-from dyntarget.fly.strip import load_world
+from dyntarget.fly import PassConfig, fly_pass
+try:
+    from dyntarget.synth.strip_world import load_world
+except ImportError:  # a checkout from before issue 39
+    from dyntarget.fly.strip import load_world
 strip, model, predict, budget = sys.argv[1:5]
 world = load_world(strip)
 classifier = None

@@ -11,9 +11,9 @@ scored against the plume at their own time.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from dyntarget.fly.loop import PassConfig, fly_pass
-from dyntarget.fly.strip import MovingStrip
+from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.synth.strip import strip_spec
+from dyntarget.synth.strip_world import MovingStrip
 
 spec, window = strip_spec(0, width=128, length=576, plumes=3)
 world = MovingStrip(spec, window)

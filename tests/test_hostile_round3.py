@@ -751,7 +751,7 @@ def test_every_strip_sidecar_field_refused_or_rendered(tmp_path):
     import warnings
 
     from dyntarget.errors import DynTargetError
-    from dyntarget.fly.strip import load_world
+    from dyntarget.synth.strip_world import load_world
 
     base = _spec_dict()
     base["clouds"] = [{"x": 5.0, "y": 5.0, "radius_m": 300.0, "optical_depth": 2.0,

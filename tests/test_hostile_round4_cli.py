@@ -130,7 +130,7 @@ def test_an_internal_error_in_a_rerun_leaves_the_previous_pass(strip, flown, mon
 
 
 def test_an_interrupt_while_writing_leaves_the_previous_pass(strip, flown, monkeypatch, capsys):
-    import dyntarget.fly.report as report
+    import dyntarget.view.pass_report as report
 
     before = _tree(flown)
 
@@ -438,8 +438,8 @@ def test_the_cli_limits_are_the_renderers(capsys):
     import math
 
     from dyntarget.cli import synth as cli_synth
-    from dyntarget.fly import strip as fly_strip
     from dyntarget.synth import dynamic
+    from dyntarget.synth import strip as fly_strip
 
     assert cli_synth.MAX_VENTS == dynamic.MAX_VENTS == 64
     assert cli_synth.MAX_CLOUDS == dynamic.MAX_CLOUDS == 256
@@ -539,7 +539,7 @@ def test_a_refusal_leaves_an_empty_out_folder_empty(strip, tmp_path, capsys):
 def test_a_failing_campaign_rerun_leaves_each_earlier_pass_whole(
     strip, tmp_path, monkeypatch, capsys
 ):
-    import dyntarget.fly.report as report
+    import dyntarget.view.pass_report as report
 
     out = tmp_path / "campaign"
     args = ["fly", "--campaign", str(strip.parent), "--truth", "--quiet", "--out", str(out)]

@@ -11,8 +11,9 @@ HEAVY = ("torch", "sklearn", "skops", "dask", "distributed", "matplotlib", "plot
 
 def test_importing_the_pass_loop_loads_nothing_heavy():
     code = (
-        "import dyntarget.fly, dyntarget.fly.report, dyntarget.fly.watch, dyntarget.fly.strip\n"
-        "import dyntarget.fly.campaign, dyntarget.cli.fly\n"
+        "import dyntarget.fly, dyntarget.fly.loop, dyntarget.fly.watch, dyntarget.fly.campaign\n"
+        "import dyntarget.view.pass_report, dyntarget.synth.strip_world, dyntarget.passes.geo\n"
+        "import dyntarget.cli.fly\n"
         "import json, sys\n"
         f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))"
     )

@@ -11,14 +11,14 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.errors import InvalidParameterError
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.geo import GeoSettings
-from dyntarget.fly.strip import MovingStrip
 from dyntarget.geo import Blueprint, Target, detect, nowcast, plan_blueprint
 from dyntarget.geo.blueprint import step_s
 from dyntarget.geo.refine import BlueprintGate
 from dyntarget.geo.targets import image_times
+from dyntarget.passes.geo import GeoSettings
 from dyntarget.schedule import OrbitGeometry, get_agility, schedule
 from dyntarget.synth.strip import strip_spec
+from dyntarget.synth.strip_world import MovingStrip
 from dyntarget.trajectory import Trajectory
 
 
@@ -131,7 +131,7 @@ def test_target_gains_best_first():
 
 
 def _gate(budget=(), starts=(), spans=(), preset="slow"):
-    from dyntarget.fly.loop import FramePlan
+    from dyntarget.passes.record import FramePlan
 
     g = OrbitGeometry(wfov_gsd_m=64.0)
     frames = FramePlan((4000, 32), 32, 16, 16 * 64.0 / g.ground_speed, (0,), g)
@@ -276,7 +276,7 @@ def test_plume_field_ignores_a_cloud_that_brightness_takes_for_a_plume():
 
 def _staging_gate(look_ahead_m, stage=True):
     """A strip 8000 WFOV rows long seen 16 rows a frame; one chosen target on rows 990-1010."""
-    from dyntarget.fly.loop import FramePlan
+    from dyntarget.passes.record import FramePlan
 
     g = OrbitGeometry(wfov_gsd_m=64.0, look_ahead_m=look_ahead_m)
     tops = tuple(range(8000 - 32, -1, -16))

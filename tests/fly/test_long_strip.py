@@ -10,9 +10,9 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.errors import InvalidParameterError
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.strip import LongStrip, load_world
 from dyntarget.synth.dynamic import World
 from dyntarget.synth.strip import long_strip_spec
+from dyntarget.synth.strip_world import LongStrip, load_world
 
 
 def test_vents_follow_the_density_one_per_segment():

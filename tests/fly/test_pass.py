@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.fly import PassConfig, StaticWorld, WorldBase, fly_pass, frame_plan
-from dyntarget.fly.report import TIMELINE, timeline_csv, write_pass
+from dyntarget.fly import PassConfig, fly_pass, frame_plan
 from dyntarget.scene import Scene
+from dyntarget.synth.worlds import StaticWorld, WorldBase
+from dyntarget.view.pass_report import TIMELINE, timeline_csv, write_pass
 
 GSD = 8.0  # high-res m/px; WFOV (factor 4) 32 m/px
 
@@ -191,8 +192,8 @@ class DriftingCloud(WorldBase):
         return self._image(self._label(t))[:, top:bottom]
 
     def truth_at(self, t):
-        from dyntarget.fly.world import Truth
-        from dyntarget.observe.nfov import UtilityMaps
+        from dyntarget.synth.worlds import Truth
+        from dyntarget.utility import UtilityMaps
 
         t = float(round(t))
         if t not in self._cache:
@@ -369,11 +370,11 @@ def test_a_predictive_frame_says_what_it_planned_on():
 
 
 def test_the_agility_preset_is_looked_up_once_per_settings(monkeypatch):
-    from dyntarget.fly import loop
+    from dyntarget.passes import record
 
     asked = []
-    real = loop.get_agility
-    monkeypatch.setattr(loop, "get_agility", lambda name: asked.append(name) or real(name))
+    real = record.get_agility
+    monkeypatch.setattr(record, "get_agility", lambda name: asked.append(name) or real(name))
     config = PassConfig(agility="slow", compute_budget_s=0.01)
     fly_pass(_strip([(600, 680, 20, 80)]), None, config, upper_bound=True)
     assert asked == ["slow"]

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.strip import MovingStrip
 from dyntarget.synth.strip import strip_spec
+from dyntarget.synth.strip_world import MovingStrip
 
 TOP_M = 10_000.0
 VENT_XY = (200.0, 2100.0)  # strip high-res px

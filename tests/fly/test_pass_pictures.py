@@ -85,7 +85,7 @@ def test_fly_without_matplotlib_and_plotly_says_both_in_one_line(tmp_path):
 
 def test_overview_decimates_in_bounded_rows():
     """Rows averaged by hand: 8 rows of values 0..7 kept in at most 4 rows -> pairs averaged."""
-    from dyntarget.fly.report import _Overview
+    from dyntarget.view.pass_report import _Overview
 
     ov = _Overview(max_rows=4)
     for top in (0, 4):  # two frames of 4 rows, 2 columns
@@ -99,7 +99,7 @@ def test_overview_decimates_in_bounded_rows():
 
 
 def test_overlapping_frames_average_their_rows():
-    from dyntarget.fly.report import _Overview
+    from dyntarget.view.pass_report import _Overview
 
     ov = _Overview(max_rows=100)
     a = np.zeros((4, 2, 1), np.float32)
@@ -137,9 +137,9 @@ def test_a_long_pass_gets_an_overview_and_one_page_per_segment(tmp_path):
 def test_a_geo_target_at_the_look_ahead_point_is_drawn_mid_first_frame():
     """A target ``look_ahead_m`` ahead of nadir at t = 0, on the ground track, is the centre
     of the first frame: half a frame along the pass, half the strip across."""
-    from dyntarget.fly.loop import PassConfig, fly_pass
-    from dyntarget.fly.report import ViewCollector, _overview_data
-    from dyntarget.fly.world import StaticWorld
+    from dyntarget.fly import PassConfig, fly_pass
+    from dyntarget.synth.worlds import StaticWorld
+    from dyntarget.view.pass_report import ViewCollector, _overview_data
 
     img = np.full((4, 512, 64), 0.1, np.float32)
     world = StaticWorld(Scene(img, label=np.zeros((512, 64), bool), gsd=8.0))

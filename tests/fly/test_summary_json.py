@@ -8,9 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from dyntarget.fly import PassConfig, StaticWorld, fly_pass
-from dyntarget.fly.report import SUMMARY_KEYS, write_pass
+from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.scene import Scene
+from dyntarget.synth.worlds import StaticWorld
+from dyntarget.view.pass_report import SUMMARY_KEYS, write_pass
 
 PLUMES = [(600, 680, 20, 80), (200, 260, 40, 100)]  # (row0, row1, col0, col1), high-res px
 

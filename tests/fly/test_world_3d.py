@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from dyntarget.errors import InvalidParameterError
-from dyntarget.fly.strip import LongStrip, MovingStrip
-from dyntarget.fly.world import StaticWorld, wfov_truth
 from dyntarget.observe import Sight, score_pointings
 from dyntarget.scene import Scene, block_mean
 from dyntarget.synth.dynamic import CloudSpec, VentSpec, Wind, WorldSpec
 from dyntarget.synth.strip import long_strip_spec, strip_spec
+from dyntarget.synth.strip_world import LongStrip, MovingStrip
+from dyntarget.synth.worlds import StaticWorld, wfov_truth
 
 R = 6_371_008.7714  # WGS 84 mean radius (2a + b) / 3
 ALT = 500e3

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dyntarget.fly.strip import LongStrip, MovingStrip
-from dyntarget.fly.world import StaticWorld
 from dyntarget.scene import Scene
 from dyntarget.synth.strip import long_strip_spec, strip_spec
+from dyntarget.synth.strip_world import LongStrip, MovingStrip
+from dyntarget.synth.worlds import StaticWorld
 
 
 def _static() -> StaticWorld:

@@ -150,10 +150,10 @@ def test_the_hawaiian_volcanoes_over_a_strip_are_the_ones_inside_it():
 
 def test_target_geometry_matches_the_loop_and_the_geo_code():
     from dyntarget.fly import PassConfig
-    from dyntarget.fly.loop import frame_plan
-    from dyntarget.fly.world import StaticWorld
     from dyntarget.geo.targets import along_of_row
+    from dyntarget.passes.record import frame_plan
     from dyntarget.scene import Scene
+    from dyntarget.synth.worlds import StaticWorld
 
     img = np.zeros((4, 1024, 256), np.float32)
     world = StaticWorld(Scene(img, label=np.zeros((1024, 256), bool), gsd=16.0))
@@ -198,9 +198,9 @@ def test_volcanoes_beyond_the_radius_are_left_out_and_edges_clipped():
 
 def test_a_synthetic_strips_vents_are_its_catalog():
     from dyntarget.fly import PassConfig
-    from dyntarget.fly.loop import frame_plan
-    from dyntarget.fly.strip import MovingStrip
+    from dyntarget.passes.record import frame_plan
     from dyntarget.synth.strip import strip_spec
+    from dyntarget.synth.strip_world import MovingStrip
 
     spec, window = strip_spec(4, width=128, length=576, plumes=3)
     w = MovingStrip(spec, window)
@@ -229,12 +229,12 @@ def test_catalog_targets_plan_a_blueprint_and_fly_a_pass(monkeypatch):
     """The targets are the GEO blueprint's own type: planned and refined unchanged."""
     import dataclasses
 
-    import dyntarget.fly.geo as fg
+    import dyntarget.passes.geo as fg
     from dyntarget.fly import PassConfig, fly_pass
-    from dyntarget.fly.strip import MovingStrip
     from dyntarget.geo.refine import BlueprintGate
     from dyntarget.schedule import get_agility
     from dyntarget.synth.strip import strip_spec
+    from dyntarget.synth.strip_world import MovingStrip
 
     # 18 km: the vents' targets lie far enough from the strip's top for the look-ahead to
     # see them whole (the gate releases a target then, or when its window opens)
@@ -273,11 +273,11 @@ def test_the_blueprint_gate_takes_catalog_targets_unchanged():
     import dataclasses
 
     from dyntarget.fly import PassConfig
-    from dyntarget.fly.loop import frame_plan
-    from dyntarget.fly.world import StaticWorld
     from dyntarget.geo.refine import BlueprintGate
+    from dyntarget.passes.record import frame_plan
     from dyntarget.scene import Scene
     from dyntarget.schedule import get_agility
+    from dyntarget.synth.worlds import StaticWorld
 
     img = np.zeros((4, 4096, 256), np.float32)
     world = StaticWorld(Scene(img, label=np.zeros((4096, 256), bool), gsd=16.0))

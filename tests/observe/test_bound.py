@@ -246,14 +246,14 @@ def _cli(*args):
 
 
 def _strip_bound(path, agility, factor=4):
-    from dyntarget.fly import PassConfig
-    from dyntarget.fly.loop import _TruthCache, frame_plan
-    from dyntarget.fly.strip import load_world
+    from dyntarget.passes.record import PassConfig, frame_plan
+    from dyntarget.synth.strip_world import load_world
+    from dyntarget.synth.worlds import TruthBands
 
     world = load_world(path)
     cfg = PassConfig(agility=agility, factor=factor)
     frames = frame_plan(world, cfg)
-    truth = _TruthCache(world, factor, cfg.footprint, band=frames.frame_px)
+    truth = TruthBands(world, factor, cfg.footprint, band=frames.frame_px)
     return upper_bound_utility(
         values_from_bands(truth.at, frames.wfov_shape[1]),
         frames.wfov_shape,
@@ -291,3 +291,41 @@ def test_bound_is_above_the_passes_fly_flies_on_small_strips(tmp_path):
                 assert doc["upper_bound_utility"] == pytest.approx(bound.value, abs=1e-4)
             seen += doc["utility"] > 0
     assert seen >= 4  # the passes did score: the comparison says something
+
+
+def _bands(intensity):
+    from types import SimpleNamespace
+
+    band = SimpleNamespace(intensity=np.asarray(intensity, float), valid=np.ones((2, 2), bool))
+    return lambda t, r: (band, 0)
+
+
+def test_a_pass_bound_over_a_truth_without_utility_is_zero():
+    from dyntarget.observe.bound import pass_upper_bound
+
+    b = pass_upper_bound(
+        _bands(np.zeros((2, 2))), SHAPE, 2, G, get_agility("fast"),
+        time_step_s=None, distinct=True,
+    )  # fmt: skip
+    assert b.value == 0.0
+
+
+def test_a_pass_bound_with_one_pixel_of_utility_and_unlimited_agility_is_that_pixel():
+    from dyntarget.observe.bound import pass_upper_bound
+
+    # unlimited agility, the plan ready at 0 s: one pointing at the only valuable pixel, once
+    b = pass_upper_bound(
+        _bands([[0.0, 0.0], [0.0, 0.75]]), SHAPE, 2, G, get_agility("unlimited"),
+        time_step_s=None, distinct=True, ready_s=[0.0],
+    )  # fmt: skip
+    assert b.value == pytest.approx(0.75)
+
+
+def test_a_pass_bound_on_a_3d_world_is_refused_naming_the_world():
+    from dyntarget.observe.bound import pass_upper_bound
+
+    with pytest.raises(InvalidParameterError, match="world 'w3' is 3D: the upper bound"):
+        pass_upper_bound(
+            _bands(np.zeros((2, 2))), SHAPE, 2, G, get_agility("fast"),
+            time_step_s=None, distinct=True, is_3d=True, world_id="w3",
+        )  # fmt: skip

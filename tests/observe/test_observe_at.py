@@ -89,7 +89,7 @@ ZERO = (0, 0.0, 0.0, 0.0)
 
 def _maps(h, w, plume, valid=None):
     """Utility maps worked by hand: label = intensity = gradient = ``plume`` (0/1)."""
-    from dyntarget.observe.nfov import UtilityMaps
+    from dyntarget.utility import UtilityMaps
 
     p = np.asarray(plume, np.float32)
     return UtilityMaps(p > 0, p.copy(), p.copy(), None if valid is None else np.asarray(valid))

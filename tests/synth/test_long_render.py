@@ -6,9 +6,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from dyntarget.fly.strip import LongStrip
 from dyntarget.synth.dynamic import GROUND_BLOCK, VentSpec, Wind, World, WorldSpec
 from dyntarget.synth.strip import long_strip_spec
+from dyntarget.synth.strip_world import LongStrip
 
 GSD = 8.0
 

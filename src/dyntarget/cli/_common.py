@@ -80,7 +80,7 @@ def load_labelled(data: str) -> list:
 def show_result(out: str, name: str, result: dict, columns: list[str]) -> None:
     """Write an evaluation's table (md, csv, json), print it, say where it went."""
     from dyntarget.evaluate.tables import markdown_table, write_result
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
 
     with staged(out, stale=_table_files(name)) as stage:  # the table's files move in together
         paths = write_result(stage, name, result, columns)

@@ -31,14 +31,14 @@ def cmd_datasets_prepare(args: argparse.Namespace) -> int:
     """Prepare the scene directory as a whole: staged, then moved in place of the previous one.
 
     The scenes are written into a staging folder inside ``--out``
-    (:mod:`dyntarget.fly.staging`); when all are written, they replace every scene file
+    (:mod:`dyntarget.io.staging`); when all are written, they replace every scene file
     of the previous preparation at once (hidden entries, such as dyntarget's marker, stay).
     A failing or interrupted run leaves the previous scene directory as it was.
     """
     from pathlib import Path
 
     from dyntarget.datasets import get_dataset
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
 
     adapter = get_dataset(args.name).adapter()
     out = Path(args.out)

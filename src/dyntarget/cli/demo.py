@@ -17,7 +17,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     The result (``scenes/``, ``scenes.png``, the tables, figures and ``report.md``) is
     written into a staging folder inside ``--out`` and moved into place when complete
-    (:mod:`dyntarget.fly.staging`): a failing or interrupted rerun leaves the previous
+    (:mod:`dyntarget.io.staging`): a failing or interrupted rerun leaves the previous
     result as it was. ``models/`` and ``parts/`` are written in ``--out`` as they finish,
     so a rerun resumes from them.
     """
@@ -26,8 +26,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from dyntarget.evaluate.figures import scenes_figure
     from dyntarget.evaluate.options import RunOptions, TrainingConfig
     from dyntarget.evaluate.report import RESULT_FILES, evaluate_all, write_report
-    from dyntarget.fly.staging import staged
     from dyntarget.io import read_scene_dir, write_scene
+    from dyntarget.io.staging import staged
     from dyntarget.perceive import CLASSIFIERS
     from dyntarget.synth import generate_scenes
 
@@ -98,7 +98,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     """Both tables, figures and report, staged as in :func:`cmd_demo`; models and parts resume."""
     from dyntarget.evaluate.options import RunOptions, TrainingConfig
     from dyntarget.evaluate.report import RESULT_FILES, evaluate_all, write_report
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
     from dyntarget.perceive import CLASSIFIERS
 
     t0 = time.perf_counter()

@@ -85,7 +85,7 @@ def cmd_evaluate_dynamic(args: argparse.Namespace) -> int:
                 markdown_table(*latency_table(records, mode=mode)),
             ]
     from dyntarget.defaults import DYNAMIC_MODES
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
 
     figures = ["dynamic.png", *(f"dynamic-{m}.png" for m in DYNAMIC_MODES if m != "static")]
     stale = ("dynamic.csv", "dynamic.md", "dynamic.json", "dynamic.timing.json", *figures)

@@ -53,7 +53,7 @@ def _geo(args: argparse.Namespace):
             f"--{ignored[0].replace('_', '-')}: has no effect with {modes[0]} "
             f"({GEO_MODE_WHAT[modes[0]]}); leave it out or fly with --geo"
         )
-    from dyntarget.fly.geo import GeoSettings
+    from dyntarget.passes.geo import GeoSettings
 
     kw = {
         k: getattr(args, f"geo_{k}")
@@ -183,7 +183,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 
 def _fly(args: argparse.Namespace) -> int:
-    from dyntarget.fly.strip import load_world
+    from dyntarget.synth.strip_world import load_world
 
     if "," in args.planner or "," in args.agility:
         raise InvalidParameterError("--planner/--agility: lists are for --campaign; give one each")
@@ -225,9 +225,9 @@ def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, g
     stopped one stays in its staging folder, named on stderr.
     """
     from dyntarget.fly import fly_pass
-    from dyntarget.fly.report import ViewCollector, write_progress
     from dyntarget.fly.signals import stop_on_signals  # only when a pass flies
-    from dyntarget.fly.staging import commit_pass, discard, new_stage
+    from dyntarget.io.staging import discard, new_stage
+    from dyntarget.view.pass_report import ViewCollector, commit_pass, write_progress
 
     out = Path(args.out)
     stage = new_stage(out)
@@ -280,8 +280,7 @@ def _fly_staged(args: argparse.Namespace, world, classifier, fallback, config, g
 
 def _write_outputs(args: argparse.Namespace, result, world, views, stage: Path) -> list[Path]:
     """Every file of the pass into ``stage``, in the order the ``wrote`` line names them."""
-    from dyntarget.fly.geo import write_times
-    from dyntarget.fly.report import MEASURED, write_pass
+    from dyntarget.view.pass_report import MEASURED, write_pass, write_times
 
     written = write_pass(
         result, world, stage, picture=not args.no_picture, views=views, crs_mode=args.crs
@@ -305,7 +304,7 @@ PLUMES_GEOJSON = "plumes.geojson"
 
 
 def _holds_a_pass(out: Path) -> bool:
-    from dyntarget.fly.report import SUMMARY_JSON
+    from dyntarget.view.pass_report import SUMMARY_JSON
 
     return (out / SUMMARY_JSON).is_file()
 

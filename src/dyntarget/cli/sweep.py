@@ -14,13 +14,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Run (or resume) the sweep; its table and figure move into ``--out`` together.
 
     ``parts/`` and ``models/`` (the resume state) are written in ``--out`` as they finish;
-    ``sweep.csv`` and ``sweep.png`` are staged (:mod:`dyntarget.fly.staging`), so a failing
+    ``sweep.csv`` and ``sweep.png`` are staged (:mod:`dyntarget.io.staging`), so a failing
     or interrupted rerun leaves the previous table and figure as they were, and a rerun
     that draws no figure removes the earlier one.
     """
     from dyntarget.evaluate.options import RunOptions
     from dyntarget.evaluate.sweep import RESULT_FILES, parse_grid, summary_figure, sweep
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
 
     grid = parse_grid(args.grid or [])
     out = Path(args.out)

@@ -14,7 +14,7 @@ from dyntarget.errors import InvalidParameterError
 @writes(dirs=("out",))
 def cmd_synth(args: argparse.Namespace) -> int:
     """Write the scenes, sequences or strips into a staging folder, then into ``--out``."""
-    from dyntarget.fly.staging import staged
+    from dyntarget.io.staging import staged
 
     if getattr(args, "strip", False):  # demo calls this with the static options only
         _check_strip_size(args)  # before anything is written

@@ -367,7 +367,7 @@ def evaluate_all(
     Finished tasks are kept in ``out/parts/`` so that an interrupted run resumes;
     ``options.scheduler`` runs the tasks on Dask (see :mod:`dyntarget.evaluate.distributed`).
     The tables and figures (:data:`RESULT_FILES`) go to ``into`` (default ``out``): a
-    command passes a staging folder (:mod:`dyntarget.fly.staging`) so that they move
+    command passes a staging folder (:mod:`dyntarget.io.staging`) so that they move
     into ``out`` together, while the resume state stays in ``out``.
 
     Parameters

@@ -20,11 +20,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dyntarget.errors import DataFileError, InvalidParameterError
-from dyntarget.fly.loop import PassConfig, fly_pass
+from dyntarget.fly.loop import fly_pass
 from dyntarget.io.atomic import write_text
+from dyntarget.passes.record import PassConfig
 
 if TYPE_CHECKING:
-    from dyntarget.fly.geo import GeoSettings
+    from dyntarget.passes.geo import GeoSettings
 
 COLUMNS = (
     "strip",
@@ -154,7 +155,7 @@ def fly_one(
     ----------
     task : dict of str to str
         ``strip`` (the strip file), ``planner`` and ``agility`` of the pass.
-    config : dyntarget.fly.loop.PassConfig
+    config : dyntarget.passes.record.PassConfig
         The pass settings (the task's planner and agility replace its own).
     model : str or None
         The classifier's model directory (``None``: plan on the truth).
@@ -166,16 +167,16 @@ def fly_one(
         Time grid of the moving strip's truth, seconds.
     int8 : bool
         Run the INT8 ONNX export (``model.int8.onnx``) instead.
-    geo : dyntarget.fly.geo.GeoSettings or None
+    geo : dyntarget.passes.geo.GeoSettings or None
         Fly with a GEO blueprint (``None``: look-ahead only).
 
     Returns
     -------
     dict
-        :meth:`~dyntarget.fly.loop.PassResult.totals` of the pass.
+        :meth:`~dyntarget.passes.record.PassResult.totals` of the pass.
     """
-    from dyntarget.fly.report import write_pass
-    from dyntarget.fly.strip import load_world
+    from dyntarget.synth.strip_world import load_world
+    from dyntarget.view.pass_report import write_pass
 
     world = load_world(task["strip"], truth_step_s=truth_step_s)
     cfg = replace(config, planner=task["planner"], agility=task["agility"])
@@ -184,8 +185,8 @@ def fly_one(
     result = fly_pass(world, _classifier(model, onnx, int8), cfg, geo=geo)
     strip = Path(task["strip"])  # named after the strip file: unique in its folder, unlike world.id
     stem = strip.name[: -len(".tif")] if strip.name.endswith(".tif") else strip.stem
-    from dyntarget.fly.geo import write_times
-    from dyntarget.fly.staging import commit_pass, discard, new_stage
+    from dyntarget.io.staging import discard, new_stage
+    from dyntarget.view.pass_report import commit_pass, write_times
 
     where = Path(out) / "passes" / f"{stem}-{cfg.planner}-{cfg.agility}"
     stage = new_stage(where)  # an earlier pass there is replaced only by a complete one
@@ -228,7 +229,7 @@ def run_campaign(
     scheduler : ``None``, ``"local"``, ``"processes"`` or a Dask scheduler address.
     truth_step_s : time quantum of moving strips' truth.
     progress : show a progress bar.
-    geo : GEO settings (:class:`dyntarget.fly.geo.GeoSettings`) for every pass, or ``None``.
+    geo : GEO settings (:class:`dyntarget.passes.geo.GeoSettings`) for every pass, or ``None``.
 
     Returns
     -------

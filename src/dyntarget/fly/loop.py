@@ -46,523 +46,85 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   for the parallax (:class:`dyntarget.schedule.ParallaxAim` in the schedule) with a
   height per pointing by :attr:`PassConfig.parallax`: none (``"off"``), the prior,
   the world's true heights (``"true"``) or heights measured on the pass from
-  re-looks of the look-ahead (``"estimated"``, :mod:`dyntarget.fly.heights`, whose
+  re-looks of the look-ahead (``"estimated"``, :mod:`dyntarget.predict.relooks`, whose
   cost is frames not taken while it re-looks). The schedule is decided once, at the
   frame's plan time, with the aim each pointing will have when flown (the estimate
   from when it is usable, the prior before); a flight system would re-plan then.
 * **Prediction.** ``predict`` asks the predict stage's entry point
   (:func:`dyntarget.predict.plume_motion`) for the motion, and plans once on the
   frame's segmentation carried to the lead (:func:`dyntarget.schedule.lead_s`).
+
+The pass's settings, frame plan and record (:class:`~dyntarget.passes.record.PassConfig`,
+:class:`~dyntarget.passes.record.FramePlan`, :class:`~dyntarget.passes.record.PassResult`)
+live in :mod:`dyntarget.passes.record`, below both this loop and the pass's writers
+(:mod:`dyntarget.view.pass_report`); what the loop reads of the world on its WFOV grid in
+:mod:`dyntarget.synth.worlds` (:func:`~dyntarget.synth.worlds.wfov_look`,
+:class:`~dyntarget.synth.worlds.TruthBands`), and the pass's upper bound in
+:func:`dyntarget.observe.bound.pass_upper_bound`.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import sys
 import time
-from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
-from functools import cached_property
-from typing import TYPE_CHECKING, Any, Protocol
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
-from dyntarget import defaults
-from dyntarget.errors import InvalidParameterError, InvalidSceneError
-from dyntarget.fly.heights import RELOOK_KM, Geometry3D, HeightEstimate, HeightTracker, Plume
-from dyntarget.fly.world import WfovTruth, World, wfov_truth
+from dyntarget.errors import InvalidParameterError
 from dyntarget.masks import mask_to_polygons
 from dyntarget.observe import score_pointings
+from dyntarget.observe.bound import pass_upper_bound
+from dyntarget.passes.record import (
+    RELOOK_DROP,
+    Flown,
+    FramePlan,
+    FrameRecord,
+    FrameView,
+    PassConfig,
+    PassResult,
+    frame_plan,
+)
 from dyntarget.perceive.base import Classifier
 from dyntarget.pipeline import (
     LAST_RESORT,
-    PipelineConfig,
     PlanResult,
     Segmentation,
     plan_scene,
     plan_segmentation,
     predict_segmentation,
 )
-from dyntarget.predict import GROUNDS, Motion, Prediction, plume_motion, wind_motion
-from dyntarget.scene import LABEL_FRACTION, block_mean, check_factor
+from dyntarget.predict import Motion, Prediction, plume_motion, wind_motion
+from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume
 from dyntarget.schedule import (
     Agility,
     OrbitGeometry,
     Schedule,
-    get_agility,
     lead_s,
     schedule_on_prediction,
     sensor_in_frame,
 )
+from dyntarget.synth.worlds import TruthBands, World, wfov_look
 from dyntarget.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from affine import Affine
 
-    from dyntarget.fly.geo import GeoSettings
     from dyntarget.observe import Sight
     from dyntarget.observe.bound import UpperBound
+    from dyntarget.passes.geo import Gate, GeoSettings
     from dyntarget.schedule import ParallaxAim
 
-STAGES = ("classify", "denoise", "predict", "plan", "schedule")
-"""Stages whose wall time each timeline row reports."""
-
-PREDICT_MODES = ("none", "wind", "two-looks")
-"""How a pass plans: on the look as it is, or on the plume as predicted."""
 
 MIN_OVERLAP_ROWS = 8
 """Two-look motion needs at least this many rows seen by both frames."""
 
 COVERED_PLUME_FRACTION = 0.5
 """A plume at least this fraction of whose planned pointings were flown counts as covered."""
-
-PARALLAX_MODES = ("auto", "off", "prior", "true", "estimated")
-"""How a pass corrects its aim for the plumes' parallax (see :class:`PassConfig`)."""
-
-MAX_PRIOR_HEIGHT_M = 25_000.0
-"""Highest prior plume-top height accepted, metres."""
-
-
-@dataclass(frozen=True)
-class PassConfig:
-    """Settings of one pass (see the module docstring for the model).
-
-    Parameters
-    ----------
-    planner : registered planner name.
-    agility : agility preset name (``dyntarget agility``).
-    factor : high-res -> WFOV downsampling factor.
-    frame_px : frame height in WFOV pixels (default: the strip's width, square frames).
-    overlap : fraction of a frame's rows the next frame sees again, in [0, 1).
-    altitude_m, look_ahead_m : orbit geometry (see :class:`~dyntarget.schedule.OrbitGeometry`).
-    compute_budget_s : fixed compute time per frame instead of the measured one
-        (a deterministic timeline).
-    deadline_s : time allowed from acquisition to plan, per frame (fallbacks apply).
-    footprint : NFOV footprint in WFOV pixels (odd).
-    denoise : apply Algorithm 2.
-    predict : ``"none"`` (plan on the look as it is), ``"wind"`` (carry the plume
-        with a wind prior to when the NFOV will be there) or ``"two-looks"``
-        (motion from the overlap of this frame and the previous one, checked
-        against the wind prior when there is one).
-    wind_mps, wind_from_deg : the wind prior (meteorological convention); by
-        default a moving strip's own wind (an ideal forecast).
-    ground : with ``"two-looks"``: ``"auto"`` (decided from the frames),
-        ``"fixed"`` or ``"moving"`` background (:func:`dyntarget.predict.estimate_motion`).
-    pipeline : settings of the pipeline run on each frame
-        (:class:`~dyntarget.pipeline.PipelineConfig`).
-    parallax : how the NFOV's aim is corrected for the plumes' parallax on a 3D world
-        (plumes at heights, seen displaced by the oblique look-ahead):
-        ``"auto"`` (``"estimated"`` on a 3D world, ``"off"`` on a flat one), ``"off"``
-        (aim at the plume where the look-ahead saw it), ``"prior"`` (every plume at
-        ``plume_height_m``), ``"true"`` (the world's true heights: the benchmark's
-        "corrected with the true height") or ``"estimated"`` (measured on the pass from
-        re-looks of the look-ahead, :mod:`dyntarget.fly.heights`; the prior until then).
-        A flat world has no parallax: every mode resolves to ``"off"`` there and the
-        pass is flown exactly as without these settings.
-    plume_height_m : the prior plume-top height, metres above sea level (0 < h <= 25 km);
-        in ``"estimated"`` mode the fallback before or without an estimate (``None``: no
-        correction until estimated).
-    relook_km : how far ahead of the nadir each re-look sees the plume, km, nearest last
-        (``"estimated"`` mode).
-    relook_s : look-ahead time per re-look, seconds (``None``: from the agility preset's
-        slew model, :func:`dyntarget.fly.heights.relook_seconds`).
-    """
-
-    planner: str = "lawnmower-transect"
-    agility: str = "fast"
-    factor: int = 4
-    frame_px: int | None = None
-    overlap: float = 0.5
-    altitude_m: float = defaults.ALTITUDE_M
-    look_ahead_m: float = defaults.LOOK_AHEAD_M
-    compute_budget_s: float | None = None
-    deadline_s: float | None = None
-    footprint: int = 1
-    denoise: bool = True
-    predict: str = "none"
-    wind_mps: float | None = None
-    wind_from_deg: float | None = None
-    ground: str = "auto"
-    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
-    parallax: str = "auto"
-    plume_height_m: float | None = None
-    relook_km: tuple[float, ...] = RELOOK_KM
-    relook_s: float | None = None
-
-    def __post_init__(self) -> None:
-        _ = self.limits  # an unknown preset is refused here
-        self._check_parallax()
-        if self.predict not in PREDICT_MODES:
-            raise InvalidParameterError(
-                f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
-            )
-        if self.ground not in GROUNDS:
-            raise InvalidParameterError(
-                f"ground: expected one of {', '.join(GROUNDS)}, got {self.ground!r}"
-            )
-        if self.wind_mps is not None and not (math.isfinite(self.wind_mps) and self.wind_mps >= 0):
-            raise InvalidParameterError(f"wind_mps: expected m/s >= 0, got {self.wind_mps!r}")
-        if not (0.0 <= self.overlap < 1.0):
-            raise InvalidParameterError(
-                f"overlap: expected a fraction in [0, 1), got {self.overlap!r}"
-            )
-        for name in ("compute_budget_s", "deadline_s"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v > 0):
-                raise InvalidParameterError(f"{name}: expected seconds > 0, got {v!r}")
-        if self.frame_px is not None and (
-            isinstance(self.frame_px, bool)
-            or not isinstance(self.frame_px, int)
-            or self.frame_px < 8
-        ):
-            raise InvalidParameterError(
-                f"frame_px: expected an integer >= 8 WFOV pixels, got {self.frame_px!r}"
-            )
-        fp = self.footprint
-        if isinstance(fp, bool) or not isinstance(fp, int) or fp < 1 or fp % 2 == 0:
-            raise InvalidParameterError(
-                f"footprint: expected an odd positive number of WFOV pixels, got {fp!r}"
-            )
-
-    def _check_parallax(self) -> None:
-        """Refuse a bad parallax mode, prior height or re-look setting, in one line."""
-        if self.parallax not in PARALLAX_MODES:
-            raise InvalidParameterError(
-                f"parallax: expected one of {', '.join(PARALLAX_MODES)}, got {self.parallax!r}"
-            )
-        h = self.plume_height_m
-        if h is not None and not (
-            isinstance(h, int | float) and math.isfinite(h) and 0 < h <= MAX_PRIOR_HEIGHT_M
-        ):
-            raise InvalidParameterError(
-                f"plume_height_m: expected metres in (0, {MAX_PRIOR_HEIGHT_M:g}], got {h!r}"
-            )
-        if self.parallax == "prior" and h is None:
-            raise InvalidParameterError(
-                "parallax: 'prior' needs a prior height: give plume_height_m (--plume-height-km)"
-            )
-        km = self.relook_km
-        ok = isinstance(km, tuple) and len(km) > 0
-        ok = ok and all(
-            isinstance(v, int | float) and math.isfinite(v) and 0 < v * 1e3 < self.look_ahead_m
-            for v in km
-        )
-        if not ok or any(b >= a for a, b in itertools.pairwise(km)):
-            raise InvalidParameterError(
-                f"relook_km: expected distances in (0, {self.look_ahead_m / 1e3:g}) km ahead of "
-                f"the nadir, nearest last, got {km!r}"
-            )
-        r = self.relook_s
-        if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
-            raise InvalidParameterError(f"relook_s: expected seconds > 0, got {r!r}")
-
-    def resolved_parallax(self, is_3d: bool) -> str:
-        """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
-
-        Parameters
-        ----------
-        is_3d : bool
-            Whether the world's plumes have heights.
-
-        Returns
-        -------
-        str
-            ``"off"``, ``"prior"``, ``"true"`` or ``"estimated"``.
-
-        Examples
-        --------
-        >>> PassConfig().resolved_parallax(True), PassConfig().resolved_parallax(False)
-        ('estimated', 'off')
-        """
-        if not is_3d:
-            return "off"
-        return "estimated" if self.parallax == "auto" else self.parallax
-
-    @cached_property
-    def limits(self) -> Agility:
-        """The agility preset :attr:`agility` names (looked up once per pass settings).
-
-        Returns
-        -------
-        dyntarget.schedule.Agility
-            The preset.
-        """
-        return get_agility(self.agility)
-
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as a plain dict, without ``pipeline`` (recorded with the flown trajectory).
-
-        The parallax settings are left out when none was given (``parallax`` ``"auto"``
-        or ``"off"``, the rest at their defaults): the record of a flat world's pass is
-        what it was before them.
-
-        Returns
-        -------
-        dict
-            Field name to value.
-        """
-        d = asdict(self)
-        d.pop("pipeline")
-        if self.parallax in ("auto", "off") and (
-            self.plume_height_m is None and self.relook_km == RELOOK_KM and self.relook_s is None
-        ):  # no parallax settings given (or a flat world's): the record as before them
-            for k in ("parallax", "plume_height_m", "relook_km", "relook_s"):
-                d.pop(k)
-        else:
-            d["relook_km"] = list(self.relook_km)
-        return d
-
-
-@dataclass(frozen=True)
-class FramePlan:
-    """Where the frames of a pass lie on the strip's WFOV grid, and when they are taken.
-
-    Parameters
-    ----------
-    wfov_shape : tuple of int
-        The strip's WFOV grid ``(H, W)``.
-    frame_px : int
-        Frame height, WFOV rows.
-    step : int
-        WFOV rows between consecutive frames.
-    cadence_s : float
-        Seconds between frame acquisitions.
-    tops : tuple of int
-        Top WFOV row of each frame, frame 0 (the bottom of the strip) first.
-    geometry : dyntarget.schedule.OrbitGeometry
-        Orbit and WFOV GSD of every frame.
-    """
-
-    wfov_shape: tuple[int, int]
-    frame_px: int
-    step: int
-    cadence_s: float
-    tops: tuple[int, ...]
-    geometry: OrbitGeometry
-
-    @property
-    def n_frames(self) -> int:
-        """Number of frames of the pass."""
-        return len(self.tops)
-
-    def acquired_s(self, k: int) -> float:
-        """When frame ``k`` is acquired, seconds into the pass.
-
-        Parameters
-        ----------
-        k : int
-            Frame index.
-
-        Returns
-        -------
-        float
-            ``k * cadence_s``.
-        """
-        return k * self.cadence_s
-
-
-def frame_plan(world: World, config: PassConfig) -> FramePlan:
-    """Cut the strip into look-ahead frames (see the module docstring).
-
-    Parameters
-    ----------
-    world : the strip.
-    config : the pass settings.
-
-    Returns
-    -------
-    FramePlan: frame tops (WFOV rows, bottom frame first), step and cadence.
-
-    Examples
-    --------
-    >>> from dyntarget.scene import Scene
-    >>> from dyntarget.fly.world import StaticWorld
-    >>> img = np.zeros((4, 256, 64), np.float32); lab = np.zeros((256, 64), bool)
-    >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
-    >>> fp = frame_plan(w, PassConfig(factor=4))
-    >>> fp.tops, fp.step, round(fp.cadence_s * fp.geometry.ground_speed, 6)
-    ((48, 40, 32, 24, 16, 8, 0), 8, 256.0)
-    """
-    factor = check_factor(config.factor, world.shape)
-    hw, ww = world.shape[0] // factor, world.shape[1] // factor
-    frame_px = config.frame_px or ww
-    if frame_px > hw:
-        raise InvalidParameterError(
-            f"frame_px: a frame of {frame_px} WFOV rows does not fit the strip's {hw} rows "
-            f"(at factor {factor}); give a longer strip or smaller frames"
-        )
-    step = max(1, round(frame_px * (1.0 - config.overlap)))
-    n = (hw - frame_px) // step + 1
-    tops = tuple(hw - frame_px - k * step for k in range(n))
-    gsd_w = world.gsd * factor
-    geometry = OrbitGeometry(
-        altitude_m=config.altitude_m, look_ahead_m=config.look_ahead_m, wfov_gsd_m=gsd_w
-    )
-    return FramePlan((hw, ww), frame_px, step, step * gsd_w / geometry.ground_speed, tops, geometry)
-
-
-@dataclass
-class FrameRecord:
-    """One row of the timeline.
-
-    Parameters
-    ----------
-    frame : int
-        Frame index.
-    acquired_s : float
-        When the frame was acquired, seconds into the pass.
-    start_s : float
-        When the loop started on it.
-    ready_s : float
-        When its plan was ready.
-    latency_s : float
-        ``ready_s - acquired_s``.
-    stage_s : dict of str to float
-        Wall seconds per stage (:data:`STAGES`).
-    deadline_met : bool or None
-        Whether the deadline was met (``None``: no deadline).
-    path : str
-        What the pipeline ran, ``"; "``-joined.
-    planned : int
-        Pointings planned.
-    skipped_covered : int
-        Pointings dropped because their pixel was already covered.
-    flown : int
-        Pointings flown.
-    plume_px : float
-        Sum of the plume fractions the flown pointings observed.
-    intensity : float
-        Sum of their intensity utility.
-    gradient : float
-        Sum of their gradient utility.
-    new_plumes : int
-        True plumes observed for the first time in the pass.
-    dropped : bool
-        The frame was dropped (the loop was behind past the deadline).
-    loop_s : float
-        Wall time of the onboard work on this frame.
-    """
-
-    frame: int
-    acquired_s: float
-    start_s: float
-    ready_s: float
-    latency_s: float
-    stage_s: dict[str, float]
-    deadline_met: bool | None
-    path: str
-    planned: int
-    skipped_covered: int
-    flown: int
-    plume_px: float
-    intensity: float
-    gradient: float
-    new_plumes: int
-    dropped: bool = False
-    loop_s: float = 0.0
-    """Wall time of the onboard work on this frame (frame in hand -> plan scheduled), all of it."""
-
-    def row(self, *, measured: bool) -> dict[str, Any]:
-        """The timeline row; stage times only when latency was measured (else not deterministic).
-
-        Parameters
-        ----------
-        measured : bool
-            Whether latency was measured (not a fixed compute budget).
-
-        Returns
-        -------
-        dict
-            Column name to value, formatted for ``timeline.csv``.
-        """
-        out: dict[str, Any] = {
-            "frame": self.frame,
-            "acquired_s": f"{self.acquired_s:.4f}",
-            "start_s": f"{self.start_s:.4f}",
-            "ready_s": f"{self.ready_s:.4f}",
-            "latency_s": f"{self.latency_s:.4f}",
-        }
-        for s in STAGES:
-            out[f"{s}_s"] = f"{self.stage_s.get(s, 0.0):.4f}" if measured else ""
-        out["loop_s"] = f"{self.loop_s:.4f}" if measured else ""
-        out |= {
-            "deadline_met": "" if self.deadline_met is None else str(self.deadline_met).lower(),
-            "pointings_planned": self.planned,
-            "pointings_skipped_covered": self.skipped_covered,
-            "pointings_flown": self.flown,
-            "plume_px_gained": f"{self.plume_px:.4f}",
-            "utility_gained": f"{self.intensity:.4f}",
-            "gradient_gained": f"{self.gradient:.4f}",
-            "new_plumes": self.new_plumes,
-            "dropped": str(self.dropped).lower(),
-            "path": self.path,
-        }
-        return out
-
-
-RELOOK_DROP = "dropped: look-ahead re-looking"
-"""The path of a frame not taken because the look-ahead was re-looking at a plume."""
-
-TIMELINE_COLUMNS = tuple(
-    FrameRecord(0, 0, 0, 0, 0, {}, None, "", 0, 0, 0, 0, 0, 0, 0).row(measured=True)
-)
-
-
-@dataclass
-class Flown:
-    """The pointings flown so far, on the strip's WFOV grid, with their pass times.
-
-    Parameters
-    ----------
-    x, y : list of float
-        Pointings on the strip's WFOV grid, pixels.
-    t : list of float
-        When each was observed, seconds into the pass.
-    frame : list of int
-        The frame whose plan each came from.
-    part : list of int
-        Plume visited, numbered over the pass.
-    plume : list of float
-        Plume fraction each observed of the truth at its time.
-    intensity : list of float
-        Intensity utility each observed.
-    plume_id : list of int
-        Id of the true plume each observed (0: none).
-    """
-
-    x: list[float] = field(default_factory=list)
-    y: list[float] = field(default_factory=list)
-    t: list[float] = field(default_factory=list)
-    frame: list[int] = field(default_factory=list)
-    part: list[int] = field(default_factory=list)
-    plume: list[float] = field(default_factory=list)
-    intensity: list[float] = field(default_factory=list)
-    plume_id: list[int] = field(default_factory=list)
-
-    def trajectory(self, planner: str, params: dict[str, Any]) -> Trajectory:
-        """The flown pointings as one timed trajectory (strip WFOV pixels, pass seconds).
-
-        Parameters
-        ----------
-        planner : str
-            The planner's name.
-        params : dict
-            Settings recorded with the trajectory.
-
-        Returns
-        -------
-        dyntarget.trajectory.Trajectory
-            Timed in seconds into the pass (empty and untimed when nothing was flown).
-        """
-        if not self.x:
-            return Trajectory.empty(planner, params)
-        return Trajectory(
-            np.column_stack([self.x, self.y]), np.asarray(self.part), planner, params,
-            np.asarray(self.t, np.float64),
-        )  # fmt: skip
 
 
 @dataclass
@@ -607,268 +169,6 @@ class PassState:
 
 
 @dataclass(frozen=True, eq=False)
-class PassResult:
-    """A flown pass: the timeline, the flown pointings and the totals.
-
-    Parameters
-    ----------
-    world_id : str
-        The strip's id.
-    config : PassConfig
-        The pass settings.
-    frames : FramePlan
-        Where and when the frames were taken.
-    records : list of FrameRecord
-        The timeline, one record per frame handled.
-    flown : Flown
-        The pointings flown.
-    plumes_at_start : frozenset of int
-        Plume ids in the strip's truth at t = 0.
-    stopped : bool
-        The pass was stopped before its last frame.
-    geo : dict or None
-        Settings and outcome of the GEO blueprint (``None``: look-ahead only).
-    geo_times : dict or None
-        Wall-clock seconds of the GEO targets and blueprint (not in ``geo``: timings
-        differ between identical runs).
-    upper_bound : dict or None
-        The pass's true upper bound: :func:`pass_upper_bound` as plain JSON values
-        (:meth:`~dyntarget.observe.bound.UpperBound.as_dict`), or
-        ``{"value": None, "why": ...}`` when it could not be computed (``None``: not
-        asked for).
-    heights : tuple of dyntarget.fly.heights.HeightEstimate
-        Per-plume top heights (``"estimated"`` or ``"prior"`` mode on a 3D world).
-    is_3d : bool
-        Whether the world's plumes have heights.
-    parallax : str
-        The parallax mode flown (:meth:`PassConfig.resolved_parallax`).
-    relook_windows : tuple of (float, float)
-        ``(start, end)`` pass seconds of every re-look the look-ahead took.
-    """
-
-    world_id: str
-    config: PassConfig
-    frames: FramePlan
-    records: list[FrameRecord]
-    flown: Flown
-    plumes_at_start: frozenset[int]
-    """Plume ids in the strip's truth at t = 0."""
-    stopped: bool = False
-    geo: dict[str, Any] | None = None
-    """GEO foresight: its settings and what the blueprint did (``None``: look-ahead only)."""
-    geo_times: dict[str, float] | None = None
-    """Wall-clock seconds of the GEO targets and blueprint (kept out of :attr:`geo`)."""
-    upper_bound: dict[str, Any] | None = None
-    """The pass's true upper bound (:func:`pass_upper_bound`; ``None``: not computed)."""
-    heights: tuple[HeightEstimate, ...] = ()
-    """Per-plume top heights (``"estimated"`` or ``"prior"`` mode on a 3D world; empty otherwise)."""
-    is_3d: bool = False
-    """Whether the world's plumes have heights (the parallax figures enter :meth:`totals`)."""
-    parallax: str = "off"
-    """The parallax mode flown (:meth:`PassConfig.resolved_parallax`)."""
-    relook_windows: tuple[tuple[float, float], ...] = ()
-    """``(start, end)`` pass seconds of every re-look the look-ahead took (``"estimated"``
-    mode on a 3D world): frames acquired inside one are not taken."""
-
-    @property
-    def measured(self) -> bool:
-        """Whether latency was measured (no fixed ``compute_budget_s``)."""
-        return self.config.compute_budget_s is None
-
-    def totals(self) -> dict[str, Any]:
-        """One row of pass results (what a campaign table holds).
-
-        Returns
-        -------
-        dict
-            Strip, planner, agility, frame and pointing counts, plume pixels, utility,
-            ratio plume, plumes observed and in total, median and largest latency,
-            ``parallax`` (the mode flown); on a 3D world also ``relooks``,
-            ``frames_lost_to_relooks``, ``plumes_height_estimated``, ``height_rmse_m`` and
-            ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
-            ``heights_median_s`` (the height work's median wall time per frame; ``None``
-            with a fixed compute budget).
-        """
-        lat = np.array([r.latency_s for r in self.records if not r.dropped], np.float64)
-        observed = {i for i in self.flown.plume_id if i > 0}
-        return {
-            "strip": self.world_id,
-            "planner": self.config.planner,
-            "agility": self.config.agility,
-            "frames": len(self.records),
-            "frames_dropped": sum(r.dropped for r in self.records),
-            "deadlines_missed": sum(r.deadline_met is False for r in self.records),
-            "pointings_flown": len(self.flown.x),
-            "plume_px": round(float(sum(self.flown.plume)), 4),
-            "utility": round(float(sum(self.flown.intensity)), 4),
-            "ratio_plume": round(float(np.mean(self.flown.plume)), 4) if self.flown.x else 0.0,
-            "plumes_observed": len(observed),
-            "plumes_total": len(self.plumes_at_start | observed),  # a cloud may drift in later
-            "latency_median_s": round(float(np.median(lat)), 4) if len(lat) else None,
-            "latency_max_s": round(float(np.max(lat)), 4) if len(lat) else None,
-            "parallax": self.parallax,
-            **(self._parallax_totals() if self.is_3d else {}),
-        }
-
-    def _parallax_totals(self) -> dict[str, Any]:
-        """Re-looks, frames they cost, plumes measured and the height error against the truth."""
-        est = [e for e in self.heights if e.height_source == "estimated"]
-        err = np.array(
-            [e.top_height_m - e.true_height_m for e in est
-             if e.top_height_m is not None and e.true_height_m is not None],
-            np.float64,
-        )  # fmt: skip
-        hs = [r.stage_s["heights"] for r in self.records if "heights" in r.stage_s]
-        return {
-            "relooks": len(self.relook_windows),
-            "frames_lost_to_relooks": sum(r.path == RELOOK_DROP for r in self.records),
-            "plumes_height_estimated": len(est),
-            "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
-            "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,
-            "heights_median_s": round(float(np.median(hs)), 4) if hs and self.measured else None,
-        }
-
-
-class FramePlanned(Protocol):
-    """What a view of a frame reads of its plan (a :class:`~dyntarget.pipeline.PlanResult`)."""
-
-    @property
-    def probability(self) -> np.ndarray | None:
-        """``(H, W)`` plume probability (``None``: planned from a given mask)."""
-        ...
-
-    @property
-    def polygons(self) -> list[Any]:
-        """The polygons planned over."""
-        ...
-
-
-@dataclass(frozen=True, eq=False)
-class FrameView:
-    """What one frame saw and sent: for views of the pass (not kept by the loop itself).
-
-    Parameters
-    ----------
-    frame : int
-        Frame index.
-    top : int
-        The frame's top row on the strip's WFOV grid.
-    image : numpy.ndarray
-        The frame's ``(4, H, W)`` WFOV image.
-    plan : FramePlanned
-        The pipeline's result on it (:class:`~dyntarget.pipeline.PlanResult`; read back
-        from a spilled view, its probability and polygons).
-    first, end : int
-        The slice of :attr:`PassResult.flown` its plan added.
-    """
-
-    frame: int
-    top: int
-    image: np.ndarray
-    plan: FramePlanned
-    first: int
-    end: int
-
-
-class Gate(Protocol):
-    """Onboard refinement within a GEO blueprint (:class:`dyntarget.geo.refine.BlueprintGate`)."""
-
-    def route(
-        self,
-        t_k: float,
-        top: int,
-        rows: np.ndarray,
-        cols: np.ndarray,
-        values: np.ndarray,
-        free_s: float,
-    ) -> np.ndarray:
-        """Pool a frame's plume pixels; the ``(N, 2)`` strip ``(row, col)`` to fly now.
-
-        Parameters
-        ----------
-        t_k : float
-            The frame's acquisition time, seconds into the pass.
-        top : int
-            The frame's top row on the strip's WFOV grid.
-        rows, cols : numpy.ndarray
-            ``(n,)`` int, strip WFOV row and column of each of the frame's plume
-            pixels not yet covered (the loop passes ``frame row + top``).
-        values : numpy.ndarray
-            ``(n,)`` float, each pixel's value: the frame's red WFOV reflectance
-            there (band 2 of the ``(4, H, W)`` image).
-        free_s : float
-            When the sensor is free of the pointings already committed, seconds
-            into the pass.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``(N, 2)`` int64 strip WFOV ``(row, col)`` of the pointings to fly now,
-            in flight order (``N`` may be 0).
-        """
-        ...
-
-    def report(self) -> dict[str, int]:
-        """What the refinement did (for summary.json).
-
-        Returns
-        -------
-        dict of str to int
-            Counters of the refinement (in :class:`~dyntarget.geo.refine.BlueprintGate`:
-            targets released, of them the blueprint's, the look-ahead's own targets,
-            pointings pooled and released, releases capped by the blueprint, caps
-            lifted), merged into the pass's ``geo`` record.
-        """
-        ...
-
-
-class _TruthCache:
-    """Truth on the WFOV footprints, rebuilt only when the world's truth object changes.
-
-    A long strip (``world.is_long``) is scored band by band: ``band``
-    WFOV rows at a time (with the footprint's margin), recent bands kept.
-    """
-
-    def __init__(self, world: World, factor: int, footprint: int, band: int = 64) -> None:
-        self.world, self.factor, self.footprint = world, factor, footprint
-        self.lazy = world.is_long
-        self.band = max(1, int(band))
-        self._key: int | None = None
-        self._value: WfovTruth | None = None
-        self._bands: OrderedDict[tuple[float, int], WfovTruth] = OrderedDict()
-
-    def at(self, t: float, r: int = 0) -> tuple[WfovTruth, int]:
-        """The WFOV truth at ``t`` holding strip WFOV row ``r``, and its first row."""
-        if not self.lazy:
-            truth = self.world.truth_at(t)
-            if self._key != id(truth) or self._value is None:
-                self._value = wfov_truth(truth, self.factor, self.footprint)
-                self._key = id(truth)
-            return self._value, 0
-        tq = self.world.quantize(t)
-        b = int(r) // self.band
-        key = (tq, b)
-        hit = self._bands.get(key)
-        r0 = b * self.band
-        if hit is None:
-            f, pad = self.factor, self.footprint // 2
-            hw = self.world.shape[0] // f
-            a, z = max(0, r0 - pad), min(hw, r0 + self.band + pad)
-            w = wfov_truth(self.world.truth_rows(tq, a * f, z * f), f, self.footprint)  # type: ignore[attr-defined]
-            lo, hi = r0 - a, min(r0 - a + self.band, z - a)
-            hit = WfovTruth(*(getattr(w, n)[lo:hi] for n in WFOV_FIELDS))
-            self._bands[key] = hit
-            if len(self._bands) > 32:
-                self._bands.popitem(last=False)
-        else:
-            self._bands.move_to_end(key)
-        return hit, r0
-
-
-WFOV_FIELDS = ("plume", "intensity", "gradient", "ids", "valid")
-
-
-@dataclass(frozen=True, eq=False)
 class _Pass:
     """What every frame of one pass shares."""
 
@@ -878,7 +178,7 @@ class _Pass:
     config: PassConfig
     frames: FramePlan
     agility: Agility
-    truth: _TruthCache
+    truth: TruthBands
     gate: Gate | None
     mode: str = "off"
     """The parallax mode flown (:meth:`PassConfig.resolved_parallax`)."""
@@ -905,7 +205,7 @@ def fly_pass(
 
     Parameters
     ----------
-    world : the strip (:class:`~dyntarget.fly.world.World`).
+    world : the strip (:class:`~dyntarget.synth.worlds.World`).
     classifier : a fitted classifier; ``None`` plans on the truth mask at each
         frame's acquisition time (the oracle classifier).
     config : pass settings.
@@ -913,12 +213,15 @@ def fly_pass(
     on_frame : called with the pass so far after every frame (e.g. to write outputs).
     should_stop : polled after every frame; true ends the pass early (``stopped``).
     progress : show a progress bar (tqdm) over the frames.
-    frame_sink : called with every frame's :class:`FrameView` (e.g. to draw the pass).
-    geo : :class:`dyntarget.fly.geo.GeoSettings`: plan a blueprint over the pass from
+    frame_sink : called with every frame's :class:`~dyntarget.passes.record.FrameView`
+        (e.g. to draw the pass).
+    geo : :class:`dyntarget.passes.geo.GeoSettings`: plan a blueprint over the pass from
         the GEO stream of the strip's world and refine every frame within it
-        (:mod:`dyntarget.fly.geo`); ``None``: look-ahead only.
-    upper_bound : also compute the pass's true upper bound (:func:`pass_upper_bound`,
-        :attr:`PassResult.upper_bound`): seconds on a short strip, minutes on a long one.
+        (:mod:`dyntarget.passes.geo`); ``None``: look-ahead only.
+    upper_bound : also compute the pass's true upper bound
+        (:func:`dyntarget.observe.bound.pass_upper_bound`,
+        :attr:`~dyntarget.passes.record.PassResult.upper_bound`): seconds on a short strip,
+        minutes on a long one.
 
     Returns
     -------
@@ -927,7 +230,7 @@ def fly_pass(
     Examples
     --------
     >>> from dyntarget.scene import Scene
-    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.synth.worlds import StaticWorld
     >>> img = np.full((4, 256, 64), 0.05, np.float32); lab = np.zeros((256, 64), bool)
     >>> lab[100:120, 20:40] = True; img[:, lab] = 0.8
     >>> w = StaticWorld(Scene(img, label=lab, gsd=8.0))
@@ -956,7 +259,7 @@ def fly_pass(
     final = result(stopped)
     if upper_bound:
         try:
-            bound = pass_upper_bound(world, config, ctx.frames, final.records).as_dict()
+            bound = _upper_bound(ctx, final.records).as_dict()
         except InvalidParameterError as exc:  # e.g. a truth without a time step
             bound = {"value": None, "why": str(exc)}
         final = replace(final, upper_bound=bound)
@@ -982,17 +285,17 @@ def _prepare(
             "predict: 'wind' needs a wind: give wind_mps and wind_from_deg (--wind-mps, "
             "--wind-from-deg); only synthetic strips carry their own"
         )
-    truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
+    truth = TruthBands(world, config.factor, config.footprint, band=frames.frame_px)
     gate, geo_info, geo_times = None, None, None
     if geo is not None:
-        from dyntarget.fly.geo import prepare
+        from dyntarget.passes.geo import prepare
 
         gate, geo_info, geo_times = prepare(world, frames, config, geo)
         if gate is None:
             geo_info["degraded"] = "no GEO image arrived in time: flown on the look-ahead only"
     ctx = _Pass(world, classifier, fallback, config, frames, config.limits, truth, gate)
-    mode = config.resolved_parallax(bool(getattr(world, "is_3d", False)))
-    if getattr(world, "is_3d", False):
+    mode = config.resolved_parallax(world.is_3d)
+    if world.is_3d:
         where = Geometry3D(
             frames.geometry, frames.wfov_shape, frames.frame_px, frames.tops[0], config.factor
         )
@@ -1048,140 +351,56 @@ def _fly_frames(
     return False
 
 
-def pass_upper_bound(
-    world: World, config: PassConfig, frames: FramePlan, records: list[FrameRecord] | None = None
-) -> UpperBound:
-    """An upper bound on the utility of every schedule a pass over ``world`` can fly.
-
-    :func:`dyntarget.observe.bound.upper_bound_utility` on the strip's truth at every
-    truth time step (as the loop scores it), the pass's geometry and agility; each
-    pixel counted once unless the pass moves pointings with a predicted plume.
-
-    Parameters
-    ----------
-    world : the strip.
-    config : the pass settings.
-    frames : its frame plan.
-    records : the flown timeline: with unlimited agility, no pointing starts after
-        its last plan was ready.
-
-    Returns
-    -------
-    dyntarget.observe.bound.UpperBound
-
-    Raises
-    ------
-    dyntarget.errors.InvalidParameterError
-        On a 3D world (:attr:`World.is_3d`): the bound is computed for flat worlds only.
-    """
-    from dyntarget.observe.bound import upper_bound_utility, values_from_bands
-
-    if world.is_3d:
-        raise InvalidParameterError(
-            f"world {world.id!r} is 3D: the upper bound is computed for flat worlds only (a line "
-            "of sight meets plume tops away from its aim, which the bound's reach does not model)"
-        )
-
-    agility = config.limits
-    truth = _TruthCache(world, config.factor, config.footprint, band=frames.frame_px)
-    t_end = None
-    if agility.unlimited:
-        t_end = max((r.ready_s for r in records or [] if not r.dropped), default=0.0)
-    return upper_bound_utility(
-        values_from_bands(truth.at, frames.wfov_shape[1]),
-        frames.wfov_shape,
-        frames.frame_px,
-        frames.geometry,
-        agility,
+def _upper_bound(ctx: _Pass, records: list[FrameRecord]) -> UpperBound:
+    """The pass's true upper bound (:func:`dyntarget.observe.bound.pass_upper_bound`)."""
+    frames, world = ctx.frames, ctx.world
+    return pass_upper_bound(
+        TruthBands(world, ctx.config.factor, ctx.config.footprint, band=frames.frame_px).at,
+        frames.wfov_shape, frames.frame_px, frames.geometry, ctx.agility,
         time_step_s=world.truth_step_s,  # a static world has none
-        distinct=config.predict == "none",
-        t_end_s=t_end,
-    )
-
-
-def _frame_image(
-    world: World, frames: FramePlan, k: int, factor: int, t: float
-) -> tuple[np.ndarray, np.ndarray | None]:
-    top = frames.tops[k]
-    hr = world.image_at(t, top * factor, (top + frames.frame_px) * factor)
-    expected = (4, frames.frame_px * factor, frames.wfov_shape[1] * factor)
-    if hr.shape[0] != 4 or hr.shape[1] != expected[1] or hr.shape[2] < expected[2]:
-        raise InvalidSceneError(
-            f"world {world.id!r}: frame {k} image has shape {hr.shape}, expected {expected}"
-        )
-    image = block_mean(np.asarray(hr, np.float32)[:, :, : expected[2]], factor)
-    valid = None
-    if world.valid is not None:
-        v = world.valid[top * factor : (top + frames.frame_px) * factor, : expected[2]]
-        valid = block_mean(v[None].astype(np.float32), factor)[0] == 1.0
-    return image, valid
+        distinct=ctx.config.predict == "none",
+        ready_s=[r.ready_s for r in records if not r.dropped],
+        is_3d=world.is_3d, world_id=world.id,
+    )  # fmt: skip
 
 
 def _look(
     ctx: _Pass, k: int, t_k: float
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """Frame ``k``'s WFOV image, valid pixels and (the oracle: no classifier) true mask."""
+    """Frame ``k``'s WFOV image, valid pixels and (the oracle: no classifier) true mask
+    (:func:`~dyntarget.synth.worlds.wfov_look`); a 3D world's: the oblique look from the
+    nadir at ``t_k``."""
     config, frames = ctx.config, ctx.frames
+    oblique: dict[str, Any] = {}
     if ctx.where is not None:
-        return _look_3d(ctx, k, t_k)
-    image, valid = _frame_image(ctx.world, frames, k, config.factor, t_k)
-    if ctx.classifier is not None:
-        return image, valid, None
-    f, width, top = config.factor, frames.wfov_shape[1] * config.factor, frames.tops[k]
-    label = ctx.world.label_rows(t_k, top * f, (top + frames.frame_px) * f)[:, :width]
-    return image, valid, block_mean(label[None].astype(np.float32), f)[0] >= LABEL_FRACTION
-
-
-def _look_3d(
-    ctx: _Pass, k: int, t_k: float
-) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """A 3D world's frame ``k``: the oblique look from the nadir at ``t_k`` (and the mask it shows)."""
-    config, frames, world = ctx.config, ctx.frames, ctx.world
-    assert ctx.where is not None
-    f, top = config.factor, frames.tops[k]
-    width = frames.wfov_shape[1] * f
-    hr, label = world.look_at(
-        t_k, top * f, (top + frames.frame_px) * f,
-        nadir_xy=ctx.where.nadir_hr(t_k), altitude_m=config.altitude_m,
+        oblique = {"nadir_xy": ctx.where.nadir_hr(t_k), "altitude_m": config.altitude_m}
+    return wfov_look(
+        ctx.world, t_k, frames.tops[k], frames.frame_px, config.factor, frames.wfov_shape[1],
+        oracle=ctx.classifier is None, what=f"frame {k}", **oblique,
     )  # fmt: skip
-    expected = (4, frames.frame_px * f, width)
-    if hr.shape[0] != 4 or hr.shape[1] != expected[1] or hr.shape[2] < expected[2]:
-        raise InvalidSceneError(
-            f"world {world.id!r}: frame {k} image has shape {hr.shape}, expected {expected}"
-        )
-    image = block_mean(np.asarray(hr, np.float32)[:, :, :width], f)
-    valid = None
-    if world.valid is not None:
-        v = world.valid[top * f : (top + frames.frame_px) * f, :width]
-        valid = block_mean(v[None].astype(np.float32), f)[0] == 1.0
-    if ctx.classifier is not None:
-        return image, valid, None
-    mask = block_mean(np.asarray(label)[None, :, :width].astype(np.float32), f)[0]
-    return image, valid, mask >= LABEL_FRACTION
 
 
 def _render(
     ctx: _Pass, spent: list[float]
 ) -> Callable[[float, int, tuple[float, float]], np.ndarray]:
-    """The plume mask a re-look shows (:data:`dyntarget.fly.heights.Render`): the oracle's
+    """The plume mask a re-look shows (:data:`dyntarget.predict.relooks.Render`): the oracle's
     (the look's label, as a frame's) or the pass's classifier's on the look's WFOV image;
     the world's rendering time is added to ``spent`` (the simulator's, not the height work's).
     """
-    config, frames = ctx.config, ctx.frames
-    f, width, rows = config.factor, frames.wfov_shape[1] * config.factor, frames.frame_px
+    config, frames, classifier = ctx.config, ctx.frames, ctx.classifier
 
     def render(t: float, top: int, nadir: tuple[float, float]) -> np.ndarray:
         t0 = time.perf_counter()
-        hr, label = ctx.world.look_at(
-            t, top * f, (top + rows) * f, nadir_xy=nadir, altitude_m=config.altitude_m
-        )
-        if ctx.classifier is None:
-            mask = block_mean(np.asarray(label)[None, :, :width].astype(np.float32), f)[0]
-            spent[0] += time.perf_counter() - t0
-            return np.asarray(mask >= LABEL_FRACTION)
-        image = block_mean(np.asarray(hr, np.float32)[:, :, :width], f)
+        image, _, mask = wfov_look(
+            ctx.world, t, top, frames.frame_px, config.factor, frames.wfov_shape[1],
+            oracle=classifier is None, nadir_xy=nadir, altitude_m=config.altitude_m,
+            what="re-look",
+        )  # fmt: skip
         spent[0] += time.perf_counter() - t0
-        return np.asarray(ctx.classifier.predict(image), bool)
+        if mask is not None:
+            return mask
+        assert classifier is not None
+        return np.asarray(classifier.predict(image), bool)
 
     return render
 
@@ -1209,7 +428,7 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
     """The parallax correction of frame ``k``'s pointings (``None``: not corrected).
 
     Each pointing's height: ``"prior"``, the prior; ``"estimated"``, its plume's estimate
-    from when it is usable (:meth:`~dyntarget.fly.heights.HeightTracker.height_at`), the
+    from when it is usable (:meth:`~dyntarget.predict.relooks.HeightTracker.height_at`), the
     prior before (NaN without one: not corrected); ``"true"``, the true top height, at the
     pointing's time, of the truth's plume whose top the look-ahead saw there (of the
     plumes with a height, the highest whose true position under the pointing, seen from
@@ -1255,42 +474,16 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
 def _true_heights(
     ctx: _Pass, pts: np.ndarray, ts: np.ndarray, t_k: float, top: int, *, look: bool = False
 ) -> np.ndarray:
-    """``"true"`` mode: each pointing's true plume-top height (:func:`_aim`), NaN where none;
-    ``look``: its height when the look-ahead saw it (``t_k``), else at the pointing's time."""
-    from dyntarget import parallax
-
-    world, where = ctx.world, ctx.where
+    """``"true"`` mode: each pointing's true plume-top height (:func:`_aim`; NaN where none,
+    :meth:`~dyntarget.synth.worlds.TruthBands.true_heights`); ``look``: its height when the
+    look-ahead saw it (``t_k``), else at the pointing's time."""
+    where = ctx.where
     assert where is not None
-    out = np.full(len(pts), np.nan)
-    at_look = world.heights_at(t_k)
-    if at_look is None or not len(pts):
-        return out
     g = where.geometry
-    nx, ny = where.nadir(t_k)
-    along = (ny - (pts[:, 1] + top)) * g.wfov_gsd_m
-    cross = (pts[:, 0] - nx) * g.wfov_gsd_m
-    best = np.full(len(pts), -1.0)
-    hw, ww = ctx.frames.wfov_shape
-    for i in np.argsort(at_look)[::-1]:
-        h = float(at_look[i])
-        if i == 0 or h <= 0:
-            continue
-        ta, tc = parallax.unshift_xy(g.altitude_m, along, cross, h)
-        r = np.floor(ny - ta / g.wfov_gsd_m + 0.5).astype(np.int64)
-        c = np.floor(nx + tc / g.wfov_gsd_m + 0.5).astype(np.int64)
-        todo = np.flatnonzero((r >= 0) & (r < hw) & (c >= 0) & (c < ww) & (best < 0))
-        while len(todo):  # one truth band at a time, its pointings at once
-            truth, r0 = ctx.truth.at(t_k, int(r[todo[0]]))
-            band = (r[todo] >= r0) & (r[todo] < r0 + truth.ids.shape[0])
-            band[0] = True
-            js = todo[band]
-            hit = truth.ids[r[js] - r0, c[js]] == int(i)
-            best[js[hit]] = float(i)
-            todo = todo[~band]
-    for j in np.flatnonzero(best > 0):
-        now = at_look if look else world.heights_at(t_k + float(ts[j]))
-        out[j] = float(now[int(best[j])]) if now is not None else np.nan
-    return out
+    return ctx.truth.true_heights(
+        pts, ts, t_k, top, nadir=where.nadir(t_k), altitude_m=g.altitude_m,
+        gsd_m=g.wfov_gsd_m, look=look,
+    )  # fmt: skip
 
 
 def _true_height(ctx: _Pass) -> Callable[[Plume], float | None]:

@@ -29,7 +29,7 @@ A stage of its own (it imports only :mod:`dyntarget.schedule` and the core):
 
 The blueprint is computed **on the ground** (where the GEO images are) before
 the pass and uplinked; the onboard loop only refines within it
-(:class:`dyntarget.geo.refine.BlueprintGate`, wired by :mod:`dyntarget.fly.geo`).
+(:class:`dyntarget.geo.refine.BlueprintGate`, wired by :mod:`dyntarget.passes.geo`).
 The pass, the GEO images and the world come in through the typed protocols of
 :mod:`dyntarget.geo.seams`. Nothing here needs pysteps except :func:`nowcast`.
 """

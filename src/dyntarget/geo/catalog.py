@@ -235,7 +235,7 @@ def strip_vents(world: MappedStrip) -> list[Volcano]:
 
     Examples
     --------
-    >>> from dyntarget.fly.strip import MovingStrip
+    >>> from dyntarget.synth.strip_world import MovingStrip
     >>> from dyntarget.synth.strip import strip_spec
     >>> w = MovingStrip(*strip_spec(0, width=64, length=256, plumes=2))
     >>> [v.name for v in strip_vents(w)]
@@ -364,8 +364,8 @@ def prior_targets(
     Examples
     --------
     >>> from dyntarget.fly import PassConfig
-    >>> from dyntarget.fly.loop import frame_plan
-    >>> from dyntarget.fly.strip import MovingStrip
+    >>> from dyntarget.passes.record import frame_plan
+    >>> from dyntarget.synth.strip_world import MovingStrip
     >>> from dyntarget.synth.strip import strip_spec
     >>> w = MovingStrip(*strip_spec(0, width=64, length=256, plumes=2))
     >>> ts, info = prior_targets("vents", w, frame_plan(w, PassConfig()), 4)

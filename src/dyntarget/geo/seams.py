@@ -1,10 +1,10 @@
 """What the GEO stage needs of the pass, the GEO imager and the world: typed protocols.
 
 The stage imports no other stage: the pass's frame plan (:class:`PassFrames`,
-implemented by :class:`dyntarget.fly.loop.FramePlan`), the GEO images
+implemented by :class:`dyntarget.passes.record.FramePlan`), the GEO images
 (:class:`GeoImager`, implemented by :class:`dyntarget.synth.geoimager.GeoStream`), the
 detection settings (:class:`DetectionSettings`, implemented by
-:class:`dyntarget.fly.geo.GeoSettings`) and the true plumes of a synthetic world
+:class:`dyntarget.passes.geo.GeoSettings`) and the true plumes of a synthetic world
 (:class:`PlumeTruth`, implemented by the moving strips) and any strip on the map
 (:class:`MappedStrip`, for the catalog prior) reach it through these protocols.
 """
@@ -23,7 +23,7 @@ Window = tuple[int, int, int, int]
 
 
 class PassFrames(Protocol):
-    """The look-ahead frames of a pass (:class:`dyntarget.fly.loop.FramePlan`)."""
+    """The look-ahead frames of a pass (:class:`dyntarget.passes.record.FramePlan`)."""
 
     @property
     def wfov_shape(self) -> tuple[int, int]:
@@ -77,7 +77,7 @@ class PassFrames(Protocol):
 
 
 class DetectionSettings(Protocol):
-    """How GEO images are taken and tested for plume (:class:`dyntarget.fly.geo.GeoSettings`)."""
+    """How GEO images are taken and tested for plume (:class:`dyntarget.passes.geo.GeoSettings`)."""
 
     @property
     def gsd_m(self) -> float:

@@ -4,13 +4,13 @@
 from dyntarget.observe.bound import UpperBound, upper_bound_utility
 from dyntarget.observe.nfov import (
     ObservationMetrics,
-    UtilityMaps,
     observe,
     observe_at,
     observed_pixels,
     pointing_truth,
 )
 from dyntarget.observe.pointings import PointingScores, Sight, score_pointings
+from dyntarget.utility import UtilityMaps  # a core type, scored against here
 
 __all__ = [
     "ObservationMetrics",

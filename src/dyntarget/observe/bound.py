@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -161,7 +161,7 @@ def pixel_windows(
 ) -> tuple[np.ndarray, np.ndarray]:
     """When some point of each strip WFOV pixel's cell is inside the field of regard.
 
-    Pass coordinates as the loop's (:func:`dyntarget.fly.loop.frame_plan`):
+    Pass coordinates as the loop's (:func:`dyntarget.passes.record.frame_plan`):
     frame 0 is the strip's bottom ``frame_px`` rows, acquired at pass time 0,
     its centre ``look_ahead_m`` ahead of nadir; row ``r`` lies
     ``look_ahead_m + ((frame_px - 1) / 2 - (r - (H - frame_px))) * gsd`` ahead
@@ -213,7 +213,7 @@ def values_from_bands(
     ----------
     at : ``at(t, r) -> (band, first_row)``: the WFOV truth band holding strip row
         ``r`` at ``t`` (attributes ``term`` and ``valid``, ``(rows, width)``) and its
-        first strip row (as :class:`dyntarget.fly.loop._TruthCache` ``.at``).
+        first strip row (as :meth:`dyntarget.synth.worlds.TruthBands.at`).
     width : WFOV columns.
     term : which utility (``"intensity"``: the pass's ``utility``; ``"plume"``, ``"gradient"``).
 
@@ -362,6 +362,86 @@ def upper_bound_utility(
         pixels=len(np.unique(p)),
         capacity=float(c.sum()),
         seconds=round(time.perf_counter() - t0, 3),
+    )
+
+
+def pass_upper_bound(
+    truth_at: Callable[[float, int], tuple[Any, int]],
+    wfov_shape: tuple[int, int],
+    frame_px: int,
+    geometry: OrbitGeometry,
+    agility: Agility,
+    *,
+    time_step_s: float | None,
+    distinct: bool,
+    ready_s: Sequence[float] = (),
+    is_3d: bool = False,
+    world_id: str = "",
+) -> UpperBound:
+    """An upper bound on the utility of every schedule a pass over a strip can fly.
+
+    :func:`upper_bound_utility` on the strip's truth at every truth time step (as the
+    loop scores it, band by band: :func:`values_from_bands`), the pass's geometry and
+    agility; each pixel counted once unless the pass moves pointings with a predicted
+    plume (``distinct`` false).
+
+    Parameters
+    ----------
+    truth_at : callable
+        ``truth_at(t, r) -> (band, first_row)``: the strip's WFOV truth band holding row
+        ``r`` at ``t`` (:meth:`dyntarget.synth.worlds.TruthBands.at`).
+    wfov_shape : tuple of int
+        The strip's WFOV grid ``(H, W)``.
+    frame_px : int
+        Frame height, WFOV rows.
+    geometry : dyntarget.schedule.OrbitGeometry
+        Orbit and WFOV GSD of the frames.
+    agility : dyntarget.schedule.Agility
+        The NFOV's limits.
+    time_step_s : float or None
+        The truth's time step (``None``: the truth does not change).
+    distinct : bool
+        Count each pixel once (a pass planning on the look as it is).
+    ready_s : sequence of float
+        When each frame's plan was ready: with unlimited agility, no pointing starts
+        after the last (empty: at 0).
+    is_3d : bool
+        The world's plumes have heights: refused (see Raises).
+    world_id : str
+        The strip's name, for the message.
+
+    Returns
+    -------
+    UpperBound
+
+    Raises
+    ------
+    dyntarget.errors.InvalidParameterError
+        On a 3D world: the bound is computed for flat worlds only.
+
+    Examples
+    --------
+    >>> pass_upper_bound(lambda t, r: (None, 0), (8, 8), 8, None, None, time_step_s=None,
+    ...                  distinct=True, is_3d=True, world_id="w")
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.InvalidParameterError: world 'w' is 3D: the upper bound is computed for flat worlds only (a line of sight meets plume tops away from its aim, which the bound's reach does not model)
+    """
+    if is_3d:
+        raise InvalidParameterError(
+            f"world {world_id!r} is 3D: the upper bound is computed for flat worlds only (a line "
+            "of sight meets plume tops away from its aim, which the bound's reach does not model)"
+        )
+    t_end = max(ready_s, default=0.0) if agility.unlimited else None
+    return upper_bound_utility(
+        values_from_bands(truth_at, wfov_shape[1]),
+        wfov_shape,
+        frame_px,
+        geometry,
+        agility,
+        time_step_s=time_step_s,
+        distinct=distinct,
+        t_end_s=t_end,
     )
 
 

@@ -33,63 +33,7 @@ import numpy as np
 from dyntarget.errors import InvalidParameterError, InvalidSceneError
 from dyntarget.scene import Scene, block_mean, check_factor
 from dyntarget.trajectory import Trajectory
-
-
-@dataclass(frozen=True)
-class UtilityMaps:
-    """High-resolution truth used for scoring: plume label and the two utility maps.
-
-    Parameters
-    ----------
-    label : numpy.ndarray
-        Boolean ``(H, W)`` high-resolution plume label.
-    intensity : numpy.ndarray
-        ``(H, W)`` float32 intensity utility, 0..1.
-    gradient : numpy.ndarray
-        ``(H, W)`` float32 gradient utility, 0..1.
-    valid : numpy.ndarray or None
-        Boolean ``(H, W)``, false on nodata; ``None`` when all pixels are valid.
-    """
-
-    label: np.ndarray
-    intensity: np.ndarray
-    gradient: np.ndarray
-    valid: np.ndarray | None = None
-
-    @classmethod
-    def from_scene(cls, scene: Scene) -> UtilityMaps:
-        """The utility maps of a labelled high-resolution scene (see the module docstring).
-
-        Parameters
-        ----------
-        scene : dyntarget.scene.Scene
-            The high-resolution scene, with its label.
-
-        Returns
-        -------
-        UtilityMaps
-            Its label, intensity and gradient maps and valid mask.
-
-        Raises
-        ------
-        dyntarget.errors.InvalidSceneError
-            When the scene has no label.
-        """
-        if scene.label is None:
-            raise InvalidSceneError(
-                f"scene {scene.id!r} has no label; scoring observations needs the truth"
-            )
-        intensity = scene.label.astype(np.float32) * scene.image[2]
-        peak = float(intensity.max())
-        intensity = intensity / peak if peak > 0 else intensity
-        gx = cv2.Sobel(intensity, cv2.CV_32F, 1, 0, ksize=5)
-        gy = cv2.Sobel(intensity, cv2.CV_32F, 0, 1, ksize=5)
-        gradient = np.hypot(gx, gy)
-        gpeak = float(gradient.max())
-        gradient = gradient / gpeak if gpeak > 0 else gradient
-        return cls(
-            scene.label, intensity.astype(np.float32), gradient.astype(np.float32), scene.valid
-        )
+from dyntarget.utility import UtilityMaps
 
 
 @dataclass(frozen=True)

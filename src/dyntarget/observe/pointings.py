@@ -25,7 +25,7 @@ from dyntarget.errors import InvalidParameterError
 
 
 class FootprintMaps(Protocol):
-    """The truth on NFOV footprints centred on WFOV pixels (e.g. ``fly.world.WfovTruth``)."""
+    """The truth on NFOV footprints centred on WFOV pixels (e.g. ``synth.worlds.WfovTruth``)."""
 
     @property
     def plume(self) -> np.ndarray:
@@ -116,7 +116,7 @@ class Sight:
         The spacecraft's altitude, metres.
     heights : callable
         ``heights(T) -> array``: top height per truth plume id, metres (index 0 unused),
-        as :meth:`dyntarget.fly.world.World.heights_at` gives it.
+        as :meth:`dyntarget.synth.worlds.World.heights_at` gives it.
 
     Raises
     ------

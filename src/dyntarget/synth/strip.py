@@ -14,7 +14,7 @@ On disk (``dyntarget synth --strip``)::
 and :func:`write_long_strip` write them, :func:`resampled_spec` puts a world on a
 coarser grid (the GEO imager's, the WFOV's). ``fly`` reads the sidecar and renders
 every look-ahead frame and the truth at the time it is needed
-(:func:`dyntarget.fly.strip.load_world`).
+(:func:`dyntarget.synth.strip_world.load_world`).
 """
 
 from __future__ import annotations

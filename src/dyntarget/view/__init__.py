@@ -9,6 +9,10 @@ offline: plotly.js is embedded (``include_plotlyjs=True``), nothing is fetched.
 
 plotly is an optional dependency (``pip install dyntarget[view]``); it is
 imported inside the functions.
+
+A pass's pictures and pages (:mod:`~dyntarget.view.pass_figure`,
+:mod:`~dyntarget.view.pass_html`) are drawn here too, and its report
+(:mod:`~dyntarget.view.pass_report`) writes every file a pass leaves.
 """
 
 from dyntarget.view.html import (

@@ -1,6 +1,6 @@
 """Pictures of a pass (PNG, matplotlib): a short pass's whole strip, a long pass's overview.
 
-The pass loop (:mod:`dyntarget.fly.report`) hands over what to draw as plain arrays
+The pass's report (:mod:`dyntarget.view.pass_report`) hands over what to draw as plain arrays
 (:class:`PassPicture`, :class:`PassOverview`): nothing here knows of frames, worlds
 or pass results. matplotlib is optional (the lean onboard install has none): it is
 imported inside the drawing functions, which return ``None`` without it.

@@ -2,7 +2,7 @@
 
 Each function writes what :mod:`dyntarget.view.html` draws, and returns ``None`` (or no
 links) when plotly is not installed (the lean onboard install), so a pass written
-without it still completes. The pass loop (:mod:`dyntarget.fly.report`) hands over
+without it still completes. The pass's report (:mod:`dyntarget.view.pass_report`) hands over
 the frames as :class:`~dyntarget.view.html.PassFrame` s and the overview as a
 :class:`~dyntarget.view.pass_figure.PassOverview`.
 """

@@ -1,5 +1,9 @@
 """What a pass leaves in its output directory: timeline, pointings, summary, picture.
 
+The pass's report: what :func:`dyntarget.fly.fly_pass` flew (its
+:class:`~dyntarget.passes.record.PassResult`) written as files, and the list of those
+files (:func:`pass_files`) a rerun replaces (:func:`commit_pass`).
+
 The text, CSV and JSON outputs are written here; the picture and the HTML pages are
 drawn by :mod:`dyntarget.view` (:mod:`~dyntarget.view.pass_figure`,
 :mod:`~dyntarget.view.pass_html`), from plain arrays and frames this module takes out
@@ -37,11 +41,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dyntarget.fly.loop import STAGES, TIMELINE_COLUMNS, FrameView, PassResult
-from dyntarget.fly.world import World
 from dyntarget.io.atomic import write_text
+from dyntarget.passes.record import STAGES, TIMELINE_COLUMNS, FrameView, PassResult
 
 if TYPE_CHECKING:
+    from dyntarget.synth.worlds import World
     from dyntarget.view.html import PassFrame
     from dyntarget.view.pass_figure import PassOverview, PassPicture
 
@@ -83,8 +87,8 @@ def timeline_csv(result: PassResult) -> str:
 
     Examples
     --------
-    >>> from dyntarget.fly.loop import PassConfig, fly_pass
-    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.fly import PassConfig, fly_pass
+    >>> from dyntarget.synth.worlds import StaticWorld
     >>> from dyntarget.scene import Scene
     >>> img = np.full((4, 128, 32), 0.1, np.float32); lab = np.zeros((128, 32), bool)
     >>> r = fly_pass(StaticWorld(Scene(img, label=lab, gsd=8.0)), None,
@@ -105,7 +109,7 @@ def measured_csv(result: PassResult) -> str:
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
 
     Returns
@@ -136,9 +140,9 @@ def pointings_geojson(
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
-    world : dyntarget.fly.world.World
+    world : dyntarget.synth.worlds.World
         The strip it flew over (its CRS and transform).
     crs_mode : {"rfc7946", "native"}
         WGS 84 coordinates, or the strip's CRS.
@@ -177,9 +181,9 @@ def write_progress(
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass so far.
-    world : dyntarget.fly.world.World
+    world : dyntarget.synth.worlds.World
         The strip it flies over.
     out : str or os.PathLike
         The output folder.
@@ -200,7 +204,7 @@ def summary_md(result: PassResult, picture: str | None, note: str | None = None)
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
     picture : str or None
         File name of the pass picture to show (``None``: no picture).
@@ -254,16 +258,16 @@ def summary_md(result: PassResult, picture: str | None, note: str | None = None)
 def summary_json(result: PassResult) -> str:
     """The pass totals as JSON (``summary.json``, beside ``summary.md``).
 
-    Holds every key of :meth:`~dyntarget.fly.loop.PassResult.totals` (``utility``,
+    Holds every key of :meth:`~dyntarget.passes.record.PassResult.totals` (``utility``,
     ``plumes_observed``, ``plumes_total``, ``pointings_flown``, ``ratio_plume``,
     ``frames``, ...), ``stopped``, and ``geo``: the geostationary settings and
     what the blueprint did (``None`` for a look-ahead-only pass); with the pass's
-    upper bound (:func:`~dyntarget.fly.loop.pass_upper_bound`), ``upper_bound_utility``,
+    upper bound (:func:`~dyntarget.observe.bound.pass_upper_bound`), ``upper_bound_utility``,
     ``fraction_of_bound`` (``utility`` over it) and ``upper_bound`` (how it was found).
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
 
     Returns
@@ -273,8 +277,8 @@ def summary_json(result: PassResult) -> str:
 
     Examples
     --------
-    >>> from dyntarget.fly.loop import PassConfig, fly_pass
-    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.fly import PassConfig, fly_pass
+    >>> from dyntarget.synth.worlds import StaticWorld
     >>> from dyntarget.scene import Scene
     >>> img = np.full((4, 128, 32), 0.1, np.float32); lab = np.zeros((128, 32), bool)
     >>> r = fly_pass(StaticWorld(Scene(img, label=lab, gsd=8.0)), None,
@@ -448,7 +452,7 @@ class _Planned:
 
 
 class ViewCollector:
-    """Collects the :class:`~dyntarget.fly.loop.FrameView` s of a pass for its pictures.
+    """Collects the :class:`~dyntarget.passes.record.FrameView` s of a pass for its pictures.
 
     Up to ``max_frames`` frames are kept in memory for the slider view of a short
     pass. Every frame also feeds the long-pass overview (the strip decimated to at
@@ -466,8 +470,8 @@ class ViewCollector:
 
     Examples
     --------
-    >>> from dyntarget.fly.loop import PassConfig, fly_pass
-    >>> from dyntarget.fly.world import StaticWorld
+    >>> from dyntarget.fly import PassConfig, fly_pass
+    >>> from dyntarget.synth.worlds import StaticWorld
     >>> from dyntarget.scene import Scene
     >>> img = np.full((4, 128, 32), 0.1, np.float32); lab = np.zeros((128, 32), bool)
     >>> views = ViewCollector(max_frames=3)
@@ -506,7 +510,7 @@ class ViewCollector:
 
         Yields
         ------
-        list of dyntarget.fly.loop.FrameView
+        list of dyntarget.passes.record.FrameView
             At most ``max_frames`` frames, in pass order.
         """
         if not self.overflow:
@@ -640,7 +644,7 @@ def write_segments(
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
     views : ViewCollector
         What it collected (the frames spilled to disk).
@@ -685,9 +689,9 @@ def write_pass(
 
     Parameters
     ----------
-    result : dyntarget.fly.loop.PassResult
+    result : dyntarget.passes.record.PassResult
         The pass.
-    world : dyntarget.fly.world.World
+    world : dyntarget.synth.worlds.World
         The strip it flew over.
     out : str or os.PathLike
         The output folder.
@@ -818,3 +822,78 @@ def _importable(module: str) -> bool:
         return importlib.util.find_spec(module) is not None
     except (ImportError, ValueError):
         return False
+
+
+TIMES = "geo.timing.json"
+"""File of a pass's GEO wall-clock times (``targets_s``, ``blueprint_s``), beside ``summary.json``."""
+
+
+def write_times(result: PassResult, out: str | os.PathLike[str]) -> Path | None:
+    """Write the GEO wall-clock times of a pass to ``out/geo.timing.json`` (none: nothing).
+
+    ``summary.json`` holds only what a rerun reproduces byte for byte; the measured times
+    of the ground segment go here, as ``stage_times.csv`` holds the frames'.
+
+    Parameters
+    ----------
+    result : dyntarget.passes.record.PassResult
+        The pass (its ``geo_times``).
+    out : str or os.PathLike
+        The pass's output folder.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The file written, or ``None`` for a pass without GEO.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> d = Path(tempfile.mkdtemp())
+    >>> write_times(SimpleNamespace(geo_times=None), d) is None
+    True
+    >>> write_times(SimpleNamespace(geo_times={"targets_s": 0.5}), d).read_text().split()
+    ['{', '"targets_s":', '0.5', '}']
+    """
+    times = result.geo_times
+    if times is None:
+        return None
+    return write_text(Path(out) / TIMES, json.dumps(times, sort_keys=True, indent=1) + "\n")
+
+
+def pass_files() -> tuple[str, ...]:
+    """The names of the files a pass may write (this module's, GEO times).
+
+    Returns
+    -------
+    tuple of str
+        Timeline, stage times, pointings, picture, view (and a long pass's segment
+        views), summaries, GEO times.
+
+    Examples
+    --------
+    >>> "pass.png" in pass_files(), pass_files()[-1]
+    (True, 'geo.timing.json')
+    """
+    return (TIMELINE, MEASURED, POINTINGS, PICTURE, VIEW, SEGMENTS, SUMMARY, SUMMARY_JSON, TIMES)
+
+
+def commit_pass(stage: str | os.PathLike[str], out: str | os.PathLike[str]) -> list[Path]:
+    """Commit a staged pass (:func:`dyntarget.io.staging.commit`); files of an earlier pass in
+    ``out`` that it did not write go.
+
+    Parameters
+    ----------
+    stage : str or os.PathLike
+        The staging folder the pass was written into.
+    out : str or os.PathLike
+        The pass's output folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files now in ``out``.
+    """
+    from dyntarget.io.staging import commit
+
+    return commit(stage, out, stale=pass_files())

@@ -8,7 +8,8 @@ kept there, clearly marked (``--out/.partial-XXXXXXXX``), when committing it
 would replace a previous result. :func:`commit` moves every staged entry with
 :func:`os.replace` (a rename within one file system) while SIGINT, SIGTERM and
 SIGHUP are held back, and removes the files of the previous result that the new
-one does not write (a rerun with ``--no-picture`` leaves no old ``pass.png``).
+one does not write (a rerun with ``--no-picture`` leaves no old ``pass.png``; a pass's
+files are listed by :func:`dyntarget.view.pass_report.pass_files`).
 """
 
 from __future__ import annotations
@@ -131,46 +132,6 @@ def commit(
     for old in trash:
         shutil.rmtree(old, ignore_errors=True)
     return [out / p.name for p in entries]
-
-
-def pass_files() -> tuple[str, ...]:
-    """The names of the files a pass may write (:mod:`dyntarget.fly.report`, GEO times).
-
-    Returns
-    -------
-    tuple of str
-        Timeline, stage times, pointings, picture, view (and a long pass's segment
-        views), summaries, GEO times.
-
-    Examples
-    --------
-    >>> "pass.png" in pass_files()
-    True
-    """
-    from dyntarget.fly import report
-    from dyntarget.fly.geo import TIMES
-
-    names = ("TIMELINE", "MEASURED", "POINTINGS", "PICTURE", "VIEW", "SEGMENTS", "SUMMARY")
-    found = [getattr(report, n) for n in (*names, "SUMMARY_JSON") if hasattr(report, n)]
-    return (*found, TIMES)
-
-
-def commit_pass(stage: str | os.PathLike[str], out: str | os.PathLike[str]) -> list[Path]:
-    """:func:`commit` a staged pass: files of an earlier pass in ``out`` it did not write go.
-
-    Parameters
-    ----------
-    stage : str or os.PathLike
-        The staging folder the pass was written into.
-    out : str or os.PathLike
-        The pass's output folder.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The files now in ``out``.
-    """
-    return commit(stage, out, stale=pass_files())
 
 
 @contextlib.contextmanager
