@@ -32,7 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from dyntarget.fly.world import WorldBase
+from dyntarget.synth.worlds import WorldBase
 
 ROOT = Path(__file__).resolve().parents[1]
 GVP = ROOT.parent / "shared" / "data" / "gvp-holocene" / "volcanoes.csv"
@@ -303,7 +303,7 @@ class OffsetStrip(WorldBase):
 
     The pass loop (``fly``) puts the ground track down the middle of its strip; a volcano
     ``cross_m`` across track needs a strip twice as wide. Only the window around the vent
-    is rendered (a :class:`dyntarget.fly.strip.MovingStrip`); the rest is plume-free ground
+    is rendered (a :class:`dyntarget.synth.strip_world.MovingStrip`); the rest is plume-free ground
     (the inner window's median radiance), so its truth is empty there.
     """
 
@@ -332,8 +332,8 @@ class OffsetStrip(WorldBase):
         return out
 
     def truth_at(self, t: float):
-        from dyntarget.fly.world import Truth
-        from dyntarget.observe.nfov import UtilityMaps
+        from dyntarget.synth.worlds import Truth
+        from dyntarget.utility import UtilityMaps
 
         tr = self.inner.truth_at(t)
         if self._key is not tr:
@@ -363,10 +363,10 @@ def fly_overflight(case: dict, *, agility: str = "fast", index: int = 0) -> dict
 
     import numpy as np
 
-    from dyntarget.fly.loop import PassConfig, fly_pass
-    from dyntarget.fly.strip import MovingStrip
+    from dyntarget.fly import PassConfig, fly_pass
     from dyntarget.schedule import get_agility, look_vectors, off_nadir_deg, visibility_windows
     from dyntarget.synth.dynamic import Wind, sample_world
+    from dyntarget.synth.strip_world import MovingStrip
 
     gsd, f, inner_px = FIDELITY_GSD_M, FIDELITY_FACTOR, FIDELITY_INNER_PX
     base = sample_world(0, index, size=inner_px, gsd=gsd)

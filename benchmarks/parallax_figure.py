@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from dyntarget import parallax
-from dyntarget.fly.loop import PassConfig, fly_pass, frame_plan
-from dyntarget.fly.strip import MovingStrip
+from dyntarget.fly import PassConfig, fly_pass, frame_plan
 from dyntarget.predict.relooks import Geometry3D
 from dyntarget.synth.dynamic import with_heights
 from dyntarget.synth.strip import strip_spec
+from dyntarget.synth.strip_world import MovingStrip
 
 
 def build(seed: int, height_m: float, wind_mps: float):

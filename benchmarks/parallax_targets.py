@@ -52,10 +52,10 @@ import numpy as np
 
 from dyntarget import defaults, parallax
 from dyntarget.evaluate.bench import machine
-from dyntarget.fly.loop import PassConfig, fly_pass
-from dyntarget.fly.strip import LongStrip, MovingStrip
+from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.synth.dynamic import with_heights
 from dyntarget.synth.strip import long_strip_spec, strip_spec
+from dyntarget.synth.strip_world import LongStrip, MovingStrip
 
 MARGIN_PX = 2400
 """Rows (8 m) north of the vents: the parallax of a 15 km top 560 km ahead, 20 km."""

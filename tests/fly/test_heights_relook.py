@@ -10,8 +10,8 @@ import pytest
 
 from dyntarget.cli import main
 from dyntarget.fly import PassConfig, fly_pass
-from dyntarget.fly.loop import RELOOK_DROP
 from dyntarget.io import write_scene
+from dyntarget.passes.record import RELOOK_DROP
 from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, relook_seconds
 from dyntarget.scene import Scene
 from dyntarget.schedule import OrbitGeometry, get_agility

@@ -59,7 +59,9 @@ def test_the_estimated_height_is_the_vents(passes):
     est = result["estimated"].heights
     assert len(est) == 1
     e = est[0]
-    assert e.height_source == "estimated" and e.relooks == 2 and e.rise_mps is None
+    # a 64-row frame: two re-looks nearer in time before the one asked 300 km ahead, whose
+    # search (+-105 rows for an 8.5 km guess) it cannot hold (test_heights_relook.py)
+    assert e.height_source == "estimated" and e.relooks == 3 and e.rise_mps is None
     assert e.true_height_m == TOP_M
     assert abs(e.top_height_m - TOP_M) <= 500.0  # the RMSE target, on one plume
     assert 0 < e.top_height_sigma_m <= 1500.0
@@ -68,7 +70,7 @@ def test_the_estimated_height_is_the_vents(passes):
     assert abs(e.y_px - VENT_XY[1]) < 50.0
     t = result["estimated"].totals()
     assert t["parallax"] == "estimated" and t["plumes_height_estimated"] == 1
-    assert t["relooks"] == 2 and t["frames_lost_to_relooks"] == 0  # the re-looks come after
+    assert t["relooks"] == 3 and t["frames_lost_to_relooks"] == 0  # the re-looks come after
     assert t["height_rmse_m"] == pytest.approx(abs(e.top_height_m - TOP_M), abs=0.1)
     assert t["height_bias_m"] == pytest.approx(e.top_height_m - TOP_M, abs=0.1)
 
@@ -165,11 +167,13 @@ def test_a_rising_column_gives_its_rise(wind_from_deg):
     # between the first look and the last re-look (28 s) its top climbs 570 m, which moves
     # its apparent position away from the nadir while the approach moves it closer. The
     # fit sees the curvature and returns the rise (the target: within 25 % for
-    # columns rising >= 10 m/s) and the height at the first look's time.
+    # columns rising >= 10 m/s) and the height at the first look's time. A rise is fitted
+    # where re-looks at two distances are asked for (not the default).
     world = _world(wind_from_deg=wind_from_deg)
     vent = replace(world.spec.vents[0], rise_mps=20.0)
     world = MovingStrip(replace(world.spec, vents=(vent,)), world.window)
-    r = fly_pass(world, None, PassConfig(agility="fast", compute_budget_s=0.05))
+    config = PassConfig(agility="fast", compute_budget_s=0.05, relook_km=(400.0, 300.0))
+    r = fly_pass(world, None, config)
     (e,) = r.heights
     assert e.height_source == "estimated" and e.rise_mps is not None
     assert abs(e.rise_mps - 20.0) <= 5.0

@@ -509,7 +509,9 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         type=_km_list,
         metavar="A,B",
         help="how far ahead of the nadir the look-ahead re-looks at a new plume, km, nearest "
-        "last (default 400,300); each re-look costs look-ahead time (frames not taken)",
+        "last (default 300: one re-look, with re-looks nearer in time added where a frame is "
+        "too short for the search; two or more also fit a rising top, e.g. 400,300); each "
+        "re-look costs look-ahead time (frames not taken)",
     )
 
 

@@ -4,7 +4,7 @@
 plume while the plume is there and not hidden by cloud
 (:mod:`dyntarget.constellation.geometry`). In ``cross+geo`` the geostationary imagers
 (:data:`GEO_IMAGERS`: real sub-satellite longitudes and full-disk cadences) detect too,
-with the detection model of ``fly --geo`` (:mod:`dyntarget.fly.geo`): a GEO cell's
+with the detection model of ``fly --geo`` (:mod:`dyntarget.passes.geo`): a GEO cell's
 anomaly is :data:`dyntarget.geo.targets.CONTRAST` times the fraction of the cell the plume
 covers (the cell grows as ``1 / cos`` of the viewing zenith angle) times its opacity
 ``1 - exp(-optical depth)``, plus Gaussian noise (``GeoSettings.noise``); above
@@ -103,7 +103,7 @@ class Settings:
         The two-level model's parameters
         (:func:`dyntarget.constellation.world.draw_gvp_eruptions`; ``eruptions`` only).
     geo : dict
-        Overrides of :class:`dyntarget.fly.geo.GeoSettings` fields (GEO detection).
+        Overrides of :class:`dyntarget.passes.geo.GeoSettings` fields (GEO detection).
     """
 
     cueing: str = "cross"
@@ -208,7 +208,7 @@ def geo_detections(
     seed : int
         Seed of the noise.
     geo : dict or None
-        Overrides of :class:`dyntarget.fly.geo.GeoSettings` fields.
+        Overrides of :class:`dyntarget.passes.geo.GeoSettings` fields.
 
     Returns
     -------
@@ -224,8 +224,8 @@ def geo_detections(
     >>> geo_detections(e, one([0.0]), one([-75.2]), np.zeros((1, 2)), seconds=7200.0, seed=0)
     [(0, 600.0, 900.0, 0)]
     """
-    from dyntarget.fly.geo import GeoSettings
     from dyntarget.geo.targets import CONTRAST
+    from dyntarget.passes.geo import GeoSettings
 
     gs = GeoSettings(**(geo or {}))  # type: ignore[arg-type]
     ground = geodetic_to_ecef(lat, lon, 0.0)
