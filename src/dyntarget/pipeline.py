@@ -386,6 +386,37 @@ def schedule_plan(
 
     if getattr(PLANNERS.get(planner), "timed", False):
         return schedule(trajectory, shape, kinematics.geometry, kinematics.agility)
+    return schedule_feasible(trajectory, shape, kinematics)
+
+
+def schedule_feasible(trajectory: Trajectory, shape: tuple[int, int], kinematics: Kinematics):
+    """The schedule stage for pointings in any order: the better of their own order and
+    earliest-deadline-first, the feasible kept (:func:`dyntarget.schedule.make_feasible`).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The pointings.
+    shape : tuple of int
+        WFOV ``(H, W)``.
+    kinematics : Kinematics
+        Geometry, agility, budget.
+
+    Returns
+    -------
+    dyntarget.schedule.Schedule
+        What is flown (``.trajectory``, ``.kept``) and what was dropped.
+
+    Examples
+    --------
+    Two pointings 10 px apart across track, one pass of a 500 km orbit: both fit.
+
+    >>> import numpy as np
+    >>> from dyntarget.schedule import OrbitGeometry
+    >>> t = Trajectory(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([0, 1]), "two")
+    >>> len(schedule_feasible(t, (1, 20), Kinematics(OrbitGeometry(), "fast")).kept)
+    2
+    """
     return make_feasible(
         trajectory, shape, kinematics.geometry, kinematics.agility, budget_s=kinematics.budget_s
     )

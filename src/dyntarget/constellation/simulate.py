@@ -593,7 +593,8 @@ def _opportunities(enc, col, sat_of, e_of, dets, board, eruptions, cloud, second
 
 
 class _Conflict:
-    """Sensor conflict between two opportunities of one satellite, by :func:`make_feasible`."""
+    """Sensor conflict between two opportunities of one satellite, by the schedule stage
+    (:func:`dyntarget.pipeline.schedule_feasible`)."""
 
     def __init__(self, opp: Opportunities, enc_of: np.ndarray, col: dict, agility: str) -> None:
         self.opp, self.enc_of, self.col, self.agility = opp, enc_of, col, agility
@@ -610,7 +611,8 @@ class _Conflict:
 
 def _both_fit(ks: list[int], col: dict, agility: str) -> bool:
     """Whether one satellite can take all of the overflights ``ks`` (one pass, one frame)."""
-    from dyntarget.schedule import OrbitGeometry, make_feasible
+    from dyntarget.pipeline import Kinematics, schedule_feasible
+    from dyntarget.schedule import OrbitGeometry
     from dyntarget.trajectory import Trajectory
 
     ref = min(ks, key=lambda k: col["t_ref"][k])
@@ -626,7 +628,8 @@ def _both_fit(ks: list[int], col: dict, agility: str) -> bool:
         along = col["along"][k] + v * (col["t_ref"][k] - col["t_ref"][ref])
         pts.append([col["cross"][k], -along])
     traj = Trajectory(np.asarray(pts, np.float64), np.arange(len(ks)), "constellation")
-    return len(make_feasible(traj, (1, 1), geom, agility).kept) == len(ks)
+    flown = schedule_feasible(traj, (1, 1), Kinematics(geom, agility))
+    return len(flown.kept) == len(ks)
 
 
 def _realize(opp, chosen, enc_of, col, names, catalog, eruptions, settings):
