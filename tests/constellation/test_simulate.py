@@ -324,3 +324,17 @@ def test_geo_sees_a_plume_only_during_an_episode():
                      episode_end_s=one([7000.0]))  # fmt: skip
     (d,) = geo_detections(busy, lat, lon, np.zeros((1, 3)), seconds=7200.0, seed=0)
     assert d[1] >= 3000.0 and d[1] % 600.0 == 0.0  # a GOES-East image in the episode
+
+
+def test_an_eruption_without_an_episode_has_no_plume():
+    # an eruption whose plume episodes all fall outside the period has none listed; asking
+    # for its latest episode read one past the end of the episode arrays (an IndexError on
+    # a 6 h cross+geo day of the bound benchmark)
+    one = np.array
+    base = _eruption(onset=-1e6, end=1e6, wind=8.0)
+    kw = {f: getattr(base, f) for f in base.__dataclass_fields__ if not f.startswith("episode")}
+    none = Eruptions(**kw, episode_eruption=one([], np.int64), episode_onset_s=one([]),
+                     episode_end_s=one([]))  # fmt: skip
+    assert none.plume_onset_s(one([0, 0]), one([100.0, 5000.0])).tolist() == [np.inf, np.inf]
+    lat, lon = one([0.0]), one([-75.2])
+    assert geo_detections(none, lat, lon, np.zeros((1, 3)), seconds=7200.0, seed=0) == []

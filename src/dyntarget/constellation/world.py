@@ -279,6 +279,8 @@ class Eruptions:
         for k in np.unique(e).tolist():  # the episodes of each eruption are sorted by onset
             sel = e == k
             a, b = int(lo[sel][0]), int(hi[sel][0])
+            if a == b:  # no episode in the period: no plume (ep_on[a] may not exist)
+                continue
             j = np.searchsorted(ep_on[a:b], t[sel], side="right") - 1
             ok = j >= 0
             jj = a + np.maximum(j, 0)
