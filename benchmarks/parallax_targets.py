@@ -179,50 +179,39 @@ def part_targeting(args) -> dict:
                 spec = flat if mode == "flat" else spec3
                 r = fly(spec, window, config_for(mode, agility, defaults.LOOK_AHEAD_M))
                 rows.append({"strip": i, "agility": agility, "mode": mode, **r})
-                print(
-                    json.dumps(
-                        {
-                            k: rows[-1][k]
-                            for k in (
-                                "strip",
-                                "agility",
-                                "mode",
-                                "utility",
-                                "plumes_observed",
-                                "relooks",
-                                "frames_lost_to_relooks",
-                                "wall_s",
-                            )
-                        }
-                    ),
-                    flush=True,
-                )
-    summary = {}
-    for agility in ("slow", "fast"):
-        flat_u = sum(r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat")
-        summary[agility] = {
-            mode: {
-                "utility": round(
-                    u := sum(
-                        r["utility"] for r in rows if r["agility"] == agility and r["mode"] == mode
-                    ),
-                    2,
-                ),
-                "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
-                "plumes_observed": sum(
-                    r["plumes_observed"]
-                    for r in rows
-                    if r["agility"] == agility and r["mode"] == mode
-                ),
-            }
-            for mode in MODES
-        }
+                say(rows[-1], "plumes_observed", "relooks", "frames_lost_to_relooks", "wall_s")
+    summary = mode_summary(rows, "plumes_observed")
     est = [r for r in rows if r["mode"] == "estimated"]
     return {
         "rows": rows, "summary": summary, "speed": speed_summary(est),
         "heights": height_summary(est),
         "heights_2": height_summary([r for r in rows if r["mode"] == "estimated-2"]),
     }  # fmt: skip
+
+
+def say(row: dict, *keys: str) -> None:
+    """One pass's line on stdout: strip, agility, mode, utility and ``keys``."""
+    keys = ("strip", "agility", "mode", "utility", *keys)
+    print(json.dumps({k: row[k] for k in keys}), flush=True)
+
+
+def mode_summary(rows: list[dict], *sums: str) -> dict:
+    """Per agility and mode: utility summed over the strips, as a fraction of the flat
+    passes', and the sums of ``sums`` (``None`` counted 0)."""
+    summary: dict = {}
+    for agility in ("slow", "fast"):
+        sel = [r for r in rows if r["agility"] == agility]
+        flat_u = sum(r["utility"] for r in sel if r["mode"] == "flat")
+        summary[agility] = {}
+        for mode in MODES:
+            mine = [r for r in sel if r["mode"] == mode]
+            u = sum(r["utility"] for r in mine)
+            summary[agility][mode] = {
+                "utility": round(u, 2),
+                "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
+                **{k: sum(r[k] or 0 for r in mine) for k in sums},
+            }
+    return summary
 
 
 def speed_summary(rows: list[dict]) -> dict:
@@ -251,42 +240,9 @@ def part_long(args) -> dict:
                 r = fly(spec if mode == "flat" else spec3, window,
                         config_for(mode, agility, defaults.LOOK_AHEAD_M), long=True)  # fmt: skip
                 rows.append({"strip": i, "agility": agility, "mode": mode, **r})
-                print(
-                    json.dumps(
-                        {
-                            k: rows[-1][k]
-                            for k in (
-                                "strip",
-                                "agility",
-                                "mode",
-                                "utility",
-                                "plumes_observed",
-                                "plumes_total",
-                                "relooks",
-                                "frames_lost_to_relooks",
-                                "frames",
-                                "wall_s",
-                            )
-                        }
-                    ),
-                    flush=True,
-                )
-    summary = {}
-    for agility in ("slow", "fast"):
-        sel = [r for r in rows if r["agility"] == agility]
-        flat_u = sum(r["utility"] for r in sel if r["mode"] == "flat")
-        summary[agility] = {
-            mode: {
-                "utility": round(u := sum(r["utility"] for r in sel if r["mode"] == mode), 2),
-                "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
-                "relooks": sum(r["relooks"] or 0 for r in sel if r["mode"] == mode),
-                "frames_lost_to_relooks": sum(
-                    r["frames_lost_to_relooks"] or 0 for r in sel if r["mode"] == mode
-                ),
-                "frames": sum(r["frames"] for r in sel if r["mode"] == mode),
-            }
-            for mode in MODES
-        }
+                say(rows[-1], "plumes_observed", "plumes_total", "relooks",
+                    "frames_lost_to_relooks", "frames", "wall_s")  # fmt: skip
+    summary = mode_summary(rows, "relooks", "frames_lost_to_relooks", "frames")
     return {"rows": rows, "summary": summary}
 
 

@@ -92,7 +92,7 @@ import numpy as np
 
 from dyntarget import parallax
 from dyntarget.errors import InvalidParameterError
-from dyntarget.predict.height import Look, envelope_disparity, fit_height
+from dyntarget.predict.height import HeightFit, Look, envelope_disparity, fit_height
 from dyntarget.schedule import Agility, OrbitGeometry
 from dyntarget.schedule.kinematics import angle_between_deg, look_vectors
 
@@ -676,6 +676,7 @@ class HeightTracker:
         alt, sig = w.geometry.altitude_m, POSITION_SIGMA_PX * gsd
         looks: dict[int, list[Look]] = {}
         failed: dict[int, str] = {}
+        fits: dict[int, HeightFit] = {}  # each plume's fit of its looks so far
         first: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         margin = np.ones((2 * MARGIN_PX + 1, 2 * MARGIN_PX + 1), np.uint8)
         near = np.ones((2 * GROUP_PX + 1, 2 * GROUP_PX + 1), np.uint8)
@@ -734,7 +735,7 @@ class HeightTracker:
                     continue
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
                 looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
-                fit = fit_height(looks[p.pid], wind_prior=(0.0, 0.0),
+                fit = fits[p.pid] = fit_height(looks[p.pid], wind_prior=(0.0, 0.0),
                                  wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS)  # fmt: skip
                 if fit.ok and 0 < fit.height_m < parallax.MAX_HEIGHT_M:
                     guess[p.pid] = fit.height_m
@@ -743,19 +744,25 @@ class HeightTracker:
                         ready = at + time.perf_counter() - t0
                         p.stages.append((ready, fit.height_m))
         for p in plumes:
-            if len(looks[p.pid]) >= 2:
-                t0 = time.perf_counter()
-                self._fit(p, looks[p.pid])
-                last = looks[p.pid][-1].t_s
-                known = max(last, p.stages[-1][0]) if p.stages else last
-                p.ready_s = known + time.perf_counter() - t0  # decided (estimate or not)
-                if p.source == "estimated":
-                    if p.pid in failed:  # measured on the looks that saw it
-                        p.reason = f"{len(looks[p.pid]) - 1} re-look(s) used; {failed[p.pid]}"
-            elif p.pid in failed:
-                self._fallback(p, failed[p.pid])
-            else:
-                self._fallback(p, f"no re-look taken ({why or 'none asked'})")
+            self._conclude(p, looks[p.pid], fits.get(p.pid), failed.get(p.pid), why)
+
+    def _conclude(
+        self, p: Plume, looks: list[Look], fit: HeightFit | None, lost: str | None, why: str
+    ) -> None:
+        """Plume ``p``'s final estimate from its looks and their last fit (``lost``: why a
+        later re-look did not see it; ``why``: why a re-look was not taken), or the fallback."""
+        if len(looks) >= 2 and fit is not None:
+            t0 = time.perf_counter()
+            self._fit(p, looks, fit)
+            last = looks[-1].t_s
+            known = max(last, p.stages[-1][0]) if p.stages else last
+            p.ready_s = known + time.perf_counter() - t0  # decided (estimate or not)
+            if p.source == "estimated" and lost is not None:  # measured on the looks that saw it
+                p.reason = f"{len(looks) - 1} re-look(s) used; {lost}"
+        elif lost is not None:
+            self._fallback(p, lost)
+        else:
+            self._fallback(p, f"no re-look taken ({why or 'none asked'})")
 
     def _duration(self, d: float) -> float:
         """Look-ahead seconds of a re-look ``d`` metres ahead (given, or the slew model's)."""
@@ -841,12 +848,9 @@ class HeightTracker:
         )
         return lo, hi
 
-    def _fit(self, p: Plume, looks: list[Look]) -> None:
-        """Height and ground position of plume ``p`` from its envelope's looks (zero-drift
-        prior: the envelope of a vent-attached plume), or the fallback."""
-        fit = fit_height(
-            looks, wind_prior=(0.0, 0.0), wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS
-        )
+    def _fit(self, p: Plume, looks: list[Look], fit: HeightFit) -> None:
+        """Height and ground position of plume ``p`` from its envelope's looks, given their
+        fit with a zero-drift prior (the envelope of a vent-attached plume), or the fallback."""
         gsd = self.where.geometry.wfov_gsd_m
         if self.fit_rise and len(looks) >= 3 and fit.ok and fit.rms_residual_m > RISE_TEST_PX * gsd:
             # the looks' track is curved beyond their noise: a rising top (its parallax
