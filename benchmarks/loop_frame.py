@@ -113,8 +113,13 @@ def main() -> None:
         budget = "measured" if r["budget_s"] is None else f"{r['budget_s']:g} s"
         print(f"| {r['model']} | {r['predict']} | {budget} | {r['before_ms']:.2f} | "
               f"{r['after_ms']:.2f} | {r['after_over_before']:.2f} |")  # fmt: skip
-    if args.json:
-        args.json.write_text(json.dumps(rows, indent=1) + "\n", encoding="utf-8")
+    if args.json:  # the rows with the command and the machine (this checkout's commit)
+        from dyntarget.evaluate.bench import machine
+
+        command = f"python benchmarks/loop_frame.py --before BEFORE_CHECKOUT --after {args.after} "
+        command += f"--repeats {args.repeats} --length {args.length} --json {args.json}"
+        record = {"command": command, "machine": machine(), "result": rows}
+        args.json.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":
