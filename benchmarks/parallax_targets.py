@@ -26,10 +26,12 @@ Parts (``--part``):
     and 60 % of the distance) and with a fixed prior of 8.5 km (``prior``). Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
-    What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km, 256 px wide
-    at 8 m, 2 vents / 100 km: :func:`dyntarget.synth.strip.long_strip_spec`, 3D), long
-    enough that a re-look falls while later frames are due: each mode's utility, re-looks
-    and the look-ahead frames they cost, ``slow`` and ``fast``.
+    What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km,
+    ``--long-width`` px wide at 8 m, 2 vents / 100 km:
+    :func:`dyntarget.synth.strip.long_strip_spec`, 3D), long enough that a re-look falls
+    while later frames are due: each mode's utility, re-looks, the look-ahead frames they
+    cost and those taken late (catching up; ``estimated-nc``: without), ``slow`` and
+    ``fast`` (``--long-modes``).
 ``speed``
     The estimate's own time per frame (the ``heights`` stage) and the loop's time per frame
     (``loop_s``) of the ``estimated`` passes.
@@ -62,6 +64,9 @@ MARGIN_PX = 2400
 MODES = ("flat", "off", "prior", "true", "estimated", "estimated-2")
 """``estimated``: ``fly``'s default, one re-look at 60 % of the look-ahead distance;
 ``estimated-2``: two, at 80 % and 60 % (they also measure a rise)."""
+LONG_MODES = (*MODES, "estimated-nc")
+"""The long part adds ``estimated-nc``: ``estimated`` without catching up (``--no-catch-up``:
+the frames due during a re-look are lost)."""
 PRIOR_M = 8500.0
 
 
@@ -108,6 +113,7 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
         "parallax": totals.get("parallax"),
         "relooks": totals.get("relooks"),
         "frames_lost_to_relooks": totals.get("frames_lost_to_relooks"),
+        "frames_caught_up": totals.get("frames_caught_up"),
         "frames": len(result.records),
         "estimates": estimates,
         "heights_s": [float(r.stage_s.get("heights", 0.0)) for r in frames],
@@ -117,6 +123,8 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
 
 
 def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
+    if mode == "estimated-nc":
+        return replace(config_for("estimated", agility, look_ahead_m), catch_up=False)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)
@@ -203,7 +211,7 @@ def mode_summary(rows: list[dict], *sums: str) -> dict:
         sel = [r for r in rows if r["agility"] == agility]
         flat_u = sum(r["utility"] for r in sel if r["mode"] == "flat")
         summary[agility] = {}
-        for mode in MODES:
+        for mode in dict.fromkeys(r["mode"] for r in sel):  # the modes flown, in order
             mine = [r for r in sel if r["mode"] == mode]
             u = sum(r["utility"] for r in mine)
             summary[agility][mode] = {
@@ -232,17 +240,18 @@ def part_long(args) -> dict:
     rows = []
     for i in range(args.long_strips):
         spec, window = long_strip_spec(
-            args.seed + 300 + i, args.long_km, plumes_per_100km=2.0, wind_mps=5.0
-        )
+            args.seed + 300 + i, args.long_km, width=args.long_width, plumes_per_100km=2.0,
+            wind_mps=5.0,
+        )  # fmt: skip
         spec3 = with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
         for agility in ("slow", "fast"):
-            for mode in MODES:
+            for mode in args.long_modes:
                 r = fly(spec if mode == "flat" else spec3, window,
                         config_for(mode, agility, defaults.LOOK_AHEAD_M), long=True)  # fmt: skip
                 rows.append({"strip": i, "agility": agility, "mode": mode, **r})
                 say(rows[-1], "plumes_observed", "plumes_total", "relooks",
-                    "frames_lost_to_relooks", "frames", "wall_s")  # fmt: skip
-    summary = mode_summary(rows, "relooks", "frames_lost_to_relooks", "frames")
+                    "frames_lost_to_relooks", "frames_caught_up", "frames", "wall_s")  # fmt: skip
+    summary = mode_summary(rows, "relooks", "frames_lost_to_relooks", "frames_caught_up", "frames")
     return {"rows": rows, "summary": summary}
 
 
@@ -256,6 +265,12 @@ def main() -> None:
     ap.add_argument("--part", choices=("heights", "targeting", "long", "all"), default="all")
     ap.add_argument("--long-strips", type=int, default=2)
     ap.add_argument("--long-km", type=float, default=150.0)
+    ap.add_argument("--long-width", type=int, default=256, help="long strips' width, px (8 m)")
+    ap.add_argument(
+        "--long-modes", type=lambda s: tuple(s.split(",")), default=LONG_MODES,
+        help=f"comma-separated, of {','.join(LONG_MODES)}",
+    )  # fmt: skip
+    ap.add_argument("--record", help="the record's file name (default: by --part)")
     ap.add_argument("--out", type=Path, default=Path("docs/benchmarks"))
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -272,6 +287,8 @@ def main() -> None:
                 ("part", args.part),
                 ("long-strips", args.long_strips),
                 ("long-km", args.long_km),
+                ("long-width", args.long_width),
+                ("long-modes", ",".join(args.long_modes)),
             )
         )
     }
@@ -285,6 +302,7 @@ def main() -> None:
     record["wall_s"] = round(time.perf_counter() - t0, 1)
     record["machine"] = machine()
     name = "parallax_targets.json" if args.part == "all" else f"parallax_{args.part}.json"
+    name = args.record or name
     (args.out / name).write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
     print(args.out / name)
     for part in ("heights", "targeting", "long"):

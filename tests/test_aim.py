@@ -62,12 +62,13 @@ def _map(p: np.ndarray) -> tuple[float, float]:
     return d * math.cos(az), d * math.sin(az)
 
 
-def _vector_aim(along: float, cross: float, t_s: float) -> tuple[float, float]:
+def _vector_aim(along: float, cross: float, t_s: float, look_s: float = 0.0) -> tuple[float, float]:
     """The ground point an NFOV flown at ``t_s`` must aim at to meet the top the look-ahead
-    saw at (along, cross): the top is where the ray from the spacecraft at t = 0 through
-    the apparent ground point crosses R + h; the aim is where the ray from the spacecraft
-    at t through that top meets the ground."""
-    s0 = np.array([0.0, 0.0, R + H_SC])
+    saw at (along, cross): the top is where the ray from the spacecraft at ``look_s``
+    (0: the acquisition) through the apparent ground point crosses R + h; the aim is where
+    the ray from the spacecraft at t through that top meets the ground."""
+    gl = G.ground_speed * look_s / R
+    s0 = (R + H_SC) * np.array([math.sin(gl), 0.0, math.cos(gl)])
     top = _ray_hits_sphere(s0, R * _unit(along, cross), R + H_TOP)
     g = G.ground_speed * t_s / R  # the nadir's central angle along the track at t
     s_t = (R + H_SC) * np.array([math.sin(g), 0.0, math.cos(g)])
@@ -107,6 +108,29 @@ def test_on_track_aims_match_the_vector_method(along, t_s):
     got = _aim().shift(_pixel(along, 0.0)[None], t_s)[0]
     assert got[1] == pytest.approx(-(want_a - along) / GSD, abs=1e-4)  # 3 mm
     assert got[0] == pytest.approx(want_c / GSD, abs=1e-9)
+
+
+@pytest.mark.parametrize("look_s", [2.0, 4.0, 20.0])
+@pytest.mark.parametrize("t_s", [28.0, 60.0, 80.0])
+def test_a_frame_taken_late_aims_from_where_the_look_ahead_then_was(look_s, t_s):
+    # the frame's pixels are the same ground; the look-ahead saw it from a nadir
+    # v * look_s further along (catching up after a re-look): the vectors from there
+    along = 500e3
+    want_a, _ = _vector_aim(along, 0.0, t_s, look_s)
+    late = ParallaxAim(G, SHAPE, _aim().heights_m, look_s=look_s)
+    got = late.shift(_pixel(along, 0.0)[None], t_s)[0]
+    assert got[1] == pytest.approx(-(want_a - along) / GSD, abs=1e-4)
+    # seen from nearer, the top was displaced less: the on-time frame's aim would be off
+    on_time = _aim().shift(_pixel(along, 0.0)[None], t_s)[0]
+    assert abs(on_time[1] - got[1]) > 10.0  # > 300 m even for 2 s late
+    # flown at the look's own time and place: nothing moves
+    assert np.abs(late.shift(_pixel(along, 0.0)[None], look_s)).max() < 1e-6
+
+
+@pytest.mark.parametrize("bad", [-1.0, math.nan, math.inf])
+def test_a_bad_look_time_is_refused(bad):
+    with pytest.raises(InvalidParameterError, match="look_s"):
+        ParallaxAim(G, SHAPE, _aim().heights_m, look_s=bad)
 
 
 def test_flown_at_the_look_aheads_own_time_and_position_nothing_moves():

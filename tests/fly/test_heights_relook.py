@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -11,7 +12,7 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.io import write_scene
-from dyntarget.passes.record import RELOOK_DROP
+from dyntarget.passes.record import CATCH_UP_SKIP, RELOOK_DROP
 from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, relook_seconds
 from dyntarget.scene import Scene
 from dyntarget.schedule import OrbitGeometry, get_agility
@@ -69,14 +70,15 @@ def test_the_nadir_follows_the_design_formula():
     assert where.nadir_hr(0.0) == (31.5 * 4 + 1.5, (192 + 31.5 + 500e3 / 32.0) * 4 + 1.5)
 
 
-def test_frames_acquired_while_the_look_ahead_re_looks_are_not_taken(capsys):
+def test_without_catching_up_frames_due_while_the_look_ahead_re_looks_are_lost(capsys):
     from tests.fly.test_pass_3d import _world
 
     world = _world()
     # re-looks 1 and 3 km nearer than the frame, 0.2 s each: inside the pass
     config = PassConfig(
-        agility="fast", compute_budget_s=0.05, relook_km=(499.0, 497.0), relook_s=0.2
-    )
+        agility="fast", compute_budget_s=0.05, relook_km=(499.0, 497.0), relook_s=0.2,
+        catch_up=False,
+    )  # fmt: skip
     r = fly_pass(world, None, config)
     windows = r.relook_windows
     assert len(windows) == 2 and all(b - a == pytest.approx(0.2) for a, b in windows)
@@ -85,6 +87,7 @@ def test_frames_acquired_while_the_look_ahead_re_looks_are_not_taken(capsys):
     assert dropped == lost and len(lost) >= 2  # cadence 0.145 s: one or two per window
     assert all(rec.dropped and rec.flown == 0 for rec in r.records if rec.frame in lost)
     assert r.totals()["frames_lost_to_relooks"] == len(lost) and r.totals()["relooks"] == 2
+    assert "frames_caught_up" not in r.totals()
     e = r.heights[0]
     if e.height_source != "estimated":  # looks 2 km apart barely move the top: said on stderr
         assert f"plume 1 (frame {e.frame}): no height estimated" in capsys.readouterr().err
@@ -135,8 +138,13 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
     assert len(doc["features"]) == summary["plumes_height_estimated"] + sum(
         f["properties"]["height_source"] != "estimated" for f in doc["features"]
     )
-    for key in ("relooks", "frames_lost_to_relooks", "height_rmse_m", "height_bias_m"):
+    for key in ("relooks", "frames_lost_to_relooks", "height_rmse_m", "height_bias_m",
+                "frames_caught_up", "frames_skipped_catching_up"):  # fmt: skip
         assert key in summary
+    # --no-catch-up: the frames due during a re-look are lost, nothing is taken late
+    assert main([*fly, "--no-catch-up", "--out", str(tmp_path / "nc"), "--quiet"]) == 0
+    nc = json.loads((tmp_path / "nc" / "summary.json").read_text())
+    assert "frames_caught_up" not in nc and nc["relooks"] == summary["relooks"]
     # --no-parallax: off, no plume is measured
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
@@ -359,3 +367,156 @@ def test_relooks_nearer_in_time_are_added_only_where_the_search_does_not_fit(fra
     (p,) = tr.plumes
     assert len(tr.busy) == relooks and p.source == "estimated"
     assert abs(p.height_m - 6000.0) <= 150.0
+
+
+# -- catching up: the frames due during a re-look taken late -------------------------------
+
+GSD, FP = 32.0, 64  # 64-row frames (2.05 km), half overlapping: due every 32 rows (0.145 s)
+
+
+def _late_tracker(agility="fast"):
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8192 - FP, 4)
+    return HeightTracker(
+        where, get_agility(agility), (300.0,), None, None, None, measure=False, log=print
+    )
+
+
+def _slew(a, phi):
+    """Rest-to-rest trapezoid, by hand."""
+    w, acc = a.max_rate_deg_s, a.max_accel_deg_s2
+    return 2 * math.sqrt(phi / acc) if phi <= w * w / acc else phi / w + w / acc
+
+
+def _late_time(a, free, prev_m, t_due):
+    """When a frame due at t_due is taken if the look-ahead is free at ``free`` looking
+    ``prev_m`` ahead: the root of t = free + slew(pitch change) + settle, the frame
+    ``500 km - v (t - t_due)`` ahead by then (solved with a root finder, not iterated)."""
+    from scipy.optimize import brentq
+
+    v = OrbitGeometry().ground_speed
+
+    def f(t):
+        phi = abs(_off_nadir_deg(prev_m) - _off_nadir_deg(500e3 - v * (t - t_due)))
+        return free + _slew(a, phi) + a.settle_s - t
+
+    return brentq(f, free, free + 10.0)
+
+
+def test_a_frame_due_during_a_re_look_is_taken_once_the_look_ahead_has_pitched_back_to_it():
+    tr, a = _late_tracker(), get_agility("fast")
+    assert tr.take(0.0, 8128, 8096) == (0.0, "")  # on time: the regular stare costs nothing
+    tr.busy.append((1.0, 4.8))
+    t, why = tr.take(2.0, 8064, 8032)
+    # back from the re-look at 4.8 s on the regular pitch (500 km ahead); the frame is then
+    # 500 km - v (t - 2) ahead: pitch back, settle, expose
+    assert why == "" and t == pytest.approx(_late_time(a, 4.8, 500e3, 2.0), abs=1e-3)
+    assert 4.8 + a.settle_s < t < 4.8 + 1.0  # about 20 km of pitch back: 0.5 s
+    assert tr.free_s == pytest.approx(t + a.dwell_s)
+
+
+def test_while_behind_a_frame_whose_ground_the_next_one_covers_is_skipped():
+    tr, a = _late_tracker(), get_agility("fast")
+    v = OrbitGeometry().ground_speed
+    cad = 32 * GSD / v
+    tr.take(0.0, 8128, 8096)
+    tr.busy.append((0.5 * cad, 0.5 * cad + 3.8))  # frames 1..26 fall inside
+    t1, _ = tr.take(cad, 8096, 8064)  # late: rows 8096-8159 (abut the last taken, 8128?)
+    # the last taken (frame 0) covers rows 8128-8191; frame 2 (8064-8127) abuts it, so
+    # frame 1 is skipped, frame 2 taken late
+    assert t1 is None and _ == "covered"
+    t2, why = tr.take(2 * cad, 8064, 8032)
+    assert why == "" and t2 > 0.5 * cad + 3.8
+    prev = tr.pitch_m
+    assert prev == pytest.approx(500e3 - v * (t2 - 2 * cad))
+    assert tr.take(3 * cad, 8032, 8000) == (None, "covered")  # 8000 + 64 reaches 8064
+    t4, _ = tr.take(4 * cad, 8000, 7968)
+    # from the last look's pitch to frame 4's ground, then settle: the root by hand
+    assert t4 == pytest.approx(_late_time(a, t2 + a.dwell_s, prev, 4 * cad), abs=1e-3)
+
+
+def test_the_look_ahead_catches_up_and_is_back_on_time():
+    tr = _late_tracker()
+    v = OrbitGeometry().ground_speed
+    cad = 32 * GSD / v
+    tr.busy.append((1.0, 4.8))
+    taken, n = [], 200
+    for k in range(n):
+        top = 8192 - FP - 32 * k
+        t, _ = tr.take(k * cad, top, top - 32 if k + 1 < n else None)
+        taken.append((k, t))
+    late = [k for k, t in taken if t is not None and t > k * cad]
+    assert late and max(late) < n - 1  # caught up before the end
+    last = max(late)
+    after = [(k, t) for k, t in taken if k > last]
+    # on time again: every frame (the first after the last late one may be skipped, its
+    # ground seen by the last late frame and the next)
+    assert all(t == k * cad for k, t in after[1:]) and after[0][1] in (None, after[0][0] * cad)
+    assert not any(t is not None and 1.0 <= t < 4.8 for _, t in taken)  # none inside it
+    got = [t for _, t in taken if t is not None]
+    assert got == sorted(got)
+    # every ground row of the strip seen: the frames taken leave no gap
+    tops = [8192 - FP - 32 * k for k, t in taken if t is not None]
+    assert all(a - b <= FP for a, b in itertools.pairwise(tops))
+
+
+def test_a_frame_whose_ground_the_nfov_can_already_reach_is_lost():
+    tr = _late_tracker()
+    tr.busy.append((0.5, 40.0))  # 40 s: the frame is ~ 500 - 7.06 * 40 = 218 km ahead by then
+    a = get_agility("fast")
+    # the field of regard (30 deg off nadir) reaches R (asin((R + H) sin 30 / R) - 30 deg)
+    g = math.radians(30.0)
+    reach = R * (math.asin((R + H) * math.sin(g) / R) - g)
+    assert 280e3 < reach < 300e3 and tr.reach_m == pytest.approx(reach, rel=1e-12)
+    assert tr.take(1.0, 8064, 8032) == (None, "too late")
+    assert a.field_of_regard_deg == 30.0
+
+
+def test_slow_agility_cannot_gain_on_the_ground_and_loses_the_frames():
+    # a late 2 km frame costs slow at least its 1 s settle: more than the 0.29 s its ground
+    # takes to pass, so catching up would only fall further behind
+    tr = _late_tracker("slow")
+    assert tr.catch_up is False
+    tr.busy.append((1.0, 40.0))
+    assert tr.take(2.0, 8064, 8032) == (None, "re-looking")
+    assert tr.take(40.0, 8000, 7968) == (40.0, "")
+
+
+def test_a_pass_takes_the_frames_due_during_its_re_looks_late():
+    from tests.fly.test_pass_3d import _world
+
+    world = _world()
+    base = PassConfig(agility="fast", compute_budget_s=0.05, relook_km=(499.0, 497.0),
+                      relook_s=1.0)  # fmt: skip
+    r = fly_pass(world, None, base)
+    windows = r.relook_windows
+    due = {rec.frame: r.frames.acquired_s(rec.frame) for rec in r.records}
+    inside = {k for k, t in due.items() if any(a <= t < b for a, b in windows)}
+    late = {rec.frame for rec in r.records if not rec.dropped and rec.acquired_s > due[rec.frame]}
+    skipped = {rec.frame for rec in r.records if rec.path == CATCH_UP_SKIP}
+    assert inside and inside <= late | skipped and late  # none lost: taken late, or seen
+    for rec in r.records:
+        if rec.frame in late:  # taken after the re-look that held the look-ahead
+            assert not any(a <= rec.acquired_s < b for a, b in windows)
+    totals = r.totals()
+    assert totals["frames_lost_to_relooks"] == 0
+    assert totals["frames_caught_up"] == len(late)
+    assert totals["frames_skipped_catching_up"] == len(skipped)
+
+
+def test_a_plume_seen_again_in_a_late_frame_is_the_same_plume():
+    # a 10 km top seen from 28 km nearer (4 s late) appears ~ h (tan t0 - tan t1) =
+    # 10 km * (500/500 - 472/500) (flat Earth) = 560 m = 17 WFOV px nearer the nadir
+    def run(due):
+        where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8128, 4)
+        tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+                           measure=False, log=lambda s: None)  # fmt: skip
+        m0 = np.zeros((FP, 64), bool)
+        m0[2:10, 20:30] = True  # strip rows 8130-8137 (frame 0's top is 8128)
+        tr.frame(0, 0.0, 8128, m0, None, last=False)
+        m1 = np.zeros((FP, 64), bool)
+        m1[34 + 17 : 42 + 17, 20:30] = True  # the same rows (8130-) in frame 1 (top 8096), 17 lower
+        ids = tr.frame(1, 4.0 + 0.145, 8096, m1, None, last=False, due=due)
+        return set(np.unique(ids[m1]).tolist()), len(tr.plumes)
+
+    assert run(due=0.145) == ({1}, 1)  # allowed for: tracked
+    assert run(due=None) == ({2}, 2)  # as if on time: 17 px away from its footprint, new

@@ -136,6 +136,8 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
         kw["parallax"] = mode
     if args.relook_km is not None:
         kw["relook_km"] = args.relook_km
+    if args.no_catch_up:
+        kw["catch_up"] = False
     return kw
 
 
@@ -511,7 +513,13 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         help="how far ahead of the nadir the look-ahead re-looks at a new plume, km, nearest "
         "last (default 300: one re-look, with re-looks nearer in time added where a frame is "
         "too short for the search; two or more also fit a rising top, e.g. 400,300); each "
-        "re-look costs look-ahead time (frames not taken)",
+        "re-look costs look-ahead time (frames taken late, or lost)",
+    )
+    par.add_argument(
+        "--no-catch-up",
+        action="store_true",
+        help="lose the look-ahead frames due during a re-look instead of taking them late, "
+        "pitching back to them once the re-look is over (the default catches up)",
     )
 
 

@@ -47,7 +47,10 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   height per pointing by :attr:`PassConfig.parallax`: none (``"off"``), the prior,
   the world's true heights (``"true"``) or heights measured on the pass from
   re-looks of the look-ahead (``"estimated"``, :mod:`dyntarget.predict.relooks`, whose
-  cost is frames not taken while it re-looks). The schedule is decided once, at the
+  cost is look-ahead time: the frames due while it re-looks are taken late, catching up,
+  or lost; :meth:`~dyntarget.predict.relooks.HeightTracker.take` decides when each frame
+  is taken, and a late frame is the look from the nadir at its own time, ``t_k`` staying
+  its reference for the schedule). The schedule is decided once, at the
   frame's plan time, with the aim each pointing will have when flown (the estimate
   from when it is usable, the prior before); a flight system would re-plan then.
 * **Prediction.** ``predict`` asks the predict stage's entry point
@@ -80,7 +83,7 @@ from dyntarget.masks import mask_to_polygons
 from dyntarget.observe import score_pointings
 from dyntarget.observe.bound import pass_upper_bound
 from dyntarget.passes.record import (
-    RELOOK_DROP,
+    NOT_TAKEN,
     Flown,
     FramePlan,
     FrameRecord,
@@ -154,6 +157,9 @@ class PassState:
         The timeline so far.
     flown : Flown
         The pointings flown so far.
+    late_s : dict of int to float
+        When each frame taken late was taken (the look-ahead catching up after a
+        re-look, :meth:`~dyntarget.predict.relooks.HeightTracker.take`), pass seconds.
     """
 
     covered: np.ndarray
@@ -166,6 +172,7 @@ class PassState:
     plumes_seen: set[int] = field(default_factory=set)
     records: list[FrameRecord] = field(default_factory=list)
     flown: Flown = field(default_factory=Flown)
+    late_s: dict[int, float] = field(default_factory=dict)  # frames taken late: when
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,7 +315,7 @@ def _prepare(
                 prior = (-wind[0] * math.sin(rad), -wind[0] * math.cos(rad))
             tracker = HeightTracker(
                 where, config.limits, config.relook_km, config.relook_s, config.plume_height_m,
-                prior, measure=mode == "estimated", log=_stderr,
+                prior, measure=mode == "estimated", log=_stderr, catch_up=config.catch_up,
             )  # fmt: skip
         ctx = replace(ctx, mode=mode, where=where, tracker=tracker)
     return ctx, geo_info, geo_times
@@ -406,26 +413,35 @@ def _render(
 
 
 def _heights(
-    ctx: _Pass, k: int, result: PlanResult, image: np.ndarray, stage: dict[str, float]
+    ctx: _Pass,
+    k: int,
+    t_look: float,
+    result: PlanResult,
+    image: np.ndarray,
+    stage: dict[str, float],
 ) -> np.ndarray | None:
-    """Track frame ``k``'s plumes and measure new ones (``stage["heights"]``: the compute, not
-    the simulator's rendering of the re-looks); the frame's plume-id map (``None``: no tracker)."""
+    """Track frame ``k``'s plumes (taken at ``t_look``) and measure new ones
+    (``stage["heights"]``: the compute, not the simulator's rendering of the re-looks); the
+    frame's plume-id map (``None``: no tracker)."""
     tracker, frames = ctx.tracker, ctx.frames
     if tracker is None:
         return None
     spent = [0.0]
     t0 = time.perf_counter()
     target = result.mask if result.predicted_mask is None else result.predicted_mask
+    t_k = frames.acquired_s(k)
     pids = tracker.frame(
-        k, frames.acquired_s(k), frames.tops[k], target, _render(ctx, spent),
+        k, t_look, frames.tops[k], target, _render(ctx, spent),
         last=k == frames.n_frames - 1, raw=result.raw_mask,
+        due=t_k if t_look > t_k else None,
     )  # fmt: skip
     stage["heights"] = time.perf_counter() - t0 - spent[0]
     return pids
 
 
-def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
-    """The parallax correction of frame ``k``'s pointings (``None``: not corrected).
+def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> ParallaxAim | None:
+    """The parallax correction of frame ``k``'s pointings, the frame taken at ``t_look``
+    (``None``: not corrected).
 
     Each pointing's height: ``"prior"``, the prior; ``"estimated"``, its plume's estimate
     from when it is usable (:meth:`~dyntarget.predict.relooks.HeightTracker.height_at`), the
@@ -456,7 +472,7 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
             inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
             pid = np.zeros(len(pts), np.int64)
             pid[inside] = pids[rows[inside], cols[inside]]
-            at = t_k if look else None
+            at = t_look if look else None
             return np.array(
                 [
                     tracker.height_at(int(i), t_k + float(t), None if at is None else at)
@@ -468,7 +484,9 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None) -> ParallaxAim | None:
         return heights_m
 
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
-    return ParallaxAim(frames.geometry, shape, field(look=False), field(look=True))
+    return ParallaxAim(
+        frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k
+    )
 
 
 def _true_heights(
@@ -525,23 +543,34 @@ def _fly_frame(
     """Frame ``k``: look, plan, schedule behind the committed pointings, score, record."""
     frames, config = ctx.frames, ctx.config
     t_k, top = frames.acquired_s(k), frames.tops[k]
-    start = max(t_k, state.busy_until)
-    wait = start - t_k
-    if ctx.tracker is not None and ctx.tracker.busy_at(t_k):  # the look-ahead is re-looking
-        record = FrameRecord(
-            k, t_k, start, start, wait, {}, None, RELOOK_DROP, 0, 0, 0, 0, 0, 0, 0, True
-        )
-        return record, None, None
+    t_look = t_k  # when the look-ahead takes it: later when it is behind after a re-look
+    if ctx.tracker is not None:
+        nxt = frames.tops[k + 1] if k + 1 < frames.n_frames else None
+        taken, why = ctx.tracker.take(t_k, top, nxt)
+        if taken is None:
+            start = max(t_k, state.busy_until)
+            record = FrameRecord(
+                k, t_k, start, start, start - t_k, {}, None, NOT_TAKEN[why],
+                0, 0, 0, 0, 0, 0, 0, True,
+            )  # fmt: skip
+            return record, None, None
+        if taken > t_k:
+            t_look = state.late_s[k] = taken
+    start = max(t_look, state.busy_until)
+    wait = start - t_look
     if config.deadline_s is not None and wait >= config.deadline_s:  # too far behind: skip it
         record = FrameRecord(
-            k, t_k, start, start, wait, {}, False, "dropped: loop behind", 0, 0, 0, 0, 0, 0, 0, True
-        )
+            k, t_look, start, start, wait, {}, False, "dropped: loop behind",
+            0, 0, 0, 0, 0, 0, 0, True,
+        )  # fmt: skip
         return record, None, None
-    image, valid, mask = _look(ctx, k, t_k)
+    image, valid, mask = _look(ctx, k, t_look)
     t_loop = time.perf_counter()
     result, stage, prediction = _plan_frame(ctx, k, image, valid, mask, start, state)
     heights: dict[str, float] = {}
-    aim = _aim(ctx, k, _heights(ctx, k, result, image, heights)) if ctx.where else None
+    aim = None
+    if ctx.where:
+        aim = _aim(ctx, k, _heights(ctx, k, t_look, result, image, heights), t_look)
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
@@ -558,9 +587,9 @@ def _fly_frame(
     _cover_plumes(
         target_mask, todo.rows, todo.cols, flown_local, len(result.trajectory), top, state
     )
-    met = None if config.deadline_s is None else (ready - t_k) <= config.deadline_s
+    met = None if config.deadline_s is None else (ready - t_look) <= config.deadline_s
     record = FrameRecord(
-        k, t_k, start, ready, ready - t_k, stage, met, "; ".join(result.path),
+        k, t_look, start, ready, ready - t_look, stage, met, "; ".join(result.path),
         len(result.trajectory), todo.skipped, len(flown.kept), *gains, loop_s=loop_s,
     )  # fmt: skip
     return record, image, result
@@ -593,6 +622,7 @@ def _plan_frame(
     """
     config, frames = ctx.config, ctx.frames
     t_k = frames.acquired_s(k)
+    t_look = state.late_s.get(k, t_k)
     predictive = config.predict != "none"
     deadline = config.deadline_s
     result = plan_scene(
@@ -603,7 +633,7 @@ def _plan_frame(
         valid=valid,
         denoise=config.denoise,
         config=config.pipeline,
-        deadline_s=None if deadline is None else deadline - (start - t_k),
+        deadline_s=None if deadline is None else deadline - (start - t_look),
         fallback=ctx.fallback,
     )
     stage = _stage_times(result.timings)
@@ -858,6 +888,9 @@ def _motion(
         return plume_motion(prior)
     looks = (prev_image, image, prev_mask, clean)
     interval = (k - k0) * frames.cadence_s
+    if state.late_s:  # frames taken late, catching up after a re-look
+        interval += state.late_s.get(k, frames.acquired_s(k)) - frames.acquired_s(k)
+        interval -= state.late_s.get(k0, frames.acquired_s(k0)) - frames.acquired_s(k0)
     return plume_motion(prior, looks, interval, offset_rows=offset, ground=config.ground)
 
 

@@ -90,6 +90,9 @@ class PassConfig:
         (``"estimated"`` mode).
     relook_s : look-ahead time per re-look, seconds (``None``: from the agility preset's
         slew model, :func:`dyntarget.predict.relooks.relook_seconds`).
+    catch_up : the regular frames due during a re-look are taken late, the look-ahead
+        pitching back to them (:meth:`dyntarget.predict.relooks.HeightTracker.take`);
+        ``False``: they are lost.
     """
 
     planner: str = "lawnmower-transect"
@@ -112,6 +115,7 @@ class PassConfig:
     plume_height_m: float | None = None
     relook_km: tuple[float, ...] = RELOOK_KM
     relook_s: float | None = None
+    catch_up: bool = True
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -228,9 +232,12 @@ class PassConfig:
         d = asdict(self)
         d.pop("pipeline")
         if self.parallax in ("auto", "off") and (
-            self.plume_height_m is None and self.relook_km == RELOOK_KM and self.relook_s is None
+            self.plume_height_m is None
+            and self.relook_km == RELOOK_KM
+            and self.relook_s is None
+            and self.catch_up
         ):  # no parallax settings given (or a flat world's): the record as before them
-            for k in ("parallax", "plume_height_m", "relook_km", "relook_s"):
+            for k in ("parallax", "plume_height_m", "relook_km", "relook_s", "catch_up"):
                 d.pop(k)
         else:
             d["relook_km"] = list(self.relook_km)
@@ -426,6 +433,14 @@ class FrameRecord:
 
 RELOOK_DROP = "dropped: look-ahead re-looking"
 """The path of a frame not taken because the look-ahead was re-looking at a plume."""
+RELOOK_LATE = "dropped: look-ahead re-looking, too late to catch up"
+"""The path of a frame the look-ahead, behind after re-looks, could not take before the
+NFOV's reach (:meth:`dyntarget.predict.relooks.HeightTracker.take`)."""
+CATCH_UP_SKIP = "skipped: its ground seen by the catch-up's frames"
+"""The path of a frame not taken while the look-ahead catches up: the frames taken
+before and after it see its ground."""
+NOT_TAKEN = {"re-looking": RELOOK_DROP, "too late": RELOOK_LATE, "covered": CATCH_UP_SKIP}
+"""The path recorded for each reason a regular frame is not taken."""
 
 TIMELINE_COLUMNS = tuple(
     FrameRecord(0, 0, 0, 0, 0, {}, None, "", 0, 0, 0, 0, 0, 0, 0).row(measured=True)
@@ -566,7 +581,9 @@ class PassResult:
             Strip, planner, agility, frame and pointing counts, plume pixels, utility,
             ratio plume, plumes observed and in total, median and largest latency,
             ``parallax`` (the mode flown); on a 3D world also ``relooks``,
-            ``frames_lost_to_relooks``, ``plumes_height_estimated``, ``height_rmse_m`` and
+            ``frames_lost_to_relooks`` (not seen at all), ``frames_caught_up`` and
+            ``frames_skipped_catching_up`` (with ``catch_up``), ``plumes_height_estimated``,
+            ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
             ``heights_median_s`` (the height work's median wall time per frame; ``None``
             with a fixed compute budget).
@@ -592,6 +609,16 @@ class PassResult:
             **(self._parallax_totals() if self.is_3d else {}),
         }
 
+    def _catch_up_totals(self) -> dict[str, int]:
+        """Frames the look-ahead took late after re-looks, and those it skipped meanwhile."""
+        late = sum(
+            not r.dropped and r.acquired_s > self.frames.acquired_s(r.frame) for r in self.records
+        )
+        return {
+            "frames_caught_up": late,
+            "frames_skipped_catching_up": sum(r.path == CATCH_UP_SKIP for r in self.records),
+        }
+
     def _parallax_totals(self) -> dict[str, Any]:
         """Re-looks, frames they cost, plumes measured and the height error against the truth."""
         est = [e for e in self.heights if e.height_source == "estimated"]
@@ -603,7 +630,10 @@ class PassResult:
         hs = [r.stage_s["heights"] for r in self.records if "heights" in r.stage_s]
         return {
             "relooks": len(self.relook_windows),
-            "frames_lost_to_relooks": sum(r.path == RELOOK_DROP for r in self.records),
+            "frames_lost_to_relooks": sum(
+                r.path in (RELOOK_DROP, RELOOK_LATE) for r in self.records
+            ),
+            **(self._catch_up_totals() if self.config.catch_up else {}),
             "plumes_height_estimated": len(est),
             "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
             "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,

@@ -30,12 +30,30 @@ Model (what is and is not modelled):
   where they do not fit in one window, where the largest will. No re-look is taken once
   none of the frame's plumes is left to measure. It occupies the look-ahead for ``relook_s`` (the pitch
   change there and back on the agility preset's slew model, two settles and one
-  exposure: :func:`relook_seconds`); a regular frame acquired meanwhile is not taken (the
-  loop records it dropped) - that is the cost. A re-look that would start while the
+  exposure: :func:`relook_seconds`); a regular frame due meanwhile is taken late
+  (below) or, without catching up, not at all (the loop records it dropped) - that is the
+  cost. A re-look that would start while the
   look-ahead is busy with another waits for it, at most one re-look's duration, else it
   is not taken. The plumes of one frame share its re-looks, and a plume of a later frame
   shares a re-look already taken within one re-look's duration of the time it wants
   whose window holds it (a margin included).
+* **Catching up** (:meth:`HeightTracker.take`; ``catch_up=False``: every regular frame
+  due during a re-look is lost, as before). The look-ahead stares at its regular pitch,
+  ``look_ahead_m`` ahead, and a frame on time costs it nothing. A frame due while it
+  re-looks (or while it is still behind) is taken late, from nearer: the look-ahead pitches
+  back to that frame's ground (the pitch change from where it last looked, on the agility
+  preset's slew model, conservatively a whole frame's ground at a time), settles and
+  exposes (``dwell_s``), then goes on to the next, until a frame's time comes before the
+  look-ahead is ready again: it is back on its pitch. It catches up only where it gains
+  on the ground: where a frame taken late costs less than the time the frame's ground
+  takes to pass (``fast`` on frames of 2 km or more at the default geometry; ``slow``,
+  which settles for a second, on none: its frames due during a re-look are lost). While behind, a frame whose ground
+  the next frame and the last one taken cover between them (frames overlap) is skipped.
+  A frame whose centre would already be within the NFOV's forward reach (its field of
+  regard; the nadir without one) when taken is lost. A re-look booked later waits for the
+  frame the look-ahead is taking. A late frame's plumes are seen at a smaller view angle:
+  tracking allows for it (:data:`TRACK_HEIGHT_M`), and a new plume is measured from that
+  look's own geometry.
 * **Measurement: the envelope.** A plume attached to its vent keeps its envelope (the
   mask's shape) at the vent while the wind blows its texture through it; so the
   envelope is measured, not the texture: the displacement between frame ``k``'s mask
@@ -76,8 +94,9 @@ Model (what is and is not modelled):
   (60 m per m/s at the default geometry, ``docs/plumes-3d.md``); a cross-track drift is
   measured by the looks. A plume cut by the strip's side keeps a cut envelope.
 * **Not modelled:** the plume's change of shape between looks beyond a translation (and
-  the growth of its downwind end, left out of the match), and the look-ahead's own
-  scanning being re-planned around the re-looks.
+  the growth of its downwind end, left out of the match), re-looks planned around the
+  regular frames (they are booked when a plume is seen, and the frames make way), and a
+  late frame's stretched footprint (it is rendered on the regular frame's grid).
 """
 
 from __future__ import annotations
@@ -94,7 +113,7 @@ from dyntarget import parallax
 from dyntarget.errors import InvalidParameterError
 from dyntarget.predict.height import HeightFit, Look, envelope_disparity, fit_height
 from dyntarget.schedule import Agility, OrbitGeometry
-from dyntarget.schedule.kinematics import angle_between_deg, look_vectors
+from dyntarget.schedule.kinematics import EARTH_RADIUS_M, angle_between_deg, look_vectors
 
 MIN_PLUME_PX = 6
 """Fewest WFOV pixels of a plume (its components grouped, :data:`GROUP_PX`) tracked."""
@@ -130,6 +149,10 @@ MAX_SIGMA_M = 1500.0
 (e.g. the flow followed something else than the plume in a re-look)."""
 GUESS_HEIGHT_M = 8500.0
 """Height guessed for the disparity's search when no prior is given (mid-range of 2-15 km)."""
+TRACK_HEIGHT_M = 20_000.0
+"""Highest plume top the tracker allows for when it matches a frame taken late: such a
+frame sees its plumes from nearer, displaced towards the nadir by up to this height's
+change of parallax, and a plume tracked on an earlier frame is looked for that far."""
 RELOOK_KM = (300.0,)
 """Default re-look distances ahead of the nadir, km: one re-look, 300 km ahead (from
 500 km, tan(theta) falls by 0.468: the longest baseline the NFOV's lead leaves). Two
@@ -448,6 +471,9 @@ class HeightTracker:
         Take re-looks and estimate heights (``"estimated"`` mode); otherwise only track.
     log : callable
         Where a plume's fallback line goes (stderr in the pass loop).
+    catch_up : bool
+        Take the regular frames due during a re-look late (:meth:`take`) instead of
+        losing them.
     """
 
     def __init__(
@@ -461,9 +487,24 @@ class HeightTracker:
         *,
         measure: bool,
         log: Callable[[str], None],
+        catch_up: bool = True,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log = measure, log
+        g, frame_m = where.geometry, where.frame_px * where.geometry.wfov_gsd_m
+        step = _pitch_deg(g, g.look_ahead_m, g.look_ahead_m - frame_m)
+        late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
+        self.catch_up = catch_up and late_frame_s < frame_m / g.ground_speed
+        """Whether frames due during a re-look are taken late: asked for, and the look-ahead
+        gains on the ground (a frame taken late, a whole frame's pitch step, settling and
+        exposure, costs less than the time its ground takes to pass)."""
+        self.free_s = 0.0
+        """When the look-ahead is done with the last frame it took late, pass seconds."""
+        self.pitch_m: float | None = None
+        """How far ahead of the nadir it last looked while behind (``None``: on its pitch)."""
+        self.last_top: int | None = None
+        """The top strip WFOV row of the last regular frame taken."""
+        self.reach_m = _reach_m(where.geometry, agility)
         self.distances_m = tuple(float(d) * 1e3 for d in relook_km)
         self.relook_s = relook_s
         self.fit_rise = len(self.distances_m) >= 2
@@ -494,9 +535,97 @@ class HeightTracker:
         """
         return any(a <= t < b for a, b in self.busy)
 
+    def take(self, t_due: float, top: int, next_top: int | None) -> tuple[float | None, str]:
+        """When the look-ahead takes the regular frame due at ``t_due`` (the model's
+        "catching up"), or why it does not.
+
+        Parameters
+        ----------
+        t_due : float
+            When the frame is due (its acquisition on the regular cadence), pass seconds.
+        top : int
+            Its top strip WFOV row.
+        next_top : int or None
+            The next frame's top row (``None``: the pass's last frame).
+
+        Returns
+        -------
+        tuple
+            ``(t, "")``: taken at pass time ``t`` (``t_due`` on time, later when late);
+            ``(None, why)``: not taken, ``why`` one of ``"re-looking"`` (due during a
+            re-look, without catching up), ``"covered"`` (its ground is seen by the last
+            frame taken and the next) or ``"too late"`` (its centre would be within the
+            NFOV's reach).
+
+        Examples
+        --------
+        A re-look from 1.0 to 4.8 s (``fast``, 300 km ahead): the frame due at 2.0 s is
+        taken late, once the look-ahead is back and has pitched to it.
+
+        >>> from dyntarget.schedule import get_agility
+        >>> where = Geometry3D(OrbitGeometry(wfov_gsd_m=32.0), (4096, 64), 64, 4032, 4)
+        >>> tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+        ...                    measure=False, log=print)
+        >>> tr.take(0.0, 4032, 4000)
+        (0.0, '')
+        >>> tr.busy.append((1.0, 4.8))
+        >>> t, why = tr.take(2.0, 3968, 3936)
+        >>> 4.8 < t < 5.5, why
+        (True, '')
+        """
+        busy = self.busy_at(t_due)
+        if not self.catch_up:
+            return (None, "re-looking") if busy else (t_due, "")
+        if not busy and self.pitch_m is None and t_due >= self.free_s:  # on time
+            self.last_top = top
+            return t_due, ""
+        fp = self.where.frame_px
+        if next_top is not None and self.last_top is not None and next_top + fp >= self.last_top:
+            return None, "covered"  # the next frame abuts the last one taken
+        g, a = self.where.geometry, self.agility
+        v, ahead = g.ground_speed, g.look_ahead_m
+        start, prev = self.free_s, ahead if self.pitch_m is None else self.pitch_m
+        while True:
+            t = self._on_frame(t_due, start, prev)
+            clash = [b for s, b in self.busy if s < t + a.dwell_s and b > start]
+            if not clash:
+                break
+            start, prev = max(clash), ahead  # a re-look first; it returns to the pitch
+        along = ahead - v * (t - t_due)
+        if along < self.reach_m:
+            return None, "too late"
+        on_time = t <= t_due
+        self.pitch_m = None if on_time else along
+        self.free_s = t if on_time else t + a.dwell_s
+        self.last_top = top
+        return t, ""
+
+    def _on_frame(self, t_due: float, start: float, prev_m: float) -> float:
+        """The first time (>= ``t_due``) at which the look-ahead, free from ``start`` and
+        looking ``prev_m`` ahead of the nadir, can be pitched to and settled on the regular
+        frame due at ``t_due`` (the frame comes nearer meanwhile: bisection on the time)."""
+        g, a = self.where.geometry, self.agility
+        v, ahead = g.ground_speed, g.look_ahead_m
+
+        def behind(t: float) -> bool:  # not yet settled on the frame at t
+            step = _pitch_deg(g, prev_m, ahead - v * (t - t_due))
+            return start + a.slew_time_one(step) + a.settle_s > t
+
+        lo = max(start, t_due)
+        if not behind(lo):
+            return lo
+        hi = lo + 1.0
+        while behind(hi):
+            lo, hi = hi, hi + 2.0 * (hi - lo)
+        while hi - lo > 1e-9:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if behind(mid) else (lo, mid)
+        return hi
+
     def _free_from(self, t: float, duration: float) -> float:
-        """The first time at or after ``t`` at which ``duration`` s of look-ahead are free."""
-        start = t
+        """The first time at or after ``t`` (and after the frame the look-ahead is taking)
+        at which ``duration`` s of look-ahead are free."""
+        start = max(t, self.free_s)
         for a, b in sorted(self.busy):
             if start < b and start + duration > a:
                 start = b
@@ -513,6 +642,7 @@ class HeightTracker:
         *,
         last: bool,
         raw: np.ndarray | None = None,
+        due: float | None = None,
     ) -> np.ndarray:
         """Track frame ``k``'s plumes, take and measure re-looks of new ones.
 
@@ -533,6 +663,10 @@ class HeightTracker:
         raw : numpy.ndarray or None
             ``(H_f, W)`` bool mask before denoising (``None``: ``mask``): the envelope is
             matched on it, as the re-looks' masks are not denoised either.
+        due : float or None
+            When the frame was due, if it was taken late (``t_k`` later, :meth:`take`):
+            its plumes appear nearer the nadir than on an earlier frame, by up to the
+            parallax change of :data:`TRACK_HEIGHT_M`, and are matched that far ahead.
 
         Returns
         -------
@@ -548,16 +682,23 @@ class HeightTracker:
         out = np.zeros(mask.shape, np.int32)
         new: list[tuple[int, np.ndarray, np.ndarray]] = []
         ready: list[Plume] = []
-        near = np.ones((2 * MATCH_PX + 1, 2 * MATCH_PX + 1), np.uint8)
+        late = 0  # rows ahead a tracked plume's footprint may lie, in a frame taken late
+        if due is not None and t_k > due:
+            y = top + (mask.shape[0] - 1) / 2.0
+            late = math.ceil(self.where.disparity_rows(y, due, t_k, TRACK_HEIGHT_M))
+        near = np.ones((2 * MATCH_PX + 1 + late, 2 * MATCH_PX + 1), np.uint8)
         for i in range(1, n):
             if areas[i] < MIN_PLUME_PX:
                 continue
             on = comp == i
             rows, cols = np.nonzero(on)
-            r0, r1 = max(int(rows.min()) - MATCH_PX, 0), int(rows.max()) + MATCH_PX + 1
+            lo = int(rows.min()) - MATCH_PX - late
+            r0, r1 = max(lo, -top), int(rows.max()) + MATCH_PX + 1
             c0, c1 = max(int(cols.min()) - MATCH_PX, 0), int(cols.max()) + MATCH_PX + 1
             r1, c1 = min(r1, mask.shape[0]), min(c1, mask.shape[1])
-            grown = cv2.dilate(on[r0:r1, c0:c1].astype(np.uint8), near) > 0
+            box = np.zeros((r1 - r0, c1 - c0), np.uint8)
+            box[max(-r0, 0) :, :] = on[max(r0, 0) : r1, c0:c1]
+            grown = cv2.dilate(box, near, anchor=(MATCH_PX, MATCH_PX)) > 0
             under = self.labels[top + r0 : top + r1, c0:c1][grown]
             under = under[under > 0]
             if len(under):
@@ -976,3 +1117,19 @@ class HeightTracker:
                 )
             )
         return tuple(out)
+
+
+def _reach_m(geometry: OrbitGeometry, agility: Agility) -> float:
+    """Ground distance ahead of the nadir at which the NFOV's field of regard begins, m
+    (0 without one): ``R (asin((R + H) sin(a) / R) - a)`` for an off-nadir angle ``a``."""
+    if agility.field_of_regard_deg is None:
+        return 0.0
+    a, r = math.radians(agility.field_of_regard_deg), EARTH_RADIUS_M
+    return r * (math.asin((r + geometry.altitude_m) * math.sin(a) / r) - a)
+
+
+def _pitch_deg(geometry: OrbitGeometry, from_m: float, to_m: float) -> float:
+    """Degrees between the look-ahead's lines of sight to ground ``from_m`` and ``to_m``
+    ahead of the nadir (the pitch change between two looks)."""
+    a = look_vectors(geometry, np.array([from_m, to_m]), np.zeros(2), 0.0)
+    return float(angle_between_deg(a[0], a[1]))

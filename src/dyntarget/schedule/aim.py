@@ -134,6 +134,11 @@ class ParallaxAim:
         top that does not rise between the look and the pointing). A rising column
         needs it: using its later height for both views misplaces it by the rise times
         the look-ahead's ``tan`` of its view zenith angle.
+    look_s : float
+        When the look-ahead took the frame, seconds after the acquisition that
+        ``geometry`` and ``t_s`` refer to (>= 0): a frame taken late, catching up after
+        a re-look (:class:`dyntarget.predict.relooks.HeightTracker`), was seen from a
+        nadir ``ground_speed * look_s`` further along, at a smaller view angle. 0: on time.
 
     Examples
     --------
@@ -149,14 +154,30 @@ class ParallaxAim:
     [[0.0, 115.01]]
     >>> bool(np.abs(aim.shift(np.array([[50.0, 50.0]]), 0.0)).max() < 1e-6)  # flown at t = 0: no move
     True
+
+    The same frame taken 4 s late (the look-ahead catching up after a re-look) saw the
+    top from 28 km nearer, less displaced: a pointing flown at that moment does not move
+    either, and one flown over the top moves less than the on-time frame's 115 px.
+
+    >>> late = ParallaxAim(g, (101, 101), aim.heights_m, look_s=4.0)
+    >>> bool(np.abs(late.shift(np.array([[50.0, 50.0]]), 4.0)).max() < 1e-6)
+    True
+    >>> 0 < float(late.shift(np.array([[50.0, 50.0]]), t)[0, 1]) < 115.0
+    True
     """
 
     geometry: OrbitGeometry
     frame_shape: tuple[int, int]
     heights_m: HeightField
     look_heights_m: HeightField | None = None
+    look_s: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.look_s, (int, float)) and math.isfinite(self.look_s)
+                and self.look_s >= 0):  # fmt: skip
+            raise InvalidParameterError(
+                f"look_s: expected seconds >= 0 after the acquisition, got {self.look_s!r}"
+            )
         if not isinstance(self.geometry, OrbitGeometry):
             raise InvalidParameterError(
                 f"geometry: expected an OrbitGeometry, got {type(self.geometry).__name__}"
@@ -272,7 +293,9 @@ class ParallaxAim:
         g = self.geometry
         along, cross = g.ground(pts[on], self.frame_shape)
         alt = g.altitude_m
-        true_a, true_c = parallax.unshift_xy(alt, along, cross, h_look[on])  # look-ahead, t = 0
+        seen = g.ground_speed * self.look_s  # the look-ahead's nadir when it took the frame
+        true_a, true_c = parallax.unshift_xy(alt, along - seen, cross, h_look[on])
+        true_a = true_a + seen
         moved = g.ground_speed * t[on]  # the NFOV's nadir at t, along the track
         rel_a = true_a - moved
         finite = np.isfinite(true_a) & np.isfinite(true_c)
