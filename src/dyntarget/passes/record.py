@@ -582,7 +582,8 @@ class PassResult:
             ratio plume, plumes observed and in total, median and largest latency,
             ``parallax`` (the mode flown); on a 3D world also ``relooks``,
             ``frames_lost_to_relooks`` (not seen at all), ``frames_caught_up`` and
-            ``frames_skipped_catching_up`` (with ``catch_up``), ``plumes_height_estimated``,
+            ``frames_skipped_catching_up`` (estimated heights with ``catch_up``),
+            ``plumes_height_estimated``,
             ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
             ``heights_median_s`` (the height work's median wall time per frame; ``None``
@@ -609,6 +610,11 @@ class PassResult:
             **(self._parallax_totals() if self.is_3d else {}),
         }
 
+    @property
+    def _catches_up(self) -> bool:
+        """Whether the pass re-looked with catching up asked for (``"estimated"`` heights)."""
+        return self.parallax == "estimated" and self.config.catch_up
+
     def _catch_up_totals(self) -> dict[str, int]:
         """Frames the look-ahead took late after re-looks, and those it skipped meanwhile."""
         late = sum(
@@ -633,7 +639,7 @@ class PassResult:
             "frames_lost_to_relooks": sum(
                 r.path in (RELOOK_DROP, RELOOK_LATE) for r in self.records
             ),
-            **(self._catch_up_totals() if self.config.catch_up else {}),
+            **(self._catch_up_totals() if self._catches_up else {}),
             "plumes_height_estimated": len(est),
             "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
             "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,
