@@ -1,0 +1,106 @@
+"""docs/plumes-3d.md's benchmark tables are the records' numbers (they cannot drift apart).
+
+Each row the page quotes is written again here from the JSON record its paragraph names
+(``docs/benchmarks/parallax_*.json``, written by ``benchmarks/parallax_targets.py``) and
+must appear in the page verbatim: rerunning a benchmark without updating the page, or
+editing a number by hand, fails here.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = (ROOT / "docs" / "plumes-3d.md").read_text(encoding="utf-8")
+
+
+def _record(name: str) -> dict:
+    return json.loads((ROOT / "docs" / "benchmarks" / name).read_text(encoding="utf-8"))
+
+
+def _observed(rows: list[dict], agility: str, mode: str) -> int:
+    return sum(r["plumes_observed"] for r in rows if r["agility"] == agility and r["mode"] == mode)
+
+
+def _cell(summary: dict, rows: list[dict], agility: str, mode: str, bold: bool = False) -> str:
+    s = summary[agility][mode]
+    text = f"{s['utility']:.1f} ({s['fraction_of_flat']:.2f}; {_observed(rows, agility, mode)})"
+    return f"**{text}**" if bold else text
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_long_pass_table_on_8_km_frames_is_its_record(agility):
+    long = _record("parallax_long_1024.json")["long"]
+    s, rows = long["summary"], long["rows"]
+    flat = f"{s[agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+    est, nc = s[agility]["estimated"], s[agility]["estimated-nc"]
+    row = (
+        f"| `{agility}` | {flat} | {_cell(s, rows, agility, 'true')} | "
+        f"{_cell(s, rows, agility, 'estimated', bold=True)} | "
+        f"{est['frames_caught_up']} ({est['frames_lost_to_relooks']} lost) | "
+        f"{_cell(s, rows, agility, 'estimated-nc')} | {nc['frames_lost_to_relooks']} | "
+        f"{_cell(s, rows, agility, 'estimated-2')} |"
+    )
+    assert row in PAGE
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_long_pass_table_on_2_km_frames_is_its_record(agility):
+    long = _record("parallax_long.json")["long"]
+    s, rows = long["summary"], long["rows"]
+    flat = f"{s[agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+    est, nc = s[agility]["estimated"], s[agility]["estimated-nc"]
+    cells = [_cell(s, rows, agility, m) for m in ("off", "prior", "true")]
+    row = (
+        f"| `{agility}` | {flat} | {' | '.join(cells)} | "
+        f"{_cell(s, rows, agility, 'estimated', bold=True)} | "
+        f"{est['frames_caught_up']} / {est['frames_lost_to_relooks']} | "
+        f"{_cell(s, rows, agility, 'estimated-nc')} | {nc['frames_lost_to_relooks']} | "
+        f"{_cell(s, rows, agility, 'estimated-2')} |"
+    )
+    assert row in PAGE
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_targeting_table_is_its_record(agility):
+    s = _record("parallax_targeting.json")["targeting"]["summary"][agility]
+
+    def cell(mode: str) -> str:
+        return f"{s[mode]['utility']:.1f} ({s[mode]['fraction_of_flat']:.2f})"
+
+    row = (
+        f"| `{agility}` | {s['flat']['utility']:.1f} | {cell('off')} | {cell('prior')} | "
+        f"{cell('true')} | **{cell('estimated')}** | {cell('estimated-2')} |"
+    )
+    assert row in PAGE
+
+
+def test_the_rise_table_is_its_record():
+    rise = _record("parallax_rise.json")["rise"]
+    rows = rise["rows"]
+    for lo, hi in ((10, 30), (30, 55), (55, 100)):
+        sel = [r for r in rows if lo <= r["rise_true_mps"] < (hi if hi < 100 else 101)]
+        fitted = sum(r["rise_mps"] is not None for r in sel)
+        assert (
+            f"| {lo}–{hi} m/s | {len(sel)} | {fitted} | {sum(r['within_25'] for r in sel)} |"
+            in PAGE
+        )
+    s = rise["summary"]
+    median = 100 * s["median_abs_relative_error"]
+    assert (
+        f"| all | {s['columns']} | {s['rise_fitted']} | **{s['within_25_percent']}** "
+        f"(median error {median:.1f} % of the fitted) |"
+    ) in PAGE
+
+
+def test_the_heights_row_is_its_record():
+    h = _record("parallax_heights.json")["heights"]["summary"]
+    bias = f"{round(h['bias_m']):,}".replace("-", "−")
+    row = (
+        f"| {h['plumes']} | {h['estimated']} | **{round(h['rmse_m'])} m** | **{bias} m** | "
+        f"{round(h['median_abs_m'])} m | {round(h['worst_abs_m']):,} m |"
+    )
+    assert row in PAGE
