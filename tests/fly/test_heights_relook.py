@@ -374,6 +374,16 @@ def test_relooks_nearer_in_time_are_added_only_where_the_search_does_not_fit(fra
 GSD, FP = 32.0, 64  # 64-row frames (2.05 km), half overlapping: due every 32 rows (0.145 s)
 
 
+def _take(tr, t_due, top, nxt=None):
+    """``tr.take`` as the loop calls it: the next frame 32 rows further (due one cadence
+    later) unless ``nxt`` says otherwise; a frame taken is then seen (planned)."""
+    cad = 32 * GSD / OrbitGeometry().ground_speed
+    got = tr.take(t_due, top, (top - 32, t_due + cad) if nxt is None else nxt or None)
+    if got[0] is not None:
+        tr.seen(top)
+    return got
+
+
 def _late_tracker(agility="fast"):
     where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8192 - FP, 4)
     return HeightTracker(
@@ -404,9 +414,9 @@ def _late_time(a, free, prev_m, t_due):
 
 def test_a_frame_due_during_a_re_look_is_taken_once_the_look_ahead_has_pitched_back_to_it():
     tr, a = _late_tracker(), get_agility("fast")
-    assert tr.take(0.0, 8128, 8096) == (0.0, "")  # on time: the regular stare costs nothing
+    assert _take(tr, 0.0, 8128) == (0.0, "")  # on time: the regular stare costs nothing
     tr.busy.append((1.0, 4.8))
-    t, why = tr.take(2.0, 8064, 8032)
+    t, why = _take(tr, 2.0, 8064)
     # back from the re-look at 4.8 s on the regular pitch (500 km ahead); the frame is then
     # 500 km - v (t - 2) ahead: pitch back, settle, expose
     assert why == "" and t == pytest.approx(_late_time(a, 4.8, 500e3, 2.0), abs=1e-3)
@@ -418,18 +428,18 @@ def test_while_behind_a_frame_whose_ground_the_next_one_covers_is_skipped():
     tr, a = _late_tracker(), get_agility("fast")
     v = OrbitGeometry().ground_speed
     cad = 32 * GSD / v
-    tr.take(0.0, 8128, 8096)
+    _take(tr, 0.0, 8128)
     tr.busy.append((0.5 * cad, 0.5 * cad + 3.8))  # frames 1..26 fall inside
-    t1, _ = tr.take(cad, 8096, 8064)  # late: rows 8096-8159 (abut the last taken, 8128?)
-    # the last taken (frame 0) covers rows 8128-8191; frame 2 (8064-8127) abuts it, so
+    t1, why1 = _take(tr, cad, 8096)
+    # the last seen (frame 0) covers rows 8128-8191; frame 2 (8064-8127) abuts it, so
     # frame 1 is skipped, frame 2 taken late
-    assert t1 is None and _ == "covered"
-    t2, why = tr.take(2 * cad, 8064, 8032)
+    assert t1 is None and why1 == "covered"
+    t2, why = _take(tr, 2 * cad, 8064)
     assert why == "" and t2 > 0.5 * cad + 3.8
     prev = tr.pitch_m
     assert prev == pytest.approx(500e3 - v * (t2 - 2 * cad))
-    assert tr.take(3 * cad, 8032, 8000) == (None, "covered")  # 8000 + 64 reaches 8064
-    t4, _ = tr.take(4 * cad, 8000, 7968)
+    assert _take(tr, 3 * cad, 8032) == (None, "covered")  # 8000 + 64 reaches 8064
+    t4, _ = _take(tr, 4 * cad, 8000)
     # from the last look's pitch to frame 4's ground, then settle: the root by hand
     assert t4 == pytest.approx(_late_time(a, t2 + a.dwell_s, prev, 4 * cad), abs=1e-3)
 
@@ -442,7 +452,7 @@ def test_the_look_ahead_catches_up_and_is_back_on_time():
     taken, n = [], 200
     for k in range(n):
         top = 8192 - FP - 32 * k
-        t, _ = tr.take(k * cad, top, top - 32 if k + 1 < n else None)
+        t, _ = _take(tr, k * cad, top, None if k + 1 < n else False)
         taken.append((k, t))
     late = [k for k, t in taken if t is not None and t > k * cad]
     assert late and max(late) < n - 1  # caught up before the end
@@ -467,7 +477,7 @@ def test_a_frame_whose_ground_the_nfov_can_already_reach_is_lost():
     g = math.radians(30.0)
     reach = R * (math.asin((R + H) * math.sin(g) / R) - g)
     assert 280e3 < reach < 300e3 and tr.reach_m == pytest.approx(reach, rel=1e-12)
-    assert tr.take(1.0, 8064, 8032) == (None, "too late")
+    assert _take(tr, 1.0, 8064) == (None, "too late")
     assert a.field_of_regard_deg == 30.0
 
 
@@ -477,8 +487,8 @@ def test_slow_agility_cannot_gain_on_the_ground_and_loses_the_frames():
     tr = _late_tracker("slow")
     assert tr.catch_up is False
     tr.busy.append((1.0, 40.0))
-    assert tr.take(2.0, 8064, 8032) == (None, "re-looking")
-    assert tr.take(40.0, 8000, 7968) == (40.0, "")
+    assert _take(tr, 2.0, 8064) == (None, "re-looking")
+    assert _take(tr, 40.0, 8000) == (40.0, "")
 
 
 def test_a_pass_takes_the_frames_due_during_its_re_looks_late():
@@ -520,3 +530,80 @@ def test_a_plume_seen_again_in_a_late_frame_is_the_same_plume():
 
     assert run(due=0.145) == ({1}, 1)  # allowed for: tracked
     assert run(due=None) == ({2}, 2)  # as if on time: 17 px away from its footprint, new
+
+
+def test_a_frame_is_not_skipped_when_the_next_would_come_too_late():
+    # behind by a re-look until 40 s: frame 1 abuts nothing new to skip for, but frame 2
+    # (which would cover its ground) could only be taken ~218 km ahead, inside the NFOV's
+    # reach: frame 1 is then not skipped as covered but is itself too late, and counted so
+    tr = _late_tracker()
+    _take(tr, 0.0, 8128)
+    tr.busy.append((0.1, 40.0))
+    assert _take(tr, 0.145, 8096) == (None, "too late")
+
+
+def test_a_frame_the_loop_did_not_plan_does_not_let_the_next_be_skipped():
+    # frame 0 taken but never seen (the loop dropped it, behind its deadline): frame 2's
+    # ground does not abut a frame seen, so frame 1 (late) is taken, not skipped
+    tr = _late_tracker()
+    assert tr.take(0.0, 8128, (8096, 0.145)) == (0.0, "")  # not followed by seen()
+    tr.busy.append((0.1, 3.0))
+    t, why = _take(tr, 0.145, 8096)
+    assert t is not None and why == ""
+
+
+def test_a_late_frame_is_rendered_aimed_and_measured_from_its_own_time(monkeypatch):
+    # the loop's wiring: a frame taken late is looked at, aimed from and tracked at the
+    # time the look-ahead took it (its record's acquired_s), not at its due time
+    from tests.fly.test_pass_3d import _world
+
+    import dyntarget.fly.loop as loop
+    import dyntarget.schedule as schedule
+
+    looks, aims, tracked, drawn, leads = {}, [], {}, [], []
+    real_look, real_frame, real_plan = loop._look, HeightTracker.frame, loop._plan_on_prediction
+    real_lead = loop.lead_s
+
+    def lead(*args, **kw):
+        leads.append(real_lead(*args, **kw))
+        return leads[-1]
+
+    def look(ctx, k, t):
+        looks[k] = t
+        return real_look(ctx, k, t)
+
+    class Aim(schedule.ParallaxAim):
+        def __post_init__(self):
+            super().__post_init__()
+            aims.append(self.look_s)
+
+    def frame(self, k, t_k, *args, **kw):
+        tracked[k] = (t_k, kw.get("due"))
+        return real_frame(self, k, t_k, *args, **kw)
+
+    def plan(ctx, image, valid, seen, prediction, stage):
+        drawn.append(None if prediction is None else prediction.lead_s)
+        return real_plan(ctx, image, valid, seen, prediction, stage)
+
+    monkeypatch.setattr(loop, "_look", look)
+    monkeypatch.setattr(schedule, "ParallaxAim", Aim)
+    monkeypatch.setattr(HeightTracker, "frame", frame)
+    monkeypatch.setattr(loop, "_plan_on_prediction", plan)
+    monkeypatch.setattr(loop, "lead_s", lead)
+    config = PassConfig(agility="fast", compute_budget_s=0.05, relook_km=(499.0, 497.0),
+                        relook_s=1.0, predict="wind")  # fmt: skip
+    r = fly_pass(_world(), None, config)
+    kept = [rec for rec in r.records if not rec.dropped]
+    late = [rec for rec in kept if rec.acquired_s > r.frames.acquired_s(rec.frame)]
+    assert late
+    for rec in kept:
+        due = r.frames.acquired_s(rec.frame)
+        assert looks[rec.frame] == rec.acquired_s
+        assert tracked[rec.frame] == (rec.acquired_s, due if rec.acquired_s > due else None)
+    assert sorted(aims) == sorted(rec.acquired_s - r.frames.acquired_s(rec.frame) for rec in kept)
+    # a predictive frame is carried for its lead after its due time (the schedule's
+    # reference), less the time it was late: the plume it shows is that much older
+    assert len(drawn) == len(leads) == len(kept)
+    for d, full, rec in zip(drawn, leads, kept, strict=True):
+        assert d == pytest.approx(full - (rec.acquired_s - r.frames.acquired_s(rec.frame)))
+    assert any(d < full for d, full in zip(drawn, leads, strict=True))

@@ -178,3 +178,14 @@ def test_a_rising_column_gives_its_rise(wind_from_deg):
     assert e.height_source == "estimated" and e.rise_mps is not None
     assert abs(e.rise_mps - 20.0) <= 5.0
     assert abs(e.top_height_m - e.true_height_m) <= 300.0
+
+
+def test_a_3d_pass_predicts_from_two_looks():
+    # two overlapping oblique looks give a dense motion field on their overlapping rows;
+    # it used to be applied to the whole frame as it was ("field: shape (64, 64) does not
+    # match the motion field's grid (32, 64)"), then sampled at no pointing (OpenCV's
+    # empty map): the pass stopped. tests/predict/test_forecast.py checks the grid.
+    r = fly_pass(_world(), None, PassConfig(agility="fast", compute_budget_s=0.05,
+                                            predict="two-looks"))  # fmt: skip
+    assert r.totals()["utility"] > 0 and r.totals()["frames_dropped"] == 0
+    assert any("predict: " in rec.path for rec in r.records)

@@ -67,3 +67,40 @@ def test_lucas_kanade_without_pysteps_says_what_needs_it(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_pysteps)
     with pytest.raises(InvalidParameterError, match="^GEO nowcast needs pysteps$"):
         lucas_kanade(np.zeros((2, 8, 8)), needs="GEO nowcast needs pysteps")
+
+
+def test_two_looks_put_their_dense_field_on_the_current_frames_grid(monkeypatch):
+    # frames of a pass overlap: the motion is estimated on the rows both see (the previous
+    # frame's first 32 rows = the current frame's last 32). A dense field found there lies
+    # on those 32 rows; the current frame's masks are 64 rows, so the field is moved to the
+    # current frame's grid: its cells 32 rows down, the grid 64 rows (issue found flying
+    # --predict two-looks over a 3D strip).
+    import numpy as np
+
+    from dyntarget.predict import motion as m
+    from dyntarget.predict.forecast import two_look_motion
+
+    vel = np.zeros((2, 4, 2), np.float32)
+    vel[1, 2] = (3.0, -1.0)  # one cell moving: rows 16-31, columns 32-47 of the overlap
+    field = m.MotionField(vel, (0, 0), 16, (32, 64))
+    est = m.Motion((1.0, 0.0), regime="detached", dense=field, source="two-looks")
+    seen = {}
+
+    def estimate(prev, cur, dt, **kw):
+        seen["shapes"] = (prev.shape, cur.shape)
+        return est
+
+    monkeypatch.setattr(m, "estimate_motion", estimate)
+    look = np.zeros((4, 64, 64), np.float32)
+    mask = np.zeros((64, 64), bool)
+    out = two_look_motion(look, look, 1.0, previous_mask=mask, current_mask=mask, offset_rows=32)
+    assert seen["shapes"] == ((4, 32, 64), (4, 32, 64))
+    assert out.dense.shape == (64, 64) and out.dense.origin == (0, 32)
+    # the moving cell's centre: overlap (x 39.5, y 23.5) is the current frame's y 55.5
+    assert out.dense.sample(np.array([39.5]), np.array([55.5]))[0].tolist() == [3.0, -1.0]
+    assert out.dense.sample(np.array([39.5]), np.array([23.5]))[0].tolist() == [0.0, 0.0]
+    # a mask of the current frame's shape can now be carried by it
+    moved = m.Motion((1.0, 0.0), regime="detached", dense=out.dense)
+    from dyntarget.predict import predict_mask
+
+    assert predict_mask(mask, moved, 2.0).shape == (64, 64)

@@ -545,7 +545,8 @@ def _fly_frame(
     t_k, top = frames.acquired_s(k), frames.tops[k]
     t_look = t_k  # when the look-ahead takes it: later when it is behind after a re-look
     if ctx.tracker is not None:
-        nxt = frames.tops[k + 1] if k + 1 < frames.n_frames else None
+        last = k + 1 >= frames.n_frames
+        nxt = None if last else (frames.tops[k + 1], frames.acquired_s(k + 1))
         taken, why = ctx.tracker.take(t_k, top, nxt)
         if taken is None:
             start = max(t_k, state.busy_until)
@@ -564,6 +565,8 @@ def _fly_frame(
             0, 0, 0, 0, 0, 0, 0, True,
         )  # fmt: skip
         return record, None, None
+    if ctx.tracker is not None:
+        ctx.tracker.seen(top)  # its ground is seen: what catching up may skip next
     image, valid, mask = _look(ctx, k, t_look)
     t_loop = time.perf_counter()
     result, stage, prediction = _plan_frame(ctx, k, image, valid, mask, start, state)
@@ -648,7 +651,10 @@ def _plan_frame(
         )
     stage["predict"] = time.perf_counter() - t0
     state.previous = (k, image, result.mask)
-    return _plan_on_prediction(ctx, image, valid, result, prediction, stage), stage, prediction
+    drawn = prediction
+    if prediction is not None and t_look > t_k:  # a late frame saw the plume later: less to go
+        drawn = replace(prediction, lead_s=prediction.lead_s - (t_look - t_k))
+    return _plan_on_prediction(ctx, image, valid, result, drawn, stage), stage, prediction
 
 
 def _plan_on_prediction(
@@ -891,6 +897,8 @@ def _motion(
     if state.late_s:  # frames taken late, catching up after a re-look
         interval += state.late_s.get(k, frames.acquired_s(k)) - frames.acquired_s(k)
         interval -= state.late_s.get(k0, frames.acquired_s(k0)) - frames.acquired_s(k0)
+        if not interval > 0:  # two looks taken at once (no settling, no exposure)
+            return plume_motion(prior)
     return plume_motion(prior, looks, interval, offset_rows=offset, ground=config.ground)
 
 

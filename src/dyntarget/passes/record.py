@@ -369,7 +369,9 @@ class FrameRecord:
     new_plumes : int
         True plumes observed for the first time in the pass.
     dropped : bool
-        The frame was dropped (the loop was behind past the deadline).
+        The frame was not planned: the loop was behind past the deadline, or the
+        look-ahead did not take it (re-looking, too late, or skipped while catching up;
+        ``path`` says which).
     loop_s : float
         Wall time of the onboard work on this frame.
     """
@@ -437,8 +439,8 @@ RELOOK_LATE = "dropped: look-ahead re-looking, too late to catch up"
 """The path of a frame the look-ahead, behind after re-looks, could not take before the
 NFOV's reach (:meth:`dyntarget.predict.relooks.HeightTracker.take`)."""
 CATCH_UP_SKIP = "skipped: its ground seen by the catch-up's frames"
-"""The path of a frame not taken while the look-ahead catches up: the frames taken
-before and after it see its ground."""
+"""The path of a frame not taken while the look-ahead catches up: the frame seen before
+it and the one taken after it see its ground."""
 NOT_TAKEN = {"re-looking": RELOOK_DROP, "too late": RELOOK_LATE, "covered": CATCH_UP_SKIP}
 """The path recorded for each reason a regular frame is not taken."""
 

@@ -101,10 +101,15 @@ def two_look_motion(
         **motion_options,
     )
     if offset_rows:  # from the overlap's rows to the current frame's
+        dense = est.dense
+        if dense is not None:  # its cells where they are in the current frame, on its grid
+            x0, y0 = dense.origin
+            dense = replace(dense, origin=(x0, y0 + offset_rows), shape=(h, dense.shape[1]))
         est = replace(
             est,
             vent=None if est.vent is None else (est.vent[0], est.vent[1] + offset_rows),
             attached=tuple((x, y + offset_rows, r) for x, y, r in est.attached),
+            dense=dense,
         )
     return est if prior is None else motion.check_against_prior(est, prior)
 

@@ -131,6 +131,8 @@ class MotionField:
     >>> f = MotionField(np.ones((2, 2, 2), np.float32), (0, 0), 4, (8, 8))
     >>> f.full().shape, float(f.full()[5, 5, 0])
     ((8, 8, 2), 1.0)
+    >>> f.sample(np.zeros(0), np.zeros(0)).shape  # no position: no velocity
+    (0, 2)
     """
 
     velocity: np.ndarray
@@ -151,6 +153,8 @@ class MotionField:
         numpy.ndarray
             ``float32 (..., 2)``.
         """
+        if np.size(x) == 0:  # nothing to sample (OpenCV refuses an empty map)
+            return np.zeros((*np.shape(x), 2), np.float32)
         s = float(self.scale)
         cx = ((np.asarray(x, np.float32) - self.origin[0] - (s - 1) / 2) / s).astype(np.float32)
         cy = ((np.asarray(y, np.float32) - self.origin[1] - (s - 1) / 2) / s).astype(np.float32)

@@ -41,19 +41,21 @@ Model (what is and is not modelled):
   due during a re-look is lost, as before). The look-ahead stares at its regular pitch,
   ``look_ahead_m`` ahead, and a frame on time costs it nothing. A frame due while it
   re-looks (or while it is still behind) is taken late, from nearer: the look-ahead pitches
-  back to that frame's ground (the pitch change from where it last looked, on the agility
-  preset's slew model, conservatively a whole frame's ground at a time), settles and
-  exposes (``dwell_s``), then goes on to the next, until a frame's time comes before the
-  look-ahead is ready again: it is back on its pitch. It catches up only where it gains
-  on the ground: where a frame taken late costs less than the time the frame's ground
-  takes to pass (``fast`` on frames of 2 km or more at the default geometry; ``slow``,
-  which settles for a second, on none: its frames due during a re-look are lost). While behind, a frame whose ground
-  the next frame and the last one taken cover between them (frames overlap) is skipped.
-  A frame whose centre would already be within the NFOV's forward reach (its field of
-  regard; the nadir without one) when taken is lost. A re-look booked later waits for the
-  frame the look-ahead is taking. A late frame's plumes are seen at a smaller view angle:
-  tracking allows for it (:data:`TRACK_HEIGHT_M`), and a new plume is measured from that
-  look's own geometry.
+  from where it last looked to that frame's ground as it is by then (the agility preset's
+  slew model), settles and exposes (``dwell_s``), then goes on to the next, until a
+  frame's time comes before the look-ahead is ready again: it is back on its pitch. It
+  catches up only where it gains on the ground: where a frame taken late (a whole frame's
+  pitch step, settling, exposure) costs less than the time the frame's ground takes to
+  pass (``fast`` on frames of about 1.7 km or more at the default geometry; ``slow``, which
+  settles for a second, on none: its frames due during a re-look are lost). While behind,
+  a frame whose ground the last frame seen (:meth:`HeightTracker.seen`: taken and planned)
+  and the next one cover between them (frames overlap) is skipped, unless the next would
+  come too late. A frame whose centre would already be within the NFOV's forward reach
+  (its field of regard; the nadir without one) when taken is lost. A re-look booked later
+  waits for the frame the look-ahead is taking. A late frame's plumes are seen at a smaller
+  view angle: tracking looks for a tracked plume up to :data:`TRACK_HEIGHT_M`'s change of
+  parallax nearer the nadir (so a new plume that near a tracked one, on its nadir side, is
+  taken for it), and a new plume is measured from that look's own geometry.
 * **Measurement: the envelope.** A plume attached to its vent keeps its envelope (the
   mask's shape) at the vent while the wind blows its texture through it; so the
   envelope is measured, not the texture: the displacement between frame ``k``'s mask
@@ -535,7 +537,9 @@ class HeightTracker:
         """
         return any(a <= t < b for a, b in self.busy)
 
-    def take(self, t_due: float, top: int, next_top: int | None) -> tuple[float | None, str]:
+    def take(
+        self, t_due: float, top: int, nxt: tuple[int, float] | None
+    ) -> tuple[float | None, str]:
         """When the look-ahead takes the regular frame due at ``t_due`` (the model's
         "catching up"), or why it does not.
 
@@ -545,8 +549,8 @@ class HeightTracker:
             When the frame is due (its acquisition on the regular cadence), pass seconds.
         top : int
             Its top strip WFOV row.
-        next_top : int or None
-            The next frame's top row (``None``: the pass's last frame).
+        nxt : tuple or None
+            The next frame's top row and due time (``None``: the pass's last frame).
 
         Returns
         -------
@@ -554,8 +558,8 @@ class HeightTracker:
             ``(t, "")``: taken at pass time ``t`` (``t_due`` on time, later when late);
             ``(None, why)``: not taken, ``why`` one of ``"re-looking"`` (due during a
             re-look, without catching up), ``"covered"`` (its ground is seen by the last
-            frame taken and the next) or ``"too late"`` (its centre would be within the
-            NFOV's reach).
+            frame seen (:meth:`seen`) and the next, which will not come too late) or
+            ``"too late"`` (its centre would be within the NFOV's reach).
 
         Examples
         --------
@@ -566,10 +570,10 @@ class HeightTracker:
         >>> where = Geometry3D(OrbitGeometry(wfov_gsd_m=32.0), (4096, 64), 64, 4032, 4)
         >>> tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
         ...                    measure=False, log=print)
-        >>> tr.take(0.0, 4032, 4000)
+        >>> tr.take(0.0, 4032, (4000, 0.145))
         (0.0, '')
         >>> tr.busy.append((1.0, 4.8))
-        >>> t, why = tr.take(2.0, 3968, 3936)
+        >>> t, why = tr.take(2.0, 3968, (3936, 2.145))
         >>> 4.8 < t < 5.5, why
         (True, '')
         """
@@ -577,28 +581,46 @@ class HeightTracker:
         if not self.catch_up:
             return (None, "re-looking") if busy else (t_due, "")
         if not busy and self.pitch_m is None and t_due >= self.free_s:  # on time
-            self.last_top = top
             return t_due, ""
-        fp = self.where.frame_px
-        if next_top is not None and self.last_top is not None and next_top + fp >= self.last_top:
-            return None, "covered"  # the next frame abuts the last one taken
         g, a = self.where.geometry, self.agility
         v, ahead = g.ground_speed, g.look_ahead_m
         start, prev = self.free_s, ahead if self.pitch_m is None else self.pitch_m
-        while True:
-            t = self._on_frame(t_due, start, prev)
-            clash = [b for s, b in self.busy if s < t + a.dwell_s and b > start]
-            if not clash:
-                break
-            start, prev = max(clash), ahead  # a re-look first; it returns to the pitch
+        fp = self.where.frame_px
+        if nxt is not None and self.last_top is not None and nxt[0] + fp >= self.last_top:
+            # the next frame abuts the last one seen: skip this one, unless the next will
+            # come too late to see its ground
+            if ahead - v * (self._when(nxt[1], start, prev) - nxt[1]) >= self.reach_m:
+                return None, "covered"
+        t = self._when(t_due, start, prev)
         along = ahead - v * (t - t_due)
         if along < self.reach_m:
             return None, "too late"
         on_time = t <= t_due
         self.pitch_m = None if on_time else along
         self.free_s = t if on_time else t + a.dwell_s
-        self.last_top = top
         return t, ""
+
+    def seen(self, top: int) -> None:
+        """Record that the regular frame whose top strip WFOV row is ``top`` was seen (taken
+        and planned): catching up skips a frame only between frames seen.
+
+        Parameters
+        ----------
+        top : int
+            The frame's top strip WFOV row.
+        """
+        self.last_top = top
+
+    def _when(self, t_due: float, start: float, prev_m: float) -> float:
+        """When the look-ahead, free from ``start`` looking ``prev_m`` ahead, can take the
+        frame due at ``t_due``: re-looks booked first (each returns to the regular pitch)."""
+        a, ahead = self.agility, self.where.geometry.look_ahead_m
+        while True:
+            t = self._on_frame(t_due, start, prev_m)
+            clash = [b for s, b in self.busy if s < t + a.dwell_s and b > start]
+            if not clash:
+                return t
+            start, prev_m = max(clash), ahead  # a re-look first; it returns to the pitch
 
     def _on_frame(self, t_due: float, start: float, prev_m: float) -> float:
         """The first time (>= ``t_due``) at which the look-ahead, free from ``start`` and
@@ -683,9 +705,8 @@ class HeightTracker:
         new: list[tuple[int, np.ndarray, np.ndarray]] = []
         ready: list[Plume] = []
         late = 0  # rows ahead a tracked plume's footprint may lie, in a frame taken late
-        if due is not None and t_k > due:
-            y = top + (mask.shape[0] - 1) / 2.0
-            late = math.ceil(self.where.disparity_rows(y, due, t_k, TRACK_HEIGHT_M))
+        if due is not None and t_k > due:  # at the frame's far edge, where it is largest
+            late = math.ceil(self.where.disparity_rows(float(top), due, t_k, TRACK_HEIGHT_M))
         near = np.ones((2 * MATCH_PX + 1 + late, 2 * MATCH_PX + 1), np.uint8)
         for i in range(1, n):
             if areas[i] < MIN_PLUME_PX:

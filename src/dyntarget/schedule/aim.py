@@ -106,7 +106,7 @@ def _heights(name: str, field: HeightField, pts: np.ndarray, t: np.ndarray) -> n
         )
     if np.any(np.isinf(h)) or np.any(h < 0):
         bad = h[np.isinf(h) | (h < 0)][0]
-        raise InvalidParameterError(f"{name}: expected metres >= 0 (or NaN), got {bad!r}")
+        raise InvalidParameterError(f"{name}: expected metres >= 0 (or NaN), got {float(bad)!r}")
     return h
 
 
