@@ -185,6 +185,107 @@ def test_heights_are_asked_per_pointing_with_its_time():
     assert seen["points"].tolist() == pts.tolist() and seen["t"].tolist() == [10.0, 20.0]
 
 
+def _vector_aim_rising(along: float, t_s: float, h_look: float, h_now: float) -> float:
+    """The vector method for a rising top: the look-ahead (t = 0) saw the top at
+    ``h_look``; the NFOV at ``t_s`` meets it at ``h_now`` above the same ground point."""
+    s0 = np.array([0.0, 0.0, R + H_SC])
+    top = _ray_hits_sphere(s0, R * _unit(along, 0.0), R + h_look)
+    g = G.ground_speed * t_s / R
+    s_t = (R + H_SC) * np.array([math.sin(g), 0.0, math.cos(g)])
+    raised = top / np.linalg.norm(top) * (R + h_now)  # straight up from the same ground point
+    return _map(_ray_hits_sphere(s_t, raised, R))[0]
+
+
+@pytest.mark.parametrize("t_s", [20.0, 60.0])
+def test_a_rising_top_is_placed_by_its_height_at_the_look_and_aimed_at_its_height_now(t_s):
+    # the look-ahead saw a 6 km top; when the NFOV flies it, it has risen to 8 km
+    along = 500e3
+    aim = ParallaxAim(  # the fields are asked with each pointing's time
+        G, SHAPE, lambda p, t: np.full(len(p), 8e3) + 0 * t, lambda p, t: 6e3 + 0 * t
+    )
+    got = aim.shift(_pixel(along, 0.0)[None], t_s)[0]
+    want_a = _vector_aim_rising(along, t_s, 6e3, 8e3)
+    assert got[1] == pytest.approx(-(want_a - along) / GSD, abs=1e-4)
+    # using the later height for both views misplaces it by about the rise x tan(theta)
+    same = ParallaxAim.constant(G, SHAPE, 8e3).shift(_pixel(along, 0.0)[None], t_s)[0]
+    assert abs(same[1] - got[1]) > 1.5e3 / GSD
+
+
+@pytest.mark.parametrize("look", [np.nan, 0.0])
+def test_no_height_when_seen_means_no_move(look):
+    aim = ParallaxAim(
+        G, SHAPE, lambda p, t: np.full(len(p), H_TOP), lambda p, t: np.full(len(p), look)
+    )
+    assert aim.shift(np.array([_pixel(500e3, 0.0)]), 30.0).tolist() == [[0.0, 0.0]]
+
+
+def test_a_half_metre_top_still_moves_its_pointing():
+    # heights above 0 are corrected, however low: 0.5 m seen 500 km ahead is ~0.6 m
+    aim = ParallaxAim.constant(G, SHAPE, 0.5)
+    d = aim.shift(np.array([_pixel(500e3, 0.0)]), 500e3 / G.ground_speed)[0]
+    assert 0.5 / GSD < d[1] < 0.7 / GSD
+    look = ParallaxAim(
+        G, SHAPE, lambda p, t: np.full(len(p), H_TOP), lambda p, t: np.full(len(p), 0.5)
+    )
+    assert look.shift(np.array([_pixel(500e3, 0.0)]), 30.0)[0, 1] != 0.0
+
+
+def test_a_top_beyond_the_horizon_is_not_moved_and_its_neighbours_are():
+    # 3,000 km ahead the look-ahead's line of sight misses a 10 km top's sphere around the
+    # horizon: nothing to correct there; the pointing on the track 500 km ahead moves
+    pts = np.array([_pixel(3000e3, 0.0), _pixel(500e3, 0.0)])
+    got = _aim().shift(pts, 30.0)
+    assert got[0].tolist() == [0.0, 0.0]
+    assert np.isfinite(got).all() and got[1, 1] > 100
+
+
+def test_the_height_limit_and_the_smallest_frame_are_accepted():
+    from dyntarget import parallax
+
+    assert ParallaxAim.constant(G, SHAPE, parallax.MAX_HEIGHT_M).heights_m(
+        np.zeros((1, 2)), np.zeros(1)
+    ).tolist() == [parallax.MAX_HEIGHT_M]
+    one = ParallaxAim(G, [1, 1], lambda p, t: np.full(len(p), H_TOP))  # a list: kept a tuple
+    assert one.frame_shape == (1, 1) and one.shift(np.zeros((1, 2)), 0.0).shape == (1, 2)
+
+
+@pytest.mark.parametrize(
+    ("call", "needle"),
+    [
+        (lambda: nadir_xy(G, SHAPE, float("nan")), "t_s: expected a finite number"),
+        (lambda: ParallaxAim(G, "ab", lambda p, t: p[:, 0]), "frame_shape: expected (rows"),
+        (lambda: ParallaxAim(G, (0, 5), lambda p, t: p[:, 0]), "frame_shape: expected two"),
+        (lambda: ParallaxAim(G, (5, 0), lambda p, t: p[:, 0]), "frame_shape: expected two"),
+        (lambda: ParallaxAim(G, (2.5, 5), lambda p, t: p[:, 0]), "frame_shape: expected two"),
+        (lambda: ParallaxAim(object(), SHAPE, lambda p, t: p[:, 0]), "got object"),
+        (lambda: ParallaxAim(G, SHAPE, 5.0), "heights_m: expected a callable (points, t_s) -> heights, got float"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: p[:, 0], 3.0), "look_heights_m: expected a"),
+        (lambda: ParallaxAim.constant(G, SHAPE, "high"), "height_m: expected metres, got"),
+        (lambda: ParallaxAim.constant(G, SHAPE, 0.0), "expected metres > 0"),
+        (lambda: ParallaxAim.constant(G, SHAPE, 2e5), "up to 100000"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: np.zeros(3)).shift([[1.0, 1.0]], 1.0),
+         "heights_m: expected 1 heights"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: np.full(len(p), np.inf)).shift(
+            [[1.0, 1.0]], 1.0), "heights_m: expected metres >= 0 (or NaN), got inf"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: np.array([0.0, -2.0])).shift(
+            [[1.0, 1.0], [2.0, 2.0]], 1.0), "got -2.0"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: np.array([0.5, -2.0])).shift(
+            [[1.0, 1.0], [2.0, 2.0]], 1.0), "got -2.0"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: np.ones(len(p)),
+                             lambda p, t: np.full(len(p), -1.0)).shift([[1.0, 1.0]], 1.0),
+         "look_heights_m: expected metres >= 0"),
+        (lambda: _aim().shift([1.0, 1.0], 1.0), "points: expected an (N, 2) array"),
+        (lambda: _aim().shift([[1.0, 1.0]], [1.0, 2.0]), "t_s: expected one time or 1 times"),
+        (lambda: _aim().shift([[1.0, 1.0]], np.nan), "points, t_s: expected finite"),
+        (lambda: _aim().shift([[np.inf, 1.0]], 1.0), "points, t_s: expected finite"),
+    ],
+)  # fmt: skip
+def test_bad_input_is_refused_in_one_line_naming_it(call, needle):
+    with pytest.raises(InvalidParameterError) as err:
+        call()
+    assert needle in str(err.value) and "\n" not in str(err.value)
+
+
 @pytest.mark.parametrize(
     "call",
     [
