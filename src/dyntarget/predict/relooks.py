@@ -198,10 +198,7 @@ def relook_seconds(geometry: OrbitGeometry, agility: Agility, distance_m: float)
     """
     if not (math.isfinite(distance_m) and distance_m > 0):
         raise InvalidParameterError(f"re-look distance: expected metres > 0, got {distance_m!r}")
-    a = look_vectors(geometry, np.array([geometry.look_ahead_m]), np.zeros(1), 0.0)
-    b = look_vectors(geometry, np.array([distance_m]), np.zeros(1), 0.0)
-    angle = float(angle_between_deg(a, b)[0])
-    slew = agility.slew_time_one(angle)
+    slew = agility.slew_time_one(_pitch_deg(geometry, geometry.look_ahead_m, distance_m))
     return 2.0 * (slew + agility.settle_s) + agility.dwell_s
 
 
