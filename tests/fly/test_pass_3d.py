@@ -151,6 +151,10 @@ def test_a_flat_world_flies_as_before_in_every_mode():
         ({"relook_km": (600.0,)}, "relook_km"),
         ({"relook_km": ()}, "relook_km"),
         ({"relook_s": -1.0}, "relook_s"),
+        ({"max_rise_mps": -1.0}, "max_rise_mps"),
+        ({"max_rise_mps": float("nan")}, "max_rise_mps"),
+        ({"max_rise_mps": 501.0}, r"max_rise_mps: expected m/s in \[0, 500\]"),
+        ({"max_rise_mps": True}, "max_rise_mps"),
     ],
 )
 def test_bad_parallax_settings_are_refused_in_one_line(kw, needle):

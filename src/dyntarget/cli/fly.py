@@ -117,7 +117,8 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 
 def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     """``PassConfig`` parallax fields from ``--parallax``, ``--plume-height-km``,
-    ``--no-parallax`` and ``--relook-km`` (none given: none set, the defaults)."""
+    ``--no-parallax``, ``--relook-km``, ``--no-catch-up`` and ``--max-rise-mps`` (none
+    given: none set, the defaults)."""
     kw: dict[str, Any] = {}
     mode, choice = args.parallax, o.parallax_choice(args)
     if choice == "off":
@@ -138,6 +139,8 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
         kw["relook_km"] = args.relook_km
     if args.no_catch_up:
         kw["catch_up"] = False
+    if args.max_rise_mps is not None:
+        kw["max_rise_mps"] = args.max_rise_mps
     return kw
 
 
@@ -514,6 +517,14 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         "last (default 300: one re-look, with re-looks nearer in time added where a frame is "
         "too short for the search; two or more also fit a rising top, e.g. 400,300); each "
         "re-look costs look-ahead time (frames taken late, or lost)",
+    )
+    par.add_argument(
+        "--max-rise-mps",
+        type=float,
+        metavar="V",
+        help="with two or more --relook-km distances (a rise is fitted): the fastest rise of "
+        "a plume top the re-looks allow for, m/s (default 100; 0: look for a steady top "
+        "only, which leaves a re-look's window more room for plumes seen later)",
     )
     par.add_argument(
         "--no-catch-up",

@@ -45,6 +45,9 @@ PARALLAX_MODES = ("auto", "off", "prior", "true", "estimated")
 
 MAX_PRIOR_HEIGHT_M = 25_000.0
 """Highest prior plume-top height accepted, metres."""
+MAX_RISE_LIMIT_MPS = 500.0
+"""Fastest plume-top rise the re-looks may be asked to allow for, m/s (a Plinian column's
+gas-thrust region reaches a few hundred m/s; its top rises slower)."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +96,9 @@ class PassConfig:
     catch_up : the regular frames due during a re-look are taken late, the look-ahead
         pitching back to them (:meth:`dyntarget.predict.relooks.HeightTracker.take`);
         ``False``: they are lost.
+    max_rise_mps : where re-looks at two or more distances fit a rise, the fastest rise of
+        a plume top, m/s, their windows and searches allow for (``None``: 100 m/s,
+        :data:`dyntarget.predict.relooks.MAX_RISE_MPS`; 0: a steady top's search).
     """
 
     planner: str = "lawnmower-transect"
@@ -116,6 +122,7 @@ class PassConfig:
     relook_km: tuple[float, ...] = RELOOK_KM
     relook_s: float | None = None
     catch_up: bool = True
+    max_rise_mps: float | None = None
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -183,6 +190,13 @@ class PassConfig:
         r = self.relook_s
         if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
             raise InvalidParameterError(f"relook_s: expected seconds > 0, got {r!r}")
+        v = self.max_rise_mps
+        if v is not None and not (
+            isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= MAX_RISE_LIMIT_MPS
+        ):
+            raise InvalidParameterError(
+                f"max_rise_mps: expected m/s in [0, {MAX_RISE_LIMIT_MPS:g}], got {v!r}"
+            )
 
     def resolved_parallax(self, is_3d: bool) -> str:
         """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
@@ -236,11 +250,14 @@ class PassConfig:
             and self.relook_km == RELOOK_KM
             and self.relook_s is None
             and self.catch_up
+            and self.max_rise_mps is None
         ):  # no parallax settings given (or a flat world's): the record as before them
             for k in ("parallax", "plume_height_m", "relook_km", "relook_s", "catch_up"):
                 d.pop(k)
         else:
             d["relook_km"] = list(self.relook_km)
+        if self.max_rise_mps is None:  # the default (records as before the setting)
+            d.pop("max_rise_mps")
         return d
 
 

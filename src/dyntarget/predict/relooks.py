@@ -113,7 +113,7 @@ import numpy as np
 
 from dyntarget import parallax
 from dyntarget.errors import InvalidParameterError
-from dyntarget.predict.height import HeightFit, Look, envelope_disparity, fit_height
+from dyntarget.predict.height import Disparity, HeightFit, Look, envelope_disparity, fit_height
 from dyntarget.schedule import Agility, OrbitGeometry
 from dyntarget.schedule.kinematics import EARTH_RADIUS_M, angle_between_deg, look_vectors
 
@@ -135,6 +135,11 @@ SPREAD_GUESS = 0.8
 """Relative uncertainty of a guessed height searched over (0.2 to 1.8 times the guess)."""
 SPREAD_FITTED = 0.3
 """Relative uncertainty searched over once a plume's own looks have fitted a height."""
+MAX_RISE_MPS = 100.0
+"""Fastest rise of a plume top a re-look's search allows for where a rise is fitted (re-looks
+at two or more distances): the top of a young column rising this fast between the looks
+moves away from the nadir faster than the approach brings it nearer, so its search reaches
+that far beyond a steady top's (the issue's young columns rise at 10-100 m/s)."""
 MAX_INSERTED = 3
 """Most re-looks added before an asked one so that each search fits in the frame."""
 RISE_SIGNIFICANCE = 1.5
@@ -434,13 +439,37 @@ class Geometry3D:
         float
             WFOV rows (positive: towards the nadir).
         """
+        return self.shift_rows(y, t0, t1, height_m, height_m)
+
+    def shift_rows(self, y: float, t0: float, t1: float, h0_m: float, h1_m: float) -> float:
+        """Rows a feature at ``h0_m`` seen at row ``y`` at ``t0`` appears lower at ``t1``,
+        where it has risen (or sunk) to ``h1_m`` above the same ground point.
+
+        Parameters
+        ----------
+        y : float
+            Strip WFOV row where it appeared at ``t0``.
+        t0, t1 : float
+            Pass seconds of the two looks.
+        h0_m, h1_m : float
+            Its heights at ``t0`` and ``t1``.
+
+        Returns
+        -------
+        float
+            WFOV rows (positive: towards the nadir; a top rising fast enough moves away).
+        """
         g = self.geometry
-        true_along = float(parallax.sight_at_height(g.altitude_m, self.along(y, t0), height_m))
+        true_along = float(parallax.sight_at_height(g.altitude_m, self.along(y, t0), h0_m))
         s0 = self.along(y, t0) - true_along
         d1 = true_along - g.ground_speed * (t1 - t0)
-        s1 = float(parallax.parallax_shift(g.altitude_m, d1, height_m))
+        s1 = float(parallax.parallax_shift(g.altitude_m, d1, h1_m))
         return (s0 - s1) / g.wfov_gsd_m
 
+
+Follow = Callable[["Plume", float], "tuple[float, float] | None"]
+"""``follow(plume, t) -> (centre, half)``: the search (rows moved since the plume was seen) for a
+top found rising, in a look at pass time ``t`` (``None``: where its guessed height puts it)."""
 
 Render = Callable[[float, int, tuple[float, float]], np.ndarray]
 """``render(t, top, nadir_hr) -> (H_f, W)`` plume mask (fraction 0..1) that a look of the
@@ -473,6 +502,9 @@ class HeightTracker:
     catch_up : bool
         Take the regular frames due during a re-look late (:meth:`take`) instead of
         losing them.
+    max_rise_mps : float or None
+        Where a rise is fitted, the fastest rise of a top the re-looks allow for (``None``:
+        :data:`MAX_RISE_MPS`; 0: a steady top's search, as where no rise is fitted).
     """
 
     def __init__(
@@ -487,6 +519,7 @@ class HeightTracker:
         measure: bool,
         log: Callable[[str], None],
         catch_up: bool = True,
+        max_rise_mps: float | None = None,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log = measure, log
@@ -508,6 +541,9 @@ class HeightTracker:
         self.relook_s = relook_s
         self.fit_rise = len(self.distances_m) >= 2
         """A rise is fitted only where re-looks at two or more distances were asked for."""
+        fastest = MAX_RISE_MPS if max_rise_mps is None else float(max_rise_mps)
+        self.rise_mps = fastest if self.fit_rise else 0.0
+        """Fastest rise a re-look's window and search allow for (0: a steady top's)."""
         self.labels = np.zeros(where.wfov_shape, np.int32)
         """Strip WFOV px -> tracked plume (1-based; 0: none), apparent footprints."""
         self.plumes: list[Plume] = []
@@ -792,14 +828,21 @@ class HeightTracker:
         return np.asarray(cc * ux + rr * uy <= cut)
 
     def _window_for(
-        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float], tol: float
+        self,
+        plumes: list[Plume],
+        t_k: float,
+        at: float,
+        guess: dict[int, float],
+        tol: float,
+        follow: Follow | None = None,
     ) -> Relook | None:
         """A re-look already taken within ``tol`` s of ``at`` whose window holds the plumes
-        where their ``guess`` heights put them (their rows and a margin), or ``None``."""
+        where their ``guess`` heights (or ``follow``) put them (their rows and a margin), or
+        ``None``."""
         for r in self.taken:
             if abs(r.t_s - at) > tol:
                 continue
-            a, b = self._expected_rows(plumes, t_k, r.t_s, guess)
+            a, b = self._expected_rows(plumes, t_k, r.t_s, guess, follow)
             if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.top + self.where.frame_px:
                 return r
         return None
@@ -836,6 +879,8 @@ class HeightTracker:
         looks: dict[int, list[Look]] = {}
         failed: dict[int, str] = {}
         fits: dict[int, HeightFit] = {}  # each plume's fit of its looks so far
+        moved: dict[int, list[tuple[float, float]]] = {}  # (time, rows moved) per re-look
+        rising: set[int] = set()  # found only by a search that allowed a rise
         first: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         margin = np.ones((2 * MARGIN_PX + 1, 2 * MARGIN_PX + 1), np.uint8)
         near = np.ones((2 * GROUP_PX + 1, 2 * GROUP_PX + 1), np.uint8)
@@ -848,6 +893,12 @@ class HeightTracker:
             own = raw & (cv2.dilate(comp_p, near) > 0)  # its raw mask (not denoised)
             weight = (cv2.dilate(own.astype(np.uint8), margin) > 0) & (own | ~raw)
             first[p.pid] = (own, weight & self._upwind(p, top, shape))
+
+        def follow(p: Plume, at: float) -> tuple[float, float] | None:  # a rising top's search
+            if p.pid not in rising:
+                return None
+            return self._following(float(np.mean(p.rows)), t_k, at, moved[p.pid], prior)
+
         why = ""
         main = max(plumes, key=lambda p: len(p.rows))
         for d in self._chain(float(np.mean(main.rows)), t_k, prior):
@@ -860,8 +911,8 @@ class HeightTracker:
             if want <= t_k:
                 why = why or f"already nearer than {d / 1e3:g} km when seen"
                 continue
-            shared = self._window_for(alive, t_k, want, guess, dur) or self._take(
-                alive, t_k, want, dur, guess, render
+            shared = self._window_for(alive, t_k, want, guess, dur, follow) or self._take(
+                alive, t_k, want, dur, guess, render, follow
             )
             if shared is None:
                 why = why or "the look-ahead was busy re-looking at other plumes"
@@ -873,26 +924,22 @@ class HeightTracker:
             for p in alive:
                 p.relooks.append(shared)
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
-                shift = w.disparity_rows(cy, t_k, at, guess[p.pid])
                 # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
                 spread = SPREAD_FITTED if p.pid in fitted else SPREAD_GUESS
-                span = abs(shift) * spread + MARGIN_PX
-                search = (MATCH_PX, int(min(span, shape[0] // 2)))
-                own, weight = first[p.pid]
-                disp, reason = envelope_disparity(
-                    own, second, weight=weight, guess_px=(0.0, shift - (r0 - top)),
-                    search_px=search,
-                )  # fmt: skip
+                searches = [self._search(cy, t_k, at, guess[p.pid], spread)]
+                if self.rise_mps > 0.0:  # not where a steady top would be: where the rise its
+                    searches += [  # last move implies puts it, else any rise allowed for
+                        self._following(cy, t_k, at, moved.get(p.pid, []), prior),
+                        self._search_risen(cy, t_k, at, guess[p.pid], spread),
+                    ]
+                disp, which, why_not = self._find(first[p.pid], second, r0 - top, searches)
                 if disp is None:
-                    failed[p.pid] = reason.split("; no height")[0]
-                    if span > shape[0] // 2:  # the search was cut to the frame
-                        failed[p.pid] = (
-                            f"the frame ({shape[0]} WFOV rows) is too short to find the plume "
-                            f"again: its height's uncertainty asks a search of +-{span:.0f} "
-                            f"rows, the frame holds +-{shape[0] // 2}"
-                        )
+                    failed[p.pid] = why_not
                     continue
+                if which > 0:  # found only where a risen top would be: follow it so
+                    rising.add(p.pid)
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
+                moved.setdefault(p.pid, []).append((at, disp.dy_px + (r0 - top)))
                 looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
                 fit = fits[p.pid] = fit_height(looks[p.pid], wind_prior=(0.0, 0.0),
                                  wind_prior_sigma_mps=ENVELOPE_DRIFT_SIGMA_MPS)  # fmt: skip
@@ -904,6 +951,41 @@ class HeightTracker:
                         p.stages.append((ready, fit.height_m))
         for p in plumes:
             self._conclude(p, looks[p.pid], fits.get(p.pid), failed.get(p.pid), why)
+
+    def _find(
+        self,
+        first: tuple[np.ndarray, np.ndarray],
+        second: np.ndarray,
+        offset: int,
+        searches: list[tuple[float, float] | None],
+    ) -> tuple[Disparity | None, int, str]:
+        """A plume's envelope (``first``: its mask and the pixels compared) found in a
+        re-look's mask ``second`` (window ``offset`` rows below the frame's), by the first of
+        ``searches`` (``(centre, half-width)`` rows moved; ``None``: skipped) that finds it.
+
+        Returns the displacement (rows and columns in the re-look's window), the search's
+        index and ``""``; or ``None``, -1 and why the last search tried failed."""
+        own, weight = first
+        half_frame = second.shape[0] // 2
+        reason = ""
+        for i, search in enumerate(searches):
+            if search is None:
+                continue
+            centre, span = search
+            disp, reason = envelope_disparity(
+                own, second, weight=weight, guess_px=(0.0, centre - offset),
+                search_px=(MATCH_PX, int(min(span, half_frame))),
+            )  # fmt: skip
+            if disp is not None:
+                return disp, i, ""
+            reason = reason.split("; no height")[0]
+            if span > half_frame:  # the search was cut to the frame
+                reason = (
+                    f"the frame ({second.shape[0]} WFOV rows) is too short to find the plume "
+                    f"again: its height's uncertainty asks a search of +-{span:.0f} rows, "
+                    f"the frame holds +-{half_frame}"
+                )
+        return None, -1, reason
 
     def _conclude(
         self, p: Plume, looks: list[Look], fit: HeightFit | None, lost: str | None, why: str
@@ -934,7 +1016,71 @@ class HeightTracker:
         re-look ``d`` metres ahead, its height ``guess`` known to ``spread`` of itself."""
         w = self.where
         t = t_k + (w.along(y, t_k) - d) / w.geometry.ground_speed
-        return abs(w.disparity_rows(y, t_k, t, guess)) * spread + MARGIN_PX
+        return self._search(y, t_k, t, guess, spread)[1]
+
+    def _search(
+        self, y: float, t_k: float, at: float, guess: float, spread: float
+    ) -> tuple[float, float]:
+        """Centre and half-width (rows) of the search, in a look at ``at``, for a steady top
+        seen at row ``y`` at ``t_k``, its height ``guess`` known to ``spread`` of itself (its
+        shift is about proportional to its height: ``guess``'s shift, give or take ``spread``
+        of it)."""
+        shift = self.where.disparity_rows(y, t_k, at, guess)
+        return shift, abs(shift) * spread + MARGIN_PX
+
+    def _search_risen(
+        self, y: float, t_k: float, at: float, guess: float, spread: float
+    ) -> tuple[float, float] | None:
+        """:meth:`_search` widened for a top that may have risen since ``t_k`` at up to
+        :attr:`rise_mps`: such a top appears up to :meth:`_rise_rows` further from the nadir
+        than a steady one (``None`` where no rise is allowed for)."""
+        back = self._rise_rows(y, t_k, at, guess)
+        if back <= 0.0:
+            return None
+        shift, half = self._search(y, t_k, at, guess, spread)
+        lo, hi = shift - (half - MARGIN_PX) - back, shift + (half - MARGIN_PX)
+        return 0.5 * (lo + hi), 0.5 * (hi - lo) + MARGIN_PX
+
+    def _following(
+        self, y: float, t_k: float, at: float, moved: list[tuple[float, float]], prior: float
+    ) -> tuple[float, float] | None:
+        """Centre and half-width (rows) of the search, in a look at ``at``, for a top seen at
+        row ``y`` at ``t_k`` that had moved ``moved[-1] = (t, rows)`` by an earlier re-look,
+        and was not found where a steady top would be (:meth:`_relook`).
+
+        Its height at ``t_k`` is anywhere in ``prior``'s range (:data:`SPREAD_GUESS`); for
+        each such height the steady rise up to :attr:`rise_mps` that explains the move it
+        made (within :data:`MARGIN_PX` rows) predicts where it is at ``at``: the search
+        spans those predictions. ``None`` where no rise is allowed for, nothing was
+        measured, or no height and rise explain the move."""
+        if self.rise_mps <= 0.0 or not moved:
+            return None
+        w, (t1, d1), top_m = self.where, moved[-1], parallax.MAX_HEIGHT_M
+
+        def move(h0: float, r: float, t: float) -> float:  # rows moved by t
+            return w.shift_rows(y, t_k, t, h0, min(h0 + r * (t - t_k), top_m))
+
+        found = []
+        for h0 in np.linspace(prior * (1.0 - SPREAD_GUESS), prior * (1.0 + SPREAD_GUESS), 9):
+            still, fastest = move(h0, 0.0, t1) - d1, move(h0, self.rise_mps, t1) - d1
+            if still < -MARGIN_PX or fastest > MARGIN_PX:  # no rise in range explains it
+                continue
+            # the move is about linear in the rise: interpolate, clipped to the range
+            r = self.rise_mps * min(max(still / (still - fastest), 0.0), 1.0)
+            found.append(move(h0, r, at))
+        if not found:
+            return None
+        lo, hi = min(found), max(found)
+        return 0.5 * (lo + hi), 0.5 * (hi - lo) + MARGIN_PX
+
+    def _rise_rows(self, y: float, t_k: float, at: float, guess: float) -> float:
+        """Rows by which a top at ``guess`` seen at row ``y`` at ``t_k`` appears further
+        from the nadir at ``at`` if it rose at :attr:`rise_mps` meanwhile (0 without)."""
+        if self.rise_mps <= 0.0 or at <= t_k:
+            return 0.0
+        w, risen = self.where, guess + self.rise_mps * (at - t_k)
+        risen = min(risen, parallax.MAX_HEIGHT_M)
+        return w.disparity_rows(y, t_k, at, guess) - w.shift_rows(y, t_k, at, guess, risen)
 
     def _chain(self, y: float, t_k: float, guess: float) -> list[float]:
         """The re-look distances (metres ahead) for a plume seen at row ``y`` at ``t_k``:
@@ -973,18 +1119,26 @@ class HeightTracker:
         dur: float,
         guess: dict[int, float],
         render: Render,
+        follow: Follow | None = None,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
         free, within one re-look's duration; else ``None``), its window centred where their
-        guessed heights put them (where they do not fit in one window, the largest)."""
+        guessed heights put them (a rising top: where ``follow`` searches for it; where they
+        do not fit in one window, the largest); where a rise is allowed for, the room the
+        window has left reaches beyond them, where a risen top would appear."""
         w = self.where
         at = self._free_from(want, dur)
         if at - want > dur:
             return None
         hw, rows = w.wfov_shape[0], w.frame_px
-        lo, hi = self._expected_rows(plumes, t_k, at, guess)
+        lo, hi = self._expected_rows(plumes, t_k, at, guess, follow)
         if hi - lo + 2 * MARGIN_PX > rows:  # not all in one window: the largest plume's
-            lo, hi = self._expected_rows([max(plumes, key=lambda p: len(p.rows))], t_k, at, guess)
+            plumes = [max(plumes, key=lambda p: len(p.rows))]
+            lo, hi = self._expected_rows(plumes, t_k, at, guess, follow)
+        back = max(self._rise_rows(float(p.rows.min()), t_k, at, guess[p.pid]) for p in plumes)
+        room = rows - (hi - lo + 2 * MARGIN_PX)
+        if back > 0.0 and room > 0.0:  # tops that may have risen: the room left, beyond
+            lo -= min(back, room)  # (steady tops stay inside, with their margin)
         r0 = int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), hw - rows))
         self.busy.append((at, at + dur))
         taken = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
@@ -992,20 +1146,27 @@ class HeightTracker:
         return taken
 
     def _expected_rows(
-        self, plumes: list[Plume], t_k: float, at: float, guess: dict[int, float]
+        self,
+        plumes: list[Plume],
+        t_k: float,
+        at: float,
+        guess: dict[int, float],
+        follow: Follow | None = None,
     ) -> tuple[float, float]:
         """Strip WFOV rows spanned at ``at`` by ``plumes`` (seen at ``t_k``) at their guessed
-        heights."""
+        heights, or for a plume ``follow`` gives a search for (a rising top), that search."""
         w = self.where
-        lo = min(
-            float(p.rows.min()) + w.disparity_rows(float(p.rows.min()), t_k, at, guess[p.pid])
-            for p in plumes
-        )
-        hi = max(
-            float(p.rows.max()) + w.disparity_rows(float(p.rows.max()), t_k, at, guess[p.pid])
-            for p in plumes
-        )
-        return lo, hi
+
+        def rows(p: Plume) -> tuple[float, float]:
+            a, b = float(p.rows.min()), float(p.rows.max())
+            found = follow(p, at) if follow is not None else None
+            if found is not None:
+                return a + found[0] - found[1], b + found[0] + found[1]
+            g = guess[p.pid]
+            return a + w.disparity_rows(a, t_k, at, g), b + w.disparity_rows(b, t_k, at, g)
+
+        spans = [rows(p) for p in plumes]
+        return min(a for a, _ in spans), max(b for _, b in spans)
 
     def _fit(self, p: Plume, looks: list[Look], fit: HeightFit) -> None:
         """Height and ground position of plume ``p`` from its envelope's looks, given their
