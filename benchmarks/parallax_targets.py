@@ -24,7 +24,7 @@ Parts (``--part``):
     the true heights (``true``), with the estimated ones (``estimated``, re-looks and the
     frames they cost included: one re-look, ``fly``'s default; ``estimated-2``: two, at 80 %
     and 60 % of the distance, a steady top's search; ``estimated-2r``: the same allowing a
-    rising top, as ``fly`` flies two distances) and with a fixed prior of 8.5 km (``prior``);
+    top rising at up to 100 m/s) and with a fixed prior of 8.5 km (``prior``);
     ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
@@ -73,14 +73,15 @@ MARGIN_PX = 2400
 MODES = ("flat", "off", "prior", "true", "estimated", "estimated-2")
 """``estimated``: ``fly``'s default, one re-look at 60 % of the look-ahead distance;
 ``estimated-2``: two, at 80 % and 60 % (they also measure a rise), searching for a steady
-top (``--max-rise-mps 0``: how two re-looks were flown before the rise allowance)."""
+top (``fly``'s default ``--max-rise-mps 0``)."""
 LONG_MODES = (*MODES, "estimated-nc")
 """The long part adds ``estimated-nc``: ``estimated`` without catching up (``--no-catch-up``:
 the frames due during a re-look are lost)."""
 EXTRA_MODES = ("estimated-nc", "estimated-2r")
-"""Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` as ``fly`` flies two
-re-look distances by default, its windows and searches allowing for a top rising at up to
-100 m/s (:data:`dyntarget.predict.relooks.MAX_RISE_MPS`)."""
+"""Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
+rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``)."""
+RISE_MPS = 100.0
+"""The fastest rise ``estimated-2r`` allows for: the top of the rising columns' range."""
 RISE_MODES = ("estimated-2", "estimated-2r")
 """The rise part flies each column both ways: a steady top's search, and the rise allowed for."""
 PRIOR_M = 8500.0
@@ -141,10 +142,10 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
 def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
     if mode == "estimated-nc":
         return replace(config_for("estimated", agility, look_ahead_m), catch_up=False)
-    if mode == "estimated-2":
-        return replace(config_for("estimated-2r", agility, look_ahead_m), max_rise_mps=0.0)
-    relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2r":
+        return replace(config_for("estimated-2", agility, look_ahead_m), max_rise_mps=RISE_MPS)
+    relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
+    if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)
     parallax_mode = "off" if mode == "flat" else mode
     return PassConfig(

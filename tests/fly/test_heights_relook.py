@@ -186,7 +186,7 @@ def _blob_mask(where, t, top, blobs):
     return out
 
 
-def _synthetic(blobs, prior=None, frame_px=128, max_rise_mps=None):
+def _synthetic(blobs, prior=None, frame_px=128, max_rise_mps=0.0):
     # 128 rows: the first search (+-0.8 of an 8.5 km guess at 400 km: 57 rows) fits in it
     g = OrbitGeometry(wfov_gsd_m=GSD)
     where = Geometry3D(g, (20000, 96), frame_px, 0, 4)
@@ -273,7 +273,7 @@ def _rising(rise_mps, steady_search=False):
     where, _tr, _ = _synthetic([])
     y = _true_row(where, 50.0, 3000.0)
     blob = [(48.0, y, 6, 4, lambda t: 3000.0 + rise_mps * t)]
-    where, tr, render = _synthetic(blob, max_rise_mps=0.0 if steady_search else None)
+    where, tr, render = _synthetic(blob, max_rise_mps=0.0 if steady_search else 100.0)
     tr.frame(0, 0.0, 0, _blob_mask(where, 0.0, 0, blob), render, last=False)
     (p,) = tr.plumes
     return p

@@ -523,8 +523,9 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         type=float,
         metavar="V",
         help="with two or more --relook-km distances (a rise is fitted): the fastest rise of "
-        "a plume top the re-looks allow for, m/s (default 100; 0: look for a steady top "
-        "only, which leaves a re-look's window more room for plumes seen later)",
+        "a plume top the re-looks allow for, m/s (default 0: a steady top; e.g. 100 for a "
+        "young eruption column: its re-look windows then reach where a risen top would be, "
+        "at the expense of where a taller steady one would)",
     )
     par.add_argument(
         "--no-catch-up",

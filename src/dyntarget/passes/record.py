@@ -97,8 +97,9 @@ class PassConfig:
         pitching back to them (:meth:`dyntarget.predict.relooks.HeightTracker.take`);
         ``False``: they are lost.
     max_rise_mps : where re-looks at two or more distances fit a rise, the fastest rise of
-        a plume top, m/s, their windows and searches allow for (``None``: 100 m/s,
-        :data:`dyntarget.predict.relooks.MAX_RISE_MPS`; 0: a steady top's search).
+        a plume top, m/s, their windows and searches allow for (0: a steady top's search;
+        100 finds the young columns of ``docs/plumes-3d.md``'s rise benchmark, at a cost on
+        passes of many steady plumes).
     """
 
     planner: str = "lawnmower-transect"
@@ -122,7 +123,7 @@ class PassConfig:
     relook_km: tuple[float, ...] = RELOOK_KM
     relook_s: float | None = None
     catch_up: bool = True
-    max_rise_mps: float | None = None
+    max_rise_mps: float = 0.0
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -191,7 +192,7 @@ class PassConfig:
         if r is not None and not (isinstance(r, int | float) and math.isfinite(r) and r > 0):
             raise InvalidParameterError(f"relook_s: expected seconds > 0, got {r!r}")
         v = self.max_rise_mps
-        if v is not None and not (
+        if not (
             isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= MAX_RISE_LIMIT_MPS
         ):
             raise InvalidParameterError(
@@ -250,13 +251,13 @@ class PassConfig:
             and self.relook_km == RELOOK_KM
             and self.relook_s is None
             and self.catch_up
-            and self.max_rise_mps is None
+            and self.max_rise_mps == 0
         ):  # no parallax settings given (or a flat world's): the record as before them
             for k in ("parallax", "plume_height_m", "relook_km", "relook_s", "catch_up"):
                 d.pop(k)
         else:
             d["relook_km"] = list(self.relook_km)
-        if self.max_rise_mps is None:  # the default (records as before the setting)
+        if self.max_rise_mps == 0:  # the default (records as before the setting)
             d.pop("max_rise_mps")
         return d
 

@@ -72,7 +72,14 @@ Model (what is and is not modelled):
   when it is positive beyond :data:`RISE_SIGNIFICANCE` of its standard deviations and
   fits better, which gives ``rise_mps`` and the height at frame ``k``'s time (the aim
   then follows the rise). A young plume whose envelope changes its shape between the
-  looks can pass that test without rising (a known limit). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
+  looks can pass that test without rising (a known limit). A top rising faster than the
+  approach brings it nearer appears to move *away* from the nadir between looks, where a
+  steady top's search never looks: asked to allow for a rise (``max_rise_mps``), a re-look
+  that does not find the plume where a steady top would be searches again where the rise
+  its last move implies puts it (:meth:`HeightTracker._following`), else anywhere a top
+  rising that fast could be, and the re-look's window reaches into the room it has left
+  beyond where the guessed heights put the plumes, at the expense of the steady search's
+  far side (on long passes of short frames, wrong matches: ``docs/plumes-3d.md``). Positions are given a standard deviation of :data:`POSITION_SIGMA_PX` WFOV
   pixels (the fit scales its covariance up when the residuals say more). Everything is
   measured at the look-ahead's WFOV resolution.
 * **When it is known.** The simulator renders a plume's re-looks as soon as its frame
@@ -135,11 +142,6 @@ SPREAD_GUESS = 0.8
 """Relative uncertainty of a guessed height searched over (0.2 to 1.8 times the guess)."""
 SPREAD_FITTED = 0.3
 """Relative uncertainty searched over once a plume's own looks have fitted a height."""
-MAX_RISE_MPS = 100.0
-"""Fastest rise of a plume top a re-look's search allows for where a rise is fitted (re-looks
-at two or more distances): the top of a young column rising this fast between the looks
-moves away from the nadir faster than the approach brings it nearer, so its search reaches
-that far beyond a steady top's (the issue's young columns rise at 10-100 m/s)."""
 MAX_INSERTED = 3
 """Most re-looks added before an asked one so that each search fits in the frame."""
 RISE_SIGNIFICANCE = 1.5
@@ -502,9 +504,9 @@ class HeightTracker:
     catch_up : bool
         Take the regular frames due during a re-look late (:meth:`take`) instead of
         losing them.
-    max_rise_mps : float or None
-        Where a rise is fitted, the fastest rise of a top the re-looks allow for (``None``:
-        :data:`MAX_RISE_MPS`; 0: a steady top's search, as where no rise is fitted).
+    max_rise_mps : float
+        Where a rise is fitted, the fastest rise of a top, m/s, the re-looks' windows and
+        searches allow for (0, the default: a steady top's search).
     """
 
     def __init__(
@@ -519,7 +521,7 @@ class HeightTracker:
         measure: bool,
         log: Callable[[str], None],
         catch_up: bool = True,
-        max_rise_mps: float | None = None,
+        max_rise_mps: float = 0.0,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log = measure, log
@@ -541,8 +543,7 @@ class HeightTracker:
         self.relook_s = relook_s
         self.fit_rise = len(self.distances_m) >= 2
         """A rise is fitted only where re-looks at two or more distances were asked for."""
-        fastest = MAX_RISE_MPS if max_rise_mps is None else float(max_rise_mps)
-        self.rise_mps = fastest if self.fit_rise else 0.0
+        self.rise_mps = float(max_rise_mps) if self.fit_rise else 0.0
         """Fastest rise a re-look's window and search allow for (0: a steady top's)."""
         self.labels = np.zeros(where.wfov_shape, np.int32)
         """Strip WFOV px -> tracked plume (1-based; 0: none), apparent footprints."""
