@@ -927,6 +927,7 @@ class HeightTracker:
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
                 # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
                 spread = SPREAD_FITTED if p.pid in fitted else SPREAD_GUESS
+                searches: list[tuple[float, float] | None]
                 searches = [self._search(cy, t_k, at, guess[p.pid], spread)]
                 if self.rise_mps > 0.0:  # not where a steady top would be: where the rise its
                     searches += [  # last move implies puts it, else any rise allowed for
