@@ -114,8 +114,10 @@ def _flat_strip(tmp_path):
         (["--no-parallax", "--parallax", "true"], "exclude each other"),
         (["--no-parallax", "--plume-height-km", "8"], "--plume-height-km"),
         (["--plume-height-km", "8", "--parallax", "off"], "has no effect"),
-        (["--max-rise-mps", "-5"], "max_rise_mps"),
+        (["--max-rise-mps", "-5", "--relook-km", "400,300"], "max_rise_mps"),
         (["--max-rise-mps", "fast"], "--max-rise-mps"),
+        (["--max-rise-mps", "100"], "has no effect with one re-look distance"),
+        (["--max-rise-mps", "100", "--relook-km", "400,300", "--no-parallax"], "has no effect"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):

@@ -136,7 +136,14 @@ def test_a_flat_world_flies_as_before_in_every_mode():
     assert a.totals() == b.totals() and a.flown == b.flown and a.heights == () == b.heights
     assert "relooks" not in a.totals()
     # the recorded settings are those of before the parallax settings
-    assert not {"parallax", "plume_height_m", "relook_km", "relook_s"} & set(a.config.as_dict())
+    keys = {"parallax", "plume_height_m", "relook_km", "relook_s", "catch_up", "max_rise_mps"}
+    assert not keys & set(a.config.as_dict())
+
+
+def test_a_rise_allowance_is_recorded_only_where_asked_for():
+    asked = PassConfig(parallax="estimated", relook_km=(400.0, 300.0), max_rise_mps=100.0)
+    assert asked.as_dict()["max_rise_mps"] == 100.0 and asked.as_dict()["relook_km"] == [400, 300]
+    assert "max_rise_mps" not in PassConfig(parallax="estimated").as_dict()
 
 
 @pytest.mark.parametrize(

@@ -140,6 +140,15 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     if args.no_catch_up:
         kw["catch_up"] = False
     if args.max_rise_mps is not None:
+        if args.max_rise_mps > 0 and len(args.relook_km or ()) < 2:  # the default: one
+            raise InvalidParameterError(
+                "--max-rise-mps: has no effect with one re-look distance (a rise is fitted "
+                "with two or more: give e.g. --relook-km 400,300)"
+            )
+        if args.max_rise_mps > 0 and mode in ("off", "prior", "true"):
+            raise InvalidParameterError(
+                f"--max-rise-mps: has no effect with --parallax {mode} (no height is measured)"
+            )
         kw["max_rise_mps"] = args.max_rise_mps
     return kw
 
