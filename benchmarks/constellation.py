@@ -18,14 +18,18 @@ the shell under ``/usr/bin/time -v`` at 50/100/200/500 satellites, 24 h, 1,250 v
 ``sweep`` (24 configurations serially and on a ``dask.distributed`` LocalCluster of
 processes: same summaries, byte for byte), ``day`` (the world map of a 20-satellite day),
 ``fidelity`` (the target level against the pixel-level pass loop, ``fly``, on 36 sampled
-overflights of a 20-satellite day: :func:`fly_overflight`).
+overflights of a 20-satellite day: :func:`fly_overflight`), ``revisit`` (not in the default
+set: ``none`` and ``cross`` at 20 satellites on ``--revisit-seeds`` seeds, every gap between
+successive observations of an eruption pooled per mode, :func:`run_revisit`).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -132,6 +136,52 @@ def run_bound(catalog, seeds: int) -> list[dict]:
         for c in configs
     ]
     return sweep(configs + busy, catalog, progress=True)
+
+
+def _revisit_gaps(cfg: dict) -> dict:
+    """One constellation-day: every gap (s) between successive observations of an eruption."""
+    from dyntarget.constellation.run import constellation
+    from dyntarget.constellation.simulate import Settings, run_day
+    from dyntarget.constellation.world import read_catalog
+
+    c = dict(cfg)
+    sats = constellation(
+        tle=None, walker_tpf=c.pop("walker"), altitude_km=c.pop("altitude_km"),
+        inclination_deg=c.pop("inclination_deg"), start=c["start"],
+    )  # fmt: skip
+    start, hours, seed = c.pop("start"), c.pop("hours"), c.pop("seed")
+    day = run_day(sats, read_catalog(GVP), start=start, hours=hours, seed=seed,
+                  settings=Settings(**c), tracks=False)  # fmt: skip
+    gaps = [b - a for r in day.table for a, b in itertools.pairwise(r["obs_times"])]
+    return {"cueing": cfg["cueing"], "seed": seed, "gaps_s": gaps,
+            "median_revisit_s": day.summary["median_revisit_s"]}  # fmt: skip
+
+
+def run_revisit(seeds: int) -> dict:
+    """The revisit target at 20 satellites on enough seeds for ``none`` to have gaps: every
+    gap between successive observations of an eruption, pooled over the seeds per mode
+    (a seed's own median exists only where it has a gap)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    configs = [config(20, m, "distributed", s) for m in ("none", "cross") for s in range(seeds)]
+    t = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=2) as pool:
+        runs = list(pool.map(_revisit_gaps, configs))
+    out: dict = {"seeds": seeds, "wall_s": round(time.perf_counter() - t, 1), "modes": {}}
+    for m in ("none", "cross"):
+        mine = [r for r in runs if r["cueing"] == m]
+        gaps = sorted(g for r in mine for g in r["gaps_s"])
+        out["modes"][m] = {
+            "gaps": len(gaps),
+            "seeds_with_a_gap": sum(1 for r in mine if r["gaps_s"]),
+            "pooled_median_revisit_s": float(statistics.median(gaps)) if gaps else None,
+            "gaps_s": [round(g, 3) for g in gaps],
+            "per_seed_median_s": [r["median_revisit_s"] for r in mine],
+        }
+    a, b = (out["modes"][m]["pooled_median_revisit_s"] for m in ("cross", "none"))
+    out["cross_over_none"] = None if a is None or not b else round(a / b, 4)
+    print(f"revisit: {len(configs)} runs in {out['wall_s']:.0f} s", file=sys.stderr)
+    return out
 
 
 def time_cli(args: list[str]) -> dict:
@@ -482,6 +532,9 @@ def main() -> None:
         help="the curve's world (episodes: the earlier table, kept as curve_episodes)",
     )
     p.add_argument("--parts", default="curve,sensitivity,bound,scale,sweep,day,fidelity")
+    p.add_argument(
+        "--revisit-seeds", type=int, default=40, help="seeds of the revisit part (20 satellites)"
+    )
     args = p.parse_args()
     if not GVP.is_file():
         sys.exit(f"benchmark: the GVP catalog is not at {GVP}")
@@ -521,6 +574,8 @@ def main() -> None:
         save()
     if "fidelity" in parts:
         result["fidelity"] = run_fidelity(catalog)
+    if "revisit" in parts:
+        result["revisit"] = run_revisit(args.revisit_seeds)
     save()
     print(out)
 
