@@ -1,0 +1,49 @@
+"""The revisit figures docs/constellation.md and docs/results.md quote are their record's.
+
+``docs/benchmarks/constellation_revisit.json`` (``benchmarks/constellation.py --parts
+revisit``) holds every gap between successive observations of an eruption at 20
+satellites; each figure the pages quote is worked out again here from those gaps (counts,
+pooled medians in minutes, their ratio and its bootstrap interval), so a rerun that is not
+copied to the pages, or a number edited by hand, fails here.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = (ROOT / "docs" / "constellation.md").read_text(encoding="utf-8")
+RESULTS = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+RECORD = json.loads(
+    (ROOT / "docs" / "benchmarks" / "constellation_revisit.json").read_text(encoding="utf-8")
+)["revisit"]
+
+
+def _mode(m: str) -> tuple[int, int, float]:
+    gaps = RECORD["modes"][m]["gaps_s"]
+    days = sum(1 for s in RECORD["modes"][m]["per_seed_median_s"] if s is not None)
+    return len(gaps), days, statistics.median(gaps) / 60.0
+
+
+def test_the_quoted_revisit_figures_are_the_records():
+    (nc, dc, mc), (nn, dn, mn) = _mode("cross"), _mode("none")
+    lo, hi = RECORD["cross_over_none_bootstrap_95"]
+    ratio = f"{mc / mn:.2f}×"
+    assert RECORD["seeds"] == 200 and f"over {RECORD['seeds']} seeds" in PAGE
+    assert f"`none` revisits an eruption {nn} times, in {dn} of the 200 days" in PAGE
+    assert f"median gap of {mn:.0f} min" in PAGE
+    assert f"`cross` {nc:,} times (in {dc} days), median {mc:.0f} min: {ratio}" in PAGE
+    assert f"interval\n{lo:.2f}–{hi:.2f}" in PAGE or f"interval {lo:.2f}–{hi:.2f}" in PAGE
+    row = f"`cross` {mc:.0f} min ({nc:,} gaps), `none` {mn:.0f} min ({nn} gaps, in {dn} of"
+    assert row in PAGE and f"{ratio} (bootstrap 95 %: {lo:.2f}–{hi:.2f})" in PAGE
+    assert f"{ratio} `none`'s ({mc:.0f} against {mn:.0f} min" in RESULTS.replace("\n", " ")
+
+
+def test_the_quoted_shares_of_short_and_long_gaps_are_the_records():
+    cross = [g / 60.0 for g in RECORD["modes"]["cross"]["gaps_s"]]
+    none = [g / 60.0 for g in RECORD["modes"]["none"]["gaps_s"]]
+    short = sum(10 <= g < 25 for g in cross)
+    assert f"({short} of {len(cross):,}:" in PAGE
+    assert f"{sum(g > 600 for g in none)} of\n`none`'s {len(none)} are over 10 h" in PAGE
