@@ -47,3 +47,15 @@ def test_the_quoted_shares_of_short_and_long_gaps_are_the_records():
     short = sum(10 <= g < 25 for g in cross)
     assert f"({short} of {len(cross):,}:" in PAGE
     assert f"{sum(g > 600 for g in none)} of\n`none`'s {len(none)} are over 10 h" in PAGE
+
+
+def test_the_quoted_observations_per_eruption_are_the_records():
+    c, n = (RECORD["modes"][m]["per6"] for m in ("cross", "none"))
+    assert len(c) == len(n) == RECORD["modes"]["cross"]["detected_eruptions"]
+    mc, mn = statistics.fmean(c), statistics.fmean(n)
+    lo, hi = RECORD["per6_cross_over_none_bootstrap_95"]
+    ratio = f"{mc / mn:.2f}×, bootstrap 95 %: {lo:.2f}–{hi:.2f}"
+    assert f"over {len(c):,} detected eruptions in each" in PAGE
+    assert f"`cross` observes one {mc:.2f} times" in PAGE and f"`none` {mn:.2f}\ntimes" in PAGE
+    assert f"{mc:.2f} against {mn:.2f} ({ratio})" in PAGE.replace("\n", " ")
+    assert f"over 200 days, {ratio};" in RESULTS.replace("\n", " ")
