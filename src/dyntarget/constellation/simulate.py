@@ -722,15 +722,57 @@ def _summary(n_sats, eruptions, first_det, observations, table, seconds) -> dict
 
 
 def _episode_summary(eruptions: Eruptions, table, seconds: float) -> dict[str, Any]:
-    """Figures of the two-level model: eruptions started in the period, and per episode.
+    """Figures of the two-level model: eruptions started in the period, and per episode
+    (:func:`episode_delays`)."""
+    started, ep_delays = episode_delays(eruptions, table, seconds)
+    return {
+        "eruptions_in_progress_at_start": int((eruptions.onset_s < 0.0).sum()),
+        "eruptions_started": int((eruptions.onset_s >= 0.0).sum()),
+        "episodes_started": started,
+        "episodes_observed": len(ep_delays),
+        "episodes_observed_within_6h": sum(1 for d in ep_delays if d <= HOUR6),
+        "median_episode_onset_to_first_obs_s": _quantile(ep_delays, 0.5),
+    }
+
+
+def episode_delays(
+    eruptions: Eruptions, table: list[dict[str, Any]], seconds: float
+) -> tuple[int, list[float]]:
+    """The plume episodes that start in the period, and the delay to each observed one.
 
     An episode's delay is from its onset to the first observation of its eruption at or
     after that onset and before the episode's end (an observation is taken only while a
-    plume is there); only episodes that start in the period count.
+    plume is there); only episodes that start in the period (``0 <= onset < seconds``) count.
+
+    Parameters
+    ----------
+    eruptions : Eruptions
+        The two-level model's eruptions (with their episodes).
+    table : list of dict
+        :attr:`Day.table`: per eruption, ``obs_times`` (sorted seconds).
+    seconds : float
+        The period's length, seconds.
+
+    Returns
+    -------
+    (int, list of float)
+        The episodes started, and the delays (seconds) of those observed, in episode order.
+
+    Examples
+    --------
+    Two episodes of one eruption, the first begun before the period: the second is seen
+    100 s after its onset.
+
+    >>> one = np.array
+    >>> e = Eruptions(one([0]), one([-9e5]), one([9e5]), one([10.0]), one([90.0]), one([50.0]),
+    ...     one([0.1]), one([600.0]), one([5000.0]), one([3.0]),
+    ...     one([0, 0]), one([-100.0, 500.0]), one([200.0, 800.0]))
+    >>> episode_delays(e, [{"obs_times": [150.0, 600.0]}], 3600.0)
+    (1, [100.0])
     """
     assert eruptions.episode_onset_s is not None and eruptions.episode_end_s is not None
     assert eruptions.episode_eruption is not None
-    ep_delays = []
+    delays = []
     started = 0
     for e, t0, t1 in zip(
         eruptions.episode_eruption.tolist(),
@@ -743,15 +785,8 @@ def _episode_summary(eruptions: Eruptions, table, seconds: float) -> dict[str, A
         started += 1
         seen = [t for t in table[e]["obs_times"] if t0 <= t < t1]
         if seen:
-            ep_delays.append(seen[0] - t0)
-    return {
-        "eruptions_in_progress_at_start": int((eruptions.onset_s < 0.0).sum()),
-        "eruptions_started": int((eruptions.onset_s >= 0.0).sum()),
-        "episodes_started": started,
-        "episodes_observed": len(ep_delays),
-        "episodes_observed_within_6h": sum(1 for d in ep_delays if d <= HOUR6),
-        "median_episode_onset_to_first_obs_s": _quantile(ep_delays, 0.5),
-    }
+            delays.append(seen[0] - t0)
+    return started, delays
 
 
 def settings_dict(settings: Settings) -> dict[str, Any]:
@@ -783,5 +818,6 @@ __all__ = [
     "RELAYS",
     "Day",
     "Settings",
+    "episode_delays",
     "run_day",
 ]
