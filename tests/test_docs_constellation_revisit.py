@@ -59,3 +59,24 @@ def test_the_quoted_observations_per_eruption_are_the_records():
     assert f"`cross` observes one {mc:.2f} times" in PAGE and f"`none` {mn:.2f}\ntimes" in PAGE
     assert f"{mc:.2f} against {mn:.2f} ({ratio})" in PAGE.replace("\n", " ")
     assert f"over 200 days, {ratio};" in RESULTS.replace("\n", " ")
+
+
+def test_the_quoted_episode_figures_of_cross_and_geo_are_the_records():
+    g, n = RECORD["modes"]["cross+geo"], RECORD["modes"]["none"]
+    assert g["episodes_started"] == n["episodes_started"]  # the same worlds
+    share = {k: 100 * v["episodes_observed_within_6h"] / v["episodes_started"] for k, v in
+             (("g", g), ("n", n))}  # fmt: skip
+    hours = {k: statistics.median(v["episode_delays_s"]) / 3600 for k, v in (("g", g), ("n", n))}
+    lo, hi = RECORD["episode_delay_geo_over_none_bootstrap_95"]
+    text = PAGE.replace("\n", " ")
+    assert f"of the {g['episodes_started']:,} plume episodes starting in the 200 days" in text
+    assert (
+        f"observes {share['g']:.1f} % within 6 h of their onset, `none` {share['n']:.1f} %" in text
+    )
+    assert f"({share['g'] / share['n']:.2f}×: the ≥ 40 % target is met)" in text
+    delay = f"{hours['g']:.2f} h against {hours['n']:.2f} h"
+    r = f"{hours['g'] / hours['n']:.2f}×"
+    boot = f"bootstrap 95 %: {lo:.2f}–{hi:.2f}"
+    assert f"{delay}, {r} ({boot})" in text and f"{delay} ({r}, {boot})" in text
+    assert f"{r} over 200 days ({delay};" in RESULTS.replace("\n", " ")
+    assert f"{share['g']:.1f} % against {share['n']:.1f} %" in RESULTS.replace("\n", " ")
