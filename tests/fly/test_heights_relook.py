@@ -249,6 +249,18 @@ def _apparent_along_m(d_m, h_m):
     return R * math.atan2(sx + s * ux, sy + s * uy)
 
 
+def _moved_by_hand(where, y, h0, t1, h1):
+    """Rows a top at h0 seen at row y at t = 0 has moved towards the nadir at t1, at h1 then
+    (its ground point found by bisection on the line of sight, :func:`_apparent_along_m`)."""
+    seen = where.along(y, 0.0)
+    lo, hi = seen - 30e3, seen  # the ground point whose top at h0 is seen there
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _apparent_along_m(mid, h0) < seen else (lo, mid)
+    later = _apparent_along_m(0.5 * (lo + hi) - where.geometry.ground_speed * t1, h1)
+    return where.nadir(t1)[1] - later / GSD - y
+
+
 @pytest.mark.parametrize(("h0", "h1"), [(6000.0, 6000.0), (3000.0, 5000.0), (9000.0, 4000.0)])
 def test_a_top_changing_height_between_two_looks_moves_as_its_lines_of_sight_say(h0, h1):
     # seen at row y at t = 0 (the first look, 500 km ahead); 12 s later its ground point is
@@ -256,16 +268,59 @@ def test_a_top_changing_height_between_two_looks_moves_as_its_lines_of_sight_say
     g = OrbitGeometry(wfov_gsd_m=GSD)
     where = Geometry3D(g, (20000, 96), 128, 0, 4)
     y, t1 = 60.0, 12.0
-    seen = where.along(y, 0.0)
-    lo, hi = seen - 30e3, seen  # the ground point whose top at h0 is seen there
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _apparent_along_m(mid, h0) < seen else (lo, mid)
-    later = _apparent_along_m(0.5 * (lo + hi) - g.ground_speed * t1, h1)
-    want = where.nadir(t1)[1] - later / GSD - y
+    want = _moved_by_hand(where, y, h0, t1, h1)
     assert where.shift_rows(y, 0.0, t1, h0, h1) == pytest.approx(want, abs=0.02)
     if h0 == h1:
         assert where.disparity_rows(y, 0.0, t1, h0) == where.shift_rows(y, 0.0, t1, h0, h1)
+
+
+def test_the_widened_search_reaches_where_a_top_rising_that_fast_would_be():
+    # a steady top's search (0.2-1.8 of an 8.5 km guess) widened, away from the nadir, by the
+    # rows a top at the guess climbing 100 m/s for 21 s moves back (lines of sight by hand)
+    from dyntarget.predict.relooks import MARGIN_PX, SPREAD_GUESS
+
+    where, tr, _ = _synthetic([], max_rise_mps=100.0)
+    y, t2, g = 60.0, 21.0, 8500.0
+    steady = _moved_by_hand(where, y, g, t2, g)
+    back = steady - _moved_by_hand(where, y, g, t2, g + 100.0 * t2)
+    assert back > 10.0  # 2.1 km higher: tens of 32 m rows further from the nadir
+    lo, hi = steady - SPREAD_GUESS * abs(steady) - back, steady + SPREAD_GUESS * abs(steady)
+    centre, half = tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS)
+    assert centre == pytest.approx(0.5 * (lo + hi), abs=0.05)
+    assert half == pytest.approx(0.5 * (hi - lo) + MARGIN_PX, abs=0.05)
+    _, steady_tr, _ = _synthetic([], max_rise_mps=0.0)  # no rise allowed for: no widening
+    assert steady_tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS) is None
+
+
+@pytest.mark.parametrize(("h0", "rise"), [(3000.0, 80.0), (6000.0, 40.0), (9000.0, 0.0)])
+def test_a_top_that_moved_is_searched_for_where_its_move_puts_it(h0, rise):
+    # after one re-look (7 s) the top had moved d1 rows; each height in the guess's range,
+    # with the rise that explains d1, predicts where it is at 21 s: the truth (lines of
+    # sight by hand) lies inside that search, which is narrower than allowing any rise
+    from dyntarget.predict.relooks import SPREAD_GUESS
+
+    where, tr, _ = _synthetic([], max_rise_mps=100.0)
+    y, t1, t2, g = 60.0, 7.0, 21.0, 8500.0
+    d1 = _moved_by_hand(where, y, h0, t1, h0 + rise * t1)
+    d2 = _moved_by_hand(where, y, h0, t2, h0 + rise * t2)
+    centre, half = tr._following(y, 0.0, t2, [(t1, d1)], g)
+    assert abs(centre - d2) <= half
+    assert half < tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS)[1]
+
+
+def test_a_move_no_height_and_rise_explain_gives_no_search():
+    where, tr, _ = _synthetic([], max_rise_mps=100.0)
+    y = 60.0
+    # 80 rows towards the nadir in 7 s: more (beyond the 6-row margin) than a steady 15.3 km
+    # top moves (1.8 x 8.5 km: 59 rows)
+    assert _moved_by_hand(where, y, 15300.0, 7.0, 15300.0) < 80.0 - 6
+    assert tr._following(y, 0.0, 21.0, [(7.0, 80.0)], 8500.0) is None
+    # 40 rows away from it: more than a 1.7 km top rising 100 m/s moves back (16 rows)
+    assert _moved_by_hand(where, y, 1700.0, 7.0, 1700.0 + 700.0) > -40.0 + 6
+    assert tr._following(y, 0.0, 21.0, [(7.0, -40.0)], 8500.0) is None
+    assert tr._following(y, 0.0, 21.0, [], 8500.0) is None  # nothing measured yet
+    _, steady, _ = _synthetic([], max_rise_mps=0.0)
+    assert steady._following(y, 0.0, 21.0, [(7.0, 5.0)], 8500.0) is None
 
 
 def _rising(rise_mps, steady_search=False):
