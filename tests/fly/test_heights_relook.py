@@ -323,6 +323,73 @@ def test_a_move_no_height_and_rise_explain_gives_no_search():
     assert steady._following(y, 0.0, 21.0, [(7.0, 5.0)], 8500.0) is None
 
 
+def _window_top(where, lo, hi):
+    """The re-look window's top row centred on strip rows lo..hi (clipped to the strip)."""
+    rows = where.frame_px
+    return int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), where.wfov_shape[0] - rows))
+
+
+@pytest.mark.parametrize(("frame_px", "reach"), [(128, "all"), (40, "room"), (16, "none")])
+def test_a_re_look_window_reaches_where_a_risen_top_would_be_in_the_room_it_has(frame_px, reach):
+    # a 9-row plume seen at rows 200-208 at t = 0, guessed at 8.5 km, looked at again 14 s
+    # later: a steady top moves ~64 rows towards the nadir (lines of sight by hand); one at
+    # the guess rising 100 m/s meanwhile ~39 rows less; the window (frame_px rows) keeps the
+    # steady rows and their 6-row margins and reaches back by what room it has left
+    from dyntarget.predict.relooks import MARGIN_PX
+
+    where, tr, _ = _synthetic([], frame_px=frame_px, max_rise_mps=100.0)
+    p = Plume(1, 0, 0.0, np.arange(200, 209), np.full(9, 40))
+    g, at = 8500.0, 14.0
+    lo = 200 + _moved_by_hand(where, 200.0, g, at, g)
+    hi = 208 + _moved_by_hand(where, 208.0, g, at, g)
+    back = _moved_by_hand(where, 200.0, g, at, g) - _moved_by_hand(where, 200.0, g, at, g + 1400.0)
+    room = frame_px - (hi - lo + 2 * MARGIN_PX)
+    assert {"all": room > back, "room": 0 < room < back, "none": room <= 0}[reach]
+    want = _window_top(where, lo - min(back, max(room, 0.0)), hi)
+
+    def render(t, top, nadir_hr):
+        return np.zeros((frame_px, 96), bool)
+
+    r = tr._take([p], 0.0, at, 1.0, {1: g}, render)
+    assert r.t_s == at and r.top == want
+    # without the rise allowed for: centred on the steady rows, as before
+    _, steady, _ = _synthetic([], frame_px=frame_px, max_rise_mps=0.0)
+    assert steady._take([p], 0.0, at, 1.0, {1: g}, render).top == _window_top(where, lo, hi)
+    # a top found rising is looked for where its search (centre +- half-width) puts it, and
+    # the room left beyond
+    found = tr._take([p], 0.0, at + 5.0, 1.0, {1: g}, render, lambda q, t: (-30.0, 4.0))
+    back = _moved_by_hand(where, 200.0, g, 19.0, g) - _moved_by_hand(
+        where, 200.0, g, 19.0, g + 1900
+    )
+    room = frame_px - ((208 - 26.0) - (200 - 34.0) + 2 * MARGIN_PX)
+    assert found.top == _window_top(where, 200 - 34.0 - min(back, max(room, 0.0)), 208 - 26.0)
+
+
+def test_a_re_look_is_searched_in_turn_and_says_why_its_last_search_failed():
+    from dyntarget.predict.height import envelope_disparity
+
+    _, tr, _ = _synthetic([])
+    own = np.zeros((64, 64), bool)
+    own[20:28, 30:36] = True
+    weight = np.ones((64, 64), bool)
+    moved = np.roll(own, 10, axis=0)  # 10 rows towards the nadir
+    # the first search (around 20 rows away from the nadir) misses; a skipped one; the third
+    disp, which, why = tr._find((own, weight), moved, 0, [(-20.0, 5.0), None, (10.0, 6.0)])
+    assert which == 2 and why == "" and disp.dy_px == pytest.approx(10.0, abs=0.1)
+    # none finds it: the last search's reason, without "; no height is measured"
+    nothing = np.zeros((64, 64), bool)
+    _, own_why = envelope_disparity(own, nothing, weight=weight, search_px=(4, 32))
+    disp, which, why = tr._find((own, weight), nothing, 0, [(-20.0, 5.0), (0.0, 32.0)])
+    assert disp is None and which == -1 and why == own_why.split("; no height")[0]
+    assert "; no height" in own_why and why  # (what was cut off)
+    # a search wider than the frame holds says so, with both widths
+    _, _, why = tr._find((own, weight), nothing, 0, [(0.0, 40.0)])
+    assert why == (
+        "the frame (64 WFOV rows) is too short to find the plume again: its height's "
+        "uncertainty asks a search of +-40 rows, the frame holds +-32"
+    )
+
+
 def _rising(rise_mps, steady_search=False):
     # a young column's top: 3 km at the first look, rising at rise_mps; between the looks
     # at 500 and 400 km ahead (about 7 s) a 90 m/s top climbs 640 m, which moves it away
