@@ -249,15 +249,15 @@ def _apparent_along_m(d_m, h_m):
     return R * math.atan2(sx + s * ux, sy + s * uy)
 
 
-def _moved_by_hand(where, y, h0, t1, h1):
-    """Rows a top at h0 seen at row y at t = 0 has moved towards the nadir at t1, at h1 then
+def _moved_by_hand(where, y, h0, t1, h1, t0=0.0):
+    """Rows a top at h0 seen at row y at t0 has moved towards the nadir at t1, at h1 then
     (its ground point found by bisection on the line of sight, :func:`_apparent_along_m`)."""
-    seen = where.along(y, 0.0)
+    seen = where.along(y, t0)
     lo, hi = seen - 30e3, seen  # the ground point whose top at h0 is seen there
     for _ in range(100):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if _apparent_along_m(mid, h0) < seen else (lo, mid)
-    later = _apparent_along_m(0.5 * (lo + hi) - where.geometry.ground_speed * t1, h1)
+    later = _apparent_along_m(0.5 * (lo + hi) - where.geometry.ground_speed * (t1 - t0), h1)
     return where.nadir(t1)[1] - later / GSD - y
 
 
@@ -274,38 +274,64 @@ def test_a_top_changing_height_between_two_looks_moves_as_its_lines_of_sight_say
         assert where.disparity_rows(y, 0.0, t1, h0) == where.shift_rows(y, 0.0, t1, h0, h1)
 
 
-def test_the_widened_search_reaches_where_a_top_rising_that_fast_would_be():
+@pytest.mark.parametrize("t0", [0.0, 5.0])
+def test_the_widened_search_reaches_where_a_top_rising_that_fast_would_be(t0):
     # a steady top's search (0.2-1.8 of an 8.5 km guess) widened, away from the nadir, by the
     # rows a top at the guess climbing 100 m/s for 21 s moves back (lines of sight by hand)
     from dyntarget.predict.relooks import MARGIN_PX, SPREAD_GUESS
 
     where, tr, _ = _synthetic([], max_rise_mps=100.0)
-    y, t2, g = 60.0, 21.0, 8500.0
-    steady = _moved_by_hand(where, y, g, t2, g)
-    back = steady - _moved_by_hand(where, y, g, t2, g + 100.0 * t2)
+    y, t2, g = 60.0, t0 + 21.0, 8500.0
+    steady = _moved_by_hand(where, y, g, t2, g, t0)
+    back = steady - _moved_by_hand(where, y, g, t2, g + 100.0 * 21.0, t0)
     assert back > 10.0  # 2.1 km higher: tens of 32 m rows further from the nadir
     lo, hi = steady - SPREAD_GUESS * abs(steady) - back, steady + SPREAD_GUESS * abs(steady)
-    centre, half = tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS)
+    centre, half = tr._search_risen(y, t0, t2, g, SPREAD_GUESS)
     assert centre == pytest.approx(0.5 * (lo + hi), abs=0.05)
     assert half == pytest.approx(0.5 * (hi - lo) + MARGIN_PX, abs=0.05)
     _, steady_tr, _ = _synthetic([], max_rise_mps=0.0)  # no rise allowed for: no widening
-    assert steady_tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS) is None
+    assert steady_tr._search_risen(y, t0, t2, g, SPREAD_GUESS) is None
 
 
-@pytest.mark.parametrize(("h0", "rise"), [(3000.0, 80.0), (6000.0, 40.0), (9000.0, 0.0)])
-def test_a_top_that_moved_is_searched_for_where_its_move_puts_it(h0, rise):
+def _following_by_hand(where, y, t0, t1, d1, t2, guess):
+    """The range of moves at t2 predicted, for each of nine heights from 0.2 to 1.8 times
+    ``guess``, by the rise (0-100 m/s, bisection) that moves it d1 rows by t1 (those no rise
+    explains within 6 rows left out)."""
+    out = []
+    for h0 in np.linspace(0.2 * guess, 1.8 * guess, 9):
+
+        def move(r, t, h0=h0):
+            return _moved_by_hand(where, y, h0, t, h0 + r * (t - t0), t0)
+
+        if move(0.0, t1) < d1 - 6 or move(100.0, t1) > d1 + 6:
+            continue
+        lo, hi = 0.0, 100.0
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if move(mid, t1) > d1 else (lo, mid)
+        out.append(move(0.5 * (lo + hi), t2))
+    return min(out), max(out)
+
+
+@pytest.mark.parametrize(("h0", "rise", "t0"), [(3000.0, 80.0, 0.0), (6000.0, 40.0, 5.0),
+                                                (9000.0, 0.0, 0.0)])  # fmt: skip
+def test_a_top_that_moved_is_searched_for_where_its_move_puts_it(h0, rise, t0):
     # after one re-look (7 s) the top had moved d1 rows; each height in the guess's range,
     # with the rise that explains d1, predicts where it is at 21 s: the truth (lines of
-    # sight by hand) lies inside that search, which is narrower than allowing any rise
-    from dyntarget.predict.relooks import SPREAD_GUESS
+    # sight by hand) lies inside that search, which spans those predictions (the rise found
+    # by bisection here, interpolated there: within a row) and is narrower than any rise
+    from dyntarget.predict.relooks import MARGIN_PX, SPREAD_GUESS
 
     where, tr, _ = _synthetic([], max_rise_mps=100.0)
-    y, t1, t2, g = 60.0, 7.0, 21.0, 8500.0
-    d1 = _moved_by_hand(where, y, h0, t1, h0 + rise * t1)
-    d2 = _moved_by_hand(where, y, h0, t2, h0 + rise * t2)
-    centre, half = tr._following(y, 0.0, t2, [(t1, d1)], g)
+    y, t1, t2, g = 60.0, t0 + 7.0, t0 + 21.0, 8500.0
+    d1 = _moved_by_hand(where, y, h0, t1, h0 + rise * 7.0, t0)
+    d2 = _moved_by_hand(where, y, h0, t2, h0 + rise * 21.0, t0)
+    centre, half = tr._following(y, t0, t2, [(t1, d1)], g)
     assert abs(centre - d2) <= half
-    assert half < tr._search_risen(y, 0.0, t2, g, SPREAD_GUESS)[1]
+    lo, hi = _following_by_hand(where, y, t0, t1, d1, t2, g)
+    assert centre - half + MARGIN_PX == pytest.approx(lo, abs=1.0)
+    assert centre + half - MARGIN_PX == pytest.approx(hi, abs=1.0)
+    assert half < tr._search_risen(y, t0, t2, g, SPREAD_GUESS)[1]
 
 
 def test_a_move_no_height_and_rise_explain_gives_no_search():
@@ -382,6 +408,8 @@ def test_a_re_look_is_searched_in_turn_and_says_why_its_last_search_failed():
     disp, which, why = tr._find((own, weight), nothing, 0, [(-20.0, 5.0), (0.0, 32.0)])
     assert disp is None and which == -1 and why == own_why.split("; no height")[0]
     assert "; no height" in own_why and why  # (what was cut off)
+    # no search to try: nothing found, nothing to say
+    assert tr._find((own, weight), moved, 0, [None]) == (None, -1, "")
     # a search wider than the frame holds says so, with both widths
     _, _, why = tr._find((own, weight), nothing, 0, [(0.0, 40.0)])
     assert why == (
