@@ -27,7 +27,7 @@ the 20-satellite targets with every day's eruptions, gaps and episodes pooled pe
 from __future__ import annotations
 
 import argparse
-import itertools
+import functools
 import json
 import re
 import statistics
@@ -139,28 +139,27 @@ def run_bound(catalog, seeds: int) -> list[dict]:
     return sweep(configs + busy, catalog, progress=True)
 
 
-def _revisit_gaps(cfg: dict) -> dict:
-    """One constellation-day: every gap (s) between successive observations of an eruption."""
-    from dyntarget.constellation.run import constellation
-    from dyntarget.constellation.simulate import Settings, episode_delays, run_day
+@functools.cache
+def _gvp():
+    """The GVP catalog, read once per process (each worker of :func:`run_revisit`)."""
     from dyntarget.constellation.world import read_catalog
 
-    c = dict(cfg)
-    sats = constellation(
-        tle=None, walker_tpf=c.pop("walker"), altitude_km=c.pop("altitude_km"),
-        inclination_deg=c.pop("inclination_deg"), start=c["start"],
-    )  # fmt: skip
-    start, hours, seed = c.pop("start"), c.pop("hours"), c.pop("seed")
-    day = run_day(sats, read_catalog(GVP), start=start, hours=hours, seed=seed,
-                  settings=Settings(**c), tracks=False)  # fmt: skip
-    gaps = [b - a for r in day.table for a, b in itertools.pairwise(r["obs_times"])]
-    per6 = [  # each detected eruption's observations in the 6 h after its first detection
-        sum(1 for t in r["obs_times"] if d <= t <= d + 6 * 3600.0)
-        for r in day.table
-        if (d := r["first_detection_s"]) is not None
-    ]
-    started, delays = episode_delays(day.eruptions, day.table, hours * 3600.0)
-    return {"cueing": cfg["cueing"], "seed": seed, "gaps_s": gaps, "per6": per6,
+    return read_catalog(GVP)
+
+
+def _revisit_gaps(cfg: dict) -> dict:
+    """One constellation-day: its gaps, observations after detection and episode delays."""
+    from dyntarget.constellation.run import config_day
+    from dyntarget.constellation.simulate import (
+        episode_delays,
+        observations_after_detection,
+        revisit_gaps,
+    )
+
+    day, _ = config_day(cfg, _gvp())
+    started, delays = episode_delays(day.eruptions, day.table, cfg["hours"] * 3600.0)
+    return {"cueing": cfg["cueing"], "seed": cfg["seed"], "gaps_s": revisit_gaps(day.table),
+            "per6": observations_after_detection(day.table),
             "episodes_started": started, "episode_delays_s": delays,
             "median_revisit_s": day.summary["median_revisit_s"],
             "observations_per_eruption_6h": day.summary["observations_per_eruption_6h"]}  # fmt: skip

@@ -250,21 +250,21 @@ def _catalog_from(doc: dict[str, Any]) -> Catalog:
     )
 
 
-def sweep_point(config: dict[str, Any], *, catalog: dict[str, Any]) -> dict[str, Any]:
-    """One configuration of a sweep, run serially here: its ``summary.json`` content.
+def config_day(config: dict[str, Any], catalog: Catalog) -> tuple[Day, Settings]:
+    """The constellation-day one sweep configuration names, run here.
 
     Parameters
     ----------
     config : dict
         ``walker``, ``altitude_km``, ``inclination_deg``, ``start``, ``hours``, ``seed`` and
         :class:`~dyntarget.constellation.simulate.Settings` fields.
-    catalog : dict
-        :func:`catalog_json` of the volcanoes.
+    catalog : Catalog
+        The volcanoes.
 
     Returns
     -------
-    dict
-        The summary, with the configuration under ``options``.
+    (Day, Settings)
+        The day (no ground tracks kept) and the settings it ran with.
     """
     cfg = dict(config)
     sats = constellation(
@@ -277,14 +277,27 @@ def sweep_point(config: dict[str, Any], *, catalog: dict[str, Any]) -> dict[str,
     start, hours, seed = cfg.pop("start"), cfg.pop("hours"), cfg.pop("seed")
     settings = Settings(**cfg)
     day = run_day(
-        sats,
-        _catalog_from(catalog),
-        start=start,
-        hours=hours,
-        seed=seed,
-        settings=settings,
-        tracks=False,
+        sats, catalog, start=start, hours=hours, seed=seed, settings=settings, tracks=False
     )
+    return day, settings
+
+
+def sweep_point(config: dict[str, Any], *, catalog: dict[str, Any]) -> dict[str, Any]:
+    """One configuration of a sweep, run serially here: its ``summary.json`` content.
+
+    Parameters
+    ----------
+    config : dict
+        As :func:`config_day`'s.
+    catalog : dict
+        :func:`catalog_json` of the volcanoes.
+
+    Returns
+    -------
+    dict
+        The summary, with the configuration under ``options``.
+    """
+    day, settings = config_day(config, _catalog_from(catalog))
     return {**day.summary, "options": {**config, **settings_dict(settings)}}
 
 

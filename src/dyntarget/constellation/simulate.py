@@ -25,6 +25,7 @@ GEO imagers detect day and night (the split-window thermal-infrared ash products
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 from dataclasses import asdict, dataclass, field
@@ -685,6 +686,57 @@ def _quantile(values: list[float], q: float) -> float | None:
     return round(float(np.quantile(np.asarray(values, np.float64), q)), 3)
 
 
+def observations_after_detection(table: list[dict[str, Any]]) -> list[int]:
+    """Each detected eruption's observations in the 6 h after its first detection.
+
+    Parameters
+    ----------
+    table : list of dict
+        :attr:`Day.table`: per eruption, ``first_detection_s`` (``None``: never detected)
+        and ``obs_times`` (sorted seconds).
+
+    Returns
+    -------
+    list of int
+        One count per detected eruption, in table order (``summary.json``'s
+        ``observations_per_eruption_6h`` is their mean).
+
+    Examples
+    --------
+    >>> observations_after_detection([
+    ...     {"first_detection_s": 100.0, "obs_times": [50.0, 200.0, 21700.0, 30000.0]},
+    ...     {"first_detection_s": None, "obs_times": []}])
+    [2]
+    """
+    return [
+        sum(1 for t in r["obs_times"] if d <= t <= d + HOUR6)
+        for r in table
+        if (d := r["first_detection_s"]) is not None
+    ]
+
+
+def revisit_gaps(table: list[dict[str, Any]]) -> list[float]:
+    """Every gap between successive observations of one eruption, seconds.
+
+    Parameters
+    ----------
+    table : list of dict
+        :attr:`Day.table`: per eruption, ``obs_times`` (sorted seconds).
+
+    Returns
+    -------
+    list of float
+        The gaps, eruption by eruption (``summary.json``'s ``median_revisit_s`` is their
+        median).
+
+    Examples
+    --------
+    >>> revisit_gaps([{"obs_times": [0.0, 600.0, 4200.0]}, {"obs_times": [10.0]}])
+    [600.0, 3600.0]
+    """
+    return [b - a for r in table for a, b in itertools.pairwise(r["obs_times"])]
+
+
 def _summary(n_sats, eruptions, first_det, observations, table, seconds) -> dict[str, Any]:
     # onset-based figures: eruptions that start in the period (one in progress at the
     # start has an onset before it, unknown to any sensor: excluded)
@@ -693,16 +745,8 @@ def _summary(n_sats, eruptions, first_det, observations, table, seconds) -> dict
         for r in table
         if r["first_observation_s"] is not None and r["onset_s"] >= 0.0
     ]
-    per6 = [
-        sum(
-            1
-            for t in r["obs_times"]
-            if r["first_detection_s"] <= t <= r["first_detection_s"] + HOUR6
-        )
-        for r in table
-        if r["first_detection_s"] is not None
-    ]
-    gaps = [b - a for r in table for a, b in zip(r["obs_times"], r["obs_times"][1:], strict=False)]
+    per6 = observations_after_detection(table)
+    gaps = revisit_gaps(table)
     out = {
         "satellites": n_sats,
         "eruptions": len(eruptions),
@@ -819,5 +863,7 @@ __all__ = [
     "Day",
     "Settings",
     "episode_delays",
+    "observations_after_detection",
+    "revisit_gaps",
     "run_day",
 ]
