@@ -16,6 +16,7 @@ KERNEL_MODULES = {
     "test_compiled_edges",
     "test_kernel_cache_trust",
     "test_forest_kernel_fuzz",
+    "test_ensemble",
 }
 
 

@@ -31,6 +31,12 @@ def _forest(x, y, **kw):
     return RandomForestClassifier(random_state=0, n_jobs=1, **kw).fit(x, y)
 
 
+def _has(module: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(module) is not None
+
+
 def _reference(est, x):
     return est.predict_proba(x)[:, 1].astype(np.float32)
 
@@ -154,7 +160,8 @@ def test_bad_pixels_and_bad_forests_are_refused(project_forest):
 
 def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatch, tmp_path):
     """``auto`` (default), ``compiled`` and ``sklearn`` give the same probability maps;
-    ``auto`` falls back to scikit-learn without a compiler, ``compiled`` says why."""
+    ``auto`` falls back to ONNX Runtime (else scikit-learn) without a compiler, ``compiled``
+    says why (the fallback's own tests: test_ensemble.py)."""
     image = tiny_scenes[3].image
     ref = project_forest.estimator.predict_proba(image.reshape(4, -1).T)[:, 1]
     ref = ref.astype(np.float32).reshape(image.shape[1:])
@@ -168,10 +175,11 @@ def test_backends_through_the_classifier(project_forest, tiny_scenes, monkeypatc
     monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))  # no cached build either
     monkeypatch.setattr(compiled, "compiler", lambda: None)
     np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
-    assert project_forest._compiled[1] is None  # scikit-learn ran
+    fallback = project_forest._compiled[1]
+    assert getattr(fallback, "isa", None) == ("onnxruntime" if _has("onnxruntime") else None)
     with pytest.raises(MissingExtraError, match="C compiler"):
         project_forest.set_backend("compiled").predict_proba(image)
-    with pytest.raises(InvalidParameterError, match="backend: expected 'auto', 'sklearn'"):
+    with pytest.raises(InvalidParameterError, match="backend: expected 'auto', 'sklearn', 'co"):
         project_forest.set_backend("gpu")
 
 
@@ -353,7 +361,7 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     pytest.importorskip("onnxruntime")
     from dyntarget.cli import main
     from dyntarget.io import write_scene
-    from dyntarget.perceive.onnx import load_onnx
+    from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, load_onnx
     from dyntarget.perceive.onnx_export import export_checked
 
     model_dir = tmp_path / "rf"
@@ -363,11 +371,12 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     assert (model_dir / "forest.npz").is_file() and diff < 1e-4
     twin = load_onnx(model_dir)
     reference = project_forest.set_backend("sklearn").predict_proba(image)
-    if twin.forest is not None:  # the kernel: bit-identical
+    if twin.forest is not None:  # the kernel, or the double tree ensemble: bit-identical
         np.testing.assert_array_equal(twin.predict_proba(image), reference)
-    else:  # no kernel for this CPU (e.g. aarch64 without a library): ONNX Runtime's float32 sums
+        assert twin.backend in ("forest kernel", ENSEMBLE_BACKEND)
+    else:  # neither (the lean install without a kernel): model.onnx's float32 sums
         np.testing.assert_allclose(twin.predict_proba(image), reference, rtol=0, atol=1e-6)
-    assert twin.backend == ("forest kernel" if twin.forest is not None else "onnxruntime")
+        assert twin.backend == "onnxruntime"
     ort = load_onnx(model_dir, kernel=False)
     assert ort.forest is None
     ort.predict_proba(image)
@@ -415,7 +424,7 @@ def test_a_forest_twin_left_to_onnx_runtime_says_so_once(
     project_forest, tiny_scenes, tmp_path, capsys, monkeypatch
 ):
     """No forest.npz beside model.onnx: ONNX Runtime's tree ensemble predicts, slower than
-    scikit-learn, and one line on stderr says so however many frames are classified."""
+    the kernel, and one line on stderr says so however many frames are classified."""
     pytest.importorskip("onnxruntime")
     from dyntarget.perceive.onnx import load_onnx
     from dyntarget.perceive.onnx_export import export_checked
@@ -432,7 +441,7 @@ def test_a_forest_twin_left_to_onnx_runtime_says_so_once(
     said = capsys.readouterr().err.strip().splitlines()
     assert twin.backend == "onnxruntime"
     assert len(said) == 1 and "ONNX Runtime's tree ensemble predicts" in said[0], said
-    assert "slower than scikit-learn" in said[0]
+    assert "slower than the kernel" in said[0]
     quiet = load_onnx(model_dir, kernel=False)  # asked for: nothing said
     monkeypatch.setattr(compiled, "_SAID", set())
     quiet.predict_proba(tiny_scenes[0].image)

@@ -491,8 +491,10 @@ def forest_path(model: Any) -> str | None:
     -------
     str or None
         The compiled kernel's path (``"avx512"``, ``"avx2"``, ``"sse2"``, ``"neon"``,
-        ``"portable"``: what the loaded library reports), ``"sklearn"`` when
-        scikit-learn predicted (kernel off, absent or refused), ``None`` for another
+        ``"portable"``: what the loaded library reports), ``"onnxruntime"`` when ONNX
+        Runtime's tree ensemble predicted (no kernel: off, absent or refused;
+        :mod:`dyntarget.perceive.ensemble`), ``"sklearn"`` when scikit-learn predicted
+        (asked for, or neither of the others could run), ``None`` for another
         classifier or a forest that has not predicted yet.
 
     Examples

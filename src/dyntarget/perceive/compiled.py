@@ -105,7 +105,9 @@ here. NEON is not in it: it could not be measured (no aarch64 hardware)."""
 
 ISA_ENV = "DYNTARGET_FOREST_ISA"
 """Environment variable forcing the kernel's path: ``avx512``, ``avx2``, ``sse2``,
-``neon``, ``portable`` or ``off`` (no kernel: scikit-learn / ONNX Runtime); unset or
+``neon``, ``portable`` or ``off`` (no kernel: what a machine without one runs, ONNX
+Runtime's tree ensemble (:mod:`dyntarget.perceive.ensemble`) where onnxruntime is
+installed, else scikit-learn; ``model.onnx`` for ``plan --onnx``); unset or
 ``auto``: the widest path this CPU runs (:func:`cpu_runs`)."""
 
 ISA_FLAGS = {

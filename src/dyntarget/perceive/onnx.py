@@ -34,6 +34,10 @@ ONNX_FILE = "model.onnx"
 INT8_FILE = "model.int8.onnx"
 """The INT8 twin written by :func:`dyntarget.perceive.int8.quantize_int8`."""
 
+ENSEMBLE_BACKEND = "onnxruntime, forest.npz"
+""":attr:`OnnxClassifier.backend` when a random forest's ``forest.npz`` runs as ONNX
+Runtime's double-precision tree ensemble (bit-identical to the kernel)."""
+
 
 def _require(module: str, extra: str = "full") -> ModuleType:
     import importlib
@@ -72,8 +76,10 @@ class OnnxClassifier:
         dyntarget's forest kernel where the one of this user's cache (built here, or
         installed) runs a path faster than ONNX Runtime
         (:func:`dyntarget.perceive.compiled.fast_predictor`; then onnxruntime is not even
-        imported), and through ``model.onnx`` otherwise, said once on stderr.
-        :attr:`backend` says which ran.
+        imported); else through the packed forest as ONNX Runtime's double-precision
+        tree ensemble where its graph can be had (:mod:`dyntarget.perceive.ensemble`;
+        bit-identical to the kernel); through ``model.onnx`` otherwise, said once on
+        stderr. :attr:`backend` says which ran.
     say_fallback : bool
         Say on stderr (once per process) when a random forest runs on ONNX Runtime's
         tree ensemble; ``False`` where that was asked for (``load_onnx(kernel=False)``).
@@ -194,26 +200,39 @@ class OnnxClassifier:
         return np.clip(proba, 0.0, 1.0, out=proba)
 
     def _forest_kernel(self):
-        """The forest kernel's predictor, built on first use; ``None`` to use ONNX Runtime."""
+        """The packed forest's predictor, built on first use; ``None`` to run ``model.onnx``.
+
+        The forest kernel where it runs a path faster than ONNX Runtime; else the packed
+        forest as ONNX Runtime's double-precision tree ensemble
+        (:func:`~dyntarget.perceive.ensemble.ensemble_predictor`: bit-identical to the kernel,
+        where its graph is cached or ``onnx`` builds it); else ``None``.
+        """
         if self.forest is not None and self._kernel is None:
             from dyntarget.perceive.compiled import fast_predictor
 
             self._kernel = fast_predictor(self.forest, against="onnxruntime")
-            if self._kernel is None:
+            if self._kernel is not None:
+                self.backend = "forest kernel"
+                return self._kernel
+            from dyntarget.perceive.ensemble import ensemble_predictor
+
+            try:
+                self._kernel = ensemble_predictor(self.forest)
+            except MissingExtraError:  # the lean install, no graph cached: model.onnx
                 self.forest = None
             else:
-                self.backend = "forest kernel"
+                self.backend = ENSEMBLE_BACKEND
         return self._kernel
 
     def _say_tree_ensemble(self) -> None:
-        """Say once that a random forest runs on ONNX Runtime's tree ensemble (the slow fallback)."""
+        """Say once that a random forest runs ``model.onnx`` on ONNX Runtime (the slow fallback)."""
         from dyntarget.perceive import compiled
 
         if self._say and self.name == "random-forest" and compiled.forced_isa() != "off":
             compiled._say_once(
                 f"dyntarget: {self.path.parent}: no forest kernel runs this random forest on "
                 f"this CPU ({compiled.cpu_class()}); ONNX Runtime's tree ensemble predicts, "
-                "slower than scikit-learn (docs/performance.md; a C compiler builds the "
+                "slower than the kernel (docs/performance.md; a C compiler builds the "
                 "kernel here, or 'dyntarget install-kernel' installs one built elsewhere)"
             )
 

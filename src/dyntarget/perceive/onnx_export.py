@@ -31,7 +31,7 @@ import numpy as np
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.base import Classifier
-from dyntarget.perceive.onnx import ONNX_FILE, _require, load_onnx
+from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, ONNX_FILE, _require, load_onnx
 
 if TYPE_CHECKING:
     from dyntarget.perceive.pixel import RandomForest
@@ -202,7 +202,7 @@ def export_checked(
         twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel
         if twin.forest is not None:
             got = twin.predict_proba(check_image)
-            if twin.backend == "forest kernel":  # bit-identical to scikit-learn, or refused
+            if twin.backend in ("forest kernel", ENSEMBLE_BACKEND):  # bit-identical, or refused
                 forest = cast("RandomForest", copy.copy(native))
                 reference = forest.set_backend("sklearn").predict_proba(check_image)
                 if not np.array_equal(got, reference):

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dyntarget.errors import InvalidParameterError, ModelFileError
+from dyntarget.errors import InvalidParameterError, MissingExtraError, ModelFileError
 from dyntarget.perceive.base import (
     CLASSIFIERS,
     DEFAULT_MAX_PIXELS_PER_CLASS,
@@ -453,18 +453,24 @@ class RandomForest(PixelClassifier):
                 )
 
     def set_backend(self, backend: str) -> RandomForest:
-        """Choose what predicts: scikit-learn or dyntarget's compiled forest kernel.
+        """Choose what predicts: scikit-learn, dyntarget's compiled forest kernel or ONNX Runtime.
 
-        Both give the same probabilities bit for bit (:mod:`dyntarget.perceive.compiled`).
+        All three give the same probabilities bit for bit (:mod:`dyntarget.perceive.compiled`,
+        :mod:`dyntarget.perceive.ensemble`).
 
         Parameters
         ----------
-        backend : {"auto", "sklearn", "compiled"}
+        backend : {"auto", "sklearn", "compiled", "onnxruntime"}
             ``"compiled"`` runs the kernel (built once per machine with the C compiler on
             the PATH, or installed with ``dyntarget install-kernel``, in this user's cache;
-            never a library in the model directory); ``"auto"`` runs it where that kernel
-            runs AVX2 or AVX-512 (the cases measured faster), scikit-learn otherwise
-            (:func:`~dyntarget.perceive.compiled.fast_predictor`).
+            never a library in the model directory); ``"onnxruntime"`` runs the forest as
+            ONNX Runtime's tree ensemble (:func:`~dyntarget.perceive.ensemble.ensemble_predictor`);
+            ``"auto"`` runs the kernel where its path was measured faster than the
+            fallback (:func:`~dyntarget.perceive.compiled.fast_predictor`: SSE2, AVX2 or
+            AVX-512 against ONNX Runtime where onnxruntime is installed, AVX2 or AVX-512
+            against scikit-learn otherwise), else ONNX Runtime where onnxruntime is
+            installed (measured about 6× faster than scikit-learn, docs/performance.md),
+            else scikit-learn.
 
         Returns
         -------
@@ -477,16 +483,16 @@ class RandomForest(PixelClassifier):
         >>> make_classifier("random-forest").set_backend("sklearn").backend
         'sklearn'
         """
-        if backend not in ("auto", "sklearn", "compiled"):
+        if backend not in ("auto", "sklearn", "compiled", "onnxruntime"):
             raise InvalidParameterError(
-                f"backend: expected 'auto', 'sklearn' or 'compiled', got {backend!r}"
+                f"backend: expected 'auto', 'sklearn', 'compiled' or 'onnxruntime', got {backend!r}"
             )
         self.backend = backend
         self._compiled = None
         return self
 
     def chunk_predictor(self):
-        """The compiled kernel or scikit-learn's ``predict_proba`` (see :meth:`set_backend`).
+        """The compiled kernel, ONNX Runtime or scikit-learn (see :meth:`set_backend`).
 
         Returns
         -------
@@ -502,14 +508,26 @@ class RandomForest(PixelClassifier):
         cached = getattr(self, "_compiled", None)
         if cached is None or cached[0] is not key:  # refitted: pack anew
             from dyntarget.perceive.compiled import fast_predictor, forest_predictor
+            from dyntarget.perceive.ensemble import ensemble_predictor
 
             if self.backend == "compiled":
                 predictor = forest_predictor(self.packed())
+            elif self.backend == "onnxruntime":
+                predictor = ensemble_predictor(self.packed())
             else:
+                import importlib.util
+
+                # the kernel must beat what would predict instead: ONNX Runtime where it is
+                # installed (the SSE2 path does too), else scikit-learn (AVX2 / AVX-512 only)
+                against = (
+                    "onnxruntime" if importlib.util.find_spec("onnxruntime") else "scikit-learn"
+                )
                 try:
-                    predictor = fast_predictor(self.packed())
+                    predictor = fast_predictor(self.packed(), against=against)
                 except InvalidParameterError:  # beyond the kernel, e.g. too deep
                     predictor = None
+                if predictor is None:
+                    predictor = _ensemble_or_none(self)
             self._compiled = cached = (key, predictor)
         return cached[1] or super().chunk_predictor()
 
@@ -538,6 +556,20 @@ class RandomForest(PixelClassifier):
         return RandomForestClassifier(
             n_estimators=50, max_depth=14, min_samples_leaf=5, random_state=self.seed, n_jobs=1
         )
+
+
+def _ensemble_or_none(model: RandomForest):
+    """ONNX Runtime's tree ensemble for ``model`` where it can run here, else ``None``.
+
+    ``None`` (scikit-learn predicts) without onnxruntime, without both a cached graph and
+    ``onnx``, or for a forest beyond the packed form.
+    """
+    from dyntarget.perceive.ensemble import ensemble_predictor
+
+    try:
+        return ensemble_predictor(model.packed())
+    except (MissingExtraError, InvalidParameterError):
+        return None
 
 
 def _write_packed(model: RandomForest, directory: Path) -> None:

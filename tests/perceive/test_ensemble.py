@@ -1,0 +1,208 @@
+"""The forest on ONNX Runtime's tree ensemble against scikit-learn's own prediction.
+
+The expected values are ``RandomForestClassifier.predict_proba`` rounded to float32: a
+different implementation (scikit-learn walks its own node records in float64), never the
+graph run again. Where the graph's form could go wrong, a test picks the case that tells:
+pixels on a split's threshold (``BRANCH_LEQ`` against ``BRANCH_LT``, double against float
+thresholds), many trees (a float sum instead of a double one drifts), more than 80 trees
+on few rows (ONNX Runtime's tree-parallel sum, which adds in another order).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from dyntarget import InvalidParameterError
+from dyntarget.errors import MissingExtraError
+from dyntarget.perceive import compiled
+from dyntarget.perceive.compiled import pack_forest
+from dyntarget.perceive.ensemble import ensemble_graph, ensemble_predictor, forest_digest
+
+pytest.importorskip("onnxruntime")
+pytest.importorskip("onnx")
+pytest.importorskip("sklearn")
+
+
+def _forest(x, y, **kw):
+    from sklearn.ensemble import RandomForestClassifier
+
+    return RandomForestClassifier(random_state=0, n_jobs=1, **kw).fit(x, y)
+
+
+def _reference(est, x):
+    return est.predict_proba(x)[:, 1].astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def project_forest(tiny_scenes):
+    """The project's own random forest (50 trees, depth <= 14) on three tiny scenes."""
+    from dyntarget.perceive import make_classifier
+
+    model = make_classifier("random-forest", max_pixels_per_class=3000)
+    return model.fit(tiny_scenes[:3])
+
+
+def test_project_forest_equals_scikit_learn_on_a_scene(project_forest, tiny_scenes, tmp_path):
+    """A 50-tree, depth-14 forest on a held-out scene's pixels: bit-identical."""
+    est = project_forest.estimator
+    x = np.ascontiguousarray(tiny_scenes[3].image.reshape(4, -1).T)
+    got = ensemble_predictor(pack_forest(est), directory=tmp_path)(x)
+    np.testing.assert_array_equal(got, _reference(est, x))
+
+
+def test_pixels_on_and_beside_every_threshold_go_where_scikit_learn_sends_them(
+    project_forest, tmp_path
+):
+    """A pixel equal to a split's threshold goes left (``x <= t``); the next float32 up goes
+    right. A graph with ``BRANCH_LT``, or thresholds rounded to nearest, sends some wrong."""
+    est = project_forest.estimator
+    rng = np.random.default_rng(1)
+    rows = []
+    for tree in est.estimators_[:10]:
+        t = tree.tree_
+        for k in np.flatnonzero(t.children_left != -1)[:40]:
+            t32 = np.float32(t.threshold[k])
+            for v in (t32, np.nextafter(t32, np.float32(np.inf)), np.nextafter(t32, np.float32(0))):
+                row = rng.random(4, dtype=np.float32)
+                row[t.feature[k]] = v
+                rows.append(row)
+    x = np.array(rows, np.float32)
+    assert len(x) > 500
+    got = ensemble_predictor(pack_forest(est), directory=tmp_path)(x)
+    np.testing.assert_array_equal(got, _reference(est, x))
+
+
+@pytest.mark.parametrize("trees, rows", [(120, 1), (120, 100), (120, 5000), (7, 3)])
+def test_many_trees_on_few_and_many_rows_sum_in_tree_order(trees, rows, tmp_path):
+    """120 trees: with more than one ONNX Runtime thread, few rows would be summed per
+    thread and merged (another rounding); the one-thread session sums in tree order."""
+    rng = np.random.default_rng(trees + rows)
+    x = rng.normal(size=(5000, 4)).astype(np.float32)
+    y = (x[:, 0] + 0.5 * x[:, 3] + 0.3 * rng.normal(size=5000) > 0.1).astype(int)
+    est = _forest(x, y, n_estimators=trees, min_samples_leaf=2)
+    predict = ensemble_predictor(pack_forest(est), directory=tmp_path)
+    np.testing.assert_array_equal(predict(x[:rows]), _reference(est, x[:rows]))
+
+
+def test_a_float32_sum_would_not_be_bit_identical(tmp_path):
+    """The double graph is needed: the same forest summed in float32 (ONNX Runtime's
+    float graph, what skl2onnx writes) differs from scikit-learn on some pixels."""
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(20000, 4)).astype(np.float32)
+    y = (x[:, 0] * x[:, 1] + 0.4 * rng.normal(size=20000) > 0).astype(int)
+    est = _forest(x, y, n_estimators=50, min_samples_leaf=3)
+    ref = _reference(est, x)
+    float_sum = np.zeros(len(x), np.float32)
+    for tree in est.estimators_:  # what a float accumulator does, tree by tree
+        float_sum += tree.predict_proba(x)[:, 1].astype(np.float32)
+    assert ((float_sum / np.float32(50)) != ref).any()  # the case exists on this forest
+    predict = ensemble_predictor(pack_forest(est), directory=tmp_path)
+    np.testing.assert_array_equal(predict(x), ref)
+
+
+def test_bad_pixels_are_refused_as_the_kernel_refuses_them(project_forest, tmp_path):
+    """NaN or infinite pixels and a wrong number of features: one clear error each."""
+    predict = ensemble_predictor(project_forest.packed(), directory=tmp_path)
+    x = np.zeros((4, 4), np.float32)
+    x[2, 1] = np.nan
+    with pytest.raises(InvalidParameterError, match="NaN or infinite"):
+        predict(x)
+    with pytest.raises(InvalidParameterError, match=r"expected shape \(n, 4\), got \(4, 3\)"):
+        predict(np.zeros((4, 3), np.float32))
+    assert predict(np.zeros((0, 4), np.float32)).shape == (0,)
+
+
+def test_the_graph_is_cached_by_forest_and_read_back_without_onnx(project_forest, tmp_path):
+    """The first predictor writes ``ensemble-<digest>.onnx`` (owner-only folder); a fresh
+    interpreter with ``onnx`` made unimportable predicts the same from it."""
+    packed = project_forest.packed()
+    ensemble_predictor(packed, directory=tmp_path)
+    cached = tmp_path / f"ensemble-{forest_digest(packed)}.onnx"
+    assert cached.read_bytes() == ensemble_graph(packed)
+    np.save(tmp_path / "x.npy", np.linspace(0, 1, 400, dtype=np.float32).reshape(100, 4))
+    probe = (
+        "import sys, numpy as np\n"
+        "sys.modules['onnx'] = None  # import onnx now fails\n"
+        "from dyntarget.perceive.compiled import load_forest\n"
+        "from dyntarget.perceive.ensemble import ensemble_predictor\n"
+        f"packed = load_forest({str(tmp_path / 'forest.npz')!r})\n"
+        f"p = ensemble_predictor(packed, directory={str(tmp_path)!r})\n"
+        f"np.save({str(tmp_path / 'got.npy')!r}, p(np.load({str(tmp_path / 'x.npy')!r})))\n"
+    )
+    compiled.save_forest(packed, tmp_path / "forest.npz")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    x = np.load(tmp_path / "x.npy")
+    np.testing.assert_array_equal(
+        np.load(tmp_path / "got.npy"), _reference(project_forest.estimator, x)
+    )
+
+
+def test_without_onnx_and_no_cached_graph_it_says_what_to_install(
+    project_forest, tmp_path, monkeypatch
+):
+    monkeypatch.setitem(sys.modules, "onnx", None)
+    with pytest.raises(MissingExtraError, match=r"onnx is not installed.*dyntarget\[full\]"):
+        ensemble_predictor(project_forest.packed(), directory=tmp_path)
+
+
+def test_a_damaged_cached_graph_is_built_again(project_forest, tiny_scenes, tmp_path):
+    packed = project_forest.packed()
+    cached = tmp_path / f"ensemble-{forest_digest(packed)}.onnx"
+    cached.write_bytes(b"\x08\x08not a model")
+    x = np.ascontiguousarray(tiny_scenes[3].image.reshape(4, -1).T)
+    got = ensemble_predictor(packed, directory=tmp_path)(x)
+    np.testing.assert_array_equal(got, _reference(project_forest.estimator, x))
+    assert cached.read_bytes() == ensemble_graph(packed)
+
+
+def test_a_folder_others_may_write_gets_no_graph(project_forest, tmp_path):
+    """A graph is data ONNX Runtime trusts: never left where another user could swap it
+    (the folder's mode decides, for root too); the predictor still runs."""
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    predict = ensemble_predictor(project_forest.packed(), directory=shared)
+    assert not list(shared.iterdir())
+    assert predict(np.zeros((3, 4), np.float32)).shape == (3,)
+
+
+def test_auto_falls_back_to_onnxruntime_then_to_scikit_learn(
+    project_forest, tiny_scenes, monkeypatch, tmp_path
+):
+    """No kernel (no compiler, nothing cached): ``auto`` runs ONNX Runtime; without
+    onnxruntime, scikit-learn. Same probabilities on all three; the path is recorded."""
+    from dyntarget.evaluate.bench import forest_path
+
+    image = tiny_scenes[3].image
+    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
+    monkeypatch.delenv(compiled.ISA_ENV, raising=False)
+    monkeypatch.setattr(compiled, "compiler", lambda: None)
+    np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
+    assert forest_path(project_forest) == "onnxruntime"
+    forced = project_forest.set_backend("onnxruntime")
+    np.testing.assert_array_equal(forced.predict_proba(image), ref)
+    assert forest_path(forced) == "onnxruntime"
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # not installed
+    np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
+    assert forest_path(project_forest) == "sklearn"
+    with pytest.raises(MissingExtraError, match="onnxruntime is not installed"):
+        project_forest.set_backend("onnxruntime").predict_proba(image)
+
+
+def test_the_kernel_off_runs_onnxruntime(project_forest, tiny_scenes, monkeypatch, tmp_path):
+    """``DYNTARGET_FOREST_ISA=off`` is a machine without the kernel: the portable path."""
+    from dyntarget.evaluate.bench import forest_path
+
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
+    monkeypatch.setenv(compiled.ISA_ENV, "off")
+    image = tiny_scenes[3].image
+    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
+    assert forest_path(project_forest) == "onnxruntime"
