@@ -100,7 +100,44 @@ def train(args: argparse.Namespace) -> None:
     print(f"wrote {args.model}")
 
 
+LOAD_CODE = """
+import numpy as np
+a = np.random.default_rng(0).random((512, 512), dtype=np.float32)
+big = np.ones(16 << 20, np.float32)  # 64 MiB
+while True:  # one core's worth of other work: compute, then memory traffic
+    a = (a @ a) / np.float32(512)
+    big = big * np.float32(1.0)
+"""
+"""What each ``--load`` process runs: a 512-square float32 product and a 64 MiB stream in
+turn, on one thread (a stand-in for another user's job, compute- and memory-bound)."""
+
+
+def start_load(n: int) -> list:
+    """``n`` single-threaded load processes (:data:`LOAD_CODE`), given 2 s to get going."""
+    import subprocess
+
+    env = {
+        **os.environ,
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+    }
+    procs = [subprocess.Popen([sys.executable, "-c", LOAD_CODE], env=env) for _ in range(n)]
+    time.sleep(2.0 if procs else 0.0)
+    return procs
+
+
 def run(args: argparse.Namespace) -> None:
+    load = start_load(args.load)
+    try:
+        _run(args)
+    finally:
+        for proc in load:
+            proc.kill()
+            proc.wait()
+
+
+def _run(args: argparse.Namespace) -> None:
     import torch
 
     import dyntarget
@@ -145,6 +182,7 @@ def run(args: argparse.Namespace) -> None:
         "torch_threads": torch.get_num_threads(),
         "cpu": cpu(),
         "nice": os.nice(0),
+        "load_processes": args.load,
         "runs": runs,
         "ratio_median": float(np.median([r["ratio"] for r in runs])),
         "classify_median_s": float(np.median([r["classify_s"] for r in runs])),
@@ -172,6 +210,9 @@ def merge(args: argparse.Namespace) -> None:
                 max(r["load_1min"] for r in runs),
             ],
             "windows": sorted({p["windows"] for p in parts if p["label"] == label}),
+            "load_processes": sorted(
+                {p.get("load_processes", 0) for p in parts if p["label"] == label}
+            ),
             "threads": sorted({r["threads"] for r in runs}),
         }
     bench = []
@@ -220,6 +261,11 @@ def main() -> None:
     p.add_argument("--label", required=True)
     p.add_argument("--size", type=int, default=1024)
     p.add_argument("--runs", type=int, default=5)
+    p.add_argument(
+        "--load", type=int, default=0,
+        help="single-threaded load processes running beside it (LOAD_CODE), bound and "
+        "classification alike: a load that is the same from run to run",
+    )  # fmt: skip
     p.add_argument("--out", required=True)
     p.set_defaults(func=run)
     p = sub.add_parser("merge", help="combine run files into one JSON with a summary")
