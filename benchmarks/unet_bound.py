@@ -140,6 +140,11 @@ def run(args: argparse.Namespace) -> None:
 def _run(args: argparse.Namespace) -> None:
     import torch
 
+    if args.threads:  # the thread count fixed, whatever the load (the comparison's other arm)
+        from dyntarget.perceive import resources
+
+        resources.inference_threads = lambda limit=None: args.threads
+
     import dyntarget
     from dyntarget.perceive.resources import keep_freed_memory
     from dyntarget.perceive.unet import XceptionUNetClassifier
@@ -183,6 +188,7 @@ def _run(args: argparse.Namespace) -> None:
         "cpu": cpu(),
         "nice": os.nice(0),
         "load_processes": args.load,
+        "threads_fixed": args.threads or None,
         "runs": runs,
         "ratio_median": float(np.median([r["ratio"] for r in runs])),
         "classify_median_s": float(np.median([r["classify_s"] for r in runs])),
@@ -265,6 +271,10 @@ def main() -> None:
         "--load", type=int, default=0,
         help="single-threaded load processes running beside it (LOAD_CODE), bound and "
         "classification alike: a load that is the same from run to run",
+    )  # fmt: skip
+    p.add_argument(
+        "--threads", type=int, default=0,
+        help="fix a pass's threads instead of inference_threads()'s choice (0: its choice)",
     )  # fmt: skip
     p.add_argument("--out", required=True)
     p.set_defaults(func=run)
