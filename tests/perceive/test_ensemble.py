@@ -206,3 +206,84 @@ def test_the_kernel_off_runs_onnxruntime(project_forest, tiny_scenes, monkeypatc
     ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
     np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
     assert forest_path(project_forest) == "onnxruntime"
+
+
+# -- the graph shipped in an exported model directory (forest.onnx) -----------------------
+
+
+@pytest.fixture
+def exported(project_forest, tiny_scenes, tmp_path):
+    """The project forest saved and exported (model.onnx, forest.npz, forest.onnx)."""
+    from dyntarget.perceive.onnx_export import export_checked
+
+    model_dir = tmp_path / "rf"
+    project_forest.save(model_dir)
+    export_checked(project_forest, model_dir, tiny_scenes[3].image)
+    return model_dir
+
+
+def _as_lean(monkeypatch, tmp_path):
+    """No kernel, no cached graph, no ``onnx``: what the onboard install has on aarch64."""
+    monkeypatch.setenv(compiled.ISA_ENV, "off")
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "empty-cache"))
+    monkeypatch.setitem(sys.modules, "onnx", None)
+    monkeypatch.setattr(compiled, "_SAID", set())
+
+
+def test_the_lean_install_runs_the_shipped_graph_bit_for_bit(
+    exported, project_forest, tiny_scenes, monkeypatch, tmp_path
+):
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+    from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, load_onnx
+
+    assert (exported / GRAPH_FILE).is_file()
+    _as_lean(monkeypatch, tmp_path)
+    image = tiny_scenes[3].image
+    twin = load_onnx(exported)
+    got = twin.predict_proba(image)
+    assert twin.backend == ENSEMBLE_BACKEND and twin._kernel.shipped
+    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    np.testing.assert_array_equal(got, ref)
+    assert not (tmp_path / "empty-cache").exists() or not list(
+        (tmp_path / "empty-cache").rglob("*.onnx")
+    )
+
+
+def test_a_shipped_graph_of_another_forest_is_not_run(
+    exported, tiny_scenes, monkeypatch, tmp_path, capsys
+):
+    """forest.onnx swapped for another forest's graph: said once, model.onnx runs instead."""
+    from dyntarget.perceive import make_classifier
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+    from dyntarget.perceive.onnx import load_onnx
+
+    other = make_classifier("random-forest", seed=1, max_pixels_per_class=500).fit(tiny_scenes[:2])
+    (exported / GRAPH_FILE).write_bytes(ensemble_graph(other.packed()))
+    _as_lean(monkeypatch, tmp_path)
+    capsys.readouterr()
+    twin = load_onnx(exported)
+    twin.predict_proba(tiny_scenes[3].image)
+    twin.predict_proba(tiny_scenes[2].image)
+    said = [line for line in capsys.readouterr().err.splitlines() if GRAPH_FILE in line]
+    assert twin.backend == "onnxruntime"  # model.onnx
+    assert len(said) == 1 and "does not name it); not used" in said[0], said
+
+
+def test_a_shipped_graph_with_control_flow_is_refused_in_one_line(exported, tiny_scenes):
+    """forest.onnx is checked as model.onnx is: a Loop operator is refused before loading."""
+    from onnx import TensorProto, helper
+
+    from dyntarget.errors import ModelFileError
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+    from dyntarget.perceive.onnx import load_onnx
+
+    body = helper.make_graph([], "body", [], [])
+    loop = helper.make_node("Loop", ["n", "c"], [], body=body)
+    graph = helper.make_graph(
+        [loop], "g",
+        [helper.make_tensor_value_info("n", TensorProto.INT64, []),
+         helper.make_tensor_value_info("c", TensorProto.BOOL, [])], [],
+    )  # fmt: skip
+    (exported / GRAPH_FILE).write_bytes(helper.make_model(graph).SerializeToString())
+    with pytest.raises(ModelFileError, match="forest.onnx.*Loop"):
+        load_onnx(exported)

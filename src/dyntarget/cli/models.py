@@ -101,6 +101,8 @@ def _build_forest_kernels(model: Path, targets: list[str], *, default: bool) -> 
             )
         return
     print(model / "forest.npz")  # the packed forest, for the forest kernel
+    if (model / "forest.onnx").is_file():
+        print(model / "forest.onnx")  # the same forest for ONNX Runtime, where no kernel runs
     failed: list[str] = []
     kernels = compiled.build_kernels(model, targets, failed=failed if default else None)
     print(compiled.write_manifest(model, kernels=kernels))
@@ -137,7 +139,7 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
             compiled.build_target(target, Path(args.model) / "unused")  # raises, one line
     # everything checked before anything is deleted: a refusal leaves the model as it was
     check = generate_scene(args.seed, 0, size=args.check_size)[0].image
-    for name in ("model.onnx", "forest.npz", "forest.json"):  # a forest's packed arrays
+    for name in ("model.onnx", "forest.npz", "forest.json", "forest.onnx"):  # a forest's too
         out = Path(args.model) / name
         if out.is_symlink() or (out.exists() and not out.is_file()):
             raise OutputPathError(f"{out}: not a regular file; it is left as it is")

@@ -23,6 +23,9 @@ instead, as it does the kernel (bit-identity tested up to 120 trees, 1 to 5000 r
 The graph is built with ``onnx`` (the full install) and kept in this user's private cache
 (:func:`dyntarget.perceive.compiled.cache_dir`) under the SHA-256 of the forest's arrays,
 so a later process reads it without importing ``onnx`` (about half a second of start-up).
+``export-onnx`` also writes it into the model directory (:data:`GRAPH_FILE`) for the lean
+install, which has no ``onnx`` to build it. Every graph carries the digest of its forest in
+its metadata (:data:`DIGEST_KEY`) and runs only for that forest.
 """
 
 from __future__ import annotations
@@ -37,8 +40,16 @@ import numpy as np
 from dyntarget.errors import InvalidParameterError, MissingExtraError
 from dyntarget.perceive.compiled import PackedForest
 
-GRAPH_FORMAT = 1
-"""Version of the graph's form (part of its cache name: a new form is built anew)."""
+GRAPH_FORMAT = 2
+"""Version of the graph's form (part of :func:`forest_digest`: a new form is built anew)."""
+
+GRAPH_FILE = "forest.onnx"
+"""The graph in an exported model directory, beside ``forest.npz`` (``export-onnx``): the
+lean install, which cannot build it (no ``onnx``), runs the forest bit for bit from it."""
+
+DIGEST_KEY = "dyntarget_forest_sha256"
+"""The graph's metadata entry holding :func:`forest_digest` of the forest it was built from:
+a graph is used only for the forest it names (checked on the session ONNX Runtime opened)."""
 
 MAX_GRAPH_BYTES = 1 << 30
 """Largest cached graph read back (a forest at :data:`~dyntarget.perceive.compiled.MAX_NODES`
@@ -89,7 +100,8 @@ def ensemble_graph(packed: PackedForest) -> bytes:
     -------
     bytes
         A model with input ``pixels`` ``(n, features) float64`` and output ``plume``
-        ``(n, 1) float32``, the plume probability (see the module).
+        ``(n, 1) float32``, the plume probability (see the module); its metadata
+        :data:`DIGEST_KEY` names the forest.
 
     Raises
     ------
@@ -150,6 +162,7 @@ def ensemble_graph(packed: PackedForest) -> bytes:
         producer_name="dyntarget",
     )
     model.ir_version = 8  # what every ONNX Runtime since 1.10 reads
+    helper.set_model_props(model, {DIGEST_KEY: forest_digest(packed)})
     return model.SerializeToString()
 
 
@@ -179,8 +192,27 @@ def _cached_graph(packed: PackedForest, directory: Path | None, *, fresh: bool =
     return graph
 
 
+def _session(ort, graph: bytes, digest: str):
+    """An ONNX Runtime session of ``graph`` if it loads and names this forest, else ``None``."""
+    options = ort.SessionOptions()
+    options.log_severity_level = 3
+    options.intra_op_num_threads = 1  # trees summed in their order (see the module)
+    options.inter_op_num_threads = 1
+    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    try:
+        session = ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])
+    except Exception:  # a damaged graph (onnxruntime raises its own types)
+        return None
+    named = session.get_modelmeta().custom_metadata_map.get(DIGEST_KEY)
+    return session if named == digest else None
+
+
 def ensemble_predictor(
-    packed: PackedForest, *, directory: str | os.PathLike[str] | None = None
+    packed: PackedForest,
+    *,
+    directory: str | os.PathLike[str] | None = None,
+    graph: bytes | None = None,
+    where: str | os.PathLike[str] | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
     """The forest's predictor on ONNX Runtime's tree ensemble (see the module).
 
@@ -190,6 +222,12 @@ def ensemble_predictor(
         The forest.
     directory : path, optional
         Where the graph is cached (default :func:`~dyntarget.perceive.compiled.cache_dir`).
+    graph : bytes, optional
+        A graph shipped with the model (:data:`GRAPH_FILE`), tried first; used only if
+        ONNX Runtime opens it and it names this forest (:data:`DIGEST_KEY`), else said
+        once on stderr and left.
+    where : path, optional
+        Where ``graph`` was read from (for that line).
 
     Returns
     -------
@@ -197,13 +235,14 @@ def ensemble_predictor(
         ``(n, features) float32 -> (n,) float32`` plume probability, bit-identical to the
         kernel's and to ``predict_proba(x)[:, 1]`` rounded to float32; one ONNX Runtime
         thread, free of the GIL while it runs. Its attribute ``isa`` is
-        ``"onnxruntime"``, ``vectorised`` is ``False``.
+        ``"onnxruntime"``, ``vectorised`` is ``False``, ``shipped`` says whether the
+        shipped ``graph`` runs.
 
     Raises
     ------
     MissingExtraError
-        onnxruntime is not installed, or the graph is neither cached nor can be built
-        (no ``onnx``).
+        onnxruntime is not installed, or no usable graph was given and none is cached or
+        can be built (no ``onnx``).
 
     Examples
     --------
@@ -224,20 +263,23 @@ def ensemble_predictor(
         raise MissingExtraError(
             "onnxruntime is not installed; pip install 'dyntarget[onboard]'"
         ) from None
-    where = None if directory is None else Path(directory)
-    options = ort.SessionOptions()
-    options.log_severity_level = 3
-    options.intra_op_num_threads = 1  # trees summed in their order (see the module)
-    options.inter_op_num_threads = 1
-    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    try:
-        session = ort.InferenceSession(
-            _cached_graph(packed, where), options, providers=["CPUExecutionProvider"]
+    cache = None if directory is None else Path(directory)
+    digest = forest_digest(packed)
+    session = None if graph is None else _session(ort, graph, digest)
+    shipped = session is not None
+    if graph is not None and session is None:
+        from dyntarget.perceive.compiled import _say_once
+
+        _say_once(
+            f"dyntarget: {where or GRAPH_FILE}: not a graph ONNX Runtime opens for this "
+            f"forest.npz (its {DIGEST_KEY} does not name it); not used"
         )
-    except Exception:  # a damaged cached graph (onnxruntime raises its own types): anew
-        session = ort.InferenceSession(
-            _cached_graph(packed, where, fresh=True), options, providers=["CPUExecutionProvider"]
-        )
+    if session is None:
+        session = _session(ort, _cached_graph(packed, cache), digest)
+    if session is None:  # a damaged or stale cached graph: built anew
+        session = _session(ort, _cached_graph(packed, cache, fresh=True), digest)
+    if session is None:
+        raise MissingExtraError("ONNX Runtime does not open the forest's graph built here")
     features = packed.features
 
     def predict(part: np.ndarray) -> np.ndarray:
@@ -255,4 +297,5 @@ def ensemble_predictor(
 
     predict.isa = "onnxruntime"  # type: ignore[attr-defined]
     predict.vectorised = False  # type: ignore[attr-defined]
+    predict.shipped = shipped  # type: ignore[attr-defined]
     return predict

@@ -31,7 +31,8 @@ TRUST_ENV = "DYNTARGET_TRUST_WRITABLE_MODELS"
 ``0`` or unset: refused."""
 
 MODEL_FILES = ("metadata.json", "model.skops", "model.safetensors", "params.json",
-               "model.onnx", "model.int8.onnx", "forest.npz", "forest.json")  # fmt: skip
+               "model.onnx", "model.int8.onnx", "forest.npz", "forest.json",
+               "forest.onnx")  # fmt: skip
 """The files of a model directory that are read (each checked like the directory)."""
 
 MODEL_FORMAT = "dyntarget-model"

@@ -80,6 +80,10 @@ class OnnxClassifier:
         tree ensemble where its graph can be had (:mod:`dyntarget.perceive.ensemble`;
         bit-identical to the kernel); through ``model.onnx`` otherwise, said once on
         stderr. :attr:`backend` says which ran.
+    forest_graph : bytes or None
+        The model directory's ``forest.onnx`` (:data:`dyntarget.perceive.ensemble.GRAPH_FILE`),
+        the graph of ``forest`` that the lean install runs where no kernel does (it has no
+        ``onnx`` to build one).
     say_fallback : bool
         Say on stderr (once per process) when a random forest runs on ONNX Runtime's
         tree ensemble; ``False`` where that was asked for (``load_onnx(kernel=False)``).
@@ -96,9 +100,11 @@ class OnnxClassifier:
         stitch: str = "halo",
         threads: int | None = None,
         forest=None,
+        forest_graph: bytes | None = None,
         say_fallback: bool = True,
     ) -> None:
         self.forest, self._kernel, self._say = forest, None, say_fallback
+        self.forest_graph = forest_graph
         self.backend = "onnxruntime"  # "forest kernel" once a forest has predicted on it
         self.name, self.kind, self.tile, self.path = name, kind, int(tile), path
         self._threads, self._session = threads, None
@@ -205,7 +211,7 @@ class OnnxClassifier:
         The forest kernel where it runs a path faster than ONNX Runtime; else the packed
         forest as ONNX Runtime's double-precision tree ensemble
         (:func:`~dyntarget.perceive.ensemble.ensemble_predictor`: bit-identical to the kernel,
-        where its graph is cached or ``onnx`` builds it); else ``None``.
+        from the model's ``forest.onnx``, the cache, or built with ``onnx``); else ``None``.
         """
         if self.forest is not None and self._kernel is None:
             from dyntarget.perceive.compiled import fast_predictor
@@ -217,8 +223,10 @@ class OnnxClassifier:
             from dyntarget.perceive.ensemble import ensemble_predictor
 
             try:
-                self._kernel = ensemble_predictor(self.forest)
-            except MissingExtraError:  # the lean install, no graph cached: model.onnx
+                self._kernel = ensemble_predictor(
+                    self.forest, graph=self.forest_graph, where=self.path.parent / "forest.onnx"
+                )
+            except MissingExtraError:  # the lean install, no graph shipped or cached: model.onnx
                 self.forest = None
             else:
                 self.backend = ENSEMBLE_BACKEND
@@ -280,9 +288,10 @@ def load_onnx(
 ) -> OnnxClassifier:
     """The ONNX twin of the model in ``model_dir`` (exported with :func:`dyntarget.perceive.onnx_export.export_onnx`).
 
-    Only ``metadata.json``, ``model.onnx`` and, for a random forest, ``forest.npz`` are
-    read (the last checked rule by rule, and against the SHA-256 of the ``model.onnx``
-    it was exported with: :func:`dyntarget.perceive.compiled.load_forest`);
+    Only ``metadata.json``, ``model.onnx`` and, for a random forest, ``forest.npz`` and
+    ``forest.onnx`` are read (``forest.npz`` checked rule by rule, and against the SHA-256
+    of the ``model.onnx`` it was exported with: :func:`dyntarget.perceive.compiled.load_forest`;
+    ``forest.onnx`` as ``model.onnx`` is, and run only if it names that forest);
     the native weights, torch, scikit-learn and skops are not touched.
 
     Parameters
@@ -336,6 +345,18 @@ def load_onnx(
                     f"{model_dir}: {FOREST_FILE} takes {forest.features} features, not "
                     f"the {len(BANDS)} bands"
                 )
+    graph = None
+    if forest is not None:
+        from dyntarget.perceive.ensemble import GRAPH_FILE
+
+        shipped = Path(model_dir) / GRAPH_FILE
+        if shipped.is_file():
+            from dyntarget.io.safeopen import read_bytes
+            from dyntarget.perceive.validate import MAX_ONNX_BYTES
+
+            check_onnx_file(shipped)  # as model.onnx is: size, no control flow
+            graph = read_bytes(shipped, max_bytes=MAX_ONNX_BYTES)
     return OnnxClassifier(
-        path, name=name, kind=kind, tile=tile, width=width, forest=forest, say_fallback=kernel
-    )
+        path, name=name, kind=kind, tile=tile, width=width, forest=forest, forest_graph=graph,
+        say_fallback=kernel,
+    )  # fmt: skip

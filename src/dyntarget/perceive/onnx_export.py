@@ -63,7 +63,10 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
     A random forest also gets ``forest.npz`` (:func:`dyntarget.perceive.compiled.save_forest`):
     its packed arrays, which the ONNX twin runs on dyntarget's forest kernel where it
     builds with AVX-512, bit-identical to scikit-learn and about 4x faster than ONNX
-    Runtime's tree ensemble (see :class:`dyntarget.perceive.onnx.OnnxClassifier`).
+    Runtime's tree ensemble (see :class:`dyntarget.perceive.onnx.OnnxClassifier`); and
+    ``forest.onnx`` (:func:`dyntarget.perceive.ensemble.ensemble_graph`), the same
+    forest as ONNX Runtime's double-precision tree ensemble, also bit-identical, which
+    the lean install runs where no kernel does.
 
     Parameters
     ----------
@@ -96,15 +99,19 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
     if classifier.name == "random-forest":  # the lean install's way to the forest kernel
         import hashlib
 
+        from dyntarget.io.atomic import write_bytes
         from dyntarget.perceive.compiled import FOREST_FILE, pack_forest, save_forest
+        from dyntarget.perceive.ensemble import GRAPH_FILE, ensemble_graph
 
-        forest = Path(model_dir) / FOREST_FILE
+        forest, graph = Path(model_dir) / FOREST_FILE, Path(model_dir) / GRAPH_FILE
         try:
             packed = pack_forest(cast("RandomForest", classifier).estimator)
         except InvalidParameterError:  # beyond the kernel (e.g. deeper than it takes)
             forest.unlink(missing_ok=True)  # model.onnx alone, run by ONNX Runtime
+            graph.unlink(missing_ok=True)
         else:
             save_forest(packed, forest, model_sha256=hashlib.sha256(data).hexdigest())
+            write_bytes(graph, ensemble_graph(packed))
     return path
 
 
@@ -189,10 +196,11 @@ def export_checked(
     """
     from dyntarget.errors import ExportError
     from dyntarget.perceive.compiled import FOREST_FILE
+    from dyntarget.perceive.ensemble import GRAPH_FILE
 
     def remove() -> None:
-        (Path(model_dir) / ONNX_FILE).unlink(missing_ok=True)
-        (Path(model_dir) / FOREST_FILE).unlink(missing_ok=True)
+        for name in (ONNX_FILE, FOREST_FILE, GRAPH_FILE):
+            (Path(model_dir) / name).unlink(missing_ok=True)
 
     try:
         path = export_onnx(native, model_dir)
@@ -207,6 +215,17 @@ def export_checked(
                 reference = forest.set_backend("sklearn").predict_proba(check_image)
                 if not np.array_equal(got, reference):
                     diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
+            graph = Path(model_dir) / GRAPH_FILE  # what the lean install runs: checked too
+            if twin.forest_graph is not None:
+                from dyntarget.perceive.ensemble import ensemble_predictor
+                from dyntarget.perceive.pixel import predict_in_chunks
+
+                shipped = ensemble_predictor(twin.forest, graph=twin.forest_graph, where=graph)
+                got = predict_in_chunks(check_image, shipped)
+                forest = cast("RandomForest", copy.copy(native))
+                reference = forest.set_backend("sklearn").predict_proba(check_image)
+                if not shipped.shipped or not np.array_equal(got, reference):  # type: ignore[attr-defined]
+                    diff = max(diff, 2 * TOLERANCE)
     except BaseException:
         remove()  # nothing half-written
         raise
