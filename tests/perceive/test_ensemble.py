@@ -287,3 +287,22 @@ def test_a_shipped_graph_with_control_flow_is_refused_in_one_line(exported, tiny
     (exported / GRAPH_FILE).write_bytes(helper.make_model(graph).SerializeToString())
     with pytest.raises(ModelFileError, match="forest.onnx.*Loop"):
         load_onnx(exported)
+
+
+def test_a_graph_too_large_for_load_onnx_is_not_shipped(project_forest, tmp_path, monkeypatch):
+    """A graph over load_onnx's size limit is not written (it would only be refused there);
+    forest.npz still is, and an earlier forest.onnx is not left behind."""
+    from dyntarget.perceive import validate
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+    from dyntarget.perceive.onnx_export import export_onnx
+
+    model_dir = tmp_path / "rf"
+    project_forest.save(model_dir)
+    export_onnx(project_forest, model_dir)
+    size = (model_dir / GRAPH_FILE).stat().st_size
+    monkeypatch.setattr(validate, "MAX_ONNX_BYTES", size - 1)
+    export_onnx(project_forest, model_dir)
+    assert (model_dir / "forest.npz").is_file() and not (model_dir / GRAPH_FILE).exists()
+    monkeypatch.setattr(validate, "MAX_ONNX_BYTES", size)
+    export_onnx(project_forest, model_dir)
+    assert (model_dir / GRAPH_FILE).stat().st_size == size

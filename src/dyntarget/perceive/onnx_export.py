@@ -102,6 +102,7 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
         from dyntarget.io.atomic import write_bytes
         from dyntarget.perceive.compiled import FOREST_FILE, pack_forest, save_forest
         from dyntarget.perceive.ensemble import GRAPH_FILE, ensemble_graph
+        from dyntarget.perceive.validate import MAX_ONNX_BYTES
 
         forest, graph = Path(model_dir) / FOREST_FILE, Path(model_dir) / GRAPH_FILE
         try:
@@ -111,7 +112,13 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
             graph.unlink(missing_ok=True)
         else:
             save_forest(packed, forest, model_sha256=hashlib.sha256(data).hexdigest())
-            write_bytes(graph, ensemble_graph(packed))
+            shipped = ensemble_graph(packed)
+            # only a graph load_onnx would read (a forest near the node limit gives more:
+            # it then runs on a kernel, or a graph built and cached where it runs)
+            if len(shipped) <= MAX_ONNX_BYTES:
+                write_bytes(graph, shipped)
+            else:
+                graph.unlink(missing_ok=True)
     return path
 
 
