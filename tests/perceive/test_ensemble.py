@@ -105,16 +105,42 @@ def test_a_float32_sum_would_not_be_bit_identical(tmp_path):
     np.testing.assert_array_equal(predict(x), ref)
 
 
+def test_float64_pixels_are_rounded_to_float32_first_as_scikit_learn_does(project_forest, tmp_path):
+    """scikit-learn (and the kernel) compare float32 pixels: a float64 pixel above a split's
+    threshold whose float32 rounding is not goes left there, and must here too."""
+    est = project_forest.estimator
+    rows = []
+    for tree in est.estimators_:
+        t = tree.tree_
+        for k in np.flatnonzero(t.children_left != -1):
+            t64 = t.threshold[k]
+            lo = np.float32(t64)
+            lo = lo if lo <= t64 else np.nextafter(lo, np.float32(-np.inf))  # float32 below
+            hi = np.nextafter(lo, np.float32(np.inf))
+            if (t64 - lo) < 0.25 * (hi - lo):
+                v = t64 + 0.125 * (np.float64(hi) - np.float64(lo))  # right in float64 ...
+                assert v > t64 and np.float32(v) <= t64  # ... left once rounded to float32
+                row = np.full(4, 0.3)
+                row[t.feature[k]] = v
+                rows.append(row)
+    x = np.array(rows, np.float64)
+    assert len(x) > 20
+    predict = ensemble_predictor(pack_forest(est), directory=tmp_path)
+    np.testing.assert_array_equal(predict(x), _reference(est, x))
+
+
 def test_bad_pixels_are_refused_as_the_kernel_refuses_them(project_forest, tmp_path):
     """NaN or infinite pixels and a wrong number of features: one clear error each."""
     predict = ensemble_predictor(project_forest.packed(), directory=tmp_path)
     x = np.zeros((4, 4), np.float32)
     x[2, 1] = np.nan
-    with pytest.raises(InvalidParameterError, match="NaN or infinite"):
+    with pytest.raises(InvalidParameterError, match=r"^pixels: hold NaN or infinite values$"):
         predict(x)
     with pytest.raises(InvalidParameterError, match=r"expected shape \(n, 4\), got \(4, 3\)"):
         predict(np.zeros((4, 3), np.float32))
-    assert predict(np.zeros((0, 4), np.float32)).shape == (0,)
+    empty = predict(np.zeros((0, 4), np.float32))
+    assert empty.shape == (0,) and empty.dtype == np.float32
+    assert predict.isa == "onnxruntime" and predict.vectorised is False and not predict.shipped
 
 
 def test_the_graph_is_cached_by_forest_and_read_back_without_onnx(project_forest, tmp_path):
@@ -143,11 +169,33 @@ def test_the_graph_is_cached_by_forest_and_read_back_without_onnx(project_forest
     )
 
 
+def test_a_second_predictor_reads_the_cached_graph_and_says_nothing(
+    project_forest, tiny_scenes, tmp_path, monkeypatch, capsys
+):
+    """The first predictor builds the graph into a new owner-only cache folder; the next one
+    reads it back with ``onnx`` unimportable (it could not build one), bit for bit, and
+    nothing is said on stderr when no shipped graph was given."""
+    cache = tmp_path / "a" / "b"
+    monkeypatch.setattr(compiled, "_SAID", set())
+    capsys.readouterr()
+    ensemble_predictor(project_forest.packed(), directory=cache)
+    assert oct(cache.stat().st_mode & 0o777) == "0o700"
+    monkeypatch.setitem(sys.modules, "onnx", None)
+    predict = ensemble_predictor(project_forest.packed(), directory=cache)
+    x = np.ascontiguousarray(tiny_scenes[3].image.reshape(4, -1).T)
+    np.testing.assert_array_equal(predict(x), _reference(project_forest.estimator, x))
+    assert capsys.readouterr().err == ""
+
+
 def test_without_onnx_and_no_cached_graph_it_says_what_to_install(
     project_forest, tmp_path, monkeypatch
 ):
     monkeypatch.setitem(sys.modules, "onnx", None)
-    with pytest.raises(MissingExtraError, match=r"onnx is not installed.*dyntarget\[full\]"):
+    with pytest.raises(
+        MissingExtraError,
+        match=r"^onnx is not installed; the forest's ONNX Runtime graph is built with it: "
+        r"pip install 'dyntarget\[full\]'$",
+    ):
         ensemble_predictor(project_forest.packed(), directory=tmp_path)
 
 
@@ -192,7 +240,10 @@ def test_auto_falls_back_to_onnxruntime_then_to_scikit_learn(
     monkeypatch.setitem(sys.modules, "onnxruntime", None)  # not installed
     np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
     assert forest_path(project_forest) == "sklearn"
-    with pytest.raises(MissingExtraError, match="onnxruntime is not installed"):
+    with pytest.raises(
+        MissingExtraError,
+        match=r"^onnxruntime is not installed; pip install 'dyntarget\[onboard\]'$",
+    ):
         project_forest.set_backend("onnxruntime").predict_proba(image)
 
 
@@ -267,6 +318,7 @@ def test_a_shipped_graph_of_another_forest_is_not_run(
     said = [line for line in capsys.readouterr().err.splitlines() if GRAPH_FILE in line]
     assert twin.backend == "onnxruntime"  # model.onnx
     assert len(said) == 1 and "does not name it); not used" in said[0], said
+    assert said[0].startswith(f"dyntarget: {exported / GRAPH_FILE}: not a graph"), said
 
 
 def test_a_shipped_graph_with_control_flow_is_refused_in_one_line(exported, tiny_scenes):
