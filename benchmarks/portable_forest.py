@@ -10,7 +10,9 @@ of each row per round, so load hits every row alike) after one warm-up round:
 
 * ``avx2``: the kernel forced to its AVX2 path (the issue's reference);
 * ``avx512``: the kernel's AVX-512 path, where this CPU has it;
-* ``portable, after``: no kernel, this checkout (ONNX Runtime's tree ensemble);
+* ``portable, after``: no kernel, this checkout (ONNX Runtime's tree ensemble, its graph
+  cached by an earlier run); ``portable, after, first run``: the same with an empty cache
+  each run (the graph built with ``onnx`` in the run, as the first process on a machine);
 * ``portable, before``: no kernel, the code given by ``--before-src`` (scikit-learn);
 * ``--onnx, no kernel``, after and before: the onboard command. After, the packed forest
   runs as the same tree ensemble where its graph is cached (here: the full install builds
@@ -43,6 +45,10 @@ from pathlib import Path
 
 from dyntarget.evaluate.bench import machine
 from dyntarget.io.atomic import write_text
+
+COLD = "portable, after, first run"
+"""The row whose every run starts with an empty cache: the graph is built (``onnx``
+imported) in the run, as in the first process on a machine."""
 
 HERE = Path(__file__).resolve().parent
 SRC = HERE.parent / "src"
@@ -99,6 +105,7 @@ def main() -> None:
     rows = [r for r in rows if compiled.cpu_runs(r[2])]
     rows += [
         ("portable, after", SRC, "off", []),
+        (COLD, SRC, "off", []),
         ("portable, before", Path(a.before_src).resolve(), "off", []),
         ("--onnx, no kernel, after", SRC, "off", ["--onnx"]),
         ("--onnx, no kernel, before", Path(a.before_src).resolve(), "off", ["--onnx"]),
@@ -113,8 +120,10 @@ def main() -> None:
     for argv, env, *_ in commands.values():  # warm-up: file cache, kernel build, graph cache
         run_once(argv, env)
     runs: dict[str, list[dict]] = {name: [] for name in commands}
-    for _ in range(a.runs):
+    for i in range(a.runs):
         for name, (argv, env, *_) in commands.items():
+            if name == COLD:  # an empty cache of its own: the graph is built in this run
+                env = {**env, "DYNTARGET_CACHE": str(work / f"cold-{i}")}
             runs[name].append(run_once(argv, env))
     reference = commands[rows[0][0]][2].read_bytes()
     result = []

@@ -361,7 +361,7 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     pytest.importorskip("onnxruntime")
     from dyntarget.cli import main
     from dyntarget.io import write_scene
-    from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, load_onnx
+    from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, SHIPPED_BACKEND, load_onnx
     from dyntarget.perceive.onnx_export import export_checked
 
     model_dir = tmp_path / "rf"
@@ -373,7 +373,7 @@ def test_the_onnx_twin_of_a_forest_runs_the_kernel_from_its_export(
     reference = project_forest.set_backend("sklearn").predict_proba(image)
     if twin.forest is not None:  # the kernel, or the double tree ensemble: bit-identical
         np.testing.assert_array_equal(twin.predict_proba(image), reference)
-        assert twin.backend in ("forest kernel", ENSEMBLE_BACKEND)
+        assert twin.backend in ("forest kernel", ENSEMBLE_BACKEND, SHIPPED_BACKEND)
     else:  # neither (the lean install without a kernel): model.onnx's float32 sums
         np.testing.assert_allclose(twin.predict_proba(image), reference, rtol=0, atol=1e-6)
         assert twin.backend == "onnxruntime"

@@ -25,7 +25,8 @@ The graph is built with ``onnx`` (the full install) and kept in this user's priv
 so a later process reads it without importing ``onnx`` (about half a second of start-up).
 ``export-onnx`` also writes it into the model directory (:data:`GRAPH_FILE`) for the lean
 install, which has no ``onnx`` to build it. Every graph carries the digest of its forest in
-its metadata (:data:`DIGEST_KEY`) and runs only for that forest.
+its metadata (:data:`DIGEST_KEY`) and runs only for that forest (against mixing two models'
+files; like ``forest.npz``, its contents are trusted data).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import hashlib
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,9 +53,13 @@ DIGEST_KEY = "dyntarget_forest_sha256"
 """The graph's metadata entry holding :func:`forest_digest` of the forest it was built from:
 a graph is used only for the forest it names (checked on the session ONNX Runtime opened)."""
 
-MAX_GRAPH_BYTES = 1 << 30
-"""Largest cached graph read back (a forest at :data:`~dyntarget.perceive.compiled.MAX_NODES`
-nodes takes about 0.6 GB in this form)."""
+MAX_GRAPH_NODES = 4_000_000
+"""Most nodes a forest may have to be built as a graph (about 150 MB serialized, 37 B a
+node; building it through ``onnx``'s helpers peaks near 700 B a node, 2.8 GB here). A
+larger forest runs on the kernel or scikit-learn."""
+
+MAX_GRAPH_BYTES = 1 << 28
+"""Largest cached graph read back (one of :data:`MAX_GRAPH_NODES` nodes is below it)."""
 
 
 def forest_digest(packed: PackedForest) -> str:
@@ -107,6 +113,8 @@ def ensemble_graph(packed: PackedForest) -> bytes:
     ------
     MissingExtraError
         ``onnx`` is not installed (``pip install 'dyntarget[full]'``).
+    InvalidParameterError
+        The forest has more than :data:`MAX_GRAPH_NODES` nodes.
 
     Examples
     --------
@@ -117,6 +125,11 @@ def ensemble_graph(packed: PackedForest) -> bytes:
     >>> ensemble_graph(pack_forest(est))[:2]  # a protobuf: field 1 (ir_version), a varint
     b'\\x08\\x08'
     """
+    if len(packed.value) > MAX_GRAPH_NODES:
+        raise InvalidParameterError(
+            f"forest: {len(packed.value):,} nodes, more than the {MAX_GRAPH_NODES:,} "
+            "built as an ONNX Runtime graph"
+        )
     try:
         from onnx import TensorProto, helper
     except ImportError:
@@ -177,7 +190,8 @@ def _cached_graph(packed: PackedForest, directory: Path | None, *, fresh: bool =
 
     where = Path(directory) if directory is not None else cache_dir()
     path = where / f"ensemble-{forest_digest(packed)}.onnx"
-    if not fresh and os.path.lexists(path) and _private(path) is None and path.is_file():
+    ours = os.path.isdir(where) and _private(where) is None  # no one else can swap a file in it
+    if not fresh and ours and os.path.lexists(path) and _private(path) is None and path.is_file():
         try:
             return read_bytes(path, max_bytes=MAX_GRAPH_BYTES)
         except (OSError, ValueError):
@@ -187,13 +201,15 @@ def _cached_graph(packed: PackedForest, directory: Path | None, *, fresh: bool =
         where.mkdir(mode=0o700, parents=True, exist_ok=True)
         if _private(where) is None:  # never leave a graph where others could swap it
             write_bytes(path, graph)
+            os.chmod(path, 0o600)  # ours alone whatever the umask (else never read back)
     except OSError:
         pass  # a read-only home: the graph is built in every process instead
     return graph
 
 
-def _session(ort, graph: bytes, digest: str):
-    """An ONNX Runtime session of ``graph`` if it loads and names this forest, else ``None``."""
+def _session(ort, graph: bytes, digest: str) -> tuple[Any, str]:
+    """An ONNX Runtime session of ``graph`` if it opens and names this forest, else ``None``
+    and why."""
     options = ort.SessionOptions()
     options.log_severity_level = 3
     options.intra_op_num_threads = 1  # trees summed in their order (see the module)
@@ -201,10 +217,12 @@ def _session(ort, graph: bytes, digest: str):
     options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     try:
         session = ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])
-    except Exception:  # a damaged graph (onnxruntime raises its own types)
-        return None
+    except Exception as exc:  # a damaged graph (onnxruntime raises its own types)
+        return None, f"ONNX Runtime does not open it ({type(exc).__name__})"
     named = session.get_modelmeta().custom_metadata_map.get(DIGEST_KEY)
-    return session if named == digest else None
+    if named != digest:
+        return None, f"its {DIGEST_KEY} names {'no forest' if named is None else 'another forest'}"
+    return session, ""
 
 
 def ensemble_predictor(
@@ -243,6 +261,8 @@ def ensemble_predictor(
     MissingExtraError
         onnxruntime is not installed, or no usable graph was given and none is cached or
         can be built (no ``onnx``).
+    InvalidParameterError
+        A graph is to be built for a forest of more than :data:`MAX_GRAPH_NODES` nodes.
 
     Examples
     --------
@@ -265,21 +285,18 @@ def ensemble_predictor(
         ) from None
     cache = None if directory is None else Path(directory)
     digest = forest_digest(packed)
-    session = None if graph is None else _session(ort, graph, digest)
+    session, why = (None, "") if graph is None else _session(ort, graph, digest)
     shipped = session is not None
     if graph is not None and session is None:
         from dyntarget.perceive.compiled import _say_once
 
-        _say_once(
-            f"dyntarget: {where or GRAPH_FILE}: not a graph ONNX Runtime opens for this "
-            f"forest.npz (its {DIGEST_KEY} does not name it); not used"
-        )
+        _say_once(f"dyntarget: {where or GRAPH_FILE}: {why}, not this forest.npz's; not used")
     if session is None:
-        session = _session(ort, _cached_graph(packed, cache), digest)
+        session, why = _session(ort, _cached_graph(packed, cache), digest)
     if session is None:  # a damaged or stale cached graph: built anew
-        session = _session(ort, _cached_graph(packed, cache, fresh=True), digest)
+        session, why = _session(ort, _cached_graph(packed, cache, fresh=True), digest)
     if session is None:
-        raise MissingExtraError("ONNX Runtime does not open the forest's graph built here")
+        raise MissingExtraError(f"the forest's graph built here: {why}")
     features = packed.features
 
     def predict(part: np.ndarray) -> np.ndarray:

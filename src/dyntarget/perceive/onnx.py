@@ -36,7 +36,11 @@ INT8_FILE = "model.int8.onnx"
 
 ENSEMBLE_BACKEND = "onnxruntime, forest.npz"
 """:attr:`OnnxClassifier.backend` when a random forest's ``forest.npz`` runs as ONNX
-Runtime's double-precision tree ensemble (bit-identical to the kernel)."""
+Runtime's double-precision tree ensemble (bit-identical to the kernel), its graph from this
+user's cache or built here."""
+
+SHIPPED_BACKEND = "onnxruntime, forest.onnx"
+""":attr:`OnnxClassifier.backend` when that graph is the model directory's ``forest.onnx``."""
 
 
 def _require(module: str, extra: str = "full") -> ModuleType:
@@ -226,10 +230,11 @@ class OnnxClassifier:
                 self._kernel = ensemble_predictor(
                     self.forest, graph=self.forest_graph, where=self.path.parent / "forest.onnx"
                 )
-            except MissingExtraError:  # the lean install, no graph shipped or cached: model.onnx
+            except (MissingExtraError, InvalidParameterError):  # no graph to be had: model.onnx
                 self.forest = None
             else:
-                self.backend = ENSEMBLE_BACKEND
+                shipped = self._kernel.shipped
+                self.backend = SHIPPED_BACKEND if shipped else ENSEMBLE_BACKEND
         return self._kernel
 
     def _say_tree_ensemble(self) -> None:
@@ -281,6 +286,28 @@ class OnnxClassifier:
                 f"threshold: expected a probability in 0..1, got {threshold!r}"
             )
         return self.predict_proba(image) >= threshold
+
+
+def _shipped_graph(model_dir: Path) -> bytes | None:
+    """The model's ``forest.onnx`` read once and checked as ``model.onnx`` is (size, no
+    control flow); ``None`` when absent, or refused: said once, the forest runs otherwise."""
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+
+    path = model_dir / GRAPH_FILE
+    if not os.path.lexists(path):
+        return None
+    from dyntarget.errors import DataFileError
+    from dyntarget.io.safeopen import read_bytes
+    from dyntarget.perceive.compiled import _say_once
+    from dyntarget.perceive.validate import MAX_ONNX_BYTES, check_onnx_bytes
+
+    try:
+        data = read_bytes(path, max_bytes=MAX_ONNX_BYTES)
+        check_onnx_bytes(data, path)  # what is checked is what runs
+    except (DataFileError, ModelFileError) as exc:
+        _say_once(f"dyntarget: {exc}; {GRAPH_FILE} not used")
+        return None
+    return data
 
 
 def load_onnx(
@@ -345,17 +372,7 @@ def load_onnx(
                     f"{model_dir}: {FOREST_FILE} takes {forest.features} features, not "
                     f"the {len(BANDS)} bands"
                 )
-    graph = None
-    if forest is not None:
-        from dyntarget.perceive.ensemble import GRAPH_FILE
-
-        shipped = Path(model_dir) / GRAPH_FILE
-        if shipped.is_file():
-            from dyntarget.io.safeopen import read_bytes
-            from dyntarget.perceive.validate import MAX_ONNX_BYTES
-
-            check_onnx_file(shipped)  # as model.onnx is: size, no control flow
-            graph = read_bytes(shipped, max_bytes=MAX_ONNX_BYTES)
+    graph = _shipped_graph(Path(model_dir)) if forest is not None else None
     return OnnxClassifier(
         path, name=name, kind=kind, tile=tile, width=width, forest=forest, forest_graph=graph,
         say_fallback=kernel,

@@ -31,7 +31,13 @@ import numpy as np
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.base import Classifier
-from dyntarget.perceive.onnx import ENSEMBLE_BACKEND, ONNX_FILE, _require, load_onnx
+from dyntarget.perceive.onnx import (
+    ENSEMBLE_BACKEND,
+    ONNX_FILE,
+    SHIPPED_BACKEND,
+    _require,
+    load_onnx,
+)
 
 if TYPE_CHECKING:
     from dyntarget.perceive.pixel import RandomForest
@@ -112,10 +118,11 @@ def export_onnx(classifier: Classifier, model_dir: str | os.PathLike[str]) -> Pa
             graph.unlink(missing_ok=True)
         else:
             save_forest(packed, forest, model_sha256=hashlib.sha256(data).hexdigest())
-            shipped = ensemble_graph(packed)
-            # only a graph load_onnx would read (a forest near the node limit gives more:
-            # it then runs on a kernel, or a graph built and cached where it runs)
-            if len(shipped) <= MAX_ONNX_BYTES:
+            try:  # only a graph load_onnx would read; a forest too large runs on a kernel
+                shipped = ensemble_graph(packed)
+            except InvalidParameterError:  # more nodes than a graph is built for
+                shipped = b""
+            if 0 < len(shipped) <= MAX_ONNX_BYTES:
                 write_bytes(graph, shipped)
             else:
                 graph.unlink(missing_ok=True)
@@ -217,7 +224,11 @@ def export_checked(
         twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel
         if twin.forest is not None:
             got = twin.predict_proba(check_image)
-            if twin.backend in ("forest kernel", ENSEMBLE_BACKEND):  # bit-identical, or refused
+            if twin.backend in (
+                "forest kernel",
+                ENSEMBLE_BACKEND,
+                SHIPPED_BACKEND,
+            ):  # bit-identical
                 forest = cast("RandomForest", copy.copy(native))
                 reference = forest.set_backend("sklearn").predict_proba(check_image)
                 if not np.array_equal(got, reference):

@@ -596,17 +596,47 @@ def check_onnx_file(path: Any) -> int:
         data = read_bytes(path, max_bytes=MAX_ONNX_BYTES)
     except DataFileError as exc:
         raise ModelFileError(str(exc)) from None
-    ops = _onnx_ops(data, path)
+    check_onnx_bytes(data, path)
+    return len(data)
+
+
+def check_onnx_bytes(data: bytes, where: Any) -> None:
+    """Refuse an ONNX graph already read: too many nodes, or a control-flow operator.
+
+    :func:`check_onnx_file`'s graph checks, for bytes read once and run as they are (so
+    that what is checked is what runs).
+
+    Parameters
+    ----------
+    data : bytes
+        The serialized model.
+    where : str or path
+        Where it was read from (named in the refusal).
+
+    Raises
+    ------
+    ModelFileError
+        Unreadable, too many nodes, or a control-flow operator.
+
+    Examples
+    --------
+    >>> check_onnx_bytes(b"", "empty.onnx") is None  # an empty graph: nothing to refuse
+    True
+    >>> check_onnx_bytes(b"\\x3a\\x08\\x0a\\x06\\x22\\x04Loop", "loop.onnx")  # graph { node { op_type: "Loop" } }
+    Traceback (most recent call last):
+    ...
+    dyntarget.errors.ModelFileError: loop.onnx: the ONNX graph holds a Loop node; ...
+    """
+    ops = _onnx_ops(data, where)
     if len(ops) > MAX_ONNX_NODES:
-        raise _fail(path, f"the ONNX graph has {len(ops):,} nodes, more than {MAX_ONNX_NODES:,}")
+        raise _fail(where, f"the ONNX graph has {len(ops):,} nodes, more than {MAX_ONNX_NODES:,}")
     for op in CONTROL_FLOW_OPS:
         if op in ops:
             raise _fail(
-                path,
+                where,
                 f"the ONNX graph holds a {op} node; dyntarget's models never do "
                 "(refused: it could run without end)",
             )
-    return len(data)
 
 
 def _onnx_ops(data: bytes, where: Any) -> list[str]:
