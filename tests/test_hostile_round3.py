@@ -519,6 +519,75 @@ def test_onnx_control_flow_found_without_the_onnx_package():
     assert _scan_ops(_pixel_graph("nan")) == []
 
 
+def _ops_by_onnx(data: bytes) -> list[str]:
+    """Every node's op_type as the onnx package parses and walks the model (the reference)."""
+    import onnx
+
+    model = onnx.ModelProto()
+    model.ParseFromString(data)
+    ops, graphs = [], [model.graph, *model.functions]
+    while graphs:
+        g = graphs.pop()
+        for node in g.node:
+            ops.append(node.op_type)
+            for a in node.attribute:
+                graphs += [a.g] if a.HasField("g") else []
+                graphs += list(a.graphs)
+    return ops
+
+
+def test_the_node_parse_finds_what_onnx_finds_in_graphs_subgraphs_and_functions():
+    """validate's own protobuf parse (no onnx import) against onnx's: the same operators in
+    the same order, a Loop's body, an If's branches and a function's nodes included."""
+    pytest.importorskip("onnx")
+    from onnx import TensorProto, helper
+
+    from dyntarget.perceive.validate import _onnx_ops
+
+    branch = helper.make_graph([helper.make_node("Scan", [], [])], "then", [], [])
+    other = helper.make_graph([helper.make_node("Relu", [], [])], "else", [], [])
+    graph = helper.make_graph(
+        [helper.make_node("If", ["c"], [], then_branch=branch, else_branch=other),
+         helper.make_node("Add", [], [])], "g",
+        [helper.make_tensor_value_info("c", TensorProto.BOOL, [])], [],
+    )  # fmt: skip
+    function = helper.make_function("f", "fn", [], [], [helper.make_node("Loop", [], [])], [])
+    model = helper.make_model(graph, functions=[function]).SerializeToString()
+    for data in (model, _pixel_graph("loop"), _pixel_graph("nan")):
+        assert _onnx_ops(data, "x") == _ops_by_onnx(data)
+    assert sorted(_onnx_ops(model, "x")) == ["Add", "If", "Loop", "Relu", "Scan"]
+
+
+def test_a_loop_hidden_from_a_byte_scan_is_still_refused(tmp_path):
+    """op_type's length written as a two-byte varint (0x84 0x00: legal protobuf, which ONNX
+    Runtime reads as "Loop"): the old scan of the raw bytes missed it; the parse does not."""
+    from dyntarget.perceive.validate import _scan_ops, check_onnx_file
+
+    data = b"\x3a\x09\x0a\x07\x22\x84\x00Loop"  # graph { node { op_type: "Loop" } }
+    assert _scan_ops(data) == []  # what the lean install relied on before
+    (tmp_path / "model.onnx").write_bytes(data)
+    with pytest.raises(ModelFileError, match="holds a Loop node"):
+        check_onnx_file(tmp_path / "model.onnx")
+
+
+def test_checking_an_onnx_file_does_not_import_onnx(tmp_path):
+    """The check parses with protobuf alone: ``onnx`` (half a second of start-up) stays out."""
+    pytest.importorskip("onnx")
+    (tmp_path / "model.onnx").write_bytes(_pixel_graph("nan"))
+    probe = (
+        "import sys\n"
+        "from dyntarget.perceive.validate import check_onnx_file\n"
+        f"check_onnx_file({str(tmp_path / 'model.onnx')!r})\n"
+        "print('onnx' in sys.modules)\n"
+    )
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
 # --------------------------------------------------------------------------- one line, exit 2
 
 

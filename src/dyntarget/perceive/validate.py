@@ -25,6 +25,7 @@ Heavy libraries are imported inside the functions.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from typing import Any
 
@@ -561,8 +562,8 @@ def check_onnx_file(path: Any) -> int:
 
     The file must be a regular file of at most :data:`MAX_ONNX_BYTES`; its graph may
     hold at most :data:`MAX_ONNX_NODES` nodes and none of :data:`CONTROL_FLOW_OPS`
-    (parsed with ``onnx`` when it is installed; on the lean onboard install the
-    operator names are looked for in the protobuf's ``op_type`` fields).
+    (parsed with protobuf against the node-holding fields of ONNX's schema, on the full
+    and the lean install alike: :func:`_onnx_ops`).
 
     Parameters
     ----------
@@ -640,22 +641,28 @@ def check_onnx_bytes(data: bytes, where: Any) -> None:
 
 
 def _onnx_ops(data: bytes, where: Any) -> list[str]:
-    """The ``op_type`` of every node, subgraphs and functions included."""
+    """The ``op_type`` of every node, subgraphs and functions included.
+
+    Parsed with protobuf (a dependency of onnxruntime, so on the lean install too) against
+    the few fields of ONNX's schema that hold nodes (:func:`_node_schema`): the same parse
+    as ``onnx.ModelProto``'s for those fields, without importing ``onnx`` (half a second of
+    start-up: ``ml_dtypes``). Without protobuf, the raw bytes are scanned instead.
+    """
     try:
-        import onnx
+        model_class = _node_schema()
     except ImportError:
         return _scan_ops(data)
-    model = onnx.ModelProto()
+    model = model_class()
     try:
         model.ParseFromString(data)
     except Exception as exc:  # protobuf's DecodeError
         raise _fail(where, f"not a readable ONNX model ({type(exc).__name__})") from None
     ops: list[str] = []
-    graphs = [model.graph] + [f for f in model.functions]
+    graphs = [model.graph, *model.functions]
     while graphs:
         g = graphs.pop()
         for node in g.node:
-            ops.append(node.op_type)
+            ops.append(node.op_type.decode("utf-8", errors="replace"))
             if len(ops) > MAX_ONNX_NODES:
                 return ops
             for a in node.attribute:
@@ -663,6 +670,42 @@ def _onnx_ops(data: bytes, where: Any) -> list[str]:
                     graphs.append(a.g)
                 graphs.extend(a.graphs)
     return ops
+
+
+@functools.cache
+def _node_schema() -> Any:
+    """A protobuf message class for the part of ONNX's ``ModelProto`` that holds nodes.
+
+    Field numbers are onnx.proto's: ``ModelProto.graph`` 7 and ``functions`` 25,
+    ``GraphProto.node`` 1, ``NodeProto.op_type`` 4 and ``attribute`` 5,
+    ``AttributeProto.g`` 6 and ``graphs`` 11, ``FunctionProto.node`` 7; every other field is
+    skipped as unknown. ``op_type`` is read as bytes (no UTF-8 check to fail on).
+    """
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    field = descriptor_pb2.FieldDescriptorProto
+    schema = descriptor_pb2.FileDescriptorProto(
+        name="dyntarget_onnx_nodes.proto", package="dyntarget_onnx_nodes", syntax="proto2"
+    )
+    messages = {
+        "Model": [("graph", 7, False, "Graph"), ("functions", 25, True, "Function")],
+        "Graph": [("node", 1, True, "Node")],
+        "Node": [("op_type", 4, False, None), ("attribute", 5, True, "Attribute")],
+        "Attribute": [("g", 6, False, "Graph"), ("graphs", 11, True, "Graph")],
+        "Function": [("node", 7, True, "Node")],
+    }
+    for name, fields in messages.items():
+        message = schema.message_type.add(name=name)
+        for fname, number, repeated, kind in fields:
+            f = message.field.add(name=fname, number=number)
+            f.label = field.LABEL_REPEATED if repeated else field.LABEL_OPTIONAL
+            if kind is None:
+                f.type = field.TYPE_BYTES
+            else:
+                f.type, f.type_name = field.TYPE_MESSAGE, f".dyntarget_onnx_nodes.{kind}"
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(schema)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName("dyntarget_onnx_nodes.Model"))
 
 
 def _scan_ops(data: bytes) -> list[str]:
