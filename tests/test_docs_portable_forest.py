@@ -48,7 +48,12 @@ def test_the_quoted_ratios_are_the_records():
     assert f"(target ≤ 2×; before: {before:.2f}×)" in PAGE
     assert after <= 2.0 and by["portable, after"]["plan_equals_avx2"]  # what "met" says
     cold = statistics.median(by["portable, after, first run"]["wall_s"])
-    assert f"row): {cold:.2f} s, {cold / base:.2f}×, once per forest." in PAGE.replace("\n", " ")
+    flat = " ".join(PAGE.split())
+    assert f"row): {cold:.2f} s, {cold / base:.2f}×, once per forest." in flat
+    oa, ob = (
+        statistics.median(by[f"--onnx, no kernel, {w}"]["wall_s"]) for w in ("after", "before")
+    )
+    assert f"`plan --onnx` with no kernel takes {oa:.2f} s after and {ob:.2f} s before" in flat
 
 
 def test_the_quoted_classify_times_and_load_are_the_records():
