@@ -687,7 +687,7 @@ def _node_schema() -> Any:
     schema = descriptor_pb2.FileDescriptorProto(
         name="dyntarget_onnx_nodes.proto", package="dyntarget_onnx_nodes", syntax="proto2"
     )
-    messages = {
+    messages: dict[str, list[tuple[str, int, bool, str | None]]] = {
         "Model": [("graph", 7, False, "Graph"), ("functions", 25, True, "Function")],
         "Graph": [("node", 1, True, "Node")],
         "Node": [("op_type", 4, False, None), ("attribute", 5, True, "Attribute")],
