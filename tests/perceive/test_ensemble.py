@@ -324,6 +324,38 @@ def test_a_shipped_graph_of_another_forest_is_not_run(
     ], said
 
 
+@pytest.mark.parametrize("what", ["no metadata", "not a model"])
+def test_the_line_for_a_shipped_graph_says_why_it_is_not_run(
+    exported, tiny_scenes, monkeypatch, tmp_path, capsys, what
+):
+    """A graph without the forest's digest in its metadata names no forest; an empty file
+    passes the graph checks (no node at all) but ONNX Runtime does not open it."""
+    import onnx
+
+    from dyntarget.perceive.ensemble import GRAPH_FILE
+    from dyntarget.perceive.onnx import load_onnx
+
+    shipped = exported / GRAPH_FILE
+    if what == "no metadata":
+        model = onnx.load_from_string(shipped.read_bytes())
+        del model.metadata_props[:]
+        shipped.write_bytes(model.SerializeToString())
+    else:
+        shipped.write_bytes(b"")
+    _as_lean(monkeypatch, tmp_path)
+    capsys.readouterr()
+    load_onnx(exported).predict_proba(tiny_scenes[3].image)
+    (said,) = [line for line in capsys.readouterr().err.splitlines() if GRAPH_FILE in line]
+    if what == "no metadata":
+        assert said == (
+            f"dyntarget: {shipped}: its dyntarget_forest_sha256 names no forest, "
+            "not this forest.npz's; not used"
+        )
+    else:
+        opened = f"dyntarget: {shipped}: ONNX Runtime does not open it ("
+        assert said.startswith(opened) and "NoneType" not in said, said
+
+
 def test_a_shipped_graph_with_control_flow_is_never_run(
     exported, project_forest, tiny_scenes, monkeypatch, tmp_path, capsys
 ):
@@ -421,8 +453,13 @@ def test_a_forest_too_large_for_a_graph_runs_elsewhere(
     from dyntarget.perceive.onnx_export import export_onnx
 
     nodes = len(project_forest.packed().value)
+    monkeypatch.setattr(ensemble, "MAX_GRAPH_NODES", nodes)
+    assert ensemble_graph(project_forest.packed())  # at the limit: built
     monkeypatch.setattr(ensemble, "MAX_GRAPH_NODES", nodes - 1)
-    with pytest.raises(InvalidParameterError, match=f"{nodes:,} nodes, more than the"):
+    message = (
+        f"^forest: {nodes:,} nodes, more than the {nodes - 1:,} built as an ONNX Runtime graph$"
+    )
+    with pytest.raises(InvalidParameterError, match=message):
         ensemble_graph(project_forest.packed())
     monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv(compiled.ISA_ENV, "off")
