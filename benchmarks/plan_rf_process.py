@@ -32,11 +32,14 @@ from dyntarget.io.atomic import write_text
 HEAVY = ("torch", "sklearn", "skops", "scipy", "onnxruntime")
 
 
-def run_once(argv: list[str]) -> tuple[float, float, float | None, float]:
+def run_once(
+    argv: list[str], env: dict[str, str] | None = None
+) -> tuple[float, float, float | None, float]:
     """Wall seconds, peak MiB, the logged classify seconds and the CPU seconds (user + system,
-    all threads) of one process; the CPU seconds move less with other processes' load."""
+    all threads) of one process (its environment ``env``, default this one's); the CPU
+    seconds move less with other processes' load."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     _, status, usage = os.wait4(proc.pid, 0)
     seconds = time.perf_counter() - t0
     err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""

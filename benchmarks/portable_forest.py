@@ -40,7 +40,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 from dyntarget.evaluate.bench import machine
@@ -52,24 +51,14 @@ imported) in the run, as in the first process on a machine."""
 
 HERE = Path(__file__).resolve().parent
 SRC = HERE.parent / "src"
+sys.path.insert(0, str(HERE))
+import plan_rf_process  # noqa: E402  (its run_once times one process)
 
 
 def run_once(argv: list[str], env: dict[str, str]) -> dict:
     """Wall seconds, peak MiB, CPU seconds and the logged classify seconds of one process."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{argv} failed: {err}")
-    found = re.search(r"classify ([0-9.]+) ms", err)
-    return {
-        "wall_s": wall,
-        "peak_mib": usage.ru_maxrss / 1024,
-        "cpu_s": usage.ru_utime + usage.ru_stime,
-        "classify_s": float(found.group(1)) / 1000 if found else None,
-    }
+    wall, peak, classify, cpu = plan_rf_process.run_once(argv, env)
+    return {"wall_s": wall, "peak_mib": peak, "cpu_s": cpu, "classify_s": classify}
 
 
 def dyntarget(args: list[str], *, src: Path, isa: str | None = None, cache: Path) -> tuple:

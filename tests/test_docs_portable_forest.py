@@ -29,6 +29,14 @@ def _row(r: dict, base: float) -> str:
     )
 
 
+BY = {r["row"]: r for r in RECORD["rows"]}
+
+
+def _wall(row: str) -> float:
+    """A row's median wall seconds, from its runs."""
+    return statistics.median(BY[row]["wall_s"])
+
+
 def test_every_row_of_the_portable_forest_table_is_the_records():
     rows = RECORD["rows"]
     assert rows[0]["row"] == "avx2" and len(RECORD["rows"][0]["wall_s"]) == RECORD["runs"]
@@ -39,26 +47,21 @@ def test_every_row_of_the_portable_forest_table_is_the_records():
 
 
 def test_the_quoted_ratios_are_the_records():
-    by = {r["row"]: r for r in RECORD["rows"]}
-    base = statistics.median(by["avx2"]["wall_s"])
-    after = statistics.median(by["portable, after"]["wall_s"]) / base
-    before = statistics.median(by["portable, before"]["wall_s"]) / base
+    base = _wall("avx2")
+    after, before = _wall("portable, after") / base, _wall("portable, before") / base
     assert f"**{after:.2f}× the AVX2 kernel**" in PAGE
     assert f"bit-identical and {after:.2f}×\nthe AVX2 kernel whole-process" in RELIABILITY
     assert f"(target ≤ 2×; before: {before:.2f}×)" in PAGE
-    assert after <= 2.0 and by["portable, after"]["plan_equals_avx2"]  # what "met" says
-    cold = statistics.median(by["portable, after, first run"]["wall_s"])
+    assert after <= 2.0 and BY["portable, after"]["plan_equals_avx2"]  # what "met" says
+    cold = _wall("portable, after, first run")
     flat = " ".join(PAGE.split())
     assert f"row): {cold:.2f} s, {cold / base:.2f}×, once per forest." in flat
-    oa, ob = (
-        statistics.median(by[f"--onnx, no kernel, {w}"]["wall_s"]) for w in ("after", "before")
-    )
+    oa, ob = _wall("--onnx, no kernel, after"), _wall("--onnx, no kernel, before")
     assert f"`plan --onnx` with no kernel takes {oa:.2f} s after and {ob:.2f} s before" in flat
 
 
 def test_the_quoted_classify_times_and_load_are_the_records():
-    by = {r["row"]: r for r in RECORD["rows"]}
-    after, avx2 = by["portable, after"]["classify_median_s"], by["avx2"]["classify_median_s"]
+    after, avx2 = BY["portable, after"]["classify_median_s"], BY["avx2"]["classify_median_s"]
     assert f"({after:.2f} s against {avx2:.2f} s)" in PAGE
     assert f"about {after / avx2:.0f}× the AVX2 kernel's" in PAGE
     lo, hi = sorted((RECORD["load_1min_start"], RECORD["load_1min_end"]))
@@ -67,11 +70,9 @@ def test_the_quoted_classify_times_and_load_are_the_records():
 
 def test_the_readme_quotes_the_records_ratios():
     readme = (ROOT / "README.md").read_text(encoding="utf-8").replace("\n", " ")
-    by = {r["row"]: r for r in RECORD["rows"]}
-    base = statistics.median(by["avx2"]["wall_s"])
-    after = statistics.median(by["portable, after"]["wall_s"]) / base
-    before = statistics.median(by["portable, before"]["wall_s"]) / base
+    base = _wall("avx2")
+    after, before = _wall("portable, after") / base, _wall("portable, before") / base
     assert f"({after:.2f}× the AVX2 kernel's whole-process time" in readme
     assert f"against {before:.1f}× for scikit-learn" in readme
-    cold = statistics.median(by["portable, after, first run"]["wall_s"]) / base
+    cold = _wall("portable, after, first run") / base
     assert f"once per forest, {cold:.1f}× in that first process" in readme

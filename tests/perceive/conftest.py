@@ -24,3 +24,12 @@ KERNEL_MODULES = {
 def _kernel_tests_choose_their_path(request, monkeypatch):
     if request.module.__name__.rpartition(".")[2] in KERNEL_MODULES:
         monkeypatch.delenv("DYNTARGET_FOREST_ISA", raising=False)
+
+
+@pytest.fixture(scope="module")
+def project_forest(tiny_scenes):
+    """The project's own random forest (50 trees, depth <= 14) on three tiny scenes."""
+    from dyntarget.perceive import make_classifier
+
+    model = make_classifier("random-forest", max_pixels_per_class=3000)
+    return model.fit(tiny_scenes[:3])

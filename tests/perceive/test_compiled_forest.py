@@ -41,13 +41,6 @@ def _reference(est, x):
     return est.predict_proba(x)[:, 1].astype(np.float32)
 
 
-@pytest.fixture(scope="module")
-def project_forest(tiny_scenes):
-    """The project's own random forest (50 trees, depth <= 14) on three tiny scenes."""
-    model = make_classifier("random-forest", max_pixels_per_class=3000)
-    return model.fit(tiny_scenes[:3])
-
-
 @pytest.mark.parametrize("portable", BUILDS)
 def test_project_forest_equals_scikit_learn_on_a_scene(project_forest, tiny_scenes, portable):
     """A 50-tree, depth-14 forest on a held-out scene's pixels: bit-identical."""

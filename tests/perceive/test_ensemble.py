@@ -38,13 +38,9 @@ def _reference(est, x):
     return est.predict_proba(x)[:, 1].astype(np.float32)
 
 
-@pytest.fixture(scope="module")
-def project_forest(tiny_scenes):
-    """The project's own random forest (50 trees, depth <= 14) on three tiny scenes."""
-    from dyntarget.perceive import make_classifier
-
-    model = make_classifier("random-forest", max_pixels_per_class=3000)
-    return model.fit(tiny_scenes[:3])
+def _reference_map(est, image):
+    """scikit-learn's plume probability of every pixel of a ``(4, H, W)`` image."""
+    return _reference(est, image.reshape(4, -1).T).reshape(image.shape[1:])
 
 
 def test_project_forest_equals_scikit_learn_on_a_scene(project_forest, tiny_scenes, tmp_path):
@@ -229,7 +225,7 @@ def test_auto_falls_back_to_onnxruntime_then_to_scikit_learn(
     from dyntarget.evaluate.bench import forest_path
 
     image = tiny_scenes[3].image
-    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    ref = _reference_map(project_forest.estimator, image)
     monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
     monkeypatch.delenv(compiled.ISA_ENV, raising=False)
     monkeypatch.setattr(compiled, "compiler", lambda: None)
@@ -255,7 +251,7 @@ def test_the_kernel_off_runs_onnxruntime(project_forest, tiny_scenes, monkeypatc
     monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path))
     monkeypatch.setenv(compiled.ISA_ENV, "off")
     image = tiny_scenes[3].image
-    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    ref = _reference_map(project_forest.estimator, image)
     np.testing.assert_array_equal(project_forest.set_backend("auto").predict_proba(image), ref)
     assert forest_path(project_forest) == "onnxruntime"
 
@@ -274,12 +270,19 @@ def exported(project_forest, tiny_scenes, tmp_path):
     return model_dir
 
 
+def _no_cache(monkeypatch, tmp_path, isa="off"):
+    """An empty cache, the kernel's path forced to ``isa`` (``None``: this CPU's), nothing
+    said yet."""
+    if isa is not None:
+        monkeypatch.setenv(compiled.ISA_ENV, isa)
+    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "empty-cache"))
+    monkeypatch.setattr(compiled, "_SAID", set())
+
+
 def _as_lean(monkeypatch, tmp_path):
     """No kernel, no cached graph, no ``onnx``: what the onboard install has on aarch64."""
-    monkeypatch.setenv(compiled.ISA_ENV, "off")
-    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "empty-cache"))
+    _no_cache(monkeypatch, tmp_path)
     monkeypatch.setitem(sys.modules, "onnx", None)
-    monkeypatch.setattr(compiled, "_SAID", set())
 
 
 def test_the_lean_install_runs_the_shipped_graph_bit_for_bit(
@@ -294,7 +297,7 @@ def test_the_lean_install_runs_the_shipped_graph_bit_for_bit(
     twin = load_onnx(exported)
     got = twin.predict_proba(image)
     assert twin.backend == SHIPPED_BACKEND and twin._kernel.shipped
-    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    ref = _reference_map(project_forest.estimator, image)
     np.testing.assert_array_equal(got, ref)
     assert not (tmp_path / "empty-cache").exists() or not list(
         (tmp_path / "empty-cache").rglob("*.onnx")
@@ -374,9 +377,7 @@ def test_a_shipped_graph_with_control_flow_is_never_run(
          helper.make_tensor_value_info("c", TensorProto.BOOL, [])], [],
     )  # fmt: skip
     (exported / GRAPH_FILE).write_bytes(helper.make_model(graph).SerializeToString())
-    monkeypatch.setenv(compiled.ISA_ENV, "off")
-    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr(compiled, "_SAID", set())
+    _no_cache(monkeypatch, tmp_path)
     capsys.readouterr()
     twin = load_onnx(exported)
     image = tiny_scenes[3].image
@@ -384,7 +385,7 @@ def test_a_shipped_graph_with_control_flow_is_never_run(
     said = [line for line in capsys.readouterr().err.splitlines() if GRAPH_FILE in line]
     assert len(said) == 1 and "holds a Loop node" in said[0] and said[0].endswith("not used")
     assert twin.forest_graph is None and twin.backend == ENSEMBLE_BACKEND  # built here
-    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    ref = _reference_map(project_forest.estimator, image)
     np.testing.assert_array_equal(got, ref)
 
 
@@ -399,17 +400,14 @@ def test_a_damaged_shipped_graph_does_not_stop_the_model(
 
     data = (exported / GRAPH_FILE).read_bytes()
     (exported / GRAPH_FILE).write_bytes(data[: len(data) // 2])
-    if isa:
-        monkeypatch.setenv(compiled.ISA_ENV, isa)
-    monkeypatch.setenv("DYNTARGET_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr(compiled, "_SAID", set())
+    _no_cache(monkeypatch, tmp_path, isa)
     capsys.readouterr()
     twin = load_onnx(exported)
     image = tiny_scenes[3].image
     got = twin.predict_proba(image)
     err = capsys.readouterr().err
     assert err.count(f"{exported / GRAPH_FILE}") == 1 and "not used" in err, err
-    ref = _reference(project_forest.estimator, image.reshape(4, -1).T).reshape(image.shape[1:])
+    ref = _reference_map(project_forest.estimator, image)
     np.testing.assert_array_equal(got, ref)
 
 

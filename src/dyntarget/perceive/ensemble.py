@@ -179,17 +179,20 @@ def ensemble_graph(packed: PackedForest) -> bytes:
     return model.SerializeToString()
 
 
-def _cached_graph(packed: PackedForest, directory: Path | None, *, fresh: bool = False) -> bytes:
+def _cached_graph(
+    packed: PackedForest, directory: Path | None, digest: str, *, fresh: bool = False
+) -> bytes:
     """The forest's graph from this user's cache, else built and put there (where it can be).
 
-    ``fresh`` builds it anew whatever the cache holds (the cached one did not load).
+    ``digest`` is the forest's :func:`forest_digest` (the graph's name); ``fresh`` builds it
+    anew whatever the cache holds (the cached one did not load).
     """
     from dyntarget.io.atomic import write_bytes
     from dyntarget.io.safeopen import read_bytes
     from dyntarget.perceive.compiled import _private, cache_dir
 
     where = Path(directory) if directory is not None else cache_dir()
-    path = where / f"ensemble-{forest_digest(packed)}.onnx"
+    path = where / f"ensemble-{digest}.onnx"
     ours = os.path.isdir(where) and _private(where) is None  # no one else can swap a file in it
     if not fresh and ours and os.path.lexists(path) and _private(path) is None and path.is_file():
         try:
@@ -292,9 +295,9 @@ def ensemble_predictor(
 
         _say_once(f"dyntarget: {where or GRAPH_FILE}: {why}, not this forest.npz's; not used")
     if session is None:
-        session, why = _session(ort, _cached_graph(packed, cache), digest)
+        session, why = _session(ort, _cached_graph(packed, cache, digest), digest)
     if session is None:  # a damaged or stale cached graph: built anew
-        session, why = _session(ort, _cached_graph(packed, cache, fresh=True), digest)
+        session, why = _session(ort, _cached_graph(packed, cache, digest, fresh=True), digest)
     if session is None:
         raise MissingExtraError(f"the forest's graph built here: {why}")
     features = packed.features

@@ -31,13 +31,7 @@ import numpy as np
 
 from dyntarget.errors import InvalidParameterError
 from dyntarget.perceive.base import Classifier
-from dyntarget.perceive.onnx import (
-    ENSEMBLE_BACKEND,
-    ONNX_FILE,
-    SHIPPED_BACKEND,
-    _require,
-    load_onnx,
-)
+from dyntarget.perceive.onnx import ONNX_FILE, _require, load_onnx
 
 if TYPE_CHECKING:
     from dyntarget.perceive.pixel import RandomForest
@@ -221,28 +215,21 @@ def export_checked(
         expected = native.predict_proba(check_image)
         ort = load_onnx(model_dir, kernel=False).predict_proba(check_image)
         diff = float(np.abs(ort - expected).max())
-        twin = load_onnx(model_dir)  # a random forest's packed arrays, on the kernel
-        if twin.forest is not None:
+        twin = load_onnx(model_dir)  # a random forest's packed arrays: kernel or graph
+        if twin.forest is not None:  # then bit-identical to scikit-learn, or refused
+            forest = cast("RandomForest", copy.copy(native))
+            reference = forest.set_backend("sklearn").predict_proba(check_image)
             got = twin.predict_proba(check_image)
-            if twin.backend in (
-                "forest kernel",
-                ENSEMBLE_BACKEND,
-                SHIPPED_BACKEND,
-            ):  # bit-identical
-                forest = cast("RandomForest", copy.copy(native))
-                reference = forest.set_backend("sklearn").predict_proba(check_image)
-                if not np.array_equal(got, reference):
-                    diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
-            graph = Path(model_dir) / GRAPH_FILE  # what the lean install runs: checked too
-            if twin.forest_graph is not None:
+            if not np.array_equal(got, reference):
+                diff = max(diff, float(np.abs(got - reference).max()), 2 * TOLERANCE)
+            if twin.forest_graph is not None:  # what the lean install runs: checked too
                 from dyntarget.perceive.ensemble import ensemble_predictor
                 from dyntarget.perceive.pixel import predict_in_chunks
 
-                shipped = ensemble_predictor(twin.forest, graph=twin.forest_graph, where=graph)
-                got = predict_in_chunks(check_image, shipped)
-                forest = cast("RandomForest", copy.copy(native))
-                reference = forest.set_backend("sklearn").predict_proba(check_image)
-                if not shipped.shipped or not np.array_equal(got, reference):  # type: ignore[attr-defined]
+                where = Path(model_dir) / GRAPH_FILE
+                shipped = ensemble_predictor(twin.forest, graph=twin.forest_graph, where=where)
+                same = np.array_equal(predict_in_chunks(check_image, shipped), reference)
+                if not (shipped.shipped and same):  # type: ignore[attr-defined]
                     diff = max(diff, 2 * TOLERANCE)
     except BaseException:
         remove()  # nothing half-written
