@@ -1571,7 +1571,7 @@ def compile_forest(
     >>> from sklearn.ensemble import RandomForestClassifier
     >>> x = np.random.default_rng(0).random((200, 4), dtype=np.float32)
     >>> est = RandomForestClassifier(n_estimators=3, random_state=0).fit(x, x[:, 0] > 0.5)
-    >>> predict = compile_forest(est)
+    >>> predict = compile_forest(est, isa="portable")  # plain C: every CPU runs it
     >>> bool((predict(x) == est.predict_proba(x)[:, 1].astype(np.float32)).all())
     True
     """
