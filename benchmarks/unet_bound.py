@@ -138,11 +138,14 @@ def run(args: argparse.Namespace) -> None:
 
 
 def _run(args: argparse.Namespace) -> None:
+    from dyntarget.perceive import resources
+
+    # as the dyntarget command does at start, before torch loads (absent before issue 43's
+    # spin bound: an older checkout then runs as it did)
+    getattr(resources, "bound_openmp_spin", lambda: False)()
     import torch
 
     if args.threads:  # the thread count fixed, whatever the load (the comparison's other arm)
-        from dyntarget.perceive import resources
-
         resources.inference_threads = lambda limit=None: args.threads
 
     import dyntarget
@@ -187,6 +190,8 @@ def _run(args: argparse.Namespace) -> None:
         "torch_threads": torch.get_num_threads(),
         "cpu": cpu(),
         "nice": os.nice(0),
+        "gomp_spincount": os.environ.get("GOMP_SPINCOUNT"),
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
         "load_processes": args.load,
         "threads_fixed": args.threads or None,
         "runs": runs,

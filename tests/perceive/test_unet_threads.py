@@ -9,8 +9,13 @@ import time
 import numpy as np
 import pytest
 
-from dyntarget.perceive import make_classifier
-from dyntarget.perceive.resources import available_cores, busy_cores, inference_threads
+from dyntarget.perceive import make_classifier, resources
+from dyntarget.perceive.resources import (
+    available_cores,
+    busy_cores,
+    inference_threads,
+    openmp_spin_count,
+)
 from dyntarget.perceive.unet import Stitching
 
 
@@ -20,7 +25,10 @@ def test_inference_threads_never_exceeds_the_limit_nor_the_cores():
 
 
 @pytest.mark.slow
-def test_other_busy_processes_leave_one_thread():
+def test_other_busy_processes_leave_one_thread(monkeypatch):
+    # libgomp's default wait (3 ms of spinning): the load rule
+    monkeypatch.delenv("GOMP_SPINCOUNT", raising=False)
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
     # as many spinning processes as cores: none is free, so one thread (never zero)
     code = "while True: pass"
     spinners = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(available_cores())]
@@ -32,6 +40,92 @@ def test_other_busy_processes_leave_one_thread():
         for p in spinners:
             p.kill()
             p.wait()
+
+
+@pytest.mark.parametrize(
+    ("environ", "spins"),
+    [
+        # libgomp's manual: unset waits 300,000 spins, PASSIVE none, ACTIVE 30 billion;
+        # GOMP_SPINCOUNT takes a count with k/M/G/T (powers of 1000) or "infinite", and
+        # overrides the policy; a value it cannot read is ignored
+        ({}, 300_000),
+        ({"OMP_WAIT_POLICY": "passive"}, 0),
+        ({"OMP_WAIT_POLICY": " ACTIVE "}, 30_000_000_000),
+        ({"OMP_WAIT_POLICY": "sometimes"}, 300_000),
+        ({"GOMP_SPINCOUNT": "10000"}, 10_000),
+        ({"GOMP_SPINCOUNT": "2 k", "OMP_WAIT_POLICY": "ACTIVE"}, 2_000),
+        ({"GOMP_SPINCOUNT": "3M"}, 3_000_000),
+        ({"GOMP_SPINCOUNT": "1t"}, 10**12),
+        ({"GOMP_SPINCOUNT": "Infinity"}, 2**64 - 1),
+        ({"GOMP_SPINCOUNT": "ten", "OMP_WAIT_POLICY": "PASSIVE"}, 0),
+        ({"GOMP_SPINCOUNT": "5x"}, 300_000),
+        ({"GOMP_SPINCOUNT": "\u00b2"}, 300_000),  # a digit to Python, not to strtoull
+    ],
+)
+def test_openmp_spin_count_reads_the_environment_as_libgomp_does(environ, spins):
+    assert openmp_spin_count(environ) == spins
+
+
+def test_a_bounded_spin_runs_a_pass_on_every_core_whatever_the_load(monkeypatch):
+    # four cores, every one kept busy by other processes
+    monkeypatch.setattr(resources, "available_cores", lambda: 4)
+    monkeypatch.setattr(resources, "busy_cores", lambda samples=5: 4)
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    monkeypatch.delenv("GOMP_SPINCOUNT", raising=False)
+    assert inference_threads() == 1  # 3 ms spins: the cores the load leaves free
+    monkeypatch.setenv("GOMP_SPINCOUNT", "10000")
+    assert inference_threads() == 4
+    assert inference_threads(limit=3) == 3
+    monkeypatch.setenv("GOMP_SPINCOUNT", "10001")  # just above the bound: the load rule
+    assert inference_threads() == 1
+    monkeypatch.delenv("GOMP_SPINCOUNT")
+    monkeypatch.setenv("OMP_WAIT_POLICY", "PASSIVE")
+    assert inference_threads() == 4
+    monkeypatch.setattr(resources, "busy_cores", lambda samples=5: 1)
+    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
+    assert inference_threads() == 3
+
+
+def _display_openmp_env(code: str, **env: str) -> str:
+    """libgomp's own report of its settings (``OMP_DISPLAY_ENV``) in a fresh interpreter."""
+    import os
+
+    clean = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**clean, "OMP_DISPLAY_ENV": "VERBOSE", **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout + done.stderr
+
+
+def test_the_dyntarget_command_bounds_the_spin_of_the_torch_it_loads():
+    # the command sets it before torch loads, and torch's libgomp says it took it
+    code = (
+        "from dyntarget.cli import main\n"
+        "assert main(['classifiers']) == 0\n"
+        "import torch\n"
+        "torch.ones(8).sum()\n"
+    )
+    assert "GOMP_SPINCOUNT = '10000'" in _display_openmp_env(code)
+
+
+@pytest.mark.slow
+def test_the_user_s_openmp_setting_and_an_early_torch_are_left_alone():
+    code = (
+        "import os, sys\n"
+        "{pre}"
+        "from dyntarget.perceive.resources import bound_openmp_spin\n"
+        "print('set', bound_openmp_spin(), os.environ.get('GOMP_SPINCOUNT'))\n"
+        "import torch\n"
+    )
+    active = _display_openmp_env(code.format(pre=""), OMP_WAIT_POLICY="ACTIVE")
+    assert "set False None" in active and "GOMP_SPINCOUNT = '30000000000'" in active
+    early = _display_openmp_env(code.format(pre="import torch\n"))
+    assert "set False None" in early and "GOMP_SPINCOUNT = '300000'" in early
 
 
 @pytest.mark.parametrize("name", ["unet-uavsar", "unet-xception"])

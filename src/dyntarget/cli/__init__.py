@@ -86,9 +86,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version and usage errors
         return int(exc.code or 0)
     func: Callable[[argparse.Namespace], int] = args.func
-    from dyntarget.perceive.resources import keep_freed_memory
+    from dyntarget.perceive.resources import bound_openmp_spin, keep_freed_memory
 
     keep_freed_memory()  # large arrays are reused, not page-faulted in on every pass
+    bound_openmp_spin()  # before torch loads: a thread waiting at a barrier gives its core back
     try:
         return func(args)
     except DynTargetError as exc:

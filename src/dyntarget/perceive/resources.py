@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 
 
 def keep_freed_memory(limit: int = 2**31 - 1) -> bool:
@@ -126,17 +127,108 @@ def busy_cores(samples: int = 5) -> int:
     return int(sorted(counts)[len(counts) // 2])
 
 
-def inference_threads(limit: int | None = None) -> int:
-    """Intra-op threads for one network pass: the cores not kept busy by other processes.
+OPENMP_SPIN_COUNT = 10_000
+"""Spins an OpenMP thread of PyTorch's waits at a barrier before it sleeps, as the
+``dyntarget`` command sets it (:func:`bound_openmp_spin`): about 0.1 ms by libgomp's own
+estimate of 100,000 spins a millisecond, against its default of 300,000 (3 ms)."""
 
-    The rule of OpenMP's dynamic adjustment (libgomp's ``OMP_DYNAMIC``: the online
-    cores less the load), with the load read as it is now (:func:`busy_cores`) rather
-    than as a minutes-long average, which would count this process's own past work. A
-    pass of a U-Net runs some hundred parallel regions, each ending at a barrier that
-    waits for its slowest thread: when other processes share the cores, a thread is
-    often descheduled there for a scheduler time slice, so on this 2-core machine under
-    load UNET-Xception ran 2-5x *slower* on 2 threads than on 1 (docs/performance.md).
-    On a quiet machine the result is :func:`available_cores`.
+
+def _parse_spin_count(value: str) -> int | None:
+    """``GOMP_SPINCOUNT`` as libgomp reads it (``None`` where it would not take it)."""
+    import re
+
+    if value.strip().lower() in ("infinite", "infinity"):
+        return 2**64 - 1
+    match = re.fullmatch(r"\s*(\d+)\s*([kmgt]?)\s*", value, re.ASCII | re.IGNORECASE)
+    if match is None:
+        return None
+    return int(match[1]) * 1000 ** " kmgt".index(match[2].lower() or " ")
+
+
+def openmp_spin_count(environ: Mapping[str, str] | None = None) -> int:
+    """How long libgomp's threads spin at a barrier before sleeping, as the environment says.
+
+    libgomp (the OpenMP runtime of PyTorch's Linux wheels, x86-64 and aarch64) reads
+    ``GOMP_SPINCOUNT`` (a count, with an optional ``k``/``M``/``G``/``T`` suffix, or
+    ``infinite``) and else ``OMP_WAIT_POLICY``: ``PASSIVE`` sleeps at once,
+    ``ACTIVE`` spins for good (30 billion spins), unset spins 300,000 times (about
+    3 ms). It reads them once, when it is loaded (with ``import torch``).
+
+    Parameters
+    ----------
+    environ : mapping or None
+        The environment to read (default ``os.environ``).
+
+    Returns
+    -------
+    int
+        Spins before a waiting thread sleeps.
+
+    Examples
+    --------
+    >>> openmp_spin_count({})
+    300000
+    >>> openmp_spin_count({"OMP_WAIT_POLICY": "passive"})
+    0
+    >>> openmp_spin_count({"GOMP_SPINCOUNT": "10k", "OMP_WAIT_POLICY": "ACTIVE"})
+    10000
+    """
+    env = os.environ if environ is None else environ
+    spins = _parse_spin_count(env.get("GOMP_SPINCOUNT", ""))
+    if spins is not None:
+        return spins
+    policy = env.get("OMP_WAIT_POLICY", "").strip().upper()
+    return {"PASSIVE": 0, "ACTIVE": 30_000_000_000}.get(policy, 300_000)
+
+
+def bound_openmp_spin() -> bool:
+    """Let PyTorch's OpenMP threads sleep soon when they wait at a barrier (a process-wide setting).
+
+    A U-Net pass runs some hundred parallel regions, each ending at a barrier. Under
+    libgomp's default a thread that reaches it first spins for about 3 ms; when other
+    processes share the cores it spins on a core its partner thread needed, so on this
+    2-core machine with every core shared UNET-Xception ran 3.8-4.2x its FLOP bound on
+    1 thread and up to 7x on 2 (docs/performance.md). With :data:`OPENMP_SPIN_COUNT`
+    spins it sleeps after about 0.1 ms and hands the core back: both cores then run the
+    pass at any load (:func:`inference_threads`), with no cost measured on a quiet
+    machine. Sets ``GOMP_SPINCOUNT`` unless the environment already says how OpenMP
+    threads wait (``GOMP_SPINCOUNT`` or ``OMP_WAIT_POLICY``: the user's choice wins) or
+    torch is already imported (its OpenMP runtime read the environment when it loaded).
+    The ``dyntarget`` command calls this at start; child processes inherit it.
+
+    Returns
+    -------
+    bool
+        Whether this call set it.
+
+    Examples
+    --------
+    >>> isinstance(bound_openmp_spin(), bool)
+    True
+    """
+    import sys
+
+    if "torch" in sys.modules or {"GOMP_SPINCOUNT", "OMP_WAIT_POLICY"} & set(os.environ):
+        return False
+    os.environ["GOMP_SPINCOUNT"] = str(OPENMP_SPIN_COUNT)
+    return True
+
+
+def inference_threads(limit: int | None = None) -> int:
+    """Intra-op threads for one network pass: every core, or those other processes leave free.
+
+    Where OpenMP's waiting threads sleep soon (a spin count of at most
+    :data:`OPENMP_SPIN_COUNT`, :func:`openmp_spin_count`; the ``dyntarget`` command
+    sets it, :func:`bound_openmp_spin`) a pass runs on every core whatever the load: a
+    thread that waits at a barrier gives its core back, and two threads sharing the
+    cores with other processes get more of them than one. Otherwise the rule of
+    OpenMP's dynamic adjustment (libgomp's ``OMP_DYNAMIC``: the online cores less the
+    load), with the load read as it is now (:func:`busy_cores`) rather than as a
+    minutes-long average, which would count this process's own past work: a pass of a
+    U-Net runs some hundred parallel regions, each ending at a barrier that waits for
+    its slowest thread, and a thread spinning there for milliseconds keeps its partner
+    off the core (docs/performance.md). On a quiet machine both rules give
+    :func:`available_cores`.
 
     Parameters
     ----------
@@ -156,4 +248,6 @@ def inference_threads(limit: int | None = None) -> int:
     1
     """
     cores = available_cores() if limit is None else min(available_cores(), int(limit))
+    if openmp_spin_count() <= OPENMP_SPIN_COUNT:
+        return max(1, cores)
     return max(1, min(cores, available_cores() - busy_cores()))

@@ -36,7 +36,8 @@ stitchings:
 
 PyTorch prediction runs a copy of the network with its batch norms folded into the
 convolutions, in channels-last memory format (faster on the CPU; equal to the trained
-network to float rounding, tested), on the cores other processes leave free
+network to float rounding, tested), on every core where a thread waiting at a barrier
+gives its core back soon, else on the cores other processes leave free
 (:func:`dyntarget.perceive.resources.inference_threads`).
 
 This module imports no torch: the networks (:mod:`dyntarget.perceive.networks`)
@@ -658,9 +659,9 @@ class _UNetClassifier(Classifier):
                 x = torch.from_numpy(batch).contiguous(memory_format=channels_last)
                 return torch.softmax(net(x), dim=1)[:, 1].numpy()
 
-        # the cores other processes leave free, at most torch's own setting: under load a
-        # pass on 2 threads waits at every barrier for a descheduled thread (2-5x slower
-        # than 1 thread here); the probabilities do not depend on the thread count (tested)
+        # every core where OpenMP's waiting threads sleep soon (the dyntarget command's
+        # setting), else the cores other processes leave free; at most torch's own
+        # setting. The probabilities do not depend on the thread count (tested)
         self.threads_used = inference_threads(limit=torch.get_num_threads())
         with _fixed_threads(self.threads_used):
             return self.tiled(image, forward)
