@@ -23,22 +23,33 @@ def runs_of(record: dict, label: str) -> list[dict]:
     return [r for p in record["processes"] if p["label"] == label for r in p["runs"]]
 
 
+def cells(record: dict, label: str) -> tuple[str, str]:
+    """``(load, threads)`` and ``classify | bound | ratio median (min–max)`` of one row."""
+    parts = [p for p in record["processes"] if p["label"] == label]
+    runs = runs_of(record, label)
+    ratios = [r["ratio"] for r in runs]
+    (load,) = {p["load_processes"] for p in parts}
+    threads = "/".join(str(t) for t in sorted({r["threads"] for r in runs}))
+    times = (
+        f"{statistics.median(r['classify_s'] for r in runs):.3f} | "
+        f"{statistics.median(r['bound_s'] for r in runs):.3f} | "
+        f"**{statistics.median(ratios):.2f}** ({min(ratios):.2f}–{max(ratios):.2f})"
+    )
+    return f"{load}", threads, times
+
+
+def met(record: dict, label: str) -> str:
+    return "yes" if statistics.median(r["ratio"] for r in runs_of(record, label)) <= 3 else "no"
+
+
 def rows() -> list[str]:
     """The table's rows, from the runs themselves (not the record's own summary)."""
     out = []
     for label in RECORD["summary"]:
+        load, threads, times = cells(RECORD, label)
         parts = [p for p in RECORD["processes"] if p["label"] == label]
-        runs = [r for p in parts for r in p["runs"]]
-        ratios = [r["ratio"] for r in runs]
-        med = statistics.median(ratios)
-        (load,) = {p["load_processes"] for p in parts}
-        threads = "/".join(str(t) for t in sorted({r["threads"] for r in runs}))
         fixed = " (fixed)" if any(p.get("threads_fixed") for p in parts) else ""
-        out.append(
-            f"| {load} | {threads}{fixed} | {statistics.median(r['classify_s'] for r in runs):.3f} | "
-            f"{statistics.median(r['bound_s'] for r in runs):.3f} | **{med:.2f}** "
-            f"({min(ratios):.2f}–{max(ratios):.2f}) | {'yes' if med <= 3 else 'no'} |"
-        )
+        out.append(f"| {load} | {threads}{fixed} | {times} | {met(RECORD, label)} |")
     return out
 
 
@@ -73,18 +84,11 @@ def spin_rows() -> list[str]:
     """The bounded-spin table's rows, from the runs themselves."""
     out = []
     for label in SPIN["summary"]:
-        runs = runs_of(SPIN, label)
-        ratios = [r["ratio"] for r in runs]
-        med = statistics.median(ratios)
-        (load,) = {p["load_processes"] for p in SPIN["processes"] if p["label"] == label}
-        threads = "/".join(str(t) for t in sorted({r["threads"] for r in runs}))
-        out.append(
-            f"| {load} | {label.split('-')[0]} | {threads} | "
-            f"{statistics.median(r['classify_s'] for r in runs):.3f} | "
-            f"{statistics.median(r['bound_s'] for r in runs):.3f} | **{med:.2f}** "
-            f"({min(ratios):.2f}–{max(ratios):.2f}) | {sum(x > 3 for x in ratios)} of "
-            f"{len(ratios)} | {'yes' if med <= 3 else 'no'} |"
-        )
+        load, threads, times = cells(SPIN, label)
+        ratios = [r["ratio"] for r in runs_of(SPIN, label)]
+        over = f"{sum(x > 3 for x in ratios)} of {len(ratios)}"
+        code = label.split("-")[0]
+        out.append(f"| {load} | {code} | {threads} | {times} | {over} | {met(SPIN, label)} |")
     return out
 
 
