@@ -116,6 +116,10 @@ def test_the_bounded_spin_summary_is_the_records():
     ]
     total = sum(len(runs_of(SPIN, f"after-load-{n}")) for n in range(5))
     assert f"({len(over)} of the {total} after the change, at most {max(over):.2f}×)" in FLAT
+    n = {k: sum(r["ratio"] > 3 for r in runs_of(SPIN, f"after-load-{k}")) for k in (3, 4)}
+    assert (
+        f"({n[3]} of 15 at 3 load processes, {n[4]} of 15 at 4, at most {max(over):.2f}×)" in FLAT
+    )
     now = [med[f"after-load-{n}"] for n in (2, 3, 4)]
     assert (
         f"its median ratio is {min(now):.2f}-{max(now):.2f}× against {min(shared):.2f}-{max(shared):.2f}×"
