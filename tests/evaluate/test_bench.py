@@ -123,3 +123,13 @@ def test_machine_records_the_commit_and_the_cpu_flags_that_pick_a_code_path():
     if head.returncode == 0 and m["commit"] is not None:  # a checkout: the same commit
         assert m["commit"].removesuffix("+dirty") == head.stdout.strip()
     assert m["cpus"] >= 1 and m["load_1min"] >= 0
+
+
+def test_machine_records_the_openmp_spin_that_picks_a_unet_pass_s_threads(monkeypatch):
+    from dyntarget.evaluate.bench import machine
+
+    monkeypatch.setenv("GOMP_SPINCOUNT", "7k")  # 7,000 spins, as libgomp reads it
+    assert machine()["openmp_spin_count"] == 7000
+    monkeypatch.delenv("GOMP_SPINCOUNT")
+    monkeypatch.setenv("OMP_WAIT_POLICY", "PASSIVE")
+    assert machine()["openmp_spin_count"] == 0

@@ -38,6 +38,7 @@ import numpy as np
 from dyntarget.errors import InvalidParameterError
 from dyntarget.observe import UtilityMaps, observe
 from dyntarget.perceive import CLASSIFIERS, make_classifier
+from dyntarget.perceive.resources import openmp_spin_count
 from dyntarget.pipeline import PipelineConfig, classify, clean, plan_segmentation, segment
 from dyntarget.plan import geometric_planners
 from dyntarget.synth import generate_scene
@@ -244,8 +245,11 @@ def machine() -> dict[str, Any]:
     dict
         ``commit`` (``None`` outside a git checkout), ``platform``, ``cpu`` (model name),
         ``cpu_flags`` (those of :data:`MACHINE_FLAGS` present), ``cpus`` (cores this process
-        may use), ``load_1min``, ``torch_threads``, ``python`` and ``versions`` (dyntarget,
-        OpenCV and each installed one of :data:`MACHINE_LIBRARIES`).
+        may use), ``load_1min``, ``torch_threads``, ``openmp_spin_count`` (how long an
+        OpenMP thread spins at a barrier, as the environment sets it:
+        :func:`dyntarget.perceive.resources.openmp_spin_count`; it decides a U-Net pass's
+        threads under load), ``python`` and ``versions`` (dyntarget, OpenCV and each
+        installed one of :data:`MACHINE_LIBRARIES`).
 
     Examples
     --------
@@ -278,6 +282,7 @@ def machine() -> dict[str, Any]:
         "cpus": cores,
         "load_1min": round(os.getloadavg()[0], 2),
         "torch_threads": _torch_threads(),
+        "openmp_spin_count": openmp_spin_count(),
         "python": platform.python_version(),
         "versions": versions,
     }
