@@ -10,6 +10,19 @@ from dyntarget.scene import Scene
 from dyntarget.synth import generate_scene
 
 
+@pytest.fixture(autouse=True)
+def _openmp_spin_left_as_found():
+    """A test that runs ``dyntarget.cli.main`` in-process (or a doctest) may set
+    ``GOMP_SPINCOUNT`` (``bound_openmp_spin``): put it back, so later tests and the
+    processes they start see the environment pytest started with."""
+    before = os.environ.get("GOMP_SPINCOUNT")
+    yield
+    if before is None:
+        os.environ.pop("GOMP_SPINCOUNT", None)
+    else:
+        os.environ["GOMP_SPINCOUNT"] = before
+
+
 @pytest.fixture
 def tiny_scene() -> Scene:
     """A 64x64 synthetic scene (seed 0, index 0), georeferenced."""

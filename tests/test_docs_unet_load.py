@@ -23,8 +23,8 @@ def runs_of(record: dict, label: str) -> list[dict]:
     return [r for p in record["processes"] if p["label"] == label for r in p["runs"]]
 
 
-def cells(record: dict, label: str) -> tuple[str, str]:
-    """``(load, threads)`` and ``classify | bound | ratio median (min–max)`` of one row."""
+def cells(record: dict, label: str) -> tuple[str, str, str]:
+    """``load``, ``threads`` and ``classify | bound | ratio median (min–max)`` of one row."""
     parts = [p for p in record["processes"] if p["label"] == label]
     runs = runs_of(record, label)
     ratios = [r["ratio"] for r in runs]
@@ -117,8 +117,10 @@ def test_the_bounded_spin_summary_is_the_records():
     total = sum(len(runs_of(SPIN, f"after-load-{n}")) for n in range(5))
     assert f"({len(over)} of the {total} after the change, at most {max(over):.2f}×)" in FLAT
     n = {k: sum(r["ratio"] > 3 for r in runs_of(SPIN, f"after-load-{k}")) for k in (3, 4)}
+    m = {k: len(runs_of(SPIN, f"after-load-{k}")) for k in (3, 4)}
     assert (
-        f"({n[3]} of 15 at 3 load processes, {n[4]} of 15 at 4, at most {max(over):.2f}×)" in FLAT
+        f"({n[3]} of {m[3]} at 3 load processes, {n[4]} of {m[4]} at 4, at most {max(over):.2f}×)"
+        in FLAT
     )
     now = [med[f"after-load-{n}"] for n in (2, 3, 4)]
     assert (

@@ -1,4 +1,5 @@
-"""U-Net prediction on the cores other processes leave free, and in one pass where it fits."""
+"""U-Net prediction on every core where OpenMP's waiting threads sleep soon (else on the cores
+other processes leave free), and in one pass where it fits."""
 
 from __future__ import annotations
 
@@ -60,15 +61,23 @@ def test_other_busy_processes_leave_one_thread(monkeypatch):
         ({"GOMP_SPINCOUNT": "ten", "OMP_WAIT_POLICY": "PASSIVE"}, 0),
         ({"GOMP_SPINCOUNT": "5x"}, 300_000),
         ({"GOMP_SPINCOUNT": "\u00b2"}, 300_000),  # a digit to Python, not to strtoull
+        # strtoull: a sign is read, a negative count wraps modulo 2**64, a count beyond
+        # 2**64 - 1 is refused; a suffix's product is capped at 2**64 - 1
+        ({"GOMP_SPINCOUNT": "+5000"}, 5_000),
+        ({"GOMP_SPINCOUNT": "-1"}, 2**64 - 1),
+        ({"GOMP_SPINCOUNT": "18446744073709551616"}, 300_000),
+        ({"GOMP_SPINCOUNT": "18446744073709551615"}, 2**64 - 1),
+        ({"GOMP_SPINCOUNT": "1000000000T"}, 2**64 - 1),
     ],
 )
 def test_openmp_spin_count_reads_the_environment_as_libgomp_does(environ, spins):
     assert openmp_spin_count(environ) == spins
 
 
-def test_a_bounded_spin_runs_a_pass_on_every_core_whatever_the_load(monkeypatch):
-    # four cores, every one kept busy by other processes
+def test_a_bounded_spin_under_libgomp_gives_a_pass_every_core_whatever_the_load(monkeypatch):
+    # four cores, every one kept busy by other processes; GNU libgomp runs torch
     monkeypatch.setattr(resources, "available_cores", lambda: 4)
+    monkeypatch.setattr(resources, "_libgomp_runs_torch", lambda: True)
     monkeypatch.setattr(resources, "busy_cores", lambda samples=5: 4)
     monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
     monkeypatch.delenv("GOMP_SPINCOUNT", raising=False)
@@ -81,9 +90,22 @@ def test_a_bounded_spin_runs_a_pass_on_every_core_whatever_the_load(monkeypatch)
     monkeypatch.delenv("GOMP_SPINCOUNT")
     monkeypatch.setenv("OMP_WAIT_POLICY", "PASSIVE")
     assert inference_threads() == 4
+    monkeypatch.setattr(resources, "_libgomp_runs_torch", lambda: False)
+    assert inference_threads() == 1  # another OpenMP runtime reads neither: the load rule
+    monkeypatch.setattr(resources, "_libgomp_runs_torch", lambda: True)
     monkeypatch.setattr(resources, "busy_cores", lambda samples=5: 1)
     monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
     assert inference_threads() == 3
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PyTorch's Linux wheels")
+def test_this_torch_runs_on_gnu_libgomp():
+    # the wheels the README installs (torch==2.13.0+cpu) bring libgomp: the bound takes
+    import torch
+
+    assert torch.ones(64).sum().item() == 64.0
+    assert resources._libgomp_runs_torch()
+    assert "OpenMP" in torch.__config__.parallel_info()
 
 
 def _display_openmp_env(code: str, **env: str) -> str:

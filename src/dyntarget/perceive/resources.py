@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, MutableMapping
 
 
 def keep_freed_memory(limit: int = 2**31 - 1) -> bool:
@@ -130,19 +130,27 @@ def busy_cores(samples: int = 5) -> int:
 OPENMP_SPIN_COUNT = 10_000
 """Spins an OpenMP thread of PyTorch's waits at a barrier before it sleeps, as the
 ``dyntarget`` command sets it (:func:`bound_openmp_spin`): about 0.1 ms by libgomp's own
-estimate of 100,000 spins a millisecond, against its default of 300,000 (3 ms)."""
+estimate of 100,000 spins a millisecond, against its default of 300,000 (3 ms); libgomp
+says its estimate may be five times off either way, with the CPU."""
 
 
 def _parse_spin_count(value: str) -> int | None:
-    """``GOMP_SPINCOUNT`` as libgomp reads it (``None`` where it would not take it)."""
+    """``GOMP_SPINCOUNT`` as libgomp reads it (``None`` where it would not take it).
+
+    ``strtoull`` then a suffix: an optional sign (a negative count wraps modulo 2**64),
+    digits (a count beyond 2**64 - 1 is refused), an optional ``k``/``M``/``G``/``T``
+    (powers of 1000, the product capped at 2**64 - 1); or ``infinite``/``infinity``.
+    """
     import re
 
+    most = 2**64 - 1
     if value.strip().lower() in ("infinite", "infinity"):
-        return 2**64 - 1
-    match = re.fullmatch(r"\s*(\d+)\s*([kmgt]?)\s*", value, re.ASCII | re.IGNORECASE)
-    if match is None:
+        return most
+    match = re.fullmatch(r"\s*([+-]?)(\d+)\s*([kmgt]?)\s*", value, re.ASCII | re.IGNORECASE)
+    if match is None or int(match[2]) > most:
         return None
-    return int(match[1]) * 1000 ** " kmgt".index(match[2].lower() or " ")
+    count = -int(match[2]) % 2**64 if match[1] == "-" else int(match[2])
+    return min(count * 1000 ** " kmgt".index(match[3].lower() or " "), most)
 
 
 def openmp_spin_count(environ: Mapping[str, str] | None = None) -> int:
@@ -152,7 +160,7 @@ def openmp_spin_count(environ: Mapping[str, str] | None = None) -> int:
     ``GOMP_SPINCOUNT`` (a count, with an optional ``k``/``M``/``G``/``T`` suffix, or
     ``infinite``) and else ``OMP_WAIT_POLICY``: ``PASSIVE`` sleeps at once,
     ``ACTIVE`` spins for good (30 billion spins), unset spins 300,000 times (about
-    3 ms). It reads them once, when it is loaded (with ``import torch``).
+    3 ms by libgomp's estimate). It reads them once, when it is loaded (with ``import torch``).
 
     Parameters
     ----------
@@ -181,20 +189,28 @@ def openmp_spin_count(environ: Mapping[str, str] | None = None) -> int:
     return {"PASSIVE": 0, "ACTIVE": 30_000_000_000}.get(policy, 300_000)
 
 
-def bound_openmp_spin() -> bool:
+def bound_openmp_spin(environ: MutableMapping[str, str] | None = None) -> bool:
     """Let PyTorch's OpenMP threads sleep soon when they wait at a barrier (a process-wide setting).
 
     A U-Net pass runs some hundred parallel regions, each ending at a barrier. Under
-    libgomp's default a thread that reaches it first spins for about 3 ms; when other
-    processes share the cores it spins on a core its partner thread needed, so on this
-    2-core machine with every core shared UNET-Xception ran 3.8-4.2x its FLOP bound on
-    1 thread and up to 7x on 2 (docs/performance.md). With :data:`OPENMP_SPIN_COUNT`
-    spins it sleeps after about 0.1 ms and hands the core back: both cores then run the
-    pass at any load (:func:`inference_threads`), with no cost measured on a quiet
-    machine. Sets ``GOMP_SPINCOUNT`` unless the environment already says how OpenMP
+    libgomp's default a thread that reaches it first spins (300,000 spins, about 3 ms by
+    libgomp's estimate); when other processes share the cores it spins on a core its
+    partner thread needed, so on this 2-core machine with every core shared UNET-Xception
+    ran 3.8-4.2x its FLOP bound on 1 thread and up to 7x on 2 (docs/performance.md).
+    With :data:`OPENMP_SPIN_COUNT` spins it sleeps 30 times sooner and hands the core
+    back: both cores then run the pass under the loads measured (up to four other
+    single-threaded processes on two cores; :func:`inference_threads`), with no cost
+    measured on a quiet machine. Sets ``GOMP_SPINCOUNT`` unless the environment already says how OpenMP
     threads wait (``GOMP_SPINCOUNT`` or ``OMP_WAIT_POLICY``: the user's choice wins) or
     torch is already imported (its OpenMP runtime read the environment when it loaded).
-    The ``dyntarget`` command calls this at start; child processes inherit it.
+    The ``dyntarget`` command calls this at start; the processes it starts inherit it
+    (Dask's local workers among them; workers started elsewhere, ``--scheduler
+    tcp://...``, do not, and keep the load rule of :func:`inference_threads`).
+
+    Parameters
+    ----------
+    environ : mutable mapping or None
+        The environment to set it in (default ``os.environ``, the one torch reads).
 
     Returns
     -------
@@ -203,23 +219,40 @@ def bound_openmp_spin() -> bool:
 
     Examples
     --------
-    >>> isinstance(bound_openmp_spin(), bool)
-    True
+    >>> env = {"OMP_WAIT_POLICY": "ACTIVE"}  # the user's choice
+    >>> bound_openmp_spin(env), env
+    (False, {'OMP_WAIT_POLICY': 'ACTIVE'})
     """
     import sys
 
-    if "torch" in sys.modules or {"GOMP_SPINCOUNT", "OMP_WAIT_POLICY"} & set(os.environ):
+    env = os.environ if environ is None else environ
+    if "torch" in sys.modules or {"GOMP_SPINCOUNT", "OMP_WAIT_POLICY"} & set(env):
         return False
-    os.environ["GOMP_SPINCOUNT"] = str(OPENMP_SPIN_COUNT)
+    env["GOMP_SPINCOUNT"] = str(OPENMP_SPIN_COUNT)
     return True
+
+
+def _libgomp_runs_torch() -> bool:
+    """Whether this process's OpenMP runtime is GNU libgomp alone (Linux: its mapped files).
+
+    PyTorch's Linux wheels use libgomp; other builds (macOS, Windows, conda with Intel's
+    or LLVM's runtime) read neither ``GOMP_SPINCOUNT`` nor its default.
+    """
+    try:
+        with open("/proc/self/maps", encoding="ascii", errors="replace") as fh:
+            maps = fh.read()
+    except OSError:
+        return False
+    return "libgomp" in maps and "libiomp" not in maps and "libomp." not in maps
 
 
 def inference_threads(limit: int | None = None) -> int:
     """Intra-op threads for one network pass: every core, or those other processes leave free.
 
     Where OpenMP's waiting threads sleep soon (a spin count of at most
-    :data:`OPENMP_SPIN_COUNT`, :func:`openmp_spin_count`; the ``dyntarget`` command
-    sets it, :func:`bound_openmp_spin`) a pass runs on every core whatever the load: a
+    :data:`OPENMP_SPIN_COUNT`, :func:`openmp_spin_count`, read by GNU libgomp, the
+    runtime of PyTorch's Linux wheels; the ``dyntarget`` command sets it,
+    :func:`bound_openmp_spin`) a pass runs on every core whatever the load: a
     thread that waits at a barrier gives its core back, and two threads sharing the
     cores with other processes get more of them than one. Otherwise the rule of
     OpenMP's dynamic adjustment (libgomp's ``OMP_DYNAMIC``: the online cores less the
@@ -248,6 +281,6 @@ def inference_threads(limit: int | None = None) -> int:
     1
     """
     cores = available_cores() if limit is None else min(available_cores(), int(limit))
-    if openmp_spin_count() <= OPENMP_SPIN_COUNT:
+    if openmp_spin_count() <= OPENMP_SPIN_COUNT and _libgomp_runs_torch():
         return max(1, cores)
     return max(1, min(cores, available_cores() - busy_cores()))
