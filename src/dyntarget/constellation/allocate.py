@@ -126,6 +126,7 @@ def distributed(
     conflict: Conflict,
     heard: Callable[[int, float, int], float],
     cued: Callable[[int, int, float], bool] | None = None,
+    predicted: dict[int, list[tuple[float, int]]] | None = None,
 ) -> list[int]:
     """Each satellite decides alone from the board as it last heard it (claims, first wins).
 
@@ -151,6 +152,12 @@ def distributed(
     cued : callable or None
         ``cued(j, sat, t)``: whether satellite ``sat`` knows at ``t`` that opportunity
         ``j``'s satellite has heard of its eruption; ``None``: no prediction (claims only).
+    predicted : dict or None
+        Without a board (``none``, ``self``): per eruption, the overflights ``(t_obs,
+        sat)`` whose look-ahead will pass over its vent, from the ephemerides alone
+        (whether that look-ahead will see a plume is not known). A satellite yields where
+        the time-ordered rule over them and its own overflight gives its overflight to
+        another; ``None``: no such prediction.
 
     Returns
     -------
@@ -179,6 +186,10 @@ def distributed(
         e, s, t = int(opp.eruption[i]), int(opp.sat[i]), float(opp.t_dec[i])
         if cued is not None and not _mine(opp, i, s, t, by_e[e], dup_window_s, cued):
             continue
+        if predicted is not None and not _first_predicted(
+            float(opp.t_obs[i]), s, predicted.get(e, []), dup_window_s
+        ):
+            continue
         if any(
             _close(opp, i, j, dup_window_s) and heard(int(opp.sat[j]), float(opp.t_dec[j]), s) <= t
             for j in claims.get(e, [])
@@ -190,6 +201,24 @@ def distributed(
         claims.setdefault(e, []).append(i)
         by_sat.setdefault(s, []).append(i)
     return sorted(taken, key=lambda i: (opp.t_obs[i], opp.sat[i]))
+
+
+def _first_predicted(
+    t_i: float, s: int, overflights: list[tuple[float, int]], dup_window_s: float
+) -> bool:
+    """Whether the time-ordered rule over predicted overflights gives ``(t_i, s)`` to ``s``."""
+    last = -math.inf
+    for t_j, s_j in sorted({*overflights, (t_i, s)}):
+        if (t_j, s_j) > (t_i, s):
+            break
+        if t_i - t_j >= 3 * dup_window_s:
+            continue
+        taken = t_j - last >= dup_window_s
+        if taken:
+            last = t_j
+        if (t_j, s_j) == (t_i, s):
+            return taken
+    return True
 
 
 def _mine(opp, i, s, t, same_e, dup_window_s, cued) -> bool:

@@ -500,8 +500,16 @@ def run_day(
             assert opp.cue_src is not None and opp.cue_t is not None
             return heard(int(opp.cue_src[j]), float(opp.cue_t[j]), sat) <= t
 
+        predicted = None
+        if settings.cueing in ("none", "self"):  # no board: the others' looks, predicted
+            predicted = _predicted_looks(col, e_of, sat_of, seconds, settings.swath_km * 500.0)
         chosen = distributed(
-            opp, dup_window_s=settings.dup_window_s, conflict=conflict, heard=heard, cued=cued
+            opp,
+            dup_window_s=settings.dup_window_s,
+            conflict=conflict,
+            heard=heard,
+            cued=cued,
+            predicted=predicted,
         )
     else:
         chosen, _ = bound(opp, dup_window_s=settings.dup_window_s, conflict=conflict)
@@ -521,6 +529,24 @@ def run_day(
     return Day(
         names, catalog, eruptions, observations, table, summary, [s["track"] for s in per_sat], cues
     )
+
+
+def _predicted_looks(col, e_of, sat_of, seconds: float, half_swath_m: float):
+    """Per eruption, the overflights ``(t_obs, sat)`` whose look-ahead passes over its vent by day.
+
+    What a satellite without a board can know of the others from the constellation's
+    ephemerides (every satellite carries them): who flies over the vent with the vent in
+    its look-ahead's swath, by day, in time to plan the observation. Not whether that
+    look-ahead will see a plume (the plume's extent, whether it is there, the cloud).
+    """
+    t_look, t_obs = col["t_look"], col["t_obs"]
+    ok = (np.abs(col["cross"]) <= half_swath_m) & (t_look >= 0) & (t_look <= seconds)
+    ok &= np.isfinite(t_obs) & (t_obs >= 0) & (t_obs <= seconds) & (t_look <= t_obs - PLAN_S)
+    ok &= (col["sun_look_deg"] >= MIN_SUN_DEG) & (col["sun_obs_deg"] >= MIN_SUN_DEG)
+    out: dict[int, list[tuple[float, int]]] = {}
+    for k in np.flatnonzero(ok).tolist():
+        out.setdefault(int(e_of[k]), []).append((float(t_obs[k]), int(sat_of[k])))
+    return out
 
 
 def _never(src: int, t: float, dst: int) -> float:
