@@ -92,3 +92,44 @@ def test_distributed_duplicates_only_when_claims_arrive_late():
 
     # sat 1 decides 10 s after sat 0's claim (not heard yet): both; sat 2 hears: yields
     assert distributed(opp, dup_window_s=600.0, conflict=lambda a, b: False, heard=late) == [0, 1]
+
+
+def _never_heard(src, t, dst):  # no board: a satellite hears only itself
+    return t if src == dst else float("inf")
+
+
+def test_without_a_board_a_predicted_earlier_look_takes_the_overflight():
+    # satellites 0 and 1 pass over eruption 0's vent 300 s apart, each having seen the
+    # plume with its own look-ahead; satellite 2 passes 700 s after satellite 0
+    opp = Opportunities(
+        np.array([0, 1, 2]),
+        np.array([0, 0, 0]),
+        np.array([0.0, 300.0, 700.0]),
+        np.array([-100.0, 200.0, 600.0]),
+        np.ones(3),
+        np.ones(3),
+    )
+    kw = dict(dup_window_s=600.0, conflict=lambda a, b: False, heard=_never_heard)
+    # nothing predicted: each takes what its own look-ahead found (1 is a duplicate of 0)
+    assert distributed(opp, **kw) == [0, 1, 2]
+    looks = {0: [(0.0, 0), (300.0, 1), (700.0, 2)]}
+    # by hand, in time order: 0 at 0 s taken; 1 at 300 s within 600 s of it: not; 2 at
+    # 700 s, 700 s after the last taken: taken
+    assert distributed(opp, predicted=looks, **kw) == [0, 2]
+    # satellite 1's own look is all it knows of (0's look-ahead misses the vent): it takes it
+    assert distributed(opp, predicted={0: [(300.0, 1), (700.0, 2)]}, **kw) == [0, 1]
+
+
+def test_without_a_board_a_satellite_yields_to_a_look_that_saw_nothing():
+    # the cost of predicting from the ephemerides alone: satellite 0's look-ahead passed
+    # over the vent 300 s earlier but saw no plume (no opportunity), and satellite 1,
+    # which cannot know that, yields: nobody observes
+    opp = Opportunities(
+        np.array([1]), np.array([0]), np.array([300.0]), np.array([200.0]), np.ones(1), np.ones(1)
+    )
+    kw = dict(dup_window_s=600.0, conflict=lambda a, b: False, heard=_never_heard)
+    assert distributed(opp, **kw) == [0]
+    assert distributed(opp, predicted={0: [(0.0, 0), (300.0, 1)]}, **kw) == []
+    # a look at the same time breaks the tie by satellite number, as every satellite does
+    assert distributed(opp, predicted={0: [(300.0, 0)]}, **kw) == []
+    assert distributed(opp, predicted={0: [(300.0, 2)]}, **kw) == [0]

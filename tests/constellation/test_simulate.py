@@ -338,3 +338,42 @@ def test_an_eruption_without_an_episode_has_no_plume():
     assert none.plume_onset_s(one([0, 0]), one([100.0, 5000.0])).tolist() == [np.inf, np.inf]
     lat, lon = one([0.0]), one([-75.2])
     assert geo_detections(none, lat, lon, np.zeros((1, 3)), seconds=7200.0, seed=0) == []
+
+
+@pytest.mark.slow
+def test_without_a_board_predicting_the_others_looks_removes_duplicates_not_observations(
+    gvp, monkeypatch
+):
+    # 500 satellites, 6 h, no cueing: satellites of one plane pass over a vent minutes
+    # apart and each sees the plume with its own look-ahead. The same day flown with no
+    # prediction (the allocation before it) is the reference
+    from dyntarget.constellation import simulate
+    from dyntarget.constellation.run import config_day
+    from dyntarget.constellation.world import read_catalog
+
+    catalog = read_catalog(gvp)
+    cfg = {
+        "walker": "500/25/1",
+        "altitude_km": 500.0,
+        "inclination_deg": "sso",
+        "start": "2026-06-01T00:00:00Z",
+        "hours": 6.0,
+        "seed": 1,
+        "cueing": "none",
+        "allocation": "distributed",
+    }
+    day, _ = config_day(cfg, catalog)
+    monkeypatch.setattr(simulate, "_predicted_looks", lambda *a, **k: None)
+    before, _ = config_day(cfg, catalog)
+
+    def kept(d):
+        return {
+            (o["satellite"], o["eruption"], o["time_s"])
+            for o in d.observations
+            if not o["duplicate"]
+        }
+
+    assert before.summary["duplicates"] >= 5  # the duplicates a board-less day makes
+    assert day.summary["duplicates"] < before.summary["duplicates"] / 3
+    assert kept(day) == kept(before) and len(kept(day)) > 40  # no observation lost
+    assert day.summary["utility"] == before.summary["utility"]
