@@ -15,6 +15,7 @@ cannot fit both in their windows (slew, settle and dwell of the agility preset).
   another satellite's *claim* on the same eruption within the duplicate window
   (first claimant wins; a claim reaches the others with the board's delay, so two
   satellites deciding within that delay can both take it: the duplicates counted).
+  Without a board it predicts the others' looks from the ephemerides (``predicted``).
 * :func:`bound` (exact): the MILP ``max sum v x`` over realized values, ``x`` binary,
   ``x_a + x_b <= 1`` for every duplicate pair and every conflicting pair, solved by
   HiGHS (:func:`scipy.optimize.milp`). It knows the weather and the future, so it is an
