@@ -21,7 +21,8 @@ processes: same summaries, byte for byte), ``day`` (the world map of a 20-satell
 overflights of a 20-satellite day: :func:`fly_overflight`), ``revisit`` (not in the default
 set: ``none``, ``cross`` and ``cross+geo`` at 20 satellites on ``--revisit-seeds`` seeds,
 the 20-satellite targets with every day's eruptions, gaps and episodes pooled per mode,
-:func:`run_revisit`).
+:func:`run_revisit`), ``regard`` (not in the default set either: the same with ``fast``
+agility's field of regard widened to 40, 50 and 60 deg, :func:`run_regard`).
 """
 
 from __future__ import annotations
@@ -156,6 +157,7 @@ def _revisit_gaps(cfg: dict) -> dict:
         revisit_gaps,
     )
 
+    _regard_preset(cfg.get("agility", "fast"))  # in this worker too
     day, _ = config_day(cfg, _gvp())
     started, delays = episode_delays(day.eruptions, day.table, cfg["hours"] * 3600.0)
     return {"cueing": cfg["cueing"], "seed": cfg["seed"], "gaps_s": revisit_gaps(day.table),
@@ -165,7 +167,55 @@ def _revisit_gaps(cfg: dict) -> dict:
             "observations_per_eruption_6h": day.summary["observations_per_eruption_6h"]}  # fmt: skip
 
 
-def run_revisit(seeds: int) -> dict:
+def _regard_preset(name: str) -> None:
+    """Register ``fast-regard-DEG`` (``fast`` with another field of regard) in this process."""
+    import dataclasses
+
+    from dyntarget.schedule import AGILITY
+
+    if name.startswith("fast-regard-") and name not in AGILITY:
+        deg = float(name.removeprefix("fast-regard-"))
+        AGILITY[name] = dataclasses.replace(AGILITY["fast"], name=name, field_of_regard_deg=deg)
+
+
+def run_regard(seeds: int, degrees: tuple[float, ...] = (30.0, 40.0, 50.0, 60.0)) -> list[dict]:
+    """The 20-satellite targets of :func:`run_revisit` with wider fields of regard.
+
+    ``fast`` agility with the field of regard (largest off-nadir angle) replaced: what a
+    mission designer would have to fly for the targets the default (30 deg) misses. Each
+    row is :func:`run_revisit`'s ratios on ``seeds`` days; 30 deg is the default itself.
+    """
+    rows = []
+    for deg in degrees:
+        agility = "fast" if deg == 30.0 else f"fast-regard-{deg:g}"
+        out = run_revisit(seeds, agility=agility)
+        keep = (
+            "per6_cross_over_none", "per6_cross_over_none_bootstrap_95", "cross_over_none",
+            "cross_over_none_bootstrap_95", "episodes_6h_geo_over_none",
+            "episode_delay_geo_over_none", "episode_delay_geo_over_none_bootstrap_95", "wall_s",
+        )  # fmt: skip
+        row = {"field_of_regard_deg": deg, "agility": agility, "seeds": seeds}
+        row.update({k: out.get(k) for k in keep})
+        row["modes"] = {
+            m: {
+                k: v[k]
+                for k in (
+                    "observations_per_eruption_6h",
+                    "pooled_median_revisit_s",
+                    "gaps",
+                    "pooled_median_episode_delay_s",
+                    "episodes_started",
+                    "episodes_observed_within_6h",
+                    "detected_eruptions",
+                )
+            }
+            for m, v in out["modes"].items()
+        }
+        rows.append(row)
+    return rows
+
+
+def run_revisit(seeds: int, agility: str = "fast") -> dict:
     """The 20-satellite targets over ``seeds`` days, enough for ``none`` to have gaps: per
     mode (``none``, ``cross``, ``cross+geo``), every gap between successive observations of
     an eruption, every detected eruption's observations in the 6 h after its detection and
@@ -176,6 +226,8 @@ def run_revisit(seeds: int) -> dict:
 
     modes = ("none", "cross", "cross+geo")
     configs = [config(20, m, "distributed", s) for m in modes for s in range(seeds)]
+    if agility != "fast":
+        configs = [{**c, "agility": agility} for c in configs]
     t = time.perf_counter()
     with ProcessPoolExecutor(max_workers=2) as pool:
         runs = list(pool.map(_revisit_gaps, configs))
@@ -637,6 +689,8 @@ def main() -> None:
         result["fidelity"] = run_fidelity(catalog)
     if "revisit" in parts:
         result["revisit"] = run_revisit(args.revisit_seeds)
+    if "regard" in parts:
+        result["regard"] = run_regard(args.revisit_seeds)
     save()
     print(out)
 
