@@ -204,39 +204,38 @@ def distributed(
     return sorted(taken, key=lambda i: (opp.t_obs[i], opp.sat[i]))
 
 
-def _first_predicted(
-    t_i: float, s: int, overflights: list[tuple[float, int]], dup_window_s: float
-) -> bool:
-    """Whether the time-ordered rule over predicted overflights gives ``(t_i, s)`` to ``s``."""
-    last = -math.inf
-    for t_j, s_j in sorted({*overflights, (t_i, s)}):
-        if (t_j, s_j) > (t_i, s):
-            break
-        if t_i - t_j >= 3 * dup_window_s:
-            continue
+def _last_taken(times: list[float], dup_window_s: float) -> bool:
+    """The rule every satellite applies: overflights in time order, each taken unless one
+    taken before it is within the duplicate window; whether the last of ``times`` is taken."""
+    last, taken = -math.inf, True
+    for t_j in times:
         taken = t_j - last >= dup_window_s
         if taken:
             last = t_j
-        if (t_j, s_j) == (t_i, s):
-            return taken
-    return True
+    return taken
+
+
+def _first_predicted(
+    t_i: float, s: int, overflights: list[tuple[float, int]], dup_window_s: float
+) -> bool:
+    """Whether the rule over predicted overflights and ``(t_i, s)`` gives it to ``s``."""
+    ordered = sorted({*overflights, (t_i, s)})
+    before = ordered[: ordered.index((t_i, s)) + 1]
+    return _last_taken([t for t, _ in before if t_i - t < 3 * dup_window_s], dup_window_s)
 
 
 def _mine(opp, i, s, t, same_e, dup_window_s, cued) -> bool:
     """Whether the time-ordered rule gives overflight ``i`` to its own satellite, as ``s`` sees it."""
     t_i = float(opp.t_obs[i])
-    last = -math.inf
+    times = []
     for j in same_e:  # in time order
         t_j = float(opp.t_obs[j])
         if t_j > t_i or (t_j == t_i and j != i and opp.sat[j] > opp.sat[i]):
             break
-        if t_i - t_j >= 3 * dup_window_s or (j != i and not cued(j, s, t)):
-            continue
-        taken = t_j - last >= dup_window_s
-        if taken:
-            last = t_j
+        if t_i - t_j < 3 * dup_window_s and (j == i or cued(j, s, t)):
+            times.append(t_j)
         if j == i:
-            return taken
+            return _last_taken(times, dup_window_s)
     return True
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Mapping, MutableMapping
 
@@ -233,11 +234,19 @@ def bound_openmp_spin(environ: MutableMapping[str, str] | None = None) -> bool:
 
 
 def _libgomp_runs_torch() -> bool:
-    """Whether this process's OpenMP runtime is GNU libgomp alone (Linux: its mapped files).
+    """Whether the loaded torch runs on GNU libgomp alone (Linux: the process's mapped files).
 
     PyTorch's Linux wheels use libgomp; other builds (macOS, Windows, conda with Intel's
-    or LLVM's runtime) read neither ``GOMP_SPINCOUNT`` nor its default.
+    or LLVM's runtime) read neither ``GOMP_SPINCOUNT`` nor its default. Read once, after
+    torch has loaded its runtime (every U-Net pass asks).
     """
+    import sys
+
+    return "torch" in sys.modules and _maps_show_libgomp_alone()
+
+
+@functools.cache
+def _maps_show_libgomp_alone() -> bool:
     try:
         with open("/proc/self/maps", encoding="ascii", errors="replace") as fh:
             maps = fh.read()
