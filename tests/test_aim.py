@@ -173,6 +173,33 @@ def test_nan_and_zero_heights_do_not_move_their_pointing():
     assert got[2, 1] > 100
 
 
+def test_a_pointing_without_a_height_takes_its_nearest_neighbours_within_fill_px():
+    # three pointings 500 km ahead on the track: the first has a 10 km top, the second
+    # (2 px away: a plan's neighbour just off the plume's mask) none, the third (40 px
+    # away) none. With fill_px 5 the second aims at the 10 km top as the vector method
+    # puts it (from its own pixel); the third, further than 5 px from any height, stays.
+    pts = np.array(
+        [_pixel(500e3, 0.0), _pixel(500e3 + 2 * GSD, 0.0), _pixel(500e3 + 40 * GSD, 0.0)]
+    )
+    field = lambda p, t: np.array([H_TOP, np.nan, 0.0])  # noqa: E731
+    t_s = 40.0
+    got = ParallaxAim(G, SHAPE, field, fill_px=5.0).shift(pts, t_s)
+    want_a, _ = _vector_aim(500e3 + 2 * GSD, 0.0, t_s)
+    assert got[1, 1] == pytest.approx(-(want_a - (500e3 + 2 * GSD)) / GSD, abs=1e-4)
+    assert got[1, 1] > 100  # hundreds of pixels: what the pointing would otherwise miss by
+    assert got[2].tolist() == [0.0, 0.0]
+    # the default takes no neighbour's height: the second does not move
+    assert ParallaxAim(G, SHAPE, field).shift(pts, t_s)[1].tolist() == [0.0, 0.0]
+    # a look height is taken from the same neighbour as the height now (a rising top)
+    rising = ParallaxAim(
+        G, SHAPE, lambda p, t: np.array([8e3, np.nan, np.nan]),
+        lambda p, t: np.array([6e3, np.nan, np.nan]), fill_px=5.0,
+    )  # fmt: skip
+    want_a = _vector_aim_rising(500e3 + 2 * GSD, t_s, 6e3, 8e3)
+    got = rising.shift(pts, t_s)
+    assert got[1, 1] == pytest.approx(-(want_a - (500e3 + 2 * GSD)) / GSD, abs=1e-4)
+
+
 def test_heights_are_asked_per_pointing_with_its_time():
     seen = {}
 
@@ -278,6 +305,10 @@ def test_the_height_limit_and_the_smallest_frame_are_accepted():
         (lambda: _aim().shift([[1.0, 1.0]], [1.0, 2.0]), "t_s: expected one time or 1 times"),
         (lambda: _aim().shift([[1.0, 1.0]], np.nan), "points, t_s: expected finite"),
         (lambda: _aim().shift([[np.inf, 1.0]], 1.0), "points, t_s: expected finite"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: p[:, 0], fill_px=-1.0),
+         "fill_px: expected WFOV pixels >= 0, got -1.0"),
+        (lambda: ParallaxAim(G, SHAPE, lambda p, t: p[:, 0], fill_px=math.nan),
+         "fill_px: expected WFOV pixels >= 0"),
     ],
 )  # fmt: skip
 def test_bad_input_is_refused_in_one_line_naming_it(call, needle):

@@ -113,6 +113,25 @@ def test_uncorrected_aim_misses_what_the_true_height_hits(passes):
     assert est["plume_px"] >= 0.8 * true["plume_px"]
 
 
+@pytest.mark.parametrize("mode", ["true", "estimated"])
+def test_a_plumes_pointings_stay_together_when_corrected(passes, mode):
+    # Consecutive flown pointings of a frame lie a planner's
+    # step or a transect apart (256 px frames: step 2.56 px, transects 5.12 px), never the
+    # top's change of parallax apart (> 140 px, test above): a pointing planned just off
+    # the plume's mask, with no height of its own, is corrected with its neighbours'
+    # (ParallaxAim.fill_px) instead of aiming where the look-ahead saw the plume.
+    _, result = passes
+    flown = result[mode].flown
+    frame = np.array(flown.frame)
+    jumps = [
+        np.hypot(np.diff(np.array(flown.x)[frame == k]), np.diff(np.array(flown.y)[frame == k]))
+        for k in np.unique(frame)
+    ]
+    assert max(float(j.max(initial=0.0)) for j in jumps) < 4 * 5.12
+    # and they meet it (a few at its edge miss)
+    assert np.mean(np.array(flown.plume_id) == 1) >= 0.95
+
+
 def test_frames_are_oblique_looks(passes):
     _, result = passes
     # the plume shows (and is planned on) 11.5 km ahead of its vent: frames whose rows hold

@@ -485,9 +485,11 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
         return heights_m
 
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
+    _, spacing = ctx.config.pipeline.plan.resolved(shape)  # a plume's pointings lie this close
     return ParallaxAim(
-        frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k
-    )
+        frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k,
+        fill_px=2.0 * spacing,
+    )  # fmt: skip
 
 
 def _true_heights(

@@ -139,6 +139,15 @@ class ParallaxAim:
         ``geometry`` and ``t_s`` refer to (>= 0): a frame taken late, catching up after
         a re-look (:class:`dyntarget.predict.relooks.HeightTracker`), was seen from a
         nadir ``ground_speed * look_s`` further along, at a smaller view angle. 0: on time.
+    fill_px : float
+        A pointing without a height of its own (NaN or 0: e.g. planned on the edge of a
+        plume's mask, just off the plume its neighbours aim at) takes both heights of the
+        nearest pointing shifted with it that has them, if that one lies within
+        ``fill_px`` WFOV pixels (``fly`` uses twice the plan's transect spacing: one
+        plume's pointings lie that close); further away it is not corrected. 0 (default):
+        none takes another's.
+        Without it, such a pointing stays where the look-ahead saw the plume, kilometres
+        from its corrected neighbours, and the NFOV slews there and back.
 
     Examples
     --------
@@ -171,8 +180,12 @@ class ParallaxAim:
     heights_m: HeightField
     look_heights_m: HeightField | None = None
     look_s: float = 0.0
+    fill_px: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.fill_px, (int, float)) and math.isfinite(self.fill_px)
+                and self.fill_px >= 0):  # fmt: skip
+            raise InvalidParameterError(f"fill_px: expected WFOV pixels >= 0, got {self.fill_px!r}")
         if not (isinstance(self.look_s, (int, float)) and math.isfinite(self.look_s)
                 and self.look_s >= 0):  # fmt: skip
             raise InvalidParameterError(
@@ -290,6 +303,8 @@ class ParallaxAim:
         on = np.isfinite(h) & (h > 0) & np.isfinite(h_look) & (h_look > 0)
         if not on.any():
             return out
+        if self.fill_px > 0 and not on.all():
+            h, h_look, on = _fill(pts, h, h_look, on, self.fill_px)
         g = self.geometry
         along, cross = g.ground(pts[on], self.frame_shape)
         alt = g.altitude_m
@@ -308,6 +323,22 @@ class ParallaxAim:
         d[~np.isfinite(d).all(axis=1)] = 0.0  # beyond the horizon: nothing to correct for
         out[on] = d
         return out
+
+
+def _fill(
+    pts: np.ndarray, h: np.ndarray, h_look: np.ndarray, on: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heights with each pointing off ``on`` given its nearest ``on`` neighbour's within ``radius``."""
+    from scipy.spatial import cKDTree
+
+    off = np.flatnonzero(~on)
+    have = np.flatnonzero(on)
+    dist, near = cKDTree(pts[have]).query(pts[off], distance_upper_bound=radius)
+    got = np.isfinite(dist)
+    src = have[near[got]]
+    h, h_look, on = h.copy(), h_look.copy(), on.copy()
+    h[off[got]], h_look[off[got]], on[off[got]] = h[src], h_look[src], True
+    return h, h_look, on
 
 
 def _height(value: float) -> float:
