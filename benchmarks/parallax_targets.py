@@ -24,8 +24,9 @@ Parts (``--part``):
     the true heights (``true``), with the estimated ones (``estimated``, re-looks and the
     frames they cost included: one re-look, ``fly``'s default; ``estimated-2``: two, at 80 %
     and 60 % of the distance, a steady top's search; ``estimated-2r``: the same allowing a
-    top rising at up to 100 m/s) and with a fixed prior of 8.5 km (``prior``);
-    ``--modes`` picks some. Utility is the loop's
+    top rising at up to 100 m/s; ``estimated-far``: one re-look, at 80 % of the distance,
+    400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline) and with a fixed
+    prior of 8.5 km (``prior``); ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
     What re-looks cost: ``--long-strips`` pass-length strips (``--long-km`` km,
@@ -77,9 +78,11 @@ top (``fly``'s default ``--max-rise-mps 0``)."""
 LONG_MODES = (*MODES, "estimated-nc")
 """The long part adds ``estimated-nc``: ``estimated`` without catching up (``--no-catch-up``:
 the frames due during a re-look are lost)."""
-EXTRA_MODES = ("estimated-nc", "estimated-2r")
+EXTRA_MODES = ("estimated-nc", "estimated-2r", "estimated-far")
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
-rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``)."""
+rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
+``estimated`` with its one re-look at 80 % of the look-ahead distance instead of 60 %
+(``fly --relook-km 400`` at the default geometry)."""
 RISE_MPS = 100.0
 """The fastest rise ``estimated-2r`` allows for: the top of the rising columns' range."""
 RISE_MODES = ("estimated-2", "estimated-2r")
@@ -142,6 +145,9 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
 def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
     if mode == "estimated-nc":
         return replace(config_for("estimated", agility, look_ahead_m), catch_up=False)
+    if mode == "estimated-far":
+        far = (round(0.8 * look_ahead_m / 1e3, 3),)
+        return replace(config_for("estimated", agility, look_ahead_m), relook_km=far)
     if mode == "estimated-2r":
         return replace(config_for("estimated-2", agility, look_ahead_m), max_rise_mps=RISE_MPS)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
@@ -354,7 +360,7 @@ def main() -> None:
     )  # fmt: skip
     ap.add_argument(
         "--modes", type=lambda s: tuple(s.split(",")), default=MODES,
-        help=f"targeting part, comma-separated, of {','.join((*MODES, 'estimated-2r'))}",
+        help=f"targeting part, comma-separated, of {','.join((*MODES, *EXTRA_MODES[1:]))}",
     )  # fmt: skip
     ap.add_argument("--record", help="the record's file name (default: by --part)")
     ap.add_argument("--out", type=Path, default=Path("docs/benchmarks"))
