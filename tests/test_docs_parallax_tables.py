@@ -126,3 +126,27 @@ def test_the_heights_row_is_its_record():
         f"{round(h['median_abs_m'])} m | {round(h['worst_abs_m']):,} m |"
     )
     assert row in PAGE
+
+
+@pytest.mark.parametrize(
+    ("label", "record", "far", "part"),
+    [
+        ("short strips", "parallax_targeting.json", "parallax_targeting_far.json", "targeting"),
+        ("long, 2 km frames", "parallax_long.json", "parallax_long_far.json", "long"),
+        ("long, 8 km frames", "parallax_long_1024.json", "parallax_long_1024_far.json", "long"),
+    ],
+)
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_relook_distance_table_is_its_records(label, record, far, part, agility):
+    near, away = _record(record)[part], _record(far)[part]
+
+    def flat(got: dict) -> str:
+        rows = got["rows"]
+        return f"{got['summary'][agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+
+    row = (
+        f"| {label} | `{agility}` | {flat(near)} | "
+        f"{_cell(near['summary'], near['rows'], agility, 'estimated')} | {flat(away)} | "
+        f"{_cell(away['summary'], away['rows'], agility, 'estimated-far')} |"
+    )
+    assert row in PAGE, row
