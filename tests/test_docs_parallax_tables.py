@@ -142,7 +142,9 @@ def test_the_relook_distance_table_is_its_records(label, record, far, part, agil
 
     def flat(got: dict) -> str:
         rows = got["rows"]
-        return f"{got['summary'][agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+        return (
+            f"{got['summary'][agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+        )
 
     row = (
         f"| {label} | `{agility}` | {flat(near)} | "
