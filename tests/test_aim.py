@@ -190,6 +190,12 @@ def test_a_pointing_without_a_height_takes_its_nearest_neighbours_within_fill_px
     assert got[2].tolist() == [0.0, 0.0]
     # the default takes no neighbour's height: the second does not move
     assert ParallaxAim(G, SHAPE, field).shift(pts, t_s)[1].tolist() == [0.0, 0.0]
+    # a radius under a pixel still fills a neighbour nearer than it (half a pixel away),
+    # and only strictly nearer: one exactly fill_px away is not filled
+    half = np.array([pts[0], pts[0] + [0.0, 0.5]])
+    two = lambda p, t: np.array([H_TOP, np.nan])  # noqa: E731
+    assert ParallaxAim(G, SHAPE, two, fill_px=0.75).shift(half, t_s)[1, 1] > 100
+    assert ParallaxAim(G, SHAPE, two, fill_px=0.5).shift(half, t_s)[1].tolist() == [0.0, 0.0]
     # a look height is taken from the same neighbour as the height now (a rising top)
     rising = ParallaxAim(
         G, SHAPE, lambda p, t: np.array([8e3, np.nan, np.nan]),

@@ -142,12 +142,12 @@ class ParallaxAim:
     fill_px : float
         A pointing without a height of its own (NaN or 0: e.g. planned on the edge of a
         plume's mask, just off the plume its neighbours aim at) takes both heights of the
-        nearest pointing shifted with it that has them, if that one lies within
-        ``fill_px`` WFOV pixels (``fly`` uses twice the plan's transect spacing: one
+        nearest pointing shifted with it that has them, if that one lies strictly nearer
+        than ``fill_px`` WFOV pixels (``fly`` uses twice the plan's transect spacing: one
         plume's pointings lie that close); further away it is not corrected. 0 (default):
-        none takes another's.
-        Without it, such a pointing stays where the look-ahead saw the plume, kilometres
-        from its corrected neighbours, and the NFOV slews there and back.
+        none takes another's. Without it, such a pointing stays where the look-ahead saw
+        the plume, kilometres from its corrected neighbours, and the NFOV slews there and
+        back.
 
     Examples
     --------
