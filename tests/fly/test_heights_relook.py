@@ -573,6 +573,38 @@ def test_a_frame_too_short_to_find_a_plume_again_says_so():
     assert len(logs) == 1 and "(8 WFOV rows)" in logs[0]
 
 
+def test_a_plume_first_seen_nearer_than_the_asked_relook_is_relooked_at_that_fraction():
+    # A frame taken 31.4 s late (catching up) sees a 6 km top 280 km ahead, already nearer
+    # than the 300 km asked: by hand, 300/500 of 280 km is 168 km, reached 112 km later,
+    # 112e3 / v s after the late look. Its height comes from that pair of looks.
+    from dyntarget import parallax
+
+    g = OrbitGeometry(wfov_gsd_m=GSD)
+    v = g.ground_speed
+    where = Geometry3D(g, (20000, 16), 256, 0, 4)
+    t_late = 220e3 / v  # the frame's centre (row 127.5) is then 500 - 220 = 280 km ahead
+    centre = 127.5
+    y = centre
+    for _ in range(50):  # the true row whose 6 km top the late look sees at the centre
+        da, _ = parallax.shift_xy(500e3, 280e3 + (centre - y) * GSD, 0.0, 6000.0)
+        y += centre - (y - float(da) / GSD)
+    blob = [(8.0, y, 2, 2, 6000.0)]
+    tr = HeightTracker(
+        where, get_agility("fast"), (300.0,), None, None, None, measure=True, log=print
+    )  # fmt: skip
+
+    def render(t, top, nadir_hr):
+        return _blob_mask(where, t, top, blob)
+
+    mask = _blob_mask(where, t_late, 0, blob)
+    assert mask.any()
+    tr.frame(0, t_late, 0, mask, render, last=False, due=0.0)
+    (p,) = tr.plumes
+    ((start, _),) = tr.busy  # one re-look
+    assert start == pytest.approx(t_late + 112e3 / v, abs=0.3)  # 168 km ahead, +-2 km
+    assert p.source == "estimated" and abs(p.height_m - 6000.0) <= 300.0
+
+
 @pytest.mark.parametrize(("frame_px", "relooks"), [(256, 1), (128, 2), (64, 3)])
 def test_relooks_nearer_in_time_are_added_only_where_the_search_does_not_fit(frame_px, relooks):
     # asked: one re-look 300 km ahead. By hand, for a plume seen ~500 km ahead, guess 8.5 km:

@@ -24,7 +24,10 @@ Model (what is and is not modelled):
   the frame: a frame holds fewer rows than a long baseline's uncertainty asks for (the
   search spans 0.2 to 1.8 times a guessed height), and a shorter baseline narrows the
   height enough for the next. A re-look is taken at ``t_k + (along_k -
-  d_i) / v``. A re-look sees a window of the frame's size on the strip, centred where
+  d_i) / v``. A plume first seen already nearer than every ``relook_km[i]`` (in a frame
+  taken late, catching up) is re-looked at ``relook_km[i]`` scaled by where it was seen
+  over the look-ahead distance (300 km of a 500 km look, seen 280 km ahead: 168 km).
+  A re-look sees a window of the frame's size on the strip, centred where
   the plumes still measured will appear by the heights known so far (each plume's own:
   the prior or guess in the first re-look, its own fit after), clipped to the strip;
   where they do not fit in one window, where the largest will. No re-look is taken once
@@ -1090,12 +1093,21 @@ class HeightTracker:
         still fits in the frame. The search spans 0.2 to 1.8 times the guessed height
         before a fit (0.7 to 1.3 after): a disparity growing with the baseline can ask more
         rows than a frame holds, and a first re-look at a shorter baseline narrows the
-        height enough for the next."""
+        height enough for the next.
+
+        A plume first seen already nearer than every asked distance (in a frame taken late,
+        the look-ahead catching up after a re-look) would get none: its distances are then
+        scaled by where it was seen over the look-ahead distance (seen 280 km ahead, a
+        re-look asked 300 km ahead of a 500 km look is taken 168 km ahead), the same
+        fraction of the view the asked ones are of a frame taken on time."""
         half = self.where.frame_px // 2
         seen = self.where.along(y, t_k)
         chain: list[float] = []
         spread = SPREAD_GUESS
-        for d in self.distances_m:
+        asked = self.distances_m
+        if asked and seen <= min(asked):
+            asked = tuple(d * seen / self.where.geometry.look_ahead_m for d in asked)
+        for d in asked:
             for _ in range(MAX_INSERTED):
                 prev = chain[-1] if chain else seen
                 if not (d < prev and self._span(y, t_k, d, guess, spread) > half):
