@@ -25,6 +25,11 @@ def _observed(rows: list[dict], agility: str, mode: str) -> int:
     return sum(r["plumes_observed"] for r in rows if r["agility"] == agility and r["mode"] == mode)
 
 
+def _flat(got: dict, agility: str) -> str:
+    """A flat pass's cell: utility (plumes observed), of a part's record (``summary``, ``rows``)."""
+    return f"{got['summary'][agility]['flat']['utility']:.1f} ({_observed(got['rows'], agility, 'flat')})"
+
+
 def _cell(summary: dict, rows: list[dict], agility: str, mode: str, bold: bool = False) -> str:
     s = summary[agility][mode]
     text = f"{s['utility']:.1f} ({s['fraction_of_flat']:.2f}; {_observed(rows, agility, mode)})"
@@ -36,7 +41,7 @@ def _long_row(record: str, agility: str, middle: tuple[str, ...], late: str) -> 
     and lost (``late`` formats them), without catching up, its frames lost, estimated-2."""
     long = _record(record)["long"]
     s, rows = long["summary"], long["rows"]
-    flat = f"{s[agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
+    flat = _flat(long, agility)
     est, nc = s[agility]["estimated"], s[agility]["estimated-nc"]
     cells = [_cell(s, rows, agility, m) for m in middle]
     return (
@@ -85,9 +90,8 @@ def test_the_targeting_table_is_its_record(agility):
 def test_what_allowing_a_rise_costs_is_its_record(label, record, part, agility):
     got = _record(record)[part]
     s, rows = got["summary"], got["rows"]
-    flat = f"{s[agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
     row = (
-        f"| {label} | `{agility}` | {flat} | {_cell(s, rows, agility, 'estimated-2')} | "
+        f"| {label} | `{agility}` | {_flat(got, agility)} | {_cell(s, rows, agility, 'estimated-2')} | "
         f"{_cell(s, rows, agility, 'estimated-2r')} |"
     )
     assert row in PAGE, row
@@ -139,16 +143,9 @@ def test_the_heights_row_is_its_record():
 @pytest.mark.parametrize("agility", ["fast", "slow"])
 def test_the_relook_distance_table_is_its_records(label, record, far, part, agility):
     near, away = _record(record)[part], _record(far)[part]
-
-    def flat(got: dict) -> str:
-        rows = got["rows"]
-        return (
-            f"{got['summary'][agility]['flat']['utility']:.1f} ({_observed(rows, agility, 'flat')})"
-        )
-
     row = (
-        f"| {label} | `{agility}` | {flat(near)} | "
-        f"{_cell(near['summary'], near['rows'], agility, 'estimated')} | {flat(away)} | "
+        f"| {label} | `{agility}` | {_flat(near, agility)} | "
+        f"{_cell(near['summary'], near['rows'], agility, 'estimated')} | {_flat(away, agility)} | "
         f"{_cell(away['summary'], away['rows'], agility, 'estimated-far')} |"
     )
     assert row in PAGE, row

@@ -38,8 +38,16 @@ def cells(record: dict, label: str) -> tuple[str, str, str]:
     return f"{load}", threads, times
 
 
+def medians(record: dict) -> dict[str, float]:
+    """Each row's median per-run ratio, by label."""
+    return {
+        label: statistics.median(r["ratio"] for r in runs_of(record, label))
+        for label in record["summary"]
+    }
+
+
 def met(record: dict, label: str) -> str:
-    return "yes" if statistics.median(r["ratio"] for r in runs_of(record, label)) <= 3 else "no"
+    return "yes" if medians(record)[label] <= 3 else "no"
 
 
 def rows() -> list[str]:
@@ -60,24 +68,13 @@ def test_every_row_of_the_unet_load_table_is_the_records():
 
 
 def test_the_quoted_summary_is_the_records():
-    med = {
-        label: statistics.median(
-            r["ratio"] for p in RECORD["processes"] if p["label"] == label for r in p["runs"]
-        )
-        for label in RECORD["summary"]
-    }
+    med = medians(RECORD)
     shared = [med[f"load-{n}"] for n in (2, 3, 4)]
     assert med["load-0"] <= 3 and med["load-1"] <= 3 and min(shared) > 3
-    flat = " ".join(PAGE.split())
-    assert f"(2-4 load processes: {min(shared):.1f}-{max(shared):.1f}×)" in flat
-    assert f"at the median ({med['load-2-threads-2']:.1f}×)" in flat
-    worst = max(
-        r["ratio"]
-        for p in RECORD["processes"]
-        if p["label"] == "load-2-threads-2"
-        for r in p["runs"]
-    )
-    assert f"their worst run is {worst:.1f}×" in flat
+    assert f"(2-4 load processes: {min(shared):.1f}-{max(shared):.1f}×)" in FLAT
+    assert f"at the median ({med['load-2-threads-2']:.1f}×)" in FLAT
+    worst = max(r["ratio"] for r in runs_of(RECORD, "load-2-threads-2"))
+    assert f"their worst run is {worst:.1f}×" in FLAT
 
 
 def spin_rows() -> list[str]:
@@ -102,10 +99,7 @@ def test_the_bounded_spin_summary_is_the_records():
     # the "after" processes ran with the command's setting, the "before" ones without
     for p in SPIN["processes"]:
         assert p["gomp_spincount"] == ("10000" if p["label"].startswith("after") else None)
-    med = {
-        label: statistics.median(r["ratio"] for r in runs_of(SPIN, label))
-        for label in SPIN["summary"]
-    }
+    med = medians(SPIN)
     after = [med[f"after-load-{n}"] for n in range(5)]
     shared = [med[f"before-load-{n}"] for n in (2, 3, 4)]
     assert max(after) <= 3 < min(shared)
@@ -142,10 +136,7 @@ def test_the_bounded_spin_summary_is_the_records():
 
 def test_the_readme_quotes_the_bounded_spin_record():
     readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
-    med = {
-        label: statistics.median(r["ratio"] for r in runs_of(SPIN, label))
-        for label in SPIN["summary"]
-    }
+    med = medians(SPIN)
     after = [med[f"after-load-{n}"] for n in (2, 3, 4)]
     before = [med[f"before-load-{n}"] for n in (2, 3, 4)]
     assert (

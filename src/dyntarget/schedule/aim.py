@@ -183,14 +183,11 @@ class ParallaxAim:
     fill_px: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.fill_px, (int, float)) and math.isfinite(self.fill_px)
-                and self.fill_px >= 0):  # fmt: skip
-            raise InvalidParameterError(f"fill_px: expected WFOV pixels >= 0, got {self.fill_px!r}")
-        if not (isinstance(self.look_s, (int, float)) and math.isfinite(self.look_s)
-                and self.look_s >= 0):  # fmt: skip
-            raise InvalidParameterError(
-                f"look_s: expected seconds >= 0 after the acquisition, got {self.look_s!r}"
-            )
+        for name, what in (("fill_px", "WFOV pixels >= 0"),
+                           ("look_s", "seconds >= 0 after the acquisition")):  # fmt: skip
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise InvalidParameterError(f"{name}: expected {what}, got {v!r}")
         if not isinstance(self.geometry, OrbitGeometry):
             raise InvalidParameterError(
                 f"geometry: expected an OrbitGeometry, got {type(self.geometry).__name__}"
