@@ -781,6 +781,27 @@ def test_a_plume_seen_again_in_a_late_frame_is_the_same_plume():
     assert run(due=None) == ({2}, 2)  # as if on time: 17 px away from its footprint, new
 
 
+def test_a_plume_tracked_just_behind_a_frames_bottom_edge_is_the_same_plume():
+    # while catching up, frames abut (the one between skipped): a plume seen on frame 0's
+    # top rows (strip 8128-8137) continues on frame 2's bottom rows (8120-8127, frame 2's
+    # top 8064): one pixel from its tracked footprint, behind frame 2's bottom edge
+    def run(gap):
+        where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8128, 4)
+        tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+                           measure=False, log=lambda s: None)  # fmt: skip
+        m0 = np.zeros((FP, 64), bool)
+        m0[0:10, 20:30] = True
+        tr.frame(0, 0.0, 8128, m0, None, last=False)
+        m2 = np.zeros((FP, 64), bool)
+        m2[FP - 8 - gap : FP - gap, 20:30] = True
+        ids = tr.frame(2, 0.29, 8064, m2, None, last=False)
+        return set(np.unique(ids[m2]).tolist()), len(tr.plumes)
+
+    assert run(gap=0) == ({1}, 1)  # on the bottom row, next to it: the same plume
+    assert run(gap=3) == ({1}, 1)  # 4 rows from it (MATCH_PX): the same plume
+    assert run(gap=4) == ({2}, 2)  # 5 rows from it: a new plume
+
+
 def test_a_frame_is_not_skipped_when_the_next_would_come_too_late():
     # behind by a re-look until 40 s: frame 1 abuts nothing new to skip for, but frame 2
     # (which would cover its ground) could only be taken ~218 km ahead, inside the NFOV's

@@ -753,9 +753,12 @@ class HeightTracker:
             lo = int(rows.min()) - MATCH_PX - late
             r0, r1 = max(lo, -top), int(rows.max()) + MATCH_PX + 1
             c0, c1 = max(int(cols.min()) - MATCH_PX, 0), int(cols.max()) + MATCH_PX + 1
-            r1, c1 = min(r1, mask.shape[0]), min(c1, mask.shape[1])
+            # the box reaches past the frame's bottom on the strip: a footprint tracked in
+            # an earlier frame may lie just behind it (frames skipped while catching up abut)
+            r1, c1 = min(r1, self.labels.shape[0] - top), min(c1, mask.shape[1])
             box = np.zeros((r1 - r0, c1 - c0), np.uint8)
-            box[max(-r0, 0) :, :] = on[max(r0, 0) : r1, c0:c1]
+            f0, f1 = max(r0, 0), min(r1, mask.shape[0])
+            box[f0 - r0 : f1 - r0, :] = on[f0:f1, c0:c1]
             grown = cv2.dilate(box, near, anchor=(MATCH_PX, MATCH_PX)) > 0
             under = self.labels[top + r0 : top + r1, c0:c1][grown]
             under = under[under > 0]
