@@ -149,3 +149,21 @@ def test_the_relook_distance_table_is_its_records(label, record, far, part, agil
         f"{_cell(away['summary'], away['rows'], agility, 'estimated-far')} |"
     )
     assert row in PAGE, row
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
+    got = _record("parallax_long_8.json")["long"]
+    s, rows = got["summary"], got["rows"]
+    flat = {r["strip"]: r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat"}
+
+    def strips(mode: str) -> str:  # strips whose pass keeps >= 90 % of its flat twin's utility
+        sel = [r for r in rows if r["agility"] == agility and r["mode"] == mode]
+        return f"{sum(r['utility'] >= 0.9 * flat[r['strip']] for r in sel)} of {len(sel)}"
+
+    row = (
+        f"| `{agility}` | {_flat(got, agility)} | {_cell(s, rows, agility, 'true')} | "
+        f"{strips('true')} | {_cell(s, rows, agility, 'estimated', bold=True)} | "
+        f"{strips('estimated')} |"
+    )
+    assert row in PAGE, row
