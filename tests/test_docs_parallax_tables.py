@@ -155,7 +155,9 @@ def test_the_relook_distance_table_is_its_records(label, record, far, part, agil
 def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
     got = _record("parallax_long_8.json")["long"]
     s, rows = got["summary"], got["rows"]
-    flat = {r["strip"]: r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat"}
+    flat = {
+        r["strip"]: r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat"
+    }
 
     def strips(mode: str) -> str:  # strips whose pass keeps >= 90 % of its flat twin's utility
         sel = [r for r in rows if r["agility"] == agility and r["mode"] == mode]
