@@ -762,20 +762,26 @@ def test_a_pass_takes_the_frames_due_during_its_re_looks_late():
     assert totals["frames_skipped_catching_up"] == len(skipped)
 
 
+def _seen_twice(rows0, later, rows1, due=None):
+    """A plume (columns 20-29) on frame 0 (top 8128) at ``rows0``, then on frame ``later``
+    (index, time, top) at ``rows1``: the tracked ids under it there, and how many plumes."""
+    tr = _late_tracker()
+    m0 = np.zeros((FP, 64), bool)
+    m0[rows0, 20:30] = True
+    tr.frame(0, 0.0, 8128, m0, None, last=False)
+    m1 = np.zeros((FP, 64), bool)
+    m1[rows1, 20:30] = True
+    k, t, top = later
+    ids = tr.frame(k, t, top, m1, None, last=False, due=due)
+    return set(np.unique(ids[m1]).tolist()), len(tr.plumes)
+
+
 def test_a_plume_seen_again_in_a_late_frame_is_the_same_plume():
     # a 10 km top seen from 28 km nearer (4 s late) appears ~ h (tan t0 - tan t1) =
     # 10 km * (500/500 - 472/500) (flat Earth) = 560 m = 17 WFOV px nearer the nadir
     def run(due):
-        where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8128, 4)
-        tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
-                           measure=False, log=lambda s: None)  # fmt: skip
-        m0 = np.zeros((FP, 64), bool)
-        m0[2:10, 20:30] = True  # strip rows 8130-8137 (frame 0's top is 8128)
-        tr.frame(0, 0.0, 8128, m0, None, last=False)
-        m1 = np.zeros((FP, 64), bool)
-        m1[34 + 17 : 42 + 17, 20:30] = True  # the same rows (8130-) in frame 1 (top 8096), 17 lower
-        ids = tr.frame(1, 4.0 + 0.145, 8096, m1, None, last=False, due=due)
-        return set(np.unique(ids[m1]).tolist()), len(tr.plumes)
+        # strip rows 8130-8137 in frame 0 (top 8128); in frame 1 (top 8096), 17 rows lower
+        return _seen_twice(slice(2, 10), (1, 4.0 + 0.145, 8096), slice(34 + 17, 42 + 17), due)
 
     assert run(due=0.145) == ({1}, 1)  # allowed for: tracked
     assert run(due=None) == ({2}, 2)  # as if on time: 17 px away from its footprint, new
@@ -786,16 +792,7 @@ def test_a_plume_tracked_just_behind_a_frames_bottom_edge_is_the_same_plume():
     # top rows (strip 8128-8137) continues on frame 2's bottom rows (8120-8127, frame 2's
     # top 8064): one pixel from its tracked footprint, behind frame 2's bottom edge
     def run(gap):
-        where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8128, 4)
-        tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
-                           measure=False, log=lambda s: None)  # fmt: skip
-        m0 = np.zeros((FP, 64), bool)
-        m0[0:10, 20:30] = True
-        tr.frame(0, 0.0, 8128, m0, None, last=False)
-        m2 = np.zeros((FP, 64), bool)
-        m2[FP - 8 - gap : FP - gap, 20:30] = True
-        ids = tr.frame(2, 0.29, 8064, m2, None, last=False)
-        return set(np.unique(ids[m2]).tolist()), len(tr.plumes)
+        return _seen_twice(slice(0, 10), (2, 0.29, 8064), slice(FP - 8 - gap, FP - gap))
 
     assert run(gap=0) == ({1}, 1)  # on the bottom row, next to it: the same plume
     assert run(gap=3) == ({1}, 1)  # 4 rows from it (MATCH_PX): the same plume
