@@ -435,3 +435,121 @@ def test_kept_and_dropped_pointings_keep_their_own_times():
     assert s2.trajectory.params["parallax_residual_px"] < 0.5
     with pytest.raises(InvalidParameterError, match="prediction"):
         iterate_on_prediction(traj, None, fly)
+
+
+# -- the NFOV tracks the top it observed -------------------------------------------------
+R_K = 6_371_000.0  # the sphere of dyntarget.schedule.kinematics
+
+
+def _kin_point(along: float, cross: float, radius: float) -> np.ndarray:
+    """The point of kinematics' map coordinates (along-track and cross-track central
+    angles times the radius) on the sphere ``radius``, in the frame of the spacecraft at
+    nadir at t = 0 (x along the track, z up)."""
+    a, c = along / R_K, cross / R_K
+    return radius * np.array([math.sin(a) * math.cos(c), math.sin(c), math.cos(a) * math.cos(c)])
+
+
+def _kin_map(p: np.ndarray) -> tuple[float, float]:
+    u = p / np.linalg.norm(p)
+    return R_K * math.atan2(u[0], u[2]), R_K * math.asin(u[1])
+
+
+def _kin_top(along: float, cross: float, t: float, height: float) -> np.ndarray:
+    """The point ``height`` up on the ray from the spacecraft at ``t`` to a ground point."""
+    g = G.ground_speed * t / R_K
+    s = (R_K + H_SC) * np.array([math.sin(g), 0.0, math.cos(g)])
+    return _ray_hits_sphere(s, _kin_point(along, 0.0, R_K) if cross == 0 else
+                            _kin_point(along, cross, R_K), R_K + height)  # fmt: skip
+
+
+def _kin_aim(top: np.ndarray, t: float) -> tuple[float, float]:
+    """The ground point on the ray from the spacecraft at ``t`` through ``top``."""
+    g = G.ground_speed * t / R_K
+    s = (R_K + H_SC) * np.array([math.sin(g), 0.0, math.cos(g)])
+    return _kin_map(_ray_hits_sphere(s, top, R_K))
+
+
+@pytest.mark.parametrize(
+    ("along", "cross", "t", "height"),
+    [(500e3, 0.0, 0.0, 10e3), (300e3, 40e3, 12.0, 15e3), (60e3, -5e3, 30.0, 2e3)],
+)
+def test_under_sight_is_where_the_ray_meets_the_tops_sphere(along, cross, t, height):
+    from dyntarget.schedule.kinematics import under_sight
+
+    # by vectors: the ray from the spacecraft at t to the ground point, met at R + height
+    want = _kin_map(_kin_top(along, cross, t, height))
+    got = under_sight(G, along, cross, t, height)
+    assert got == pytest.approx(want, abs=1e-3)  # millimetres
+    # 10 km up, 500 km ahead, from 500 km: 11.2 km nearer (the 2D vector sum in the docstring)
+    if height == 10e3:
+        assert (along - got[0]) / 1e3 == pytest.approx(11.22, abs=0.01)
+
+
+def _one_top_twice(t1: float, t2: float) -> tuple[Trajectory, float, float]:
+    """A 10 km top whose line of sight at ``t1`` meets the ground 450 km ahead of the
+    nadir at t = 0: two pointings at it, aimed for ``t1`` and ``t2`` (the ground points
+    those lines of sight meet, by vectors), and the two aims' along-track distances."""
+    top = _kin_top(450e3, 0.0, t1, H_TOP)
+    (a1, c1), (a2, c2) = _kin_aim(top, t1), _kin_aim(top, t2)
+    pts = np.array([_pixel(a1, c1), _pixel(a2, c2)])
+    heights = np.array([H_TOP, H_TOP])
+    return Trajectory(pts, np.zeros(2), "demo", {}, np.array([t1, t2]), heights), a1, a2
+
+
+def test_a_sensor_tracks_the_top_it_observed_not_the_ground_behind_it():
+    # Two pointings at one 10 km top, aimed for 40 s and 41.1 s: their lines of sight meet
+    # the ground ~170 m apart (the aim moves back as the spacecraft comes nearer). The
+    # NFOV tracks the top it observed, so the second needs no slew: it follows the first
+    # after the dwell and the settling alone (slow: 0.1 + 1.0 s). Tracking the ground
+    # point behind the top instead, it must slew by the angle between the two aims.
+    t1, t2 = 40.0, 41.1
+    traj, a1, a2 = _one_top_twice(t1, t2)
+    assert a1 == pytest.approx(450e3, abs=1e-3) and 150.0 < a1 - a2 < 200.0
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=t1)
+    s = schedule(traj, SHAPE, g, "slow")
+    # (the two tops, each from its pixel and time, agree to about a centimetre; a slew
+    # that small takes milliseconds, 2 sqrt(phi / a))
+    assert len(s.kept) == 2 and s.times[1] - s.times[0] == pytest.approx(1.1, abs=5e-3)
+    assert s.trajectory.heights.tolist() == [H_TOP, H_TOP] and s.end_height_m == H_TOP
+    # the same pointings as ground points: a slew of ~0.006 deg, 2 sqrt(phi / 0.5) ~ 0.2 s
+    ground = schedule(Trajectory(traj.points, traj.part, "demo"), SHAPE, g, "slow")
+    assert ground.times[1] - ground.times[0] > 1.1 + 0.15 and ground.end_height_m == 0.0
+
+
+def test_a_sensor_handed_over_between_frames_keeps_tracking_the_top():
+    # SensorState's height_m: a pass's next frame starts from the top the last one
+    # observed (the sensor free at 41.1 s, tracking it): aimed at that top again, the
+    # observation starts after the settling alone
+    from dyntarget.schedule import SensorState
+    from dyntarget.schedule.kinematics import under_sight
+
+    t1, t2 = 40.0, 41.1
+    traj, a1, _ = _one_top_twice(t1, t2)
+    under = under_sight(G, a1, 0.0, t1, H_TOP)  # the top's ground position
+    assert under == pytest.approx(_kin_map(_kin_top(450e3, 0.0, t1, H_TOP)), abs=1e-3)
+    second = traj.without(np.array([True, False]))
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=t2)
+    s = schedule(second, SHAPE, g, "slow", sensor=SensorState(t2, under, H_TOP))
+    assert s.times.tolist() == [pytest.approx(t2 + 1.0, abs=1e-6)]  # the settling alone
+    ground = schedule(second, SHAPE, g, "slow", sensor=SensorState(t2, under))
+    assert ground.times[0] > t2 + 1.0 + 0.1  # from the ground under the top: a slew
+
+
+def test_heights_without_the_times_they_were_aimed_for_are_refused():
+    with pytest.raises(InvalidParameterError, match="heights: expected the times"):
+        Trajectory(np.zeros((1, 2)), np.zeros(1), "demo", heights=np.array([1e3]))
+    with pytest.raises(InvalidParameterError, match="heights: expected 1 finite"):
+        Trajectory(np.zeros((1, 2)), np.zeros(1), "demo", {}, np.zeros(1), np.array([-1.0]))
+
+
+def test_a_schedule_with_an_aim_flies_its_pointings_at_their_tops_height():
+    # two pointings planned on one 10 km top (ParallaxAim.constant), flown one after the
+    # other: each aimed for its own time, at the same top, so the second follows the
+    # first after the dwell and the settling alone (slow: 1.1 s)
+    t = 40.0
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=t)
+    base = np.array([_pixel(500e3, 0.0), _pixel(500e3, 0.0)])
+    s = schedule_on_prediction(Trajectory(base, np.zeros(2), "demo"), SHAPE, g, "slow", None,
+                               aim=_aim())  # fmt: skip
+    assert s.trajectory.heights.tolist() == [H_TOP, H_TOP]
+    assert s.times[1] - s.times[0] == pytest.approx(1.1, abs=1e-6)

@@ -35,6 +35,12 @@ class Trajectory:
     times : numpy.ndarray or None
         ``(n,)`` observation start times, seconds after the WFOV acquisition, or
         ``None`` for an untimed plan.
+    heights : numpy.ndarray or None
+        ``(n,)`` height, metres above the ground, of what each pointing's line of sight
+        is aimed at, at its time (``times``, required with them): a plume top, the aim
+        corrected for parallax (:class:`~dyntarget.schedule.ParallaxAim`). The NFOV slews
+        to that top and tracks it after observing it, not the ground behind it
+        (:func:`~dyntarget.schedule.schedule`). ``None`` or 0: the ground.
     """
 
     points: np.ndarray
@@ -44,6 +50,8 @@ class Trajectory:
     times: np.ndarray | None = None
     """When each observation starts, seconds after the WFOV acquisition (set by
     :func:`dyntarget.schedule.schedule`; ``None`` for an untimed plan)."""
+    heights: np.ndarray | None = None
+    """Height of what each pointing is aimed at, metres (``None``: the ground)."""
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)
@@ -58,6 +66,18 @@ class Trajectory:
                 )
             times.setflags(write=False)
             object.__setattr__(self, "times", times)
+        if self.heights is not None:
+            if self.times is None:
+                raise InvalidParameterError(
+                    "heights: expected the times the pointings were aimed for with them"
+                )
+            heights = np.asarray(self.heights, dtype=np.float64).reshape(-1)
+            if len(heights) != len(pts) or not (np.isfinite(heights) & (heights >= 0)).all():
+                raise InvalidParameterError(
+                    f"heights: expected {len(pts)} finite heights >= 0, got {len(heights)}"
+                )
+            heights.setflags(write=False)
+            object.__setattr__(self, "heights", heights)
         if not np.isfinite(pts).all():
             raise InvalidParameterError("points: trajectory holds NaN or infinite coordinates")
         pts.setflags(write=False)
@@ -97,11 +117,15 @@ class Trajectory:
         Returns
         -------
         Trajectory
-            A new trajectory with the kept points, parts and times (planner and params unchanged).
+            A new trajectory with the kept points, parts, times and heights (planner and
+            params unchanged).
         """
         keep = ~np.asarray(drop, bool)
         times = self.times[keep] if self.times is not None else None
-        return Trajectory(self.points[keep], self.part[keep], self.planner, self.params, times)
+        heights = self.heights[keep] if self.heights is not None else None
+        return Trajectory(
+            self.points[keep], self.part[keep], self.planner, self.params, times, heights
+        )
 
     @property
     def path_length(self) -> float:

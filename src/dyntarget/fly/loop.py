@@ -165,6 +165,7 @@ class PassState:
     covered: np.ndarray
     timer_t: float = 0.0
     target: tuple[float, float] | None = None  # (along, cross) in pass ground coordinates, m
+    target_height_m: float = 0.0  # the height above it of what the NFOV tracks (a plume top)
     busy_until: float = 0.0  # when the loop finished its last frame
     previous: tuple[int, np.ndarray, np.ndarray] | None = None  # (frame, image, mask) last seen
     parts: int = 0
@@ -762,7 +763,9 @@ def _schedule_frame(
         ctx.agility,
         prediction,
         attached=attached,
-        sensor=sensor_in_frame(state.timer_t, state.target, frames.geometry, t_k, ready),
+        sensor=sensor_in_frame(
+            state.timer_t, state.target, frames.geometry, t_k, ready, state.target_height_m
+        ),
         keep_order=True,
         **kw,
     )
@@ -779,6 +782,7 @@ def _commit(
         assert flown.end_target is not None  # set whenever a pointing was kept
         along, cross = flown.end_target
         state.target = (along + geometry.ground_speed * t_k, cross)
+        state.target_height_m = flown.end_height_m
 
 
 def _score(

@@ -34,6 +34,7 @@ from dyntarget.schedule.kinematics import (
     look_vectors,
     off_nadir_deg,
     pitch_deg,
+    under_sight,
     visibility_windows,
 )
 from dyntarget.schedule.predicted import (
@@ -69,5 +70,6 @@ __all__ = [
     "schedule",
     "schedule_on_prediction",
     "sensor_in_frame",
+    "under_sight",
     "visibility_windows",
 ]

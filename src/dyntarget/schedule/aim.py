@@ -275,6 +275,36 @@ class ParallaxAim:
         >>> bool(dx < 0 and dy > 0)
         True
         """
+        return self.move(points, t_s)[0]
+
+    def move(self, points: npt.ArrayLike, t_s: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`shift`, and the height each moved pointing is aimed at.
+
+        Parameters
+        ----------
+        points : array_like
+            ``(N, 2)`` pointings ``(x, y)``, pixels of the frame as the look-ahead saw
+            it (column, row).
+        t_s : float or array_like
+            When each pointing is flown, seconds after the frame's acquisition.
+
+        Returns
+        -------
+        shift : numpy.ndarray
+            ``(N, 2)`` float64 ``(dx, dy)``, WFOV pixels (:meth:`shift`).
+        heights : numpy.ndarray
+            ``(N,)`` float64 metres: the top height the moved line of sight meets (the
+            one corrected for, a neighbour's where it took one); 0 where not corrected.
+            The NFOV tracks that top after observing it
+            (:attr:`dyntarget.trajectory.Trajectory.heights`).
+
+        Examples
+        --------
+        >>> g = OrbitGeometry(altitude_m=500e3, look_ahead_m=500e3, wfov_gsd_m=100.0)
+        >>> d, h = ParallaxAim.constant(g, (101, 101), 10e3).move(np.array([[50.0, 50.0]]), 30.0)
+        >>> h.tolist(), bool(d[0, 1] > 0)
+        ([10000.0], True)
+        """
         pts = np.asarray(points, np.float64)
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise InvalidParameterError(
@@ -290,16 +320,16 @@ class ParallaxAim:
             )
         if not (np.isfinite(pts).all() and np.isfinite(t).all()):
             raise InvalidParameterError("points, t_s: expected finite pixels and seconds")
-        out = np.zeros((n, 2))
+        out, aimed = np.zeros((n, 2)), np.zeros(n)
         if n == 0:
-            return out
+            return out, aimed
         h = _heights("heights_m", self.heights_m, pts, t)
         h_look = h if self.look_heights_m is None else _heights(
             "look_heights_m", self.look_heights_m, pts, t
         )  # fmt: skip
         on = np.isfinite(h) & (h > 0) & np.isfinite(h_look) & (h_look > 0)
         if not on.any():
-            return out
+            return out, aimed
         if self.fill_px > 0 and not on.all():
             h, h_look, on = _fill(pts, h, h_look, on, self.fill_px)
         g = self.geometry
@@ -317,9 +347,11 @@ class ParallaxAim:
         aim_a, aim_c = true_a + da, true_c + dc
         gsd = g.wfov_gsd_m
         d = np.stack([(aim_c - cross) / gsd, -(aim_a - along) / gsd], axis=1)
-        d[~np.isfinite(d).all(axis=1)] = 0.0  # beyond the horizon: nothing to correct for
+        beyond = ~np.isfinite(d).all(axis=1)  # beyond the horizon: nothing to correct for
+        d[beyond] = 0.0
         out[on] = d
-        return out
+        aimed[on] = np.where(beyond, 0.0, h[on])
+        return out, aimed
 
 
 def _fill(

@@ -24,6 +24,7 @@ from dyntarget.schedule.kinematics import (
     angle_between_deg,
     get_agility,
     look_vectors,
+    under_sight,
     visibility_windows,
 )
 from dyntarget.schedule.sensor import SensorState
@@ -62,6 +63,9 @@ class Schedule:
         ``(along, cross)`` ground point the sensor tracks after the last observation
         (this geometry's frame, metres at ``t = 0``); ``None``: nothing taken, the
         sensor is where it started.
+    end_height_m : float
+        Height of the point it tracks, metres above ``end_target`` (a plume top; 0:
+        the ground point).
     reordered : bool
         Whether the pointings were flown earliest-deadline-first (``reorder=True``).
     """
@@ -76,6 +80,7 @@ class Schedule:
     agility: str
     end_target: tuple[float, float] | None = None
     reordered: bool = False
+    end_height_m: float = 0.0
 
     @property
     def fraction_feasible(self) -> float:
@@ -96,9 +101,11 @@ class Schedule:
 class Timer:
     """Step-by-step timing of pointings: what the sensor tracks and when it is free.
 
-    Between observations the sensor keeps tracking the ground, so a slew covers
-    the angle between the previous and the next ground point as seen at the
-    arrival time (from nadir for the first pointing).
+    Between observations the sensor keeps tracking what it observed last, so a slew
+    covers the angle between that and the next target as seen at the arrival time (from
+    nadir for the first pointing). A target is a ground point, or a point at a height
+    above one (``height_m``: a plume top, fixed above the ground, whose line of sight
+    turns otherwise than that of the ground behind it).
 
     Parameters
     ----------
@@ -112,14 +119,21 @@ class Timer:
         self.geometry, self.agility = geometry, agility
         self.t = geometry.start_s
         self.target: tuple[float, float] | None = None  # None: looking at nadir
+        self.height = 0.0  # of the point tracked, metres above ``target``
 
     def _from(self, t: np.ndarray) -> np.ndarray:
         if self.target is None:
             return np.array([0.0, 0.0, -1.0])
         along, cross = np.asarray(self.target[0]), np.asarray(self.target[1])
-        return look_vectors(self.geometry, along, cross, t)
+        return look_vectors(self.geometry, along, cross, t, self.height)
 
-    def arrival(self, along: np.ndarray, cross: np.ndarray, t_in: np.ndarray) -> np.ndarray:
+    def arrival(
+        self,
+        along: np.ndarray,
+        cross: np.ndarray,
+        t_in: np.ndarray,
+        height_m: float | np.ndarray = 0.0,
+    ) -> np.ndarray:
         """When observations of the given targets could start if taken next (vectorised).
 
         Parameters
@@ -130,6 +144,8 @@ class Timer:
             Cross-track ground distances, metres.
         t_in : numpy.ndarray
             When each target enters the field of regard, seconds.
+        height_m : float or numpy.ndarray
+            Height of the targets above those ground points, metres (0: the ground).
 
         Returns
         -------
@@ -143,13 +159,13 @@ class Timer:
         for _ in range(4):  # the geometry changes during the slew: fixed-point iteration
             when = np.maximum(ta, t_in)
             angle = angle_between_deg(
-                self._from(when), look_vectors(self.geometry, along, cross, when)
+                self._from(when), look_vectors(self.geometry, along, cross, when, height_m)
             )
             ta = self.t + self.agility.slew_time(angle) + self.agility.settle_s
         arrival: np.ndarray = np.maximum(ta, t_in)
         return arrival
 
-    def arrival_one(self, along: float, cross: float, t_in: float) -> float:
+    def arrival_one(self, along: float, cross: float, t_in: float, height_m: float = 0.0) -> float:
         """:meth:`arrival` for one target, in scalar arithmetic: the same floats, faster.
 
         Scheduling times pointings one after another, so this runs once per pointing;
@@ -165,6 +181,8 @@ class Timer:
             ``t = 0``, metres.
         t_in : float
             When the target enters the field of regard, seconds.
+        height_m : float
+            Height of the target above that ground point, metres (0: the ground).
 
         Returns
         -------
@@ -179,13 +197,13 @@ class Timer:
             origin = (
                 (0.0, 0.0, -1.0)
                 if self.target is None
-                else _look_one(self.geometry, *self.target, when)
+                else _look_one(self.geometry, *self.target, when, self.height)
             )
-            angle = _angle_deg(origin, _look_one(self.geometry, along, cross, when))
+            angle = _angle_deg(origin, _look_one(self.geometry, along, cross, when, height_m))
             ta = self.t + self.agility.slew_time_one(angle) + self.agility.settle_s
         return max(ta, t_in)
 
-    def take(self, along: float, cross: float, start: float) -> None:
+    def take(self, along: float, cross: float, start: float, height_m: float = 0.0) -> None:
         """Take an observation: the sensor dwells on the target from ``start`` and then tracks it.
 
         Parameters
@@ -196,9 +214,13 @@ class Timer:
             Cross-track ground distance, metres.
         start : float
             When the observation starts, seconds (the sensor is free at ``start + dwell_s``).
+        height_m : float
+            Height of the target above that ground point, metres (a plume top; 0: the
+            ground point).
         """
         self.t = start + self.agility.dwell_s
         self.target = (float(along), float(cross))
+        self.height = float(height_m)
 
 
 CHUNK = 32
@@ -221,6 +243,12 @@ def schedule(
     ``budget_s``: also drop pointings that would end later than ``start_s + budget_s``.
     ``sensor``: the sensor is busy until ``sensor.free_s`` and then slews from
     ``sensor.target`` (default: free at nadir at ``start_s``).
+
+    A trajectory with ``heights`` aims each pointing at a plume top: its line of sight,
+    at the time it was aimed for (its ``times``), meets the ground at its point and the
+    top that high on the way (:func:`~dyntarget.schedule.kinematics.under_sight`). The
+    sensor slews between those tops and tracks each after observing it (:class:`Timer`);
+    their visibility windows are their ground points'.
 
     Pointings are screened :data:`CHUNK` at a time: while pointings are skipped the
     sensor's state does not change, so the first pointing of a chunk that can be
@@ -270,9 +298,19 @@ def schedule(
         timer.t = max(geometry.start_s, sensor.free_s)
         if sensor.target is not None:
             timer.target = (float(sensor.target[0]), float(sensor.target[1]))
+            timer.height = float(sensor.height_m)
         else:
             timer.target = None
-    kept, times = _walk(timer, order, along, cross, t_in, t_out, limit)
+    heights = trajectory.heights
+    ta, tc = along, cross  # what the sensor slews to and tracks: the ground points, or tops
+    if heights is not None:
+        assert trajectory.times is not None  # heights come with the times they are for
+        ta, tc = along.copy(), cross.copy()
+        up = heights > 0
+        ta[up], tc[up] = under_sight(
+            geometry, along[up], cross[up], trajectory.times[up], heights[up]
+        )
+    kept, times = _walk(timer, order, ta, tc, t_in, t_out, limit, heights)
     kept_idx = np.asarray(kept, np.int64)
     keep_traj = Trajectory(
         trajectory.points[kept_idx],
@@ -280,6 +318,7 @@ def schedule(
         trajectory.planner,
         {**trajectory.params, "agility": agility.name},
         np.asarray(times, np.float64),
+        None if heights is None else heights[kept_idx],
     )
     visible = t_out[t_in <= t_out]
     return Schedule(
@@ -293,6 +332,7 @@ def schedule(
         agility=agility.name,
         end_target=timer.target,
         reordered=bool(reorder),
+        end_height_m=timer.height,
     )
 
 
@@ -304,8 +344,10 @@ def _walk(
     t_in: np.ndarray,
     t_out: np.ndarray,
     limit: float,
+    heights: np.ndarray | None = None,
 ) -> tuple[list[int], list[float]]:
-    """Take the pointings of ``order`` that fit their window (and ``limit``), in order."""
+    """Take the pointings of ``order`` that fit their window (and ``limit``), in order
+    (``heights``: of the targets above ``along``, ``cross``; ``None``: the ground)."""
     agility = timer.agility
     kept: list[int] = []
     times: list[float] = []
@@ -320,10 +362,11 @@ def _walk(
         first = int(np.argmax(maybe))
         if maybe[first]:  # most often the first candidate is taken: time it alone
             j = int(chunk[first])
-            start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]))
+            h = 0.0 if heights is None else float(heights[j])
+            start = timer.arrival_one(float(along[j]), float(cross[j]), float(t_in[j]), h)
             end = start + agility.dwell_s
             if end <= t_out[j] and end <= limit:
-                timer.take(along[j], cross[j], start)
+                timer.take(along[j], cross[j], start, h)
                 kept.append(j)
                 times.append(start)
                 pos += first + 1
@@ -333,7 +376,9 @@ def _walk(
         begin = np.zeros(len(chunk))
         if maybe.any():
             c = chunk[maybe]
-            begin[maybe] = timer.arrival(along[c], cross[c], t_in[c])
+            begin[maybe] = timer.arrival(
+                along[c], cross[c], t_in[c], 0.0 if heights is None else heights[c]
+            )
             end = begin[maybe] + agility.dwell_s
             ok[maybe] = (end <= t_out[c]) & (end <= limit)
         if not ok.any():
@@ -341,7 +386,9 @@ def _walk(
             continue
         i = int(np.argmax(ok))
         j = int(chunk[i])
-        timer.take(along[j], cross[j], float(begin[i]))
+        timer.take(
+            along[j], cross[j], float(begin[i]), 0.0 if heights is None else float(heights[j])
+        )
         kept.append(j)
         times.append(float(begin[i]))
         pos += i + 1

@@ -47,6 +47,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
@@ -274,9 +275,14 @@ def get_agility(name: str) -> Agility:
 
 
 def look_vectors(
-    geometry: OrbitGeometry, along: np.ndarray, cross: np.ndarray, t: float | np.ndarray
+    geometry: OrbitGeometry,
+    along: np.ndarray,
+    cross: np.ndarray,
+    t: float | np.ndarray,
+    height_m: float | np.ndarray = 0.0,
 ) -> np.ndarray:
-    """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``.
+    """Unit line-of-sight vectors ``(n, 3)`` from the spacecraft to ground points at time(s) ``t``
+    (or to the points ``height_m`` above them, e.g. a plume top over its ground position).
 
     Frame: x along the velocity, y across track, z up (away from Earth's centre).
 
@@ -290,18 +296,34 @@ def look_vectors(
         Cross-track ground distances, metres.
     t : float or numpy.ndarray
         Times, seconds after the WFOV acquisition (broadcast with ``along``).
+    height_m : float or numpy.ndarray
+        Height of the points above the sphere, metres (0: the ground points; broadcast
+        with ``along``).
 
     Returns
     -------
     numpy.ndarray
         ``(..., 3)`` unit vectors.
+
+    Examples
+    --------
+    Straight down at the nadir, whatever the height; 500 km ahead of a spacecraft 500 km
+    up, a top 10 km up is seen 0.6 deg higher than the ground under it:
+
+    >>> g = OrbitGeometry(altitude_m=500e3)
+    >>> look_vectors(g, np.array([0.0]), np.array([0.0]), 0.0, 10e3).round(12).tolist()
+    [[0.0, 0.0, -1.0]]
+    >>> ground, top = (look_vectors(g, np.array([500e3]), np.array([0.0]), 0.0, h) for h in (0.0, 10e3))
+    >>> round(float(angle_between_deg(ground, top)[0]), 2)
+    0.6
     """
     r = EARTH_RADIUS_M
     rel = (np.asarray(along, np.float64) - geometry.ground_speed * np.asarray(t, np.float64)) / r
     c = np.asarray(cross, np.float64) / r
+    rh = r + np.asarray(height_m, np.float64)  # the ground's radius exactly when height_m is 0
     target = np.stack(
         np.broadcast_arrays(
-            r * np.sin(rel) * np.cos(c), r * np.sin(c), r * np.cos(rel) * np.cos(c)
+            rh * np.sin(rel) * np.cos(c), rh * np.sin(c), rh * np.cos(rel) * np.cos(c)
         ),
         axis=-1,
     )
@@ -310,16 +332,76 @@ def look_vectors(
     return unit
 
 
-def _look_one(geometry: OrbitGeometry, along: float, cross: float, t: float) -> tuple[float, ...]:
-    """:func:`look_vectors` of one ground point, in float arithmetic (the same floats)."""
+def _look_one(
+    geometry: OrbitGeometry, along: float, cross: float, t: float, height_m: float = 0.0
+) -> tuple[float, ...]:
+    """:func:`look_vectors` of one point, in float arithmetic (the same floats)."""
     r = EARTH_RADIUS_M
     rel = (float(along) - geometry.ground_speed * t) / r
     c = float(cross) / r
-    x = r * math.sin(rel) * math.cos(c) - 0.0
-    y = r * math.sin(c) - 0.0
-    z = r * math.cos(rel) * math.cos(c) - (r + geometry.altitude_m)
+    rh = r + height_m
+    x = rh * math.sin(rel) * math.cos(c) - 0.0
+    y = rh * math.sin(c) - 0.0
+    z = rh * math.cos(rel) * math.cos(c) - (r + geometry.altitude_m)
     norm = math.sqrt(0.0 + x * x + y * y + z * z)
     return (x / norm, y / norm, z / norm)
+
+
+def under_sight(
+    geometry: OrbitGeometry,
+    along: npt.ArrayLike,
+    cross: npt.ArrayLike,
+    t: npt.ArrayLike,
+    height_m: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ground position under the point ``height_m`` up on the line of sight, at ``t``,
+    to the ground point ``(along, cross)``: where a top at that height lies, seen there.
+
+    The line of sight meets the sphere of radius ``R + height_m`` first (on the
+    spacecraft's side) at that point; its ground position is the same direction from
+    Earth's centre. The inverse of :func:`look_vectors` ``height_m=``: the line of sight
+    to the returned position, ``height_m`` up, at ``t`` is the one to the ground point.
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The orbit (altitude and ground speed).
+    along, cross : array_like
+        The ground points the lines of sight meet, metres from the nadir at ``t = 0``.
+    t : array_like
+        When, seconds after the WFOV acquisition (broadcast with ``along``).
+    height_m : array_like
+        The heights, metres above the sphere (>= 0, below the spacecraft).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(along, cross)`` of the ground positions under those points, metres.
+
+    Examples
+    --------
+    Looking straight down, the top is over the ground point; a top 10 km up whose line
+    of sight meets the ground 500 km ahead of a spacecraft 500 km up lies 11.2 km nearer
+    the spacecraft:
+
+    >>> g = OrbitGeometry(altitude_m=500e3)
+    >>> a, c = under_sight(g, [0.0, 500e3], [0.0, 0.0], 0.0, 10e3)
+    >>> a[0], round(float(500e3 - a[1]) / 1e3, 2), c.tolist()
+    (np.float64(0.0), 11.22, [0.0, 0.0])
+    """
+    r = EARTH_RADIUS_M
+    a = np.asarray(along, np.float64)
+    u = look_vectors(geometry, a, np.asarray(cross, np.float64), t)
+    ts = np.broadcast_to(np.asarray(t, np.float64), a.shape)
+    sz = r + geometry.altitude_m  # the spacecraft at (0, 0, sz)
+    b = sz * u[..., 2]  # S . u
+    rh = r + np.asarray(height_m, np.float64)
+    s = -b - np.sqrt(np.maximum(b * b - sz * sz + rh * rh, 0.0))  # the nearer crossing
+    p = s[..., None] * u
+    p[..., 2] += sz
+    rel = np.arctan2(p[..., 0], p[..., 2])
+    c = np.arcsin(np.clip(p[..., 1] / np.linalg.norm(p, axis=-1), -1.0, 1.0))
+    return rel * r + geometry.ground_speed * ts, c * r
 
 
 def off_nadir_deg(los: np.ndarray) -> np.ndarray:

@@ -300,13 +300,14 @@ def _iterate_with_aim(
     base = trajectory.points
     lead = 0.0 if prediction is None else prediction.lead_s
 
-    def target(points: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Where pointings planned at ``points`` must aim when flown at ``t``."""
+    def target(points: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where pointings planned at ``points`` must aim when flown at ``t``, and the
+        height of the top each is aimed at (the NFOV tracks it after observing it)."""
         seen: np.ndarray = points
         if prediction is not None:
             seen = points + prediction.pointing_shift(t - lead, points, attached)
-        out: np.ndarray = seen + aim.shift(seen, t)
-        return out
+        shift, heights = aim.move(seen, t)
+        return seen + shift, heights
 
     def rounds(
         idx: np.ndarray, times: np.ndarray, fly: Callable[[Trajectory], Schedule], *, shrink: bool
@@ -316,10 +317,13 @@ def _iterate_with_aim(
         iterations = 0
         while True:
             iterations += 1
-            moved = target(base[idx], times)
+            moved, heights = target(base[idx], times)
             sched = fly(
-                Trajectory(moved, trajectory.part[idx], trajectory.planner, dict(trajectory.params))
-            )
+                Trajectory(  # aimed for ``times``: the tops the NFOV slews between
+                    moved, trajectory.part[idx], trajectory.planner, dict(trajectory.params),
+                    times, heights,
+                )
+            )  # fmt: skip
             used = times[sched.kept]
             change = float(np.max(np.abs(sched.times - used))) if len(sched.kept) else 0.0
             times = times.copy()
@@ -352,7 +356,7 @@ def _iterate_with_aim(
             window_end_s=sched.window_end_s,
         )
         used, iterations = last.used, iterations + last.iterations
-    gap = target(base[sched.kept], sched.times) - sched.trajectory.points
+    gap = target(base[sched.kept], sched.times)[0] - sched.trajectory.points
     residual = float(np.max(np.hypot(*gap.T), initial=0.0))
     params = sched.trajectory.params
     if prediction is not None:

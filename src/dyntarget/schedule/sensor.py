@@ -27,14 +27,20 @@ class SensorState:
     target : tuple of float or None
         ``(along, cross)`` ground point it tracks, metres from nadir at ``t = 0`` in
         the schedule's geometry; ``None``: it looks at nadir.
+    height_m : float
+        Height of the point it tracks above ``target``, metres (a plume top it last
+        observed; 0: the ground point).
     """
 
     free_s: float
     target: tuple[float, float] | None = None
+    height_m: float = 0.0
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.free_s):
             raise InvalidParameterError(f"free_s: expected a finite number, got {self.free_s!r}")
+        if not (math.isfinite(self.height_m) and self.height_m >= 0):
+            raise InvalidParameterError(f"height_m: expected metres >= 0, got {self.height_m!r}")
 
 
 def sensor_in_frame(
@@ -43,6 +49,7 @@ def sensor_in_frame(
     geometry: OrbitGeometry,
     acquired_s: float,
     ready_s: float,
+    height_m: float = 0.0,
 ) -> SensorState:
     """A pass's shared NFOV as seen from one frame (acquired ``acquired_s`` into the pass).
 
@@ -63,6 +70,8 @@ def sensor_in_frame(
         When the frame was acquired, seconds into the pass.
     ready_s : float
         When the frame's plan is ready, seconds into the pass.
+    height_m : float
+        Height of the point it tracks above ``target``, metres (0: the ground point).
 
     Returns
     -------
@@ -78,7 +87,7 @@ def sensor_in_frame(
     """
     if target is not None:  # pass ground coordinates -> the frame's (nadir at acquired_s)
         target = (target[0] - geometry.ground_speed * acquired_s, target[1])
-    return SensorState(max(ready_s, free_s) - acquired_s, target)
+    return SensorState(max(ready_s, free_s) - acquired_s, target, height_m)
 
 
 def lead_s(
