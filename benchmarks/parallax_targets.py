@@ -34,7 +34,7 @@ Parts (``--part``):
     :func:`dyntarget.synth.strip.long_strip_spec`, 3D), long enough that a re-look falls
     while later frames are due: each mode's utility, re-looks, the look-ahead frames they
     cost and those taken late (catching up; ``estimated-nc``: without), ``slow`` and
-    ``fast`` (``--long-modes``).
+    ``fast`` (``--long-modes``; ``--long-agilities`` picks one).
 ``rise``
     ``--rise-strips`` strips of one column rising through the looks (top 6-15 km, rise
     10-100 m/s, still rising 40 s after the pass starts; wind 0-20 m/s from any direction;
@@ -88,6 +88,8 @@ RISE_MPS = 100.0
 RISE_MODES = ("estimated-2", "estimated-2r")
 """The rise part flies each column both ways: a steady top's search, and the rise allowed for."""
 PRIOR_M = 8500.0
+AGILITIES = ("slow", "fast")
+"""The agility presets flown (``--long-agilities`` picks some for the long part)."""
 
 
 def look_ahead_for_zenith(zenith_deg: float, altitude_m: float = defaults.ALTITUDE_M) -> float:
@@ -329,7 +331,7 @@ def part_long(args) -> dict:
             wind_mps=5.0,
         )  # fmt: skip
         spec3 = with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
-        for agility in ("slow", "fast"):
+        for agility in args.long_agilities:
             for mode in args.long_modes:
                 r = fly(spec if mode == "flat" else spec3, window,
                         config_for(mode, agility, defaults.LOOK_AHEAD_M), long=True)  # fmt: skip
@@ -359,6 +361,10 @@ def main() -> None:
         help=f"comma-separated, of {','.join(LONG_MODES)}",
     )  # fmt: skip
     ap.add_argument(
+        "--long-agilities", type=lambda s: tuple(s.split(",")), default=AGILITIES,
+        help="long part, comma-separated, of slow,fast",
+    )  # fmt: skip
+    ap.add_argument(
         "--modes", type=lambda s: tuple(s.split(",")), default=MODES,
         help=f"targeting part, comma-separated, of {','.join((*MODES, *EXTRA_MODES[1:]))}",
     )  # fmt: skip
@@ -385,7 +391,15 @@ def main() -> None:
             )
         )
         + ("" if args.modes == MODES else f" --modes {','.join(args.modes)}")
+        + (
+            ""
+            if args.long_agilities == AGILITIES
+            else f" --long-agilities {','.join(args.long_agilities)}"
+        )
     }
+    for a in args.long_agilities:
+        if a not in AGILITIES:
+            ap.error(f"unknown agility {a!r}: expected one of {', '.join(AGILITIES)}")
     known = (*MODES, *EXTRA_MODES)
     for m in (*args.modes, *args.long_modes):
         if m not in known:
