@@ -7,7 +7,6 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 import pytest
 
 from dyntarget.perceive import make_classifier, resources
@@ -153,25 +152,49 @@ def test_the_user_s_openmp_setting_and_an_early_torch_are_left_alone():
     assert "set False None" in early and "GOMP_SPINCOUNT = '300000'" in early
 
 
+_THREADS_CODE = """
+import numpy as np
+from dyntarget.perceive import make_classifier, resources
+model = make_classifier({name!r}, width=4, tile=32)
+model.model.eval()
+model.fitted = True
+image = np.random.default_rng(0).random((4, 96, 80), dtype=np.float32)
+got = []
+for t in (1, 2):
+    resources.inference_threads = lambda limit=None, t=t: t
+    got.append(model.predict_proba(image))
+    assert model.threads_used == t
+d = np.abs(got[0] - got[1])
+print(float(d.max()), float(np.spacing(np.float32(1.0))), bool(((got[0] > 0.5) == (got[1] > 0.5)).all()))
+"""
+
+
+def _on_1_and_2_threads(name: str, **env: str) -> tuple[float, float, bool]:
+    """Largest difference of the probabilities on 1 and 2 threads, float32's epsilon, and
+    whether the masks at 0.5 agree, in a fresh interpreter (``env``: e.g. oneDNN's ISA)."""
+    import os
+
+    done = subprocess.run(
+        [sys.executable, "-c", _THREADS_CODE.format(name=name)],
+        env={**os.environ, **env}, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    diff, eps, same = done.stdout.split()
+    return float(diff), float(eps), same == "True"
+
+
+@pytest.mark.parametrize("isa", ["native", "AVX2"])
 @pytest.mark.parametrize("name", ["unet-uavsar", "unet-xception"])
-def test_probabilities_do_not_depend_on_the_thread_count(name, monkeypatch):
-    import torch
-
-    from dyntarget.perceive import resources
-
-    model = make_classifier(name, width=4, tile=32)
-    model.model.eval()
-    model.fitted = True
-    image = np.random.default_rng(0).random((4, 96, 80), dtype=np.float32)
-    torch_threads = torch.get_num_threads()
-    got = {}
-    for threads in (1, 2):
-        monkeypatch.setattr(resources, "inference_threads", lambda limit=None, t=threads: t)
-        got[threads] = model.predict_proba(image)
-        assert model.threads_used == threads
-        assert torch.get_num_threads() == torch_threads  # restored afterwards
-    # bit for bit on this machine: the same bytes whatever the load picked
-    assert np.array_equal(got[1], got[2])
+def test_probabilities_on_1_and_2_threads_agree_to_an_ulp(name, isa):
+    # The load picks the thread count. With AVX-512 (the Intel Xeon the docs measured on)
+    # the probabilities were equal bit for bit; with oneDNN's AVX2 kernels (an AMD EPYC
+    # without AVX-512, or any x86 CPU with ONEDNN_MAX_CPU_ISA=AVX2, forced here)
+    # unet-uavsar's head convolution splits its sums by thread and differs by up to one
+    # float32 step (6e-8 near 0.6) on about 0.01 % of pixels. Checked: at most an ulp at
+    # 1.0, and the same masks at 0.5 here (a probability within an ulp of 0.5 could flip).
+    env = {} if isa == "native" else {"ONEDNN_MAX_CPU_ISA": isa}
+    diff, eps, same_mask = _on_1_and_2_threads(name, **env)
+    assert diff <= eps and same_mask
 
 
 def test_width_16_models_predict_1024_px_in_one_pass_and_2048_in_windows():

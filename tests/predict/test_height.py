@@ -116,6 +116,25 @@ def test_noise_rmse_bias_and_reported_sigma():
     assert float(np.sqrt(np.mean(np.square(sigmas)))) == pytest.approx(rmse, rel=0.25)
 
 
+def test_the_reported_sigma_does_not_depend_on_a_millimetre_of_position():
+    # Looks moved by a millimetre are the same problem: the same sigma. Before, the
+    # covariance used MINPACK's Jacobian, which steps an unknown by a fraction of its own
+    # value: an unknown fitted at about zero (the cross-track position and drift here)
+    # got a step of ~1e-17 m and a column of rounding noise, and the sigma came out
+    # anywhere between 158 and 198 m for these five, and 170 or 190 m on two CPUs.
+    sigmas = []
+    for dx, dy in [(0.0, 0.0), (1e-3, 0.0), (0.0, 1e-3), (1e-3, -1e-3), (0.0, 0.0)]:
+        looks = [
+            Look(lk.t_s, lk.x_m + dx, lk.y_m + dy, lk.nadir_x_m, lk.nadir_y_m, H, 30.0)
+            for lk in _looks(10e3, (0.0, 10.0), [500.0, 400.0, 300.0])
+        ]
+        fit = fit_height(looks, wind_prior=(0.0, 10.0))
+        assert fit.ok and fit.height_m == pytest.approx(10e3, abs=1.0)
+        sigmas.append(fit.height_sigma_m)
+    assert max(sigmas) - min(sigmas) < 0.01 * min(sigmas) / 100  # within 0.01 %
+    assert 150.0 < sigmas[0] < 250.0  # the scale of test_noise_rmse_bias_and_reported_sigma's
+
+
 def test_cross_track_wind_is_measured_without_a_prior_on_it():
     # a plume 100 km right of the track: the parallax is nearly along track, the cross
     # drift (12 m/s) is read from the looks; the prior on it is loose (50 m/s)

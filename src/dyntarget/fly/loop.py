@@ -142,6 +142,9 @@ class PassState:
         When the NFOV sensor is free, seconds into the pass.
     target : tuple of float or None
         ``(along, cross)`` of what the sensor tracks, metres (``None``: nadir).
+    target_height_m : float
+        Height of what it tracks above ``target``, metres (a plume top it observed; 0:
+        the ground).
     busy_until : float
         When the loop finished its last frame, seconds.
     previous : tuple or None
