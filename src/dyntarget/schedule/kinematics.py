@@ -390,9 +390,10 @@ def under_sight(
     (np.float64(0.0), 11.22, [0.0, 0.0])
     """
     r = EARTH_RADIUS_M
-    a = np.asarray(along, np.float64)
-    u = look_vectors(geometry, a, np.asarray(cross, np.float64), t)
-    ts = np.broadcast_to(np.asarray(t, np.float64), a.shape)
+    a, c0, ts = np.broadcast_arrays(
+        np.asarray(along, np.float64), np.asarray(cross, np.float64), np.asarray(t, np.float64)
+    )
+    u = look_vectors(geometry, a, c0, ts)
     sz = r + geometry.altitude_m  # the spacecraft at (0, 0, sz)
     b = sz * u[..., 2]  # S . u
     rh = r + np.asarray(height_m, np.float64)
