@@ -271,6 +271,9 @@ def test_a_top_beyond_the_horizon_is_not_moved_and_its_neighbours_are():
     got = _aim().shift(pts, 30.0)
     assert got[0].tolist() == [0.0, 0.0]
     assert np.isfinite(got).all() and got[1, 1] > 100
+    # and the NFOV is not told to track a top there (height 0: the ground it aims at)
+    moved, heights = _aim().move(pts, 30.0)
+    assert moved.tolist() == got.tolist() and heights.tolist() == [0.0, H_TOP]
 
 
 def test_the_height_limit_and_the_smallest_frame_are_accepted():
