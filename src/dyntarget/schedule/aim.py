@@ -282,11 +282,8 @@ class ParallaxAim:
 
         Parameters
         ----------
-        points : array_like
-            ``(N, 2)`` pointings ``(x, y)``, pixels of the frame as the look-ahead saw
-            it (column, row).
-        t_s : float or array_like
-            When each pointing is flown, seconds after the frame's acquisition.
+        points, t_s : array_like
+            As for :meth:`shift`.
 
         Returns
         -------

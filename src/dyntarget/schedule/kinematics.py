@@ -361,6 +361,11 @@ def under_sight(
     spacecraft's side) at that point; its ground position is the same direction from
     Earth's centre. The inverse of :func:`look_vectors` ``height_m=``: the line of sight
     to the returned position, ``height_m`` up, at ``t`` is the one to the ground point.
+    :func:`dyntarget.parallax.unshift_xy` is the same closed form on the parallax
+    module's sphere and map (radius 6,371,008.8 m, azimuthal about the nadir); this one
+    keeps the schedule's own (6,371,000 m, along- and cross-track angles), so that the
+    sensor's line of sight to the top is exactly the aimed one: slews of a few
+    thousandths of a degree, whose time grows as its square root, are measured in it.
 
     Parameters
     ----------
