@@ -17,6 +17,7 @@ from dyntarget.predict import Motion, Prediction
 from dyntarget.schedule import (
     OrbitGeometry,
     ParallaxAim,
+    SensorState,
     iterate_on_prediction,
     make_feasible,
     nadir_xy,
@@ -523,7 +524,6 @@ def test_a_sensor_handed_over_between_frames_keeps_tracking_the_top():
     # SensorState's height_m: a pass's next frame starts from the top the last one
     # observed (the sensor free at 41.1 s, tracking it): aimed at that top again, the
     # observation starts after the settling alone
-    from dyntarget.schedule import SensorState
     from dyntarget.schedule.kinematics import under_sight
 
     t1, t2 = 40.0, 41.1
@@ -556,3 +556,104 @@ def test_a_schedule_with_an_aim_flies_its_pointings_at_their_tops_height():
                                aim=_aim())  # fmt: skip
     assert s.trajectory.heights.tolist() == [H_TOP, H_TOP]
     assert s.times[1] - s.times[0] == pytest.approx(1.1, abs=1e-6)
+
+
+# -- windows: a pointing flown only while the height it is aimed with is known ------------
+
+
+def _known(windows: list[list[float]]):
+    """``known_s`` giving each pointing its own row of ``windows``."""
+
+    def known_s(points: np.ndarray) -> np.ndarray:
+        return np.array(windows, np.float64)[: len(points)]
+
+    return known_s
+
+
+def test_a_pointing_waits_for_its_window_to_open_even_without_limits():
+    # unlimited agility: every pointing when the sensor is free (3 s), unless its window
+    # opens later (5 s); the one after it is taken then too (no dwell without limits)
+    traj = Trajectory(np.array([[8.0, 8.0], [9.0, 8.0]]), np.zeros(2), "demo", {}, None, None,
+                      np.array([[5.0, np.inf], [-np.inf, np.inf]]))  # fmt: skip
+    s = schedule(traj, (16, 16), OrbitGeometry(), "unlimited", sensor=SensorState(3.0))
+    assert s.times.tolist() == [5.0, 5.0]
+    assert s.trajectory.windows.tolist() == [[5.0, math.inf], [-math.inf, math.inf]]
+
+
+@pytest.mark.parametrize("agility", ["unlimited", "slow", "fast"])
+def test_a_pointing_whose_window_never_opens_is_not_flown(agility):
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=40.0)
+    base = np.array([_pixel(500e3, 0.0), _pixel(500e3, 3e3)])
+    traj = Trajectory(
+        base, np.zeros(2), "demo", windows=np.array([[np.inf, np.inf], [0.0, np.inf]])
+    )
+    s = schedule(traj, SHAPE, g, agility)
+    assert s.kept.tolist() == [1]
+
+
+def test_a_slow_sensor_waits_for_the_window_tracking_its_last_target():
+    # slow agility: the first pointing is taken on arrival from nadir (about 50 s); the
+    # second, at the same ground point, would follow 1.1 s later (dwell and settle) but
+    # its window opens at 60 s: it starts exactly then
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=40.0)
+    base = np.array([_pixel(500e3, 0.0), _pixel(500e3, 0.0)])
+    free = schedule(Trajectory(base, np.zeros(2), "demo"), SHAPE, g, "slow")
+    assert free.times[0] < 55.0 and free.times[1] - free.times[0] == pytest.approx(1.1, abs=1e-6)
+    held = schedule(
+        Trajectory(base, np.zeros(2), "demo", windows=np.array([[-np.inf, np.inf], [60.0, np.inf]])),
+        SHAPE, g, "slow",
+    )  # fmt: skip
+    assert held.times[0] == free.times[0] and held.times[1] == 60.0
+
+
+def test_a_pointing_that_cannot_end_before_its_window_closes_is_dropped():
+    # slow: a pointing dwells 0.1 s; a window closing 0.05 s after the sensor could
+    # start leaves too little time, one closing 0.2 s after enough
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=40.0)
+    base = np.array([_pixel(500e3, 0.0)])
+    start = schedule(Trajectory(base, np.zeros(1), "demo"), SHAPE, g, "slow").times[0]
+    for until, kept in ((start + 0.05, []), (start + 0.2, [0])):
+        traj = Trajectory(base, np.zeros(1), "demo", windows=np.array([[-np.inf, until]]))
+        assert schedule(traj, SHAPE, g, "slow").kept.tolist() == kept
+
+
+def test_bad_windows_are_refused_in_one_line():
+    with pytest.raises(InvalidParameterError, match=r"windows: expected \(1, 2\)"):
+        Trajectory(np.zeros((1, 2)), np.zeros(1), "demo", windows=np.zeros((1, 3)))
+    with pytest.raises(InvalidParameterError, match="windows: .* not NaN"):
+        Trajectory(np.zeros((1, 2)), np.zeros(1), "demo", windows=np.array([[np.nan, 1.0]]))
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, known_s=_known([[5.0, 4.0]]))
+    with pytest.raises(InvalidParameterError, match="known_s: a window ends before it starts"):
+        aim.windows(np.zeros((1, 2)))
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, known_s=_known([[5.0, 6.0, 7.0]]))
+    with pytest.raises(InvalidParameterError, match=r"known_s: expected \(1, 2\) windows"):
+        aim.windows(np.zeros((1, 2)))
+    with pytest.raises(InvalidParameterError, match="known_s: expected a callable"):
+        ParallaxAim(G, SHAPE, _aim().heights_m, known_s=3.0)
+
+
+def test_a_pointing_on_no_plume_waits_with_its_neighbour_within_fill_px_only():
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, fill_px=2.0,
+                      known_s=_known([[20.0, 30.0], [np.nan, np.nan], [np.nan, np.nan]]))  # fmt: skip
+    w = aim.windows(np.array([[10.0, 10.0], [11.5, 10.0], [12.0, 10.0]]))
+    # 1.5 px away: its neighbour's window; 2 px: not strictly nearer than fill_px, any time
+    assert w.tolist() == [[20.0, 30.0], [20.0, 30.0], [-math.inf, math.inf]]
+    assert ParallaxAim(G, SHAPE, _aim().heights_m).windows(np.zeros((1, 2))) is None
+
+
+def test_a_held_pointing_is_aimed_for_the_time_its_window_opens():
+    # the plan is ready at 40 s, but the 10 km top's height is known only from 70.8 s,
+    # when the nadir is under its true position: the NFOV (no limits) waits, and then
+    # looks straight down at it, ~11.5 km behind where the look-ahead saw it (the vector
+    # method), not where it would have aimed at 40 s
+    t = 500e3 / G.ground_speed
+    g = OrbitGeometry(altitude_m=H_SC, look_ahead_m=500e3, wfov_gsd_m=GSD, start_s=40.0)
+    base = np.array([_pixel(500e3, 0.0), _pixel(500e3, 3e3)])
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, known_s=_known([[t, np.inf], [np.inf, np.inf]]))
+    s = schedule_on_prediction(Trajectory(base, np.zeros(2), "demo"), SHAPE, g, "unlimited",
+                               None, aim=aim)  # fmt: skip
+    assert s.kept.tolist() == [0] and s.times.tolist() == [t]
+    want_a, _ = _vector_aim(500e3, 0.0, t)
+    assert s.trajectory.points[0, 1] == pytest.approx(base[0, 1] - (want_a - 500e3) / GSD, abs=1e-4)
+    assert 380 < s.trajectory.points[0, 1] - base[0, 1] < 387
+    assert s.trajectory.params["parallax_residual_px"] < 1e-9

@@ -41,6 +41,11 @@ class Trajectory:
         corrected for parallax (:class:`~dyntarget.schedule.ParallaxAim`). The NFOV slews
         to that top and tracks it after observing it, not the ground behind it
         (:func:`~dyntarget.schedule.schedule`). ``None`` or 0: the ground.
+    windows : numpy.ndarray or None
+        ``(n, 2)`` seconds after the WFOV acquisition: each pointing may start no earlier
+        than its first value and must end by its second (``inf``, ``inf``: never), on top
+        of its visibility window; e.g. only once the plume-top height it is aimed with is
+        known (:class:`~dyntarget.schedule.ParallaxAim` ``known_s``). ``None``: any time.
     """
 
     points: np.ndarray
@@ -52,6 +57,8 @@ class Trajectory:
     :func:`dyntarget.schedule.schedule`; ``None`` for an untimed plan)."""
     heights: np.ndarray | None = None
     """Height of what each pointing is aimed at, metres (``None``: the ground)."""
+    windows: np.ndarray | None = None
+    """When each pointing may be observed, seconds (``None``: any time)."""
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)
@@ -78,6 +85,15 @@ class Trajectory:
                 )
             heights.setflags(write=False)
             object.__setattr__(self, "heights", heights)
+        if self.windows is not None:
+            windows = np.asarray(self.windows, dtype=np.float64)
+            if windows.shape != (len(pts), 2) or np.isnan(windows).any():
+                raise InvalidParameterError(
+                    f"windows: expected ({len(pts)}, 2) seconds (from, until), not NaN, "
+                    f"got shape {windows.shape}"
+                )
+            windows.setflags(write=False)
+            object.__setattr__(self, "windows", windows)
         if not np.isfinite(pts).all():
             raise InvalidParameterError("points: trajectory holds NaN or infinite coordinates")
         pts.setflags(write=False)
@@ -117,14 +133,21 @@ class Trajectory:
         Returns
         -------
         Trajectory
-            A new trajectory with the kept points, parts, times and heights (planner and
-            params unchanged).
+            A new trajectory with the kept points, parts, times, heights and windows
+            (planner and params unchanged).
         """
         keep = ~np.asarray(drop, bool)
         times = self.times[keep] if self.times is not None else None
         heights = self.heights[keep] if self.heights is not None else None
+        windows = self.windows[keep] if self.windows is not None else None
         return Trajectory(
-            self.points[keep], self.part[keep], self.planner, self.params, times, heights
+            self.points[keep],
+            self.part[keep],
+            self.planner,
+            self.params,
+            times,
+            heights,
+            windows,
         )
 
     @property

@@ -523,6 +523,30 @@ def test_a_plume_lost_by_the_second_relook_keeps_the_estimate_of_its_first():
     assert abs(lost[0].height_m - truth) <= 400.0
 
 
+@pytest.mark.parametrize(
+    ("prior", "source", "stages", "ready", "want"),
+    [
+        (5000.0, "none", [], math.inf, (-math.inf, math.inf)),  # the prior: always
+        (None, "estimated", [(12.0, 8e3), (18.0, 9e3)], 20.0, (12.0, math.inf)),
+        (None, "estimated", [], 20.0, (20.0, math.inf)),  # no estimate on the way
+        (None, "none", [(12.0, 8e3)], 20.0, (12.0, 20.0)),  # the final fit rejected
+        (None, "none", [], math.inf, (math.inf, math.inf)),  # never measured
+        (None, "none", [], 20.0, (math.inf, math.inf)),  # decided at 20 s: no height
+    ],
+)
+def test_a_plumes_height_is_known_while_height_at_gives_one(prior, source, stages, ready, want):
+    tr = _tracker(prior)
+    tr.plumes.append(Plume(1, 0, 0.0, np.array([10]), np.array([10]), source=source,
+                           height_m=9e3 if source == "estimated" else prior,
+                           ready_s=ready, stages=stages))  # fmt: skip
+    assert tr.known_window(1) == want
+    assert tr.known_window(0) == tr.known_window(2) == (-math.inf, math.inf)  # on no plume
+    # the window is where height_at gives a height (checked on a grid of times)
+    lo, hi = want
+    for t in np.arange(0.0, 40.0, 0.5):
+        assert math.isfinite(tr.height_at(1, float(t))) == (lo <= t < hi)
+
+
 def test_the_first_relook_gives_an_estimate_aimed_with_until_the_final_one():
     _where, tr = _tall_and_low(256)
     for p in tr.plumes:

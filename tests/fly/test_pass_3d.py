@@ -219,3 +219,20 @@ def test_a_3d_pass_predicts_from_two_looks():
                                             predict="two-looks"))  # fmt: skip
     assert r.totals()["utility"] > 0 and r.totals()["frames_dropped"] == 0
     assert any("predict: " in rec.path for rec in r.records)
+
+
+def test_a_plume_whose_height_was_not_measured_is_not_flown_without_a_prior():
+    # a re-look 1 km nearer than the first look gives a baseline far too short (the fit's
+    # sigma exceeds the 1.5 km gate): no height. Uncorrected, its pointings would look
+    # > 140 px from the top (test above: `off` flies ~330 pointings and meets nothing), so
+    # none is flown; with a prior the same pointings fly and meet the plume.
+    world = _world()
+    base = PassConfig(agility="fast", compute_budget_s=0.05, parallax="estimated",
+                      relook_km=(499.0,))  # fmt: skip
+    none = fly_pass(world, None, base)
+    (e,) = none.heights
+    assert e.height_source == "none" and e.reason.startswith("too uncertain")
+    assert none.totals()["pointings_flown"] == 0
+    prior = fly_pass(world, None, replace(base, plume_height_m=TOP_M))
+    assert prior.heights[0].height_source == "prior"
+    assert prior.totals()["pointings_flown"] > 100 and prior.totals()["plumes_observed"] == 1

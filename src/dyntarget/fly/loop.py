@@ -52,7 +52,9 @@ Model (documented in ``docs/onboard.md``, section "Flying a pass"):
   is taken, and a late frame is the look from the nadir at its own time, ``t_k`` staying
   its reference for the schedule). The schedule is decided once, at the
   frame's plan time, with the aim each pointing will have when flown (the estimate
-  from when it is usable, the prior before); a flight system would re-plan then.
+  from when it is usable, the prior before; without a prior, a pointing waits for its
+  plume's estimate and is not flown at a plume that has none); a flight system would
+  re-plan then.
 * **Prediction.** ``predict`` asks the predict stage's entry point
   (:func:`dyntarget.predict.plume_motion`) for the motion, and plans once on the
   frame's segmentation carried to the lead (:func:`dyntarget.schedule.lead_s`).
@@ -450,7 +452,9 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
 
     Each pointing's height: ``"prior"``, the prior; ``"estimated"``, its plume's estimate
     from when it is usable (:meth:`~dyntarget.predict.relooks.HeightTracker.height_at`), the
-    prior before (NaN without one: not corrected); ``"true"``, the true top height, at the
+    prior before; without a prior, a pointing on a tracked plume is flown only while its
+    plume's height is known (:meth:`~dyntarget.predict.relooks.HeightTracker.known_window`:
+    held until the estimate is usable, never where there is none); ``"true"``, the true top height, at the
     pointing's time, of the truth's plume whose top the look-ahead saw there (of the
     plumes with a height, the highest whose true position under the pointing, seen from
     the look-ahead at the acquisition, holds it).
@@ -472,27 +476,44 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
             assert tracker is not None
             if ctx.mode == "prior" or pids is None:
                 return np.full(len(pts), tracker.height_at(0, t_k), np.float64)
-            rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
-            cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
-            inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
-            pid = np.zeros(len(pts), np.int64)
-            pid[inside] = pids[rows[inside], cols[inside]]
             at = t_look if look else None
             return np.array(
                 [
                     tracker.height_at(int(i), t_k + float(t), None if at is None else at)
-                    for i, t in zip(pid, ts, strict=True)
+                    for i, t in zip(plume_ids(pts), ts, strict=True)
                 ],
                 np.float64,
             )
 
         return heights_m
 
+    def plume_ids(pts: np.ndarray) -> np.ndarray:
+        """The tracked plume under each pointing (0: none), by the frame's plume-id map."""
+        assert pids is not None
+        rows = np.floor(pts[:, 1] + 0.5).astype(np.int64)
+        cols = np.floor(pts[:, 0] + 0.5).astype(np.int64)
+        inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+        pid = np.zeros(len(pts), np.int64)
+        pid[inside] = pids[rows[inside], cols[inside]]
+        return pid
+
+    def known_s(points: np.ndarray) -> np.ndarray:
+        """When each pointing's plume height is known, seconds after ``t_k`` (NaN: on no
+        tracked plume)."""
+        assert tracker is not None
+        pid = plume_ids(np.asarray(points, np.float64).reshape(-1, 2))
+        out = np.full((len(pid), 2), np.nan)
+        for j in np.flatnonzero(pid > 0):
+            out[j] = tracker.known_window(int(pid[j]))
+        return out - t_k
+
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
     _, spacing = ctx.config.pipeline.plan.resolved(shape)  # a plume's pointings lie this close
+    held = ctx.mode == "estimated" and pids is not None and tracker is not None
     return ParallaxAim(
         frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k,
         fill_px=2.0 * spacing,
+        known_s=known_s if held and tracker is not None and tracker.prior_m is None else None,
     )  # fmt: skip
 
 

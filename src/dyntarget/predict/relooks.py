@@ -1228,7 +1228,8 @@ class HeightTracker:
             self.log(
                 f"plume {p.pid} (frame {p.frame}): no height estimated: {reason}; "
                 + (f"using the prior {self.prior_m:g} m" if self.prior_m is not None else
-                   "its pointings are not corrected")
+                   "its pointings are not flown (no height to aim with; a prior, "
+                   "--plume-height-km, would fly them)")
             )  # fmt: skip
 
     # -- what the aim reads ----------------------------------------------------------
@@ -1267,6 +1268,55 @@ class HeightTracker:
             return p.height_m
         known = [h for ready, h in p.stages if ready <= t]  # the estimates made on the way
         return known[-1] if known else prior
+
+    def known_window(self, pid: int) -> tuple[float, float]:
+        """When plume ``pid`` is aimed with a height (:meth:`height_at` not NaN), pass seconds.
+
+        With a prior every plume is: ``(-inf, inf)``. Without one, from its first estimate
+        made on the way (or its final one) until its final fit is rejected, if it is;
+        ``(inf, inf)`` for a plume with no estimate (yet: a plume measured again on a later
+        frame gets its window then). Pointings at the plume are flown only inside it
+        (:class:`~dyntarget.schedule.ParallaxAim` ``known_s``): uncorrected, they would
+        look kilometres from its top.
+
+        Parameters
+        ----------
+        pid : int
+            The plume (1-based; 0 or unknown: no plume, ``(-inf, inf)``: its pointings are
+            not held).
+
+        Returns
+        -------
+        tuple of float
+            ``(from, until)``, pass seconds.
+
+        Examples
+        --------
+        A plume given a two-look estimate at 12 s and its final one at 20 s is aimed with
+        a height from 12 s on; had its final fit been rejected, only until 20 s.
+
+        >>> from dyntarget.schedule import OrbitGeometry, get_agility
+        >>> where = Geometry3D(OrbitGeometry(wfov_gsd_m=32.0), (4096, 64), 64, 4032, 4)
+        >>> tracker = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+        ...                         measure=True, log=print)
+        >>> p = Plume(1, 0, 0.0, np.zeros(1, np.int64), np.zeros(1, np.int64),
+        ...           height_m=9e3, source="estimated", ready_s=20.0, stages=[(12.0, 8e3)])
+        >>> tracker.plumes.append(p)
+        >>> tracker.known_window(1), tracker.known_window(0)
+        ((12.0, inf), (-inf, inf))
+        >>> p.source = "none"
+        >>> tracker.known_window(1)
+        (12.0, 20.0)
+        """
+        if self.prior_m is not None or pid <= 0 or pid > len(self.plumes):
+            return -math.inf, math.inf
+        p = self.plumes[pid - 1]
+        final = p.source == "estimated" and p.height_m is not None
+        start = min([ready for ready, _ in p.stages] + ([p.ready_s] if final else []),
+                    default=math.inf)  # fmt: skip
+        if not math.isfinite(start):
+            return math.inf, math.inf
+        return start, math.inf if final else max(p.ready_s, start)
 
     def estimates(self, true_height: Callable[[Plume], float | None]) -> tuple[HeightEstimate, ...]:
         """Every tracked plume's estimate (:class:`HeightEstimate`), in the order first seen.

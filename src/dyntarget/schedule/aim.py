@@ -148,6 +148,15 @@ class ParallaxAim:
         none takes another's. Without it, such a pointing stays where the look-ahead saw
         the plume, kilometres from its corrected neighbours, and the NFOV slews there and
         back.
+    known_s : callable or None
+        ``known_s(points) -> (N, 2)``: when the height each pointing (frame pixels as
+        planned) is aimed with is known, ``(from, until)`` seconds after the acquisition
+        (``inf``, ``inf``: never; NaN: the pointing is on no plume of its own, and takes
+        the window of the nearest pointing within ``fill_px`` that has one, else any
+        time). The schedule flies each pointing only inside its window
+        (:meth:`windows`): not before its plume's height is measured, so that no pointing
+        flies uncorrected, kilometres from the top, while the estimate is on its way.
+        ``None`` (default): any time.
 
     Examples
     --------
@@ -181,6 +190,7 @@ class ParallaxAim:
     look_heights_m: HeightField | None = None
     look_s: float = 0.0
     fill_px: float = 0.0
+    known_s: Callable[[np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         for name, what in (("fill_px", "WFOV pixels >= 0"),
@@ -193,9 +203,9 @@ class ParallaxAim:
                 f"geometry: expected an OrbitGeometry, got {type(self.geometry).__name__}"
             )
         object.__setattr__(self, "frame_shape", _shape(self.frame_shape))
-        for name in ("heights_m", "look_heights_m"):
+        for name in ("heights_m", "look_heights_m", "known_s"):
             f = getattr(self, name)
-            if not callable(f) and not (name == "look_heights_m" and f is None):
+            if not callable(f) and not (name != "heights_m" and f is None):
                 raise InvalidParameterError(
                     f"{name}: expected a callable (points, t_s) -> heights, got {type(f).__name__}"
                 )
@@ -277,6 +287,64 @@ class ParallaxAim:
         """
         return self.move(points, t_s)[0]
 
+    def windows(self, points: npt.ArrayLike) -> np.ndarray | None:
+        """When each pointing may be flown: while the height it is aimed with is known.
+
+        Parameters
+        ----------
+        points : array_like
+            ``(N, 2)`` pointings ``(x, y)``, frame pixels as planned.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``(N, 2)`` float64 ``(from, until)``, seconds after the acquisition
+            (:attr:`dyntarget.trajectory.Trajectory.windows`); ``None`` without
+            ``known_s``.
+
+        Raises
+        ------
+        dyntarget.errors.InvalidParameterError
+            For non-finite points, or ``known_s`` giving the wrong shape or a window that
+            ends before it starts.
+
+        Examples
+        --------
+        Two pointings on a plume whose height is known from 20 s, and one on no plume of
+        its own: 1 px from the first (it waits with it), or 10 px away (any time).
+
+        >>> g = OrbitGeometry()
+        >>> def known(p):
+        ...     return np.where(p[:, :1] < 5, [[20.0, np.inf]], np.nan)
+        >>> aim = ParallaxAim(g, (32, 32), lambda p, t: np.full(len(p), 5e3), fill_px=4.0,
+        ...                   known_s=known)
+        >>> aim.windows(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [11.0, 0.0]])).tolist()
+        [[20.0, inf], [20.0, inf], [20.0, inf], [-inf, inf]]
+        """
+        if self.known_s is None:
+            return None
+        pts = np.asarray(points, np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2 or not np.isfinite(pts).all():
+            raise InvalidParameterError(
+                f"points: expected an (N, 2) array of finite (x, y) pixels, got shape {pts.shape}"
+            )
+        w = np.array(self.known_s(pts), np.float64)
+        if w.shape != (len(pts), 2):
+            raise InvalidParameterError(
+                f"known_s: expected ({len(pts)}, 2) windows (one per pointing), got shape {w.shape}"
+            )
+        own = ~np.isnan(w).any(axis=1)
+        if np.any(w[own, 1] < w[own, 0]):
+            bad = w[own][w[own, 1] < w[own, 0]][0].tolist()
+            raise InvalidParameterError(f"known_s: a window ends before it starts: {bad}")
+        if self.fill_px > 0 and own.any() and not own.all():
+            src = _nearest(pts, own, self.fill_px)
+            got = src >= 0
+            w[np.flatnonzero(~own)[got]] = w[src[got]]
+            own[np.flatnonzero(~own)[got]] = True
+        w[~own] = (-np.inf, np.inf)
+        return w
+
     def move(self, points: npt.ArrayLike, t_s: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`shift`, and the height each moved pointing is aimed at.
 
@@ -355,16 +423,22 @@ def _fill(
     pts: np.ndarray, h: np.ndarray, h_look: np.ndarray, on: np.ndarray, radius: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heights with each pointing off ``on`` given its nearest ``on`` neighbour's within ``radius``."""
+    off = np.flatnonzero(~on)
+    src = _nearest(pts, on, radius)
+    got = src >= 0
+    h, h_look, on = h.copy(), h_look.copy(), on.copy()
+    h[off[got]], h_look[off[got]], on[off[got]] = h[src[got]], h_look[src[got]], True
+    return h, h_look, on
+
+
+def _nearest(pts: np.ndarray, on: np.ndarray, radius: float) -> np.ndarray:
+    """For each pointing off ``on``, the index of its nearest ``on`` pointing strictly
+    within ``radius`` pixels (-1: none)."""
     from scipy.spatial import cKDTree
 
-    off = np.flatnonzero(~on)
     have = np.flatnonzero(on)
-    dist, near = cKDTree(pts[have]).query(pts[off], distance_upper_bound=radius)
-    got = np.isfinite(dist)
-    src = have[near[got]]
-    h, h_look, on = h.copy(), h_look.copy(), on.copy()
-    h[off[got]], h_look[off[got]], on[off[got]] = h[src], h_look[src], True
-    return h, h_look, on
+    dist, near = cKDTree(pts[have]).query(pts[~on], distance_upper_bound=radius)
+    return np.where(np.isfinite(dist), have[np.minimum(near, len(have) - 1)], -1)
 
 
 def _height(value: float) -> float:

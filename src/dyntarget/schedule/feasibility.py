@@ -153,8 +153,8 @@ class Timer:
             Earliest observation start per target, seconds (slew and settle from the
             current target, and not before ``t_in``).
         """
-        if self.agility.unlimited:
-            return np.full(np.shape(along), self.t)
+        if self.agility.unlimited:  # no slews: when the sensor is free (and the target visible)
+            return np.maximum(np.full(np.shape(along), self.t), t_in)
         ta = np.full(np.shape(along), self.t)
         for _ in range(4):  # the geometry changes during the slew: fixed-point iteration
             when = np.maximum(ta, t_in)
@@ -190,7 +190,7 @@ class Timer:
             Earliest observation start, seconds.
         """
         if self.agility.unlimited:
-            return float(self.t)
+            return max(float(self.t), t_in)
         ta = float(self.t)
         for _ in range(4):
             when = max(ta, t_in)
@@ -248,7 +248,9 @@ def schedule(
     at the time it was aimed for (its ``times``), meets the ground at its point and the
     top that high on the way (:func:`~dyntarget.schedule.kinematics.under_sight`). The
     sensor slews between those tops and tracks each after observing it (:class:`Timer`);
-    their visibility windows are their ground points'.
+    their visibility windows are their ground points'. A trajectory with ``windows``
+    takes each pointing only inside its own window as well (it waits for its start,
+    tracking what it observed last).
 
     Pointings are screened :data:`CHUNK` at a time: while pointings are skipped the
     sensor's state does not change, so the first pointing of a chunk that can be
@@ -291,6 +293,11 @@ def schedule(
         )
     along, cross = geometry.ground(trajectory.points, shape)
     t_in, t_out = visibility_windows(geometry, agility, along, cross)
+    visible = t_out[t_in <= t_out]  # the field of regard's, whatever the trajectory allows
+    if trajectory.windows is not None:  # and only when the trajectory allows each
+        t_in = np.maximum(t_in, trajectory.windows[:, 0])
+        t_out = np.minimum(t_out, trajectory.windows[:, 1])
+        t_out[np.isposinf(t_in)] = -np.inf  # never: not even without limits
     order = np.argsort(t_out, kind="stable") if reorder else np.arange(len(trajectory))
     limit = math.inf if budget_s is None else geometry.start_s + budget_s
     timer = Timer(geometry, agility)
@@ -319,8 +326,8 @@ def schedule(
         {**trajectory.params, "agility": agility.name},
         np.asarray(times, np.float64),
         None if heights is None else heights[kept_idx],
+        None if trajectory.windows is None else trajectory.windows[kept_idx],
     )
-    visible = t_out[t_in <= t_out]
     return Schedule(
         trajectory=keep_traj,
         times=np.asarray(times, np.float64),

@@ -217,7 +217,9 @@ def iterate_on_prediction(
     aim : dyntarget.schedule.ParallaxAim or None
         Also move every pointing by ``aim.shift`` of where it aims (the planned point
         plus the prediction's move) at its time. The first round uses ``lead_s``
-        (without a prediction ``0``, the acquisition: no move); a pointing never kept
+        (without a prediction ``0``, the acquisition: no move), or the start of the
+        pointing's window (:meth:`~dyntarget.schedule.ParallaxAim.windows`) if later;
+        every round flies each pointing only inside its window. A pointing never kept
         keeps its estimate (the times its neighbours in the plan are flown). Moving a
         pointing can change which pointings fit, and in which order: when the rounds do not
         settle, the last round's selection is settled alone, flown in its order by
@@ -299,6 +301,11 @@ def _iterate_with_aim(
         raise InvalidParameterError(f"aim: expected a ParallaxAim, got {type(aim).__name__}")
     base = trajectory.points
     lead = 0.0 if prediction is None else prediction.lead_s
+    windows = aim.windows(base)  # when each pointing's height is known (None: any time)
+    start = np.full(len(trajectory), lead)  # the first estimate of each pointing's time:
+    if windows is not None:  # not before it may be flown
+        known = np.isfinite(windows[:, 0])
+        start[known] = np.maximum(start[known], windows[known, 0])
 
     def target(points: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where pointings planned at ``points`` must aim when flown at ``t``, and the
@@ -321,7 +328,7 @@ def _iterate_with_aim(
             sched = fly(
                 Trajectory(  # aimed for ``times``: the tops the NFOV slews between
                     moved, trajectory.part[idx], trajectory.planner, dict(trajectory.params),
-                    times, heights,
+                    times, heights, None if windows is None else windows[idx],
                 )
             )  # fmt: skip
             used = times[sched.kept]
@@ -337,10 +344,10 @@ def _iterate_with_aim(
                 order = np.argsort(sched.kept)
                 dropped = np.setdiff1d(np.arange(len(times)), sched.kept)
                 times[dropped] = np.interp(dropped, sched.kept[order], sched.times[order])
+                if windows is not None:  # not before they may be flown
+                    times[dropped] = np.maximum(times[dropped], start[idx][dropped])
 
-    first = rounds(
-        np.arange(len(trajectory)), np.full(len(trajectory), lead), schedule, shrink=False
-    )
+    first = rounds(np.arange(len(trajectory)), start, schedule, shrink=False)
     moved, sched, used, iterations = first.moved, first.schedule, first.used, first.iterations
     if first.change > tolerance_s and len(sched.kept):
         # the rounds cycle between selections (moving the pointings changes which fit, and
