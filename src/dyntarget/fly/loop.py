@@ -454,10 +454,10 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
     from when it is usable (:meth:`~dyntarget.predict.relooks.HeightTracker.height_at`), the
     prior before; without a prior, a pointing on a tracked plume is flown only while its
     plume's height is known (:meth:`~dyntarget.predict.relooks.HeightTracker.known_window`:
-    held until the estimate is usable, never where there is none); ``"true"``, the true top height, at the
-    pointing's time, of the truth's plume whose top the look-ahead saw there (of the
-    plumes with a height, the highest whose true position under the pointing, seen from
-    the look-ahead at the acquisition, holds it).
+    held until the estimate is usable, never where there is none); ``"true"``, the true
+    top height, at the pointing's time, of the truth's plume whose top the look-ahead saw
+    there (of the plumes with a height, the highest whose true position under the
+    pointing, seen from the look-ahead at the acquisition, holds it).
     """
     if ctx.where is None or ctx.mode == "off":
         return None
@@ -510,10 +510,10 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
     _, spacing = ctx.config.pipeline.plan.resolved(shape)  # a plume's pointings lie this close
     held = ctx.mode == "estimated" and pids is not None and tracker is not None
+    held = held and tracker is not None and tracker.prior_m is None  # a prior: none waits
     return ParallaxAim(
         frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k,
-        fill_px=2.0 * spacing,
-        known_s=known_s if held and tracker is not None and tracker.prior_m is None else None,
+        fill_px=2.0 * spacing, known_s=known_s if held else None,
     )  # fmt: skip
 
 

@@ -333,7 +333,7 @@ class ParallaxAim:
             raise InvalidParameterError(
                 f"known_s: expected ({len(pts)}, 2) windows (one per pointing), got shape {w.shape}"
             )
-        own = ~np.isnan(w).any(axis=1)
+        own = np.asarray(~np.isnan(w).any(axis=1))
         if np.any(w[own, 1] < w[own, 0]):
             bad = w[own][w[own, 1] < w[own, 0]][0].tolist()
             raise InvalidParameterError(f"known_s: a window ends before it starts: {bad}")

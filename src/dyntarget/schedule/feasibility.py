@@ -154,7 +154,8 @@ class Timer:
             current target, and not before ``t_in``).
         """
         if self.agility.unlimited:  # no slews: when the sensor is free (and the target visible)
-            return np.maximum(np.full(np.shape(along), self.t), t_in)
+            free: np.ndarray = np.maximum(np.full(np.shape(along), self.t), t_in)
+            return free
         ta = np.full(np.shape(along), self.t)
         for _ in range(4):  # the geometry changes during the slew: fixed-point iteration
             when = np.maximum(ta, t_in)
