@@ -90,7 +90,8 @@ Model (what is and is not modelled):
   time + the measured compute time of the measurement and fit: the first re-look gives
   a two-look estimate (:attr:`Plume.stages`), the last the final one (from ``t_e``);
   the NFOV's pointings aim with the latest estimate usable when each is flown, earlier
-  ones with the prior (or not corrected). A plume lost by a later re-look keeps the
+  ones with the prior; without a prior they wait for the estimate
+  (:meth:`HeightTracker.known_window`), and a plume with none is not flown. A plume lost by a later re-look keeps the
   estimate of the looks that saw it. The schedule is decided once at the frame's plan
   time with the aim each pointing will have when flown; a flight system would re-plan
   when an estimate arrives.
