@@ -657,3 +657,30 @@ def test_a_held_pointing_is_aimed_for_the_time_its_window_opens():
     assert s.trajectory.points[0, 1] == pytest.approx(base[0, 1] - (want_a - 500e3) / GSD, abs=1e-4)
     assert 380 < s.trajectory.points[0, 1] - base[0, 1] < 387
     assert s.trajectory.params["parallax_residual_px"] < 1e-9
+
+
+def test_windows_refuse_bad_points_and_name_the_bad_window():
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, known_s=_known([[3.0, 3.0], [5.0, 4.0]]))
+    for bad in (np.array([[np.nan, 1.0]]), np.zeros((1, 3)), np.zeros(2)):
+        with pytest.raises(InvalidParameterError, match=r"points: expected an \(N, 2\) array"):
+            aim.windows(bad)
+    # a window of no length is allowed; the one ending before it starts is named
+    with pytest.raises(InvalidParameterError, match=r"starts: \[5\.0, 4\.0\]"):
+        aim.windows(np.zeros((2, 2)))
+    with pytest.raises(InvalidParameterError, match="heights_m: expected a callable"):
+        ParallaxAim(G, SHAPE, None)
+
+
+def test_windows_are_seconds_even_from_whole_numbers():
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, known_s=lambda p: [[5, 10]] * len(p))
+    w = aim.windows([[1, 2]])
+    assert w.dtype == np.float64 and w.tolist() == [[5.0, 10.0]]
+
+
+def test_a_pointing_on_no_plume_takes_the_window_of_its_nearest_plume_pointing():
+    # two plumes' pointings, known from 20 s and from 40 s; a pointing on neither, 0.5 px
+    # from the second (fill_px 0.9: strictly nearer), waits with the second
+    aim = ParallaxAim(G, SHAPE, _aim().heights_m, fill_px=0.9,
+                      known_s=_known([[20.0, np.inf], [40.0, np.inf], [np.nan, np.nan]]))  # fmt: skip
+    w = aim.windows(np.array([[10.0, 10.0], [12.0, 10.0], [12.5, 10.0]]))
+    assert w.tolist() == [[20.0, math.inf], [40.0, math.inf], [40.0, math.inf]]
