@@ -171,15 +171,22 @@ def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
     assert row in PAGE, row
 
 
-def test_slow_on_eight_strips_of_8_km_frames_is_its_record():
-    got = _record("parallax_long_1024_8_slow.json")["long"]
+@pytest.mark.parametrize(
+    ("record", "mode", "label"),
+    [
+        ("parallax_long_1024_8_slow.json", "estimated", "`slow`"),
+        ("parallax_long_1024_8_slow_far.json", "estimated-far", "`slow`, re-look 400 km"),
+    ],
+)
+def test_slow_on_eight_strips_of_8_km_frames_is_its_record(record, mode, label):
+    got = _record(record)["long"]
     s, rows = got["summary"], got["rows"]
     flat = {r["strip"]: r["utility"] for r in rows if r["mode"] == "flat"}
-    est = [r for r in rows if r["mode"] == "estimated"]
+    est = [r for r in rows if r["mode"] == mode]
     kept = sum(r["utility"] >= 0.9 * flat[r["strip"]] for r in est)
-    lost = s["slow"]["estimated"]["frames_lost_to_relooks"]
+    lost = s["slow"][mode]["frames_lost_to_relooks"]
     row = (
-        f"| `slow` | {_flat(got, 'slow')} | {_cell(s, rows, 'slow', 'estimated', bold=True)} | "
-        f"{kept} of {len(est)} | {lost} of {s['slow']['estimated']['frames']} |"
+        f"| {label} | {_flat(got, 'slow')} | {_cell(s, rows, 'slow', mode, bold=True)} | "
+        f"{kept} of {len(est)} | {lost} of {s['slow'][mode]['frames']} |"
     )
     assert row in PAGE, row
