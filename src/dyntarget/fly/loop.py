@@ -503,14 +503,16 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
         assert tracker is not None
         pid = plume_ids(np.asarray(points, np.float64).reshape(-1, 2))
         out = np.full((len(pid), 2), np.nan)
-        for j in np.flatnonzero(pid > 0):
-            out[j] = tracker.known_window(int(pid[j]))
+        for i in np.unique(pid[pid > 0]):  # one window per plume, not per pointing
+            out[pid == i] = tracker.known_window(int(i))
         return out - t_k
 
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
     _, spacing = ctx.config.pipeline.plan.resolved(shape)  # a plume's pointings lie this close
-    held = ctx.mode == "estimated" and pids is not None and tracker is not None
-    held = held and tracker is not None and tracker.prior_m is None  # a prior: none waits
+    held = (  # with a prior no pointing waits: the prior aims it until the estimate
+        ctx.mode == "estimated" and pids is not None
+        and tracker is not None and tracker.prior_m is None
+    )  # fmt: skip
     return ParallaxAim(
         frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k,
         fill_px=2.0 * spacing, known_s=known_s if held else None,
