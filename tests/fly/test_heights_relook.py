@@ -480,9 +480,10 @@ def test_components_of_one_plume_merge_and_plumes_in_one_window_share_its_relook
     assert abs(a.height_m - h1) <= 250.0 and abs(b.height_m - h2) <= 250.0
 
 
-def _tall_and_low(frame_px, max_rise_mps=0.0):
+def _tall_and_low(frame_px, max_rise_mps=0.0, fit_s=None):
     """A frame holding a 3 km and a 14 km plume side by side, both seen 500 km ahead
-    (searched for as steady tops unless ``max_rise_mps`` says otherwise)."""
+    (searched for as steady tops unless ``max_rise_mps`` says otherwise; each fit taking
+    ``fit_s`` seconds, or its measured time)."""
     g = OrbitGeometry(wfov_gsd_m=GSD)
     where = Geometry3D(g, (20000, 96), frame_px, 0, 4)
     seen = frame_px - 40.0
@@ -490,7 +491,7 @@ def _tall_and_low(frame_px, max_rise_mps=0.0):
     hi = (70.0, _true_row(where, seen, 14000.0), 5, 4, 14000.0)
     tr = HeightTracker(
         where, get_agility("fast"), (400.0, 300.0), None, None, None,
-        measure=True, log=lambda s: None, max_rise_mps=max_rise_mps,
+        measure=True, log=lambda s: None, max_rise_mps=max_rise_mps, fit_s=fit_s,
     )  # fmt: skip
 
     def render(t, top, nadir_hr):
@@ -558,6 +559,22 @@ def test_the_first_relook_gives_an_estimate_aimed_with_until_the_final_one():
         assert math.isnan(tr.height_at(p.pid, first_relook))  # no prior: not corrected yet
         assert tr.height_at(p.pid, 0.5 * (ready1 + second_relook)) == h1
         assert tr.height_at(p.pid, p.ready_s) == p.height_m
+
+
+def test_under_a_fixed_compute_budget_each_fit_takes_the_budget_so_a_pass_repeats():
+    # a pass with --compute-budget-s 0.25 counts 0.25 s per fit, not the fit's measured
+    # time: the two-look estimate is usable 0.25 s after the 400 km re-look, the three-look
+    # one 0.25 s after the 300 km re-look, and the final fit, begun once that one is done,
+    # 0.25 s later still
+    _where, tr = _tall_and_low(256, fit_s=0.25)
+    first_relook, second_relook = sorted(a for a, _ in tr.busy)
+    for p in tr.plumes:
+        assert [ready for ready, _ in p.stages] == [first_relook + 0.25, second_relook + 0.25]
+        assert p.ready_s == second_relook + 0.5
+    _where, again = _tall_and_low(256, fit_s=0.25)
+    assert [(p.stages, p.ready_s, p.height_m) for p in again.plumes] == [
+        (p.stages, p.ready_s, p.height_m) for p in tr.plumes
+    ]
 
 
 def _short_frame(frame_px, logs):

@@ -75,6 +75,20 @@ def test_the_estimated_height_is_the_vents(passes):
     assert t["height_bias_m"] == pytest.approx(e.top_height_m - TOP_M, abs=0.1)
 
 
+def test_under_a_fixed_compute_budget_no_measured_time_enters_the_estimate(passes, monkeypatch):
+    # The same pass with a clock that makes every piece of work look a second long: with
+    # --compute-budget-s, neither when the heights become usable nor where the NFOV aims
+    # may move (before, each estimate's ready time added the fit's measured time)
+    world, result = passes
+    clock = iter(range(10**9))
+    monkeypatch.setattr("time.perf_counter", lambda: float(next(clock)))
+    slow = fly_pass(world, None, PassConfig(agility="fast", compute_budget_s=0.05))
+    assert [h.ready_s for h in slow.heights] == [h.ready_s for h in result["estimated"].heights]
+    assert slow.heights == result["estimated"].heights
+    assert slow.flown == result["estimated"].flown
+    assert slow.totals() == result["estimated"].totals()
+
+
 @pytest.mark.parametrize("wind_from_deg", [180.0, 0.0])
 def test_an_along_track_wind_does_not_bias_the_envelopes_height(wind_from_deg):
     # The wind blows north or south (along track) at 10 m/s: the

@@ -478,7 +478,8 @@ def _add_pass_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--compute-budget-s",
         type=o.positive_seconds,
-        help="fixed compute time per frame instead of the measured one (deterministic)",
+        help="fixed compute time per frame (and per height fit) instead of the measured one "
+        "(deterministic)",
     )
     o.DEADLINE_S.add(
         p, help="seconds from acquisition to plan per frame; fallbacks apply, late frames drop"

@@ -511,6 +511,10 @@ class HeightTracker:
     max_rise_mps : float
         Where a rise is fitted, the fastest rise of a top, m/s, the re-looks' windows and
         searches allow for (0, the default: a steady top's search).
+    fit_s : float or None
+        Seconds a height fit takes before its estimate is usable (a pass with a fixed
+        compute budget passes its budget, so that the pass is reproducible); ``None``, the
+        default: the fit's measured compute time.
     """
 
     def __init__(
@@ -526,9 +530,10 @@ class HeightTracker:
         log: Callable[[str], None],
         catch_up: bool = True,
         max_rise_mps: float = 0.0,
+        fit_s: float | None = None,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
-        self.measure, self.log = measure, log
+        self.measure, self.log, self.fit_s = measure, log, fit_s
         g, frame_m = where.geometry, where.frame_px * where.geometry.wfov_gsd_m
         step = _pitch_deg(g, g.look_ahead_m, g.look_ahead_m - frame_m)
         late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
@@ -956,7 +961,7 @@ class HeightTracker:
                     guess[p.pid] = fit.height_m
                     fitted.add(p.pid)
                     if fit.height_sigma_m <= MAX_SIGMA_M:  # usable from now on
-                        ready = at + time.perf_counter() - t0
+                        ready = at + self._fit_time(t0)
                         p.stages.append((ready, fit.height_m))
         for p in plumes:
             self._conclude(p, looks[p.pid], fits.get(p.pid), failed.get(p.pid), why)
@@ -1006,13 +1011,17 @@ class HeightTracker:
             self._fit(p, looks, fit)
             last = looks[-1].t_s
             known = max(last, p.stages[-1][0]) if p.stages else last
-            p.ready_s = known + time.perf_counter() - t0  # decided (estimate or not)
+            p.ready_s = known + self._fit_time(t0)  # decided (estimate or not)
             if p.source == "estimated" and lost is not None:  # measured on the looks that saw it
                 p.reason = f"{len(looks) - 1} re-look(s) used; {lost}"
         elif lost is not None:
             self._fallback(p, lost)
         else:
             self._fallback(p, f"no re-look taken ({why or 'none asked'})")
+
+    def _fit_time(self, t0: float) -> float:
+        """Seconds the fit begun at ``perf_counter()`` ``t0`` took: ``fit_s`` where given."""
+        return time.perf_counter() - t0 if self.fit_s is None else self.fit_s
 
     def _duration(self, d: float) -> float:
         """Look-ahead seconds of a re-look ``d`` metres ahead (given, or the slew model's)."""
