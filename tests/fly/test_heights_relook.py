@@ -118,6 +118,10 @@ def _flat_strip(tmp_path):
         (["--max-rise-mps", "fast"], "--max-rise-mps"),
         (["--max-rise-mps", "100"], "has no effect with one re-look distance"),
         (["--max-rise-mps", "100", "--relook-km", "400,300", "--no-parallax"], "has no effect"),
+        (["--relook-frames", "0"], "--relook-frames"),
+        (["--relook-frames", "33"], "1..32"),
+        (["--relook-frames", "two"], "--relook-frames"),
+        (["--relook-frames", "2", "--parallax", "true"], "has no effect"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -915,3 +919,96 @@ def test_a_late_frame_is_rendered_aimed_and_measured_from_its_own_time(monkeypat
     for d, full, rec in zip(drawn, leads, kept, strict=True):
         assert d == pytest.approx(full - (rec.acquired_s - r.frames.acquired_s(rec.frame)))
     assert any(d < full for d, full in zip(drawn, leads, strict=True))
+
+
+# -- a re-look taking several frames (a mosaic down the strip) ------------------------------
+def _off_nadir_rad(d_m):
+    """Off-nadir angle of the line of sight to ground d_m ahead (sphere, by hand)."""
+    g = d_m / R
+    return math.atan2(R * math.sin(g), R + H - R * math.cos(g))
+
+
+def _mosaic_pass(relook_frames):
+    # a 2.5 km top seen 500 km ahead in a 128-row frame; its one re-look, 300 km ahead,
+    # searches +-0.8 of an 8.5 km guess (the chain's narrowing re-looks left out, as when
+    # the look-ahead was busy for them): 124 rows moved +- 105, where the top moved ~37
+    where, tr, _ = _synthetic([])
+    y = _true_row(where, 50.0, 2500.0)
+    blob = [(48.0, y, 6, 2, 2500.0)]
+    tr = HeightTracker(
+        where, get_agility("fast"), (300.0,), None, None, None,
+        measure=True, log=lambda s: None, relook_frames=relook_frames,
+    )  # fmt: skip
+    tr._chain = lambda y, t_k, guess: [300e3]
+
+    def render(t, top, nadir_hr):
+        return _blob_mask(where, t, top, blob)
+
+    mask = _blob_mask(where, 0.0, 0, blob)
+    tr.frame(0, 0.0, 0, mask, render, last=False)
+    rows = np.nonzero(mask.any(axis=1))[0]
+    return where, tr, int(rows.max() - rows.min() + 1)
+
+
+def test_a_search_longer_than_a_frame_is_cut_to_it_with_one_frame_per_relook():
+    _, tr, _ = _mosaic_pass(1)
+    (p,) = tr.plumes
+    assert p.source == "none" and "(128 WFOV rows) is too short" in p.reason
+    ((start, end),) = tr.busy
+    assert end - start == pytest.approx(relook_seconds(OrbitGeometry(), get_agility("fast"), 300e3))
+
+
+def test_a_search_longer_than_a_frame_takes_a_mosaic_that_finds_the_plume():
+    # By hand: frames overlap by the envelope's rows and a 6-row margin each side, so each
+    # steps 128 - rows - 12 down the strip; the search's rows (2 x 105 + the envelope's) need
+    # 1 + ceil((215 - 128) / step) = 2 frames. The second costs the pitch step between the
+    # lines of sight to ~296 km and step x 32 m nearer (bang-bang at 20 deg/s^2: 2 sqrt(phi /
+    # a)), a 0.05 s settle and a 0.05 s exposure.
+    _, tr, tall = _mosaic_pass(8)
+    (p,) = tr.plumes
+    assert p.source == "estimated" and abs(p.height_m - 2500.0) <= 150.0
+    ((start, end),) = tr.busy
+    (relook,) = tr.taken
+    step = 128 - tall - 12
+    assert len(relook.frames) == 1 + math.ceil((2 * 105 + tall - 128) / step) == 2
+    phi = math.degrees(_off_nadir_rad(296e3) - _off_nadir_rad(296e3 - step * GSD))
+    step_s = 2.0 * math.sqrt(phi / 20.0) + 0.05 + 0.05
+    (t0, top0, _), (t1, top1, _) = relook.frames
+    assert top1 - top0 == step and t0 == start
+    assert t1 - t0 == pytest.approx(step_s, abs=0.005)
+    base = relook_seconds(OrbitGeometry(), get_agility("fast"), 300e3)
+    assert end - start == pytest.approx(base + step_s, abs=0.005)
+
+
+def test_the_relook_frames_setting_is_recorded_only_where_not_the_default():
+    # summaries of passes flown before the setting existed keep their bytes
+    assert "relook_frames" not in PassConfig().as_dict()
+    assert "relook_frames" not in PassConfig(parallax="estimated").as_dict()
+    assert PassConfig(parallax="estimated", relook_frames=1).as_dict()["relook_frames"] == 1
+    for bad in (0, 33, 2.0, True):
+        with pytest.raises(ValueError, match="relook_frames"):
+            PassConfig(relook_frames=bad)
+
+
+def test_a_plume_found_in_a_mosaics_later_frame_is_measured_at_that_frames_time():
+    # two frames, 0.4 s apart, 100 rows apart; the envelope shows only in the second, 30 rows
+    # below its top: the look is that frame's (time, top) and the rows moved 100 + 30 - 10
+    from dyntarget.predict.relooks import Relook
+
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 64), 128, 0, 4)
+    tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+                       measure=True, log=print)  # fmt: skip
+    own = np.zeros((128, 64), bool)
+    own[10:16, 20:30] = True
+    weight = np.zeros_like(own)
+    weight[4:22, 14:36] = True
+    empty, second = np.zeros((128, 64)), np.zeros((128, 64))
+    second[30:36, 20:30] = 1.0
+    relook = Relook(5.0, 1.0, 500, frames=[(5.0, 500, empty), (5.4, 600, second)])
+    disp, which, why, at, top = tr._seek(
+        (own, weight), relook, 480, (10, 15), lambda t: [(120.0, 100.0)]
+    )
+    assert (which, why, at, top) == (0, "", 5.4, 600)
+    assert disp.dy_px == pytest.approx(30 - 10, abs=0.05) and abs(disp.dx_px) < 0.05
+    # rows moved: the frame's offset from the first look's (600 - 480) and 20 in it
+    assert 600 - 480 + disp.dy_px == pytest.approx(140.0, abs=0.05)

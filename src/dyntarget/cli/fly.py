@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from dyntarget import defaults
 from dyntarget.cli import options as o
 from dyntarget.cli._common import EXIT_OK, log, plan_config, writes
 from dyntarget.errors import DynTargetError, InvalidParameterError
@@ -150,6 +151,12 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
                 f"--max-rise-mps: has no effect with --parallax {mode} (no height is measured)"
             )
         kw["max_rise_mps"] = args.max_rise_mps
+    if args.relook_frames is not None:
+        if mode in ("off", "prior", "true"):
+            raise InvalidParameterError(
+                f"--relook-frames: has no effect with --parallax {mode} (no re-look is taken)"
+            )
+        kw["relook_frames"] = args.relook_frames
     return kw
 
 
@@ -536,6 +543,14 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         "a plume top the re-looks allow for, m/s (default 0: a steady top; e.g. 100 for a "
         "young eruption column: its re-look windows then reach where a risen top would be, "
         "at the expense of where a taller steady one would)",
+    )
+    par.add_argument(
+        "--relook-frames",
+        type=o.int_range(1, defaults.MAX_RELOOK_FRAMES, "frames"),
+        metavar="N",
+        help=f"the most frames one re-look takes, a mosaic down the strip, where its search "
+        f"asks more rows than a frame holds (default {defaults.RELOOK_FRAMES}; 1: one frame, the "
+        "search cut to it); each further frame costs a pitch step, a settle and an exposure",
     )
     par.add_argument(
         "--no-catch-up",

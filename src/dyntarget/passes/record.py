@@ -26,7 +26,7 @@ from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.pipeline import PipelineConfig
 from dyntarget.predict import GROUNDS
-from dyntarget.predict.relooks import RELOOK_KM
+from dyntarget.predict.relooks import RELOOK_FRAMES, RELOOK_KM
 from dyntarget.scene import check_factor
 from dyntarget.schedule import Agility, OrbitGeometry, get_agility
 from dyntarget.trajectory import Trajectory
@@ -46,6 +46,7 @@ PARALLAX_MODES = ("auto", "off", "prior", "true", "estimated")
 MAX_PRIOR_HEIGHT_M = 25_000.0
 """Highest prior plume-top height accepted, metres."""
 MAX_RISE_LIMIT_MPS = 500.0
+MAX_RELOOK_FRAMES = defaults.MAX_RELOOK_FRAMES
 """Fastest plume-top rise the re-looks may be asked to allow for, m/s (a Plinian column's
 gas-thrust region reaches a few hundred m/s; its top rises slower)."""
 
@@ -100,6 +101,9 @@ class PassConfig:
         a plume top, m/s, their windows and searches allow for (0: a steady top's search;
         100 finds the young columns of ``docs/plumes-3d.md``'s rise benchmark, at a cost on
         passes of many steady plumes).
+    relook_frames : the most frames one re-look takes, a mosaic down the strip, where its
+        search asks more rows than one frame holds (1: one frame, its search cut to it;
+        :data:`dyntarget.predict.relooks.RELOOK_FRAMES` by default).
     """
 
     planner: str = "lawnmower-transect"
@@ -124,6 +128,7 @@ class PassConfig:
     relook_s: float | None = None
     catch_up: bool = True
     max_rise_mps: float = 0.0
+    relook_frames: int = RELOOK_FRAMES
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -198,6 +203,11 @@ class PassConfig:
             raise InvalidParameterError(
                 f"max_rise_mps: expected m/s in [0, {MAX_RISE_LIMIT_MPS:g}], got {v!r}"
             )
+        n = self.relook_frames
+        if not (isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= MAX_RELOOK_FRAMES):
+            raise InvalidParameterError(
+                f"relook_frames: expected an integer in 1..{MAX_RELOOK_FRAMES}, got {n!r}"
+            )
 
     def resolved_parallax(self, is_3d: bool) -> str:
         """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
@@ -259,6 +269,8 @@ class PassConfig:
             d["relook_km"] = list(self.relook_km)
         if self.max_rise_mps == 0:  # the default (records as before the setting)
             d.pop("max_rise_mps")
+        if self.relook_frames == RELOOK_FRAMES:  # likewise
+            d.pop("relook_frames")
         return d
 
 

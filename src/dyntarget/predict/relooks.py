@@ -30,7 +30,15 @@ Model (what is and is not modelled):
   A re-look sees a window of the frame's size on the strip, centred where
   the plumes still measured will appear by the heights known so far (each plume's own:
   the prior or guess in the first re-look, its own fit after), clipped to the strip;
-  where they do not fit in one window, where the largest will. No re-look is taken once
+  where they do not fit in one window, where the largest will. Where a plume's search
+  asks more than half a frame either side of its centre (a narrowing re-look not taken,
+  the look-ahead busy, or none that narrows it), the re-look is a mosaic instead: frames
+  enough (at most ``relook_frames``, :data:`RELOOK_FRAMES`) to hold the envelope anywhere
+  in the searches, each further down the strip (nearer the nadir) by the frame less the
+  tallest envelope and two margins, each taken after the last by a pitch step on the
+  slew model, a settle and an exposure (as a frame taken late); the plume is searched
+  for in every frame that can hold it, nearest the search's centre first, and measured
+  at the time of the frame it is found in. No re-look is taken once
   none of the frame's plumes is left to measure. It occupies the look-ahead for ``relook_s`` (the pitch
   change there and back on the agility preset's slew model, two settles and one
   exposure: :func:`relook_seconds`); a regular frame due meanwhile is taken late
@@ -118,11 +126,12 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import cv2
 import numpy as np
 
-from dyntarget import parallax
+from dyntarget import defaults, parallax
 from dyntarget.errors import InvalidParameterError
 from dyntarget.predict.height import Disparity, HeightFit, Look, envelope_disparity, fit_height
 from dyntarget.schedule import Agility, OrbitGeometry
@@ -148,6 +157,9 @@ SPREAD_FITTED = 0.3
 """Relative uncertainty searched over once a plume's own looks have fitted a height."""
 MAX_INSERTED = 3
 """Most re-looks added before an asked one so that each search fits in the frame."""
+RELOOK_FRAMES = defaults.RELOOK_FRAMES
+"""Most frames one re-look takes (a mosaic down the strip) where its search asks more rows
+than one frame holds."""
 RISE_SIGNIFICANCE = 1.5
 """A fitted rise is kept only above this many of its standard deviations (a one-sided
 test at about 93 %): on the heights benchmark, smaller rises fitted to still columns
@@ -280,12 +292,20 @@ class Relook:
         Its window's top strip WFOV row (the window has the frame's size).
     mask : numpy.ndarray or None
         ``(H_f, W)`` plume mask (fraction 0..1) it showed.
+    frames : list of tuple
+        Every frame it took, ``(t_s, top, mask)`` in order: the first is the one above; a
+        mosaic adds frames further down the strip (nearer the nadir), each later.
     """
 
     t_s: float
     duration_s: float
     top: int
     mask: np.ndarray | None = None
+    frames: list[tuple[float, int, np.ndarray | None]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.frames:
+            self.frames = [(self.t_s, self.top, self.mask)]
 
 
 @dataclass
@@ -473,6 +493,9 @@ class Geometry3D:
         return (s0 - s1) / g.wfov_gsd_m
 
 
+Search = tuple[float, float] | None
+"""``(centre, half-width)``: rows a plume's envelope moved, searched (``None``: skipped)."""
+
 Follow = Callable[["Plume", float], "tuple[float, float] | None"]
 """``follow(plume, t) -> (centre, half)``: the search (rows moved since the plume was seen) for a
 top found rising, in a look at pass time ``t`` (``None``: where its guessed height puts it)."""
@@ -515,6 +538,9 @@ class HeightTracker:
         Seconds a height fit takes before its estimate is usable (a pass with a fixed
         compute budget passes its budget, so that the pass is reproducible); ``None``, the
         default: the fit's measured compute time.
+    relook_frames : int
+        Most frames one re-look takes where its search asks more rows than a frame holds
+        (:data:`RELOOK_FRAMES`; 1: one frame, its search cut to it).
     """
 
     def __init__(
@@ -531,9 +557,11 @@ class HeightTracker:
         catch_up: bool = True,
         max_rise_mps: float = 0.0,
         fit_s: float | None = None,
+        relook_frames: int = RELOOK_FRAMES,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log, self.fit_s = measure, log, fit_s
+        self.relook_frames = int(relook_frames)
         g, frame_m = where.geometry, where.frame_px * where.geometry.wfov_gsd_m
         step = _pitch_deg(g, g.look_ahead_m, g.look_ahead_m - frame_m)
         late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
@@ -856,7 +884,7 @@ class HeightTracker:
             if abs(r.t_s - at) > tol:
                 continue
             a, b = self._expected_rows(plumes, t_k, r.t_s, guess, follow)
-            if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.top + self.where.frame_px:
+            if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.frames[-1][1] + self.where.frame_px:
                 return r
         return None
 
@@ -912,6 +940,15 @@ class HeightTracker:
                 return None
             return self._following(float(np.mean(p.rows)), t_k, at, moved[p.pid], prior)
 
+        def steady(p: Plume, at: float) -> tuple[float, float]:  # its first search:
+            # heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
+            spread = SPREAD_FITTED if p.pid in fitted else SPREAD_GUESS
+            return self._search(float(np.mean(p.rows)), t_k, at, guess[p.pid], spread)
+
+        def searches(p: Plume, at: float) -> list[Search]:  # the searches, in turn
+            rise = self._rise_searches(p, t_k, at, guess[p.pid], p.pid in fitted, moved, prior)
+            return [steady(p, at), *rise]
+
         why = ""
         main = max(plumes, key=lambda p: len(p.rows))
         for d in self._chain(float(np.mean(main.rows)), t_k, prior):
@@ -925,33 +962,26 @@ class HeightTracker:
                 why = why or f"already nearer than {d / 1e3:g} km when seen"
                 continue
             shared = self._window_for(alive, t_k, want, guess, dur, follow) or self._take(
-                alive, t_k, want, dur, guess, render, follow
+                alive, t_k, want, dur, guess, render, follow, searches
             )
             if shared is None:
                 why = why or "the look-ahead was busy re-looking at other plumes"
                 continue
-            at, r0, second = shared.t_s, shared.top, shared.mask
-            assert second is not None
             t0 = time.perf_counter()
-            _, ny = w.nadir(at)
             for p in alive:
                 p.relooks.append(shared)
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
-                # search: heights from 0.2 x to 1.8 x the guess (0.7 x to 1.3 x once fitted)
-                spread = SPREAD_FITTED if p.pid in fitted else SPREAD_GUESS
-                searches: list[tuple[float, float] | None]
-                searches = [self._search(cy, t_k, at, guess[p.pid], spread)]
-                if self.rise_mps > 0.0:  # not where a steady top would be: where the rise its
-                    searches += [  # last move implies puts it, else any rise allowed for
-                        self._following(cy, t_k, at, moved.get(p.pid, []), prior),
-                        self._search_risen(cy, t_k, at, guess[p.pid], spread),
-                    ]
-                disp, which, why_not = self._find(first[p.pid], second, r0 - top, searches)
+
+                rows = (int(p.rows.min()) - top, int(p.rows.max()) - top)
+                disp, which, why_not, at, r0 = self._seek(
+                    first[p.pid], shared, top, rows, partial(searches, p)
+                )
                 if disp is None:
                     failed[p.pid] = why_not
                     continue
                 if which > 0:  # found only where a risen top would be: follow it so
                     rising.add(p.pid)
+                _, ny = w.nadir(at)
                 x, y = cx + disp.dx_px, cy + disp.dy_px + (r0 - top)
                 moved.setdefault(p.pid, []).append((at, disp.dy_px + (r0 - top)))
                 looks[p.pid].append(Look(at, x * gsd, -y * gsd, nx * gsd, -ny * gsd, alt, sig))
@@ -965,6 +995,84 @@ class HeightTracker:
                         p.stages.append((ready, fit.height_m))
         for p in plumes:
             self._conclude(p, looks[p.pid], fits.get(p.pid), failed.get(p.pid), why)
+
+    def _rise_searches(
+        self,
+        p: Plume,
+        t_k: float,
+        at: float,
+        guess: float,
+        fitted: bool,
+        moved: dict[int, list[tuple[float, float]]],
+        prior: float,
+    ) -> list[Search]:
+        """Plume ``p``'s searches in a look at ``at`` after the steady top's, where a rise is
+        allowed for (none otherwise): where the rise its last move implies puts it, else
+        anywhere a top rising at up to :attr:`rise_mps` could be."""
+        if self.rise_mps <= 0.0:
+            return []
+        cy, spread = float(np.mean(p.rows)), SPREAD_FITTED if fitted else SPREAD_GUESS
+        return [
+            self._following(cy, t_k, at, moved.get(p.pid, []), prior),
+            self._search_risen(cy, t_k, at, guess, spread),
+        ]
+
+    def _seek(
+        self,
+        first: tuple[np.ndarray, np.ndarray],
+        relook: Relook,
+        top: int,
+        rows: tuple[int, int],
+        searches_at: Callable[[float], list[Search]],
+    ) -> tuple[Disparity | None, int, str, float, int]:
+        """A plume (``first``: its envelope, rows ``rows`` of the frame whose top strip row is
+        ``top``) found in a re-look's frames: the searches ``searches_at(t)`` gives for a
+        frame taken at ``t``, each in turn, in every frame that can hold the envelope
+        somewhere in that search (the part it can hold, nearest the search's centre first).
+
+        Returns the displacement, the search's index, ``""``, and the time and top row of the
+        frame it was found in; or ``None``, -1, why, and the first frame's time and top."""
+        if len(relook.frames) == 1:
+            at, r0, mask = relook.frames[0]
+            assert mask is not None
+            disp, which, why = self._find(first, mask, r0 - top, searches_at(at))
+            return disp, which, why, at, r0
+        hf, (a, b) = self.where.frame_px, rows
+        looked = [(at, r0, mask, searches_at(at)) for at, r0, mask in relook.frames]
+        reason, covered = "", True
+        for i in range(len(looked[0][3])):
+            held: list[tuple[float, float, int, np.ndarray, tuple[float, float]]] = []
+            asked: tuple[float, float] | None = None
+            for at, r0, mask, searches in looked:
+                search = searches[i]
+                if search is None or mask is None:
+                    continue
+                centre, half = search
+                if asked is None:
+                    asked = search
+                # rows moved at which the envelope lies wholly in this frame
+                lo, hi = max(centre - half, r0 - top - a), min(centre + half, r0 - top + hf - 1 - b)
+                if lo <= hi:
+                    part = (0.5 * (lo + hi), 0.5 * (hi - lo) + 2.0)  # a little past, so a peak
+                    held.append((abs(part[0] - centre), at, r0, mask, part))  # on it is seen
+            if asked is not None:
+                first_top, last_top = looked[0][1] - top - a, looked[-1][1] - top + hf - 1 - b
+                covered = (
+                    covered
+                    and first_top <= asked[0] - asked[1]
+                    and (asked[0] + asked[1] <= last_top)
+                )
+            for _, at, r0, mask, part in sorted(held, key=lambda h: h[0]):
+                disp, _, why = self._find(first, mask, r0 - top, [None] * i + [part])
+                if disp is not None:
+                    return disp, i, "", at, r0
+                reason = why
+        if not covered:
+            reason = (
+                f"the re-look's {len(looked)} frames ({hf} WFOV rows each) are too few to find "
+                f"the plume again: its height's uncertainty asks more rows than they hold"
+            )
+        return None, -1, reason, relook.t_s, relook.top
 
     def _find(
         self,
@@ -1147,17 +1255,38 @@ class HeightTracker:
         guess: dict[int, float],
         render: Render,
         follow: Follow | None = None,
+        searches: Callable[[Plume, float], list[Search]] | None = None,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
         free, within one re-look's duration; else ``None``), its window centred where their
         guessed heights put them (a rising top: where ``follow`` searches for it; where they
         do not fit in one window, the largest); where a rise is allowed for, the room the
-        window has left reaches beyond them, where a risen top would appear."""
+        window has left reaches beyond them, where a risen top would appear. Where a
+        plume's searches (``searches(plume, t)``) ask more rows than a frame holds, the
+        re-look is a mosaic (:meth:`_mosaic`)."""
         w = self.where
-        at = self._free_from(want, dur)
+        hw, rows = w.wfov_shape[0], w.frame_px
+        if hw >= rows and searches is not None:  # the frames it takes, decided at ``want``
+            n, step, step_s = self._mosaic(plumes, want, searches)
+        else:
+            n, step, step_s = 1, 0, 0.0
+        total_s = dur + (n - 1) * step_s
+        at = self._free_from(want, total_s)
         if at - want > dur:
             return None
-        hw, rows = w.wfov_shape[0], w.frame_px
+        if n > 1:
+            assert searches is not None
+            lo, hi = self._needed_rows(plumes, at, searches)
+            total = rows + (n - 1) * step
+            r0 = int(min(max(round(0.5 * (lo + hi) - (total - 1) / 2.0), 0), hw - total))
+            shots = [(at + i * step_s, r0 + i * step) for i in range(n)]
+            self.busy.append((at, at + total_s))
+            taken = Relook(at, total_s, r0, frames=[
+                (t, top, render(t, top, w.nadir_hr(t))) for t, top in shots
+            ])  # fmt: skip
+            taken.mask = taken.frames[0][2]
+            self.taken.append(taken)
+            return taken
         lo, hi = self._expected_rows(plumes, t_k, at, guess, follow)
         if hi - lo + 2 * MARGIN_PX > rows:  # not all in one window: the largest plume's
             plumes = [max(plumes, key=lambda p: len(p.rows))]
@@ -1171,6 +1300,54 @@ class HeightTracker:
         taken = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
         self.taken.append(taken)
         return taken
+
+    def _needed_rows(
+        self, plumes: list[Plume], at: float, searches: Callable[[Plume, float], list[Search]]
+    ) -> tuple[float, float]:
+        """Strip WFOV rows the envelopes of ``plumes`` may occupy in a look at ``at``, over
+        their searches ``searches(plume, at)``."""
+        spans = [
+            (s, int(p.rows.min()), int(p.rows.max()))
+            for p in plumes
+            for s in searches(p, at)
+            if s is not None
+        ]
+        return (
+            min(a + c - h for (c, h), a, _ in spans),
+            max(b + c + h for (c, h), _, b in spans),
+        )
+
+    def _mosaic(
+        self, plumes: list[Plume], at: float, searches: Callable[[Plume, float], list[Search]]
+    ) -> tuple[int, int, float]:
+        """The frames a re-look at ``at`` of ``plumes`` takes: ``(n, step, step_s)``.
+
+        One frame where each of every plume's searches (``searches``: rows moved, centre
+        and half-width) fits in half a frame either side of its centre. Otherwise frames enough (at most
+        :attr:`relook_frames`) to hold every envelope anywhere in its search: each frame ``step``
+        rows further down the strip than the last, overlapping it by the tallest envelope
+        and twice :data:`MARGIN_PX` (so that every position lies wholly in one frame, a
+        margin from its edge), each taken ``step_s`` after the last (the pitch step on the
+        agility preset's slew model, a settle and an exposure, as a frame taken late)."""
+        rows = self.where.frame_px
+        half = rows // 2
+        wide = [s for p in plumes for s in searches(p, at) if s is not None and s[1] > half]
+        if self.relook_frames <= 1 or not wide:
+            return 1, 0, 0.0
+        tallest = max(int(p.rows.max()) - int(p.rows.min()) + 1 for p in plumes)
+        step = rows - tallest - 2 * MARGIN_PX
+        if step < 1:  # an envelope too tall to repeat in a frame: one frame
+            return 1, 0, 0.0
+        lo, hi = self._needed_rows(plumes, at, searches)
+        n = min(self.relook_frames, 1 + max(0, math.ceil((hi - lo + 1 - rows) / step)))
+        if n == 1:
+            return 1, 0, 0.0
+        g, a = self.where.geometry, self.agility
+        d0 = self.where.along(0.5 * (lo + hi), at)
+        step_s = (
+            a.slew_time_one(_pitch_deg(g, d0, d0 - step * g.wfov_gsd_m)) + a.settle_s + a.dwell_s
+        )
+        return n, step, step_s
 
     def _expected_rows(
         self,
