@@ -25,7 +25,9 @@ Parts (``--part``):
     frames they cost included: one re-look, ``fly``'s default; ``estimated-2``: two, at 80 %
     and 60 % of the distance, a steady top's search; ``estimated-2r``: the same allowing a
     top rising at up to 100 m/s; ``estimated-far``: one re-look, at 80 % of the distance,
-    400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline) and with a fixed
+    400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline; ``estimated-mosaic``:
+    ``estimated`` whose re-looks take up to 8 frames where one cannot hold the search,
+    ``fly --relook-frames 8``) and with a fixed
     prior of 8.5 km (``prior``); ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
@@ -78,11 +80,15 @@ top (``fly``'s default ``--max-rise-mps 0``)."""
 LONG_MODES = (*MODES, "estimated-nc")
 """The long part adds ``estimated-nc``: ``estimated`` without catching up (``--no-catch-up``:
 the frames due during a re-look are lost)."""
-EXTRA_MODES = ("estimated-nc", "estimated-2r", "estimated-far")
+EXTRA_MODES = ("estimated-nc", "estimated-2r", "estimated-far", "estimated-mosaic")
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
 rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
 ``estimated`` with its one re-look at 80 % of the look-ahead distance instead of 60 %
-(``fly --relook-km 400`` at the default geometry)."""
+(``fly --relook-km 400`` at the default geometry); ``estimated-mosaic`` is ``estimated``
+whose re-looks take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the search
+(``fly --relook-frames 8``)."""
+MOSAIC_FRAMES = 8
+"""The most frames an ``estimated-mosaic`` re-look takes."""
 RISE_MPS = 100.0
 """The fastest rise ``estimated-2r`` allows for: the top of the rising columns' range."""
 RISE_MODES = ("estimated-2", "estimated-2r")
@@ -152,6 +158,8 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated", agility, look_ahead_m), relook_km=far)
     if mode == "estimated-2r":
         return replace(config_for("estimated-2", agility, look_ahead_m), max_rise_mps=RISE_MPS)
+    if mode == "estimated-mosaic":
+        return replace(config_for("estimated", agility, look_ahead_m), relook_frames=MOSAIC_FRAMES)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)
@@ -173,7 +181,7 @@ def part_heights(args) -> dict:
         zenith = float(rng.uniform(30.0, 50.0))
         ahead = look_ahead_for_zenith(zenith)
         _, spec3, window = make_strip(args.seed + i, args.width, args.length, args.plumes, wind)
-        r = fly(spec3, window, config_for("estimated", "fast", ahead))
+        r = fly(spec3, window, config_for(args.height_mode, "fast", ahead))
         rows.append(
             {"strip": i, "wind_mps": wind, "zenith_deg": zenith, "look_ahead_m": ahead, **r}
         )
@@ -221,6 +229,8 @@ def part_targeting(args) -> dict:
         "rows": rows, "summary": summary, "speed": speed_summary(est),
         "heights": height_summary(est),
         "heights_2": height_summary([r for r in rows if r["mode"] == "estimated-2"]),
+        **({"heights_mosaic": height_summary([r for r in rows if r["mode"] == "estimated-mosaic"])}
+           if "estimated-mosaic" in args.modes else {}),
     }  # fmt: skip
 
 
@@ -368,6 +378,12 @@ def main() -> None:
         "--modes", type=lambda s: tuple(s.split(",")), default=MODES,
         help=f"targeting part, comma-separated, of {','.join((*MODES, *EXTRA_MODES[1:]))}",
     )  # fmt: skip
+    ap.add_argument(
+        "--height-mode",
+        default="estimated",
+        choices=("estimated", "estimated-mosaic"),
+        help="heights part: fly's default re-looks, or re-looks taking a mosaic",
+    )
     ap.add_argument("--record", help="the record's file name (default: by --part)")
     ap.add_argument("--out", type=Path, default=Path("docs/benchmarks"))
     args = ap.parse_args()
@@ -391,6 +407,7 @@ def main() -> None:
             )
         )
         + ("" if args.modes == MODES else f" --modes {','.join(args.modes)}")
+        + ("" if args.height_mode == "estimated" else f" --height-mode {args.height_mode}")
         + (
             ""
             if args.long_agilities == AGILITIES

@@ -52,7 +52,7 @@ DYNAMIC_WIND_BINS_MPS = (
 """``evaluate dynamic``: wind speed bins, m/s (lower bound inclusive)."""
 DYNAMIC_MODES = ("static", "predictive", "wind-prior")
 """``evaluate dynamic``: how a plan meets a moving plume (``dyntarget.evaluate.dynamic.MODES``)."""
-RELOOK_FRAMES = 8
+RELOOK_FRAMES = 1
 """The most frames one re-look of the look-ahead takes, a mosaic down the strip, where its
 search asks more rows than one frame holds (``fly --relook-frames``)."""
 MAX_RELOOK_FRAMES = 32

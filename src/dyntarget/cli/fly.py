@@ -548,9 +548,10 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         "--relook-frames",
         type=o.int_range(1, defaults.MAX_RELOOK_FRAMES, "frames"),
         metavar="N",
-        help=f"the most frames one re-look takes, a mosaic down the strip, where its search "
-        f"asks more rows than a frame holds (default {defaults.RELOOK_FRAMES}; 1: one frame, the "
-        "search cut to it); each further frame costs a pitch step, a settle and an exposure",
+        help="the most frames one re-look takes, a mosaic down the strip, where its search "
+        f"asks more rows than a frame holds (default {defaults.RELOOK_FRAMES}: one frame, the "
+        "search cut to it; e.g. 8 on frames of 2 km); each further frame costs a pitch step, "
+        "a settle and an exposure",
     )
     par.add_argument(
         "--no-catch-up",
