@@ -190,3 +190,54 @@ def test_slow_on_eight_strips_of_8_km_frames_is_its_record(record, mode, label):
         f"{kept} of {len(est)} | {lost} of {s['slow'][mode]['frames']} |"
     )
     assert row in PAGE, row
+
+
+def _measured(rows: list[dict], agility: str, mode: str) -> str:
+    """Plumes whose height was estimated, of those tracked, over a mode's passes."""
+    est = [e for r in rows if r["agility"] == agility and r["mode"] == mode for e in r["estimates"]]
+    return f"{sum(e['height_source'] == 'estimated' for e in est)} of {len(est)}"
+
+
+@pytest.mark.parametrize(
+    ("label", "record", "mosaic", "part"),
+    [
+        ("short strips", "parallax_targeting.json", "parallax_targeting_mosaic.json", "targeting"),
+        ("long, 2 km frames, 2 strips", "parallax_long.json", "parallax_long_mosaic.json", "long"),
+        ("long, 2 km frames, 8 strips", "parallax_long_8.json", "parallax_long_8_mosaic.json", "long"),
+    ],
+)  # fmt: skip
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_mosaic_table_is_its_records(label, record, mosaic, part, agility):
+    one, many = _record(record)[part], _record(mosaic)[part]
+    row = (
+        f"| {label} | `{agility}` | {_flat(one, agility)} | "
+        f"{_cell(one['summary'], one['rows'], agility, 'estimated')} | "
+        f"{_measured(one['rows'], agility, 'estimated')} | {_flat(many, agility)} | "
+        f"{_cell(many['summary'], many['rows'], agility, 'estimated-mosaic')} | "
+        f"{_measured(many['rows'], agility, 'estimated-mosaic')} |"
+    )
+    assert row in PAGE, row
+
+
+@pytest.mark.parametrize(
+    ("record", "label"),
+    [
+        ("parallax_heights.json", "one frame (the default, above)"),
+        ("parallax_heights_mosaic.json", "up to 8 frames (`--height-mode estimated-mosaic`)"),
+    ],
+)
+def test_the_mosaic_heights_rows_are_their_records(record, label):
+    h = _record(record)["heights"]["summary"]
+    bias = f"{round(h['bias_m']):,}".replace("-", "−")
+    row = (
+        f"| {label} | {h['plumes']} | {h['estimated']} | {round(h['rmse_m'])} m | {bias} m | "
+        f"{round(h['median_abs_m'])} m | {round(h['worst_abs_m']):,} m |"
+    )
+    assert row in PAGE, row
+
+
+def test_the_short_strips_mosaic_heights_are_their_record():
+    h = _record("parallax_targeting_mosaic.json")["targeting"]["heights_mosaic"]
+    bias = f"{round(h['bias_m'])}".replace("-", "−")
+    said = f"RMSE {round(h['rmse_m'])} m and bias {bias} m over the same {h['estimated']} of"
+    assert said in PAGE, said
