@@ -418,7 +418,8 @@ def test_a_re_look_is_searched_in_turn_and_says_why_its_last_search_failed():
     _, _, why = tr._find((own, weight), nothing, 0, [(0.0, 40.0)])
     assert why == (
         "the frame (64 WFOV rows) is too short to find the plume again: its height's "
-        "uncertainty asks a search of +-40 rows, the frame holds +-32"
+        "uncertainty asks a search of +-40 rows, the frame holds +-32 (re-looks of several "
+        "frames, relook_frames / --relook-frames, may hold it)"
     )
 
 
@@ -947,37 +948,49 @@ def _mosaic_pass(relook_frames):
     mask = _blob_mask(where, 0.0, 0, blob)
     tr.frame(0, 0.0, 0, mask, render, last=False)
     rows = np.nonzero(mask.any(axis=1))[0]
-    return where, tr, int(rows.max() - rows.min() + 1)
+    return where, tr, int(rows.max() - rows.min() + 1), mask
 
 
 def test_a_search_longer_than_a_frame_is_cut_to_it_with_one_frame_per_relook():
-    _, tr, _ = _mosaic_pass(1)
+    _, tr, _, _ = _mosaic_pass(1)
     (p,) = tr.plumes
     assert p.source == "none" and "(128 WFOV rows) is too short" in p.reason
+    assert p.reason.endswith(
+        "(re-looks of several frames, relook_frames / --relook-frames, may hold it)"
+    )
     ((start, end),) = tr.busy
     assert end - start == pytest.approx(relook_seconds(OrbitGeometry(), get_agility("fast"), 300e3))
 
 
-def test_a_search_longer_than_a_frame_takes_a_mosaic_that_finds_the_plume():
+@pytest.mark.parametrize("frames", [2, 8])
+def test_a_search_longer_than_a_frame_takes_a_mosaic_that_finds_the_plume(frames):
     # By hand: frames overlap by the envelope's rows and a 6-row margin each side, so each
     # steps 128 - rows - 12 down the strip; the search's rows (2 x 105 + the envelope's) need
     # 1 + ceil((215 - 128) / step) = 2 frames. The second costs the pitch step between the
     # lines of sight to ~296 km and step x 32 m nearer (bang-bang at 20 deg/s^2: 2 sqrt(phi /
     # a)), a 0.05 s settle and a 0.05 s exposure.
-    _, tr, tall = _mosaic_pass(8)
+    where, tr, tall, mask = _mosaic_pass(frames)
     (p,) = tr.plumes
     assert p.source == "estimated" and abs(p.height_m - 2500.0) <= 150.0
     ((start, end),) = tr.busy
     (relook,) = tr.taken
     step = 128 - tall - 12
-    assert len(relook.frames) == 1 + math.ceil((2 * 105 + tall - 128) / step) == 2
-    phi = math.degrees(_off_nadir_rad(296e3) - _off_nadir_rad(296e3 - step * GSD))
+    # the search, by hand: an 8.5 km top's move (lines of sight on the sphere), +-0.8 of it
+    # and a 6-row margin; the frames centred on the rows it spans
+    rows, _ = np.nonzero(mask)
+    moved = _moved_by_hand(where, float(rows.mean()), 8500.0, start, 8500.0)
+    half = 0.8 * abs(moved) + 6.0
+    lo, hi = rows.min() + moved - half, rows.max() + moved + half
+    assert len(relook.frames) == 1 + math.ceil((hi - lo + 1 - 128) / step) == 2
+    d0 = (where.nadir(start)[1] - 0.5 * (lo + hi)) * GSD  # ~296 km ahead
+    phi = math.degrees(_off_nadir_rad(d0) - _off_nadir_rad(d0 - step * GSD))
     step_s = 2.0 * math.sqrt(phi / 20.0) + 0.05 + 0.05
     (t0, top0, _), (t1, top1, _) = relook.frames
+    assert top0 == round(0.5 * (lo + hi) - (128 + step - 1) / 2.0)
     assert top1 - top0 == step and t0 == start
-    assert t1 - t0 == pytest.approx(step_s, abs=0.005)
+    assert t1 - t0 == pytest.approx(step_s, abs=1e-6)
     base = relook_seconds(OrbitGeometry(), get_agility("fast"), 300e3)
-    assert end - start == pytest.approx(base + step_s, abs=0.005)
+    assert end - start == pytest.approx(base + step_s, abs=1e-6)
 
 
 def test_the_relook_frames_setting_is_recorded_only_where_not_the_default():
@@ -1012,3 +1025,84 @@ def test_a_plume_found_in_a_mosaics_later_frame_is_measured_at_that_frames_time(
     assert disp.dy_px == pytest.approx(30 - 10, abs=0.05) and abs(disp.dx_px) < 0.05
     # rows moved: the frame's offset from the first look's (600 - 480) and 20 in it
     assert 600 - 480 + disp.dy_px == pytest.approx(140.0, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("half", "frames", "want"),
+    [(117.0, 8, 2), (117.5, 8, 3), (117.5, 2, 2), (116.5, 8, 2), (172.5, 8, 3),
+     (173.0, 8, 4), (60.0, 8, 1), (64.0, 8, 1), (64.5, 8, 2), (300.0, 1, 1)],
+)  # fmt: skip
+def test_a_mosaic_takes_frames_enough_for_the_rows_its_search_spans(half, frames, want):
+    # A 5-row envelope in 128-row frames: each further frame steps 128 - 5 - 12 = 111 rows.
+    # Searched +-half rows around where it moved, it may lie over 5 + 2 half rows: one frame
+    # while half is at most half a frame (64), else 1 + ceil((5 + 2 half - 128) / 111)
+    # frames, at most `frames` (239 rows: 2; 240: 3; 350: 3; 351: 4)
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 16), 128, 0, 4)
+    tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+                       measure=True, log=print, relook_frames=frames)  # fmt: skip
+    plume = Plume(1, 0, 0.0, np.arange(1000, 1005), np.full(5, 8))
+    n, step, _ = tr._mosaic([plume], 10.0, lambda p, t: [(40.0, half), None])
+    assert n == want
+    assert step == (111 if n > 1 else 0)
+
+
+@pytest.mark.parametrize(
+    ("search", "offset", "want"),
+    [((120.0, 100.0), 100, (151.0, 63.0)), ((120.0, 100.0), 0, (66.0, 48.0)),
+     ((120.0, 100.0), 400, None), ((120.0, 100.0), 230, (220.0, 2.0))],
+)  # fmt: skip
+def test_a_mosaic_frame_is_searched_where_it_holds_the_whole_envelope(search, offset, want):
+    # By hand: an envelope on rows 10-15 of the first look, moved by s rows, lies on rows
+    # 10 + s .. 15 + s; a frame `offset` rows further down holding rows offset .. offset +
+    # 127 holds it whole for s in [offset - 10, offset + 112]; the search (120 +- 100: s in
+    # [20, 220]) is cut to that, and searched 2 rows past it (a peak on its edge is seen)
+    from dyntarget.predict.relooks import held_part
+
+    assert held_part(search, offset, (10, 15), 128) == want
+
+
+def _two_frames(blob_in=(True, True)):
+    from dyntarget.predict.relooks import Relook
+
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 64), 128, 0, 4)
+    tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
+                       measure=True, log=print)  # fmt: skip
+    own = np.zeros((128, 64), bool)
+    own[10:16, 20:30] = True
+    weight = np.zeros_like(own)
+    weight[4:22, 14:36] = True
+    shots = [np.zeros((128, 64)) for _ in range(2)]
+    for shot, on in zip(shots, blob_in, strict=True):
+        shot[30:36, 20:30] = 1.0 if on else 0.0
+    relook = Relook(5.0, 1.0, 500, frames=[(5.0, 500, shots[0]), (5.4, 600, shots[1])])
+    return tr, (own, weight), relook
+
+
+def test_a_mosaic_is_searched_in_the_frame_nearest_the_searchs_centre_first():
+    # Both frames show an envelope: 40 rows moved in the first (500 - 480 + 30 - 10), 140 in
+    # the second. The search 130 +- 100 is held over rows moved 30-132 by the first (centre
+    # 81, 49 from 130) and 110-230 by the second (centre 170, 40 from it): the second first
+    tr, first, relook = _two_frames()
+    disp, which, why, at, top = tr._seek(first, relook, 480, (10, 15), lambda t: [(130.0, 100.0)])
+    assert (which, why, at, top) == (0, "", 5.4, 600)
+    assert 600 - 480 + disp.dy_px == pytest.approx(140.0, abs=0.05)
+    # centred at 60 +- 100 instead (held 10-132, centre 71; 110-160, centre 135): the first
+    disp, _, _, at, top = tr._seek(first, relook, 480, (10, 15), lambda t: [(60.0, 100.0)])
+    assert (at, top) == (5.0, 500) and 500 - 480 + disp.dy_px == pytest.approx(40.0, abs=0.05)
+
+
+def test_a_mosaic_that_does_not_cover_the_search_says_so():
+    # The frames hold rows moved 10-232 between them. No envelope in either: a search
+    # inside that (120 +- 50) fails with the match's own reason; one reaching past it
+    # (120 +- 150) says the frames are too few
+    tr, first, relook = _two_frames((False, False))
+    disp, which, why, at, top = tr._seek(first, relook, 480, (10, 15), lambda t: [(120.0, 50.0)])
+    assert disp is None and which == -1 and why and "too few" not in why
+    assert (at, top) == (5.0, 500)
+    _, _, why, _, _ = tr._seek(first, relook, 480, (10, 15), lambda t: [(120.0, 150.0)])
+    assert why.startswith("the re-look's 2 frames (128 WFOV rows each) are too few")
+    # a second search, the first skipped, is tried in turn
+    disp, which, _, at, _ = tr._seek(
+        first, _two_frames((False, True))[2], 480, (10, 15), lambda t: [None, (130.0, 100.0)]
+    )
+    assert which == 1 and at == 5.4

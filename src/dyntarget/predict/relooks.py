@@ -1047,14 +1047,11 @@ class HeightTracker:
                 search = searches[i]
                 if search is None or mask is None:
                     continue
-                centre, half = search
                 if asked is None:
                     asked = search
-                # rows moved at which the envelope lies wholly in this frame
-                lo, hi = max(centre - half, r0 - top - a), min(centre + half, r0 - top + hf - 1 - b)
-                if lo <= hi:
-                    part = (0.5 * (lo + hi), 0.5 * (hi - lo) + 2.0)  # a little past, so a peak
-                    held.append((abs(part[0] - centre), at, r0, mask, part))  # on it is seen
+                part = held_part(search, r0 - top, rows, hf)
+                if part is not None:
+                    held.append((abs(part[0] - search[0]), at, r0, mask, part))
             if asked is not None:
                 first_top, last_top = looked[0][1] - top - a, looked[-1][1] - top + hf - 1 - b
                 covered = (
@@ -1106,7 +1103,9 @@ class HeightTracker:
                     f"the frame ({second.shape[0]} WFOV rows) is too short to find the plume "
                     f"again: its height's uncertainty asks a search of +-{span:.0f} rows, "
                     f"the frame holds +-{half_frame}"
-                )
+                    + ("" if self.relook_frames > 1 else " (re-looks of several frames, "
+                       "relook_frames / --relook-frames, may hold it)")
+                )  # fmt: skip
         return None, -1, reason
 
     def _conclude(
@@ -1339,9 +1338,8 @@ class HeightTracker:
         if step < 1:  # an envelope too tall to repeat in a frame: one frame
             return 1, 0, 0.0
         lo, hi = self._needed_rows(plumes, at, searches)
-        n = min(self.relook_frames, 1 + max(0, math.ceil((hi - lo + 1 - rows) / step)))
-        if n == 1:
-            return 1, 0, 0.0
+        # more rows than a frame (a search wider than half a frame): two frames or more
+        n = min(self.relook_frames, 1 + math.ceil((hi - lo + 1 - rows) / step))
         g, a = self.where.geometry, self.agility
         d0 = self.where.along(0.5 * (lo + hi), at)
         step_s = (
@@ -1559,6 +1557,47 @@ def _reach_m(geometry: OrbitGeometry, agility: Agility) -> float:
         return 0.0
     a, r = math.radians(agility.field_of_regard_deg), EARTH_RADIUS_M
     return r * (math.asin((r + geometry.altitude_m) * math.sin(a) / r) - a)
+
+
+def held_part(
+    search: tuple[float, float], offset: int, rows: tuple[int, int], frame_px: int
+) -> tuple[float, float] | None:
+    """The part of a search a frame of a mosaic holds, to search it there.
+
+    Parameters
+    ----------
+    search : tuple of float
+        ``(centre, half-width)``: rows an envelope moved since the first look, searched.
+    offset : int
+        The frame's top row less the first look's frame's top row.
+    rows : tuple of int
+        The envelope's first and last rows in the first look's frame.
+    frame_px : int
+        Frame rows.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(centre, half-width)`` of the rows moved at which the envelope lies wholly in the
+        frame, within the search, searched 2 rows past (a peak on its edge is then seen);
+        ``None`` where there are none.
+
+    Examples
+    --------
+    An envelope on rows 10-15, searched 120 +- 100 rows on, in a 128-row frame 100 rows
+    further down (it holds the envelope from 90 to 212 rows on):
+
+    >>> held_part((120.0, 100.0), 100, (10, 15), 128)
+    (151.0, 63.0)
+    >>> held_part((120.0, 100.0), 400, (10, 15), 128) is None
+    True
+    """
+    centre, half = search
+    lo = max(centre - half, offset - rows[0])
+    hi = min(centre + half, offset + frame_px - 1 - rows[1])
+    if lo > hi:
+        return None
+    return 0.5 * (lo + hi), 0.5 * (hi - lo) + 2.0
 
 
 def _pitch_deg(geometry: OrbitGeometry, from_m: float, to_m: float) -> float:
