@@ -1106,3 +1106,25 @@ def test_a_mosaic_that_does_not_cover_the_search_says_so():
         first, _two_frames((False, True))[2], 480, (10, 15), lambda t: [None, (130.0, 100.0)]
     )
     assert which == 1 and at == 5.4
+
+
+@pytest.mark.parametrize(
+    ("search", "too_few"),
+    [((121.0, 111.0), False), ((60.0, 55.0), True), ((180.0, 55.0), True),
+     ((120.5, 111.0), True), ((121.5, 111.0), True), ((121.0, 111.5), True)],
+)  # fmt: skip
+def test_a_mosaic_covers_a_search_from_its_first_frames_top_to_its_last_frames_bottom(
+    search, too_few
+):
+    # By hand: an envelope on rows 10-15 lies wholly in the first frame (500, the first
+    # look's 480 + 20) from 20 - 10 = 10 rows moved, and in the last (600) up to 120 + 127 -
+    # 15 = 232: a search within 10..232 is covered (121 +- 111 exactly), one past either end
+    # by half a row is not. With no envelope in the frames, the reason says which.
+    tr, first, relook = _two_frames((False, False))
+    _, _, why, _, _ = tr._seek(first, relook, 480, (10, 15), lambda t: [search])
+    assert why and ("are too few" in why) == too_few
+
+
+def test_a_mosaic_with_no_search_to_try_finds_nothing_and_says_nothing():
+    tr, first, relook = _two_frames()
+    assert tr._seek(first, relook, 480, (10, 15), lambda t: [None]) == (None, -1, "", 5.0, 500)
