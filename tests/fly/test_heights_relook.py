@@ -1006,18 +1006,7 @@ def test_the_relook_frames_setting_is_recorded_only_where_not_the_default():
 def test_a_plume_found_in_a_mosaics_later_frame_is_measured_at_that_frames_time():
     # two frames, 0.4 s apart, 100 rows apart; the envelope shows only in the second, 30 rows
     # below its top: the look is that frame's (time, top) and the rows moved 100 + 30 - 10
-    from dyntarget.predict.relooks import Relook
-
-    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 64), 128, 0, 4)
-    tr = HeightTracker(where, get_agility("fast"), (300.0,), None, None, None,
-                       measure=True, log=print)  # fmt: skip
-    own = np.zeros((128, 64), bool)
-    own[10:16, 20:30] = True
-    weight = np.zeros_like(own)
-    weight[4:22, 14:36] = True
-    empty, second = np.zeros((128, 64)), np.zeros((128, 64))
-    second[30:36, 20:30] = 1.0
-    relook = Relook(5.0, 1.0, 500, frames=[(5.0, 500, empty), (5.4, 600, second)])
+    tr, (own, weight), relook = _two_frames((False, True))
     disp, which, why, at, top = tr._seek(
         (own, weight), relook, 480, (10, 15), lambda t: [(120.0, 100.0)]
     )

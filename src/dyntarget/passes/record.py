@@ -46,9 +46,10 @@ PARALLAX_MODES = ("auto", "off", "prior", "true", "estimated")
 MAX_PRIOR_HEIGHT_M = 25_000.0
 """Highest prior plume-top height accepted, metres."""
 MAX_RISE_LIMIT_MPS = 500.0
-MAX_RELOOK_FRAMES = defaults.MAX_RELOOK_FRAMES
 """Fastest plume-top rise the re-looks may be asked to allow for, m/s (a Plinian column's
 gas-thrust region reaches a few hundred m/s; its top rises slower)."""
+MAX_RELOOK_FRAMES = defaults.MAX_RELOOK_FRAMES
+"""Most frames one re-look may be allowed to take (``relook_frames``)."""
 
 
 @dataclass(frozen=True)

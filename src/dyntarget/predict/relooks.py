@@ -971,7 +971,6 @@ class HeightTracker:
             for p in alive:
                 p.relooks.append(shared)
                 cy, cx = float(np.mean(p.rows)), float(np.mean(p.cols))
-
                 rows = (int(p.rows.min()) - top, int(p.rows.max()) - top)
                 disp, which, why_not, at, r0 = self._seek(
                     first[p.pid], shared, top, rows, partial(searches, p)
@@ -1279,13 +1278,9 @@ class HeightTracker:
             total = rows + (n - 1) * step
             r0 = int(min(max(round(0.5 * (lo + hi) - (total - 1) / 2.0), 0), hw - total))
             shots = [(at + i * step_s, r0 + i * step) for i in range(n)]
-            self.busy.append((at, at + total_s))
-            taken = Relook(at, total_s, r0, frames=[
-                (t, top, render(t, top, w.nadir_hr(t))) for t, top in shots
-            ])  # fmt: skip
-            taken.mask = taken.frames[0][2]
-            self.taken.append(taken)
-            return taken
+            frames: list[tuple[float, int, np.ndarray | None]]
+            frames = [(t, top, render(t, top, w.nadir_hr(t))) for t, top in shots]
+            return self._book(Relook(at, total_s, r0, frames[0][2], frames))
         lo, hi = self._expected_rows(plumes, t_k, at, guess, follow)
         if hi - lo + 2 * MARGIN_PX > rows:  # not all in one window: the largest plume's
             plumes = [max(plumes, key=lambda p: len(p.rows))]
@@ -1295,10 +1290,13 @@ class HeightTracker:
         if back > 0.0 and room > 0.0:  # tops that may have risen: the room left, beyond
             lo -= min(back, room)  # (steady tops stay inside, with their margin)
         r0 = int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), hw - rows))
-        self.busy.append((at, at + dur))
-        taken = Relook(at, dur, r0, render(at, r0, w.nadir_hr(at)))
-        self.taken.append(taken)
-        return taken
+        return self._book(Relook(at, dur, r0, render(at, r0, w.nadir_hr(at))))
+
+    def _book(self, relook: Relook) -> Relook:
+        """Record a re-look taken: the look-ahead busy for its duration, and the re-look."""
+        self.busy.append((relook.t_s, relook.t_s + relook.duration_s))
+        self.taken.append(relook)
+        return relook
 
     def _needed_rows(
         self, plumes: list[Plume], at: float, searches: Callable[[Plume, float], list[Search]]
