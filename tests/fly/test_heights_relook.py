@@ -1117,3 +1117,85 @@ def test_a_mosaic_covers_a_search_from_its_first_frames_top_to_its_last_frames_b
 def test_a_mosaic_with_no_search_to_try_finds_nothing_and_says_nothing():
     tr, first, relook = _two_frames()
     assert tr._seek(first, relook, 480, (10, 15), lambda t: [None]) == (None, -1, "", 5.0, 500)
+
+
+# -- re-looks taken straight one after another ------------------------------------------
+
+
+def _chain_tracker(agility="slow", relook_s=None):
+    """A tracker on a long strip of 256-row frames and two plumes to re-look at; the
+    re-looks are asked of ``_take`` directly at the times and distances a test names."""
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 96), 256, 0, 4)
+    tr = HeightTracker(
+        where, get_agility(agility), (300.0,), relook_s, None, None,
+        measure=True, log=lambda s: None,
+    )  # fmt: skip
+    plumes = [Plume(i + 1, 0, 0.0, np.array([9000 + 100 * i]), np.array([40])) for i in (0, 1, 2)]
+    guess = {p.pid: 8500.0 for p in plumes}
+
+    def take(p, want, d_km):
+        dur = tr._duration(d_km * 1e3)
+        return tr._take([p], 0.0, want, dur, guess, lambda t, top, n: None, ahead_m=d_km * 1e3)
+
+    return tr, plumes, take
+
+
+def _back_s(a, d_m):
+    """Slew from a look ``d_m`` ahead back to the regular pitch (500 km ahead), and settle."""
+    return _slew(a, _off_nadir_deg(500e3) - _off_nadir_deg(d_m)) + a.settle_s
+
+
+def test_a_relook_wanted_while_the_look_ahead_is_on_another_is_taken_there_straight_after():
+    # slow: a re-look 300 km ahead costs 2 x (15.27 s + 1 s) + 0.1 s = 32.6 s. A second one
+    # at the same distance wanted 10 s after the first needs no slew (the pitch of a look
+    # 300 km ahead does not change): it is taken when wanted, and the look-ahead goes back
+    # to its pitch once, after it: the window grows by 10 s (not by 32.6 s, after a wait)
+    tr, (p, q, _), take = _chain_tracker()
+    a = get_agility("slow")
+    dur = 2 * _back_s(a, 300e3) + a.dwell_s
+    assert dur == pytest.approx(32.635, abs=1e-3)
+    first = take(p, 5.0, 300.0)
+    assert first.t_s == 5.0 and tr.busy == [(5.0, pytest.approx(5.0 + dur, rel=1e-12))]
+    second = take(q, 15.0, 300.0)
+    assert second.t_s == 15.0 and second.duration_s == pytest.approx(10.0, rel=1e-9)
+    assert tr.busy == [(5.0, pytest.approx(15.0 + dur, rel=1e-12))]
+    assert tr.taken == [first, second]
+
+
+def test_a_relook_straight_after_one_at_another_distance_slews_between_them():
+    # 300 km then 400 km ahead: the second waits for the slew between the two pitches
+    # (13.27 - 5.92 = 7.35 deg: 9.35 s at 1 deg/s) and a settle after the first's exposure;
+    # the window then ends with the slew back from 400 km (5.92 deg: 7.92 s) instead of
+    # from 300 km
+    tr, (p, q, _), take = _chain_tracker()
+    a = get_agility("slow")
+    take(p, 5.0, 300.0)
+    (s0, e0), = tr.busy  # fmt: skip
+    phi = _off_nadir_deg(400e3) - _off_nadir_deg(300e3)
+    t = 5.0 + a.dwell_s + _slew(a, phi) + a.settle_s
+    assert t == pytest.approx(5.0 + 0.1 + 9.35 + 1.0, abs=0.01)
+    second = take(q, 6.0, 400.0)
+    assert second.t_s == pytest.approx(t, rel=1e-9)
+    end = e0 + (t - 5.0) + _back_s(a, 400e3) - _back_s(a, 300e3)
+    assert tr.busy == [(s0, pytest.approx(end, rel=1e-9))]
+
+
+def test_a_relook_after_the_window_or_before_another_is_taken_on_its_own():
+    tr, (p, q, r), take = _chain_tracker()
+    a = get_agility("slow")
+    dur = 2 * _back_s(a, 300e3) + a.dwell_s
+    take(p, 5.0, 300.0)
+    take(q, 5.0 + dur + 1.0, 300.0)  # after the first's window: a window of its own
+    assert [s for s, _ in tr.busy] == [5.0, 5.0 + dur + 1.0]
+    # wanted inside the first window, but staying on until then would run into the second:
+    # it waits for the second to end (more than one re-look's wait: not taken)
+    assert take(r, 6.0, 300.0) is None and len(tr.busy) == 2
+
+
+def test_relooks_of_a_fixed_duration_are_not_chained():
+    # a re-look's duration given (``relook_s``): no slew model to chain them by; the second
+    # waits for the first to end
+    tr, (p, q, _), take = _chain_tracker(relook_s=4.0)
+    take(p, 5.0, 300.0)
+    second = take(q, 6.0, 300.0)
+    assert second.t_s == 9.0 and tr.busy == [(5.0, 9.0), (9.0, 13.0)]
