@@ -64,7 +64,7 @@ def main() -> None:
     if not est.heights:
         raise SystemExit("no plume was seen: try another --seed")
     h = est.heights[0]
-    t_looks = [frames.acquired_s(h.frame)] + [0.5 * (a + b) for a, b in est.relook_windows[:2]]
+    t_looks = [frames.acquired_s(h.frame), *est.relook_times[:2]]
     vent = spec.vents[0]
     vx, vy = vent.x - window[0], vent.y - window[1]  # strip hr px
     top = int(max(0, vy - 1900))

@@ -1199,3 +1199,31 @@ def test_relooks_of_a_fixed_duration_are_not_chained():
     take(p, 5.0, 300.0)
     second = take(q, 6.0, 300.0)
     assert second.t_s == 9.0 and tr.busy == [(5.0, 9.0), (9.0, 13.0)]
+
+
+def test_a_plume_does_not_share_a_relook_it_has_already_looked_at():
+    # a re-look already taken within a re-look's duration whose window holds a plume is
+    # shared; but not with a plume that looked at it already (the same look twice): with
+    # ``slow`` (32.6 s per re-look) a plume's next re-look used to reuse its own first
+    tr, (p, q, _), take = _chain_tracker()
+    guess = {p.pid: 8500.0, q.pid: 8500.0}
+    r = take(p, 5.0, 300.0)
+    p.relooks.append(r)
+    assert tr._window_for([q], 0.0, 6.0, guess, 32.6) is r
+    assert tr._window_for([p], 0.0, 6.0, guess, 32.6) is None
+    assert tr._window_for([p, q], 0.0, 6.0, guess, 32.6) is None
+
+
+def test_a_slow_pass_takes_each_relook_of_a_plume_and_counts_relooks_not_windows():
+    # the 64-row frames' plume asks three re-looks (two nearer in time, then 300 km ahead;
+    # test_pass_3d.py); with ``slow`` they fall within a re-look's duration of each other
+    from tests.fly.test_pass_3d import _world
+
+    r = fly_pass(_world(), None, PassConfig(agility="slow", compute_budget_s=0.05))
+    (e,) = r.heights
+    times = r.relook_times
+    assert e.relooks == 3 and len(set(times)) == 3  # three looks, not one looked at thrice
+    assert all(any(a <= t < b for a, b in r.relook_windows) for t in times)
+    # at least two of them taken straight one after another: fewer windows than re-looks
+    assert len(r.relook_windows) < 3
+    assert r.totals()["relooks"] == 3

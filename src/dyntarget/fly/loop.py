@@ -266,6 +266,7 @@ def fly_pass(
             heights=() if tracker is None else tracker.estimates(_true_height(ctx)),
             is_3d=ctx.where is not None,
             relook_windows=() if tracker is None else tuple(sorted(tracker.busy)),
+            relook_times=() if tracker is None else tuple(sorted(r.t_s for r in tracker.taken)),
         )  # fmt: skip
 
     stopped = _fly_frames(ctx, state, result, on_frame, should_stop, progress, frame_sink)

@@ -572,7 +572,10 @@ class PassResult:
     parallax : str
         The parallax mode flown (:meth:`PassConfig.resolved_parallax`).
     relook_windows : tuple of (float, float)
-        ``(start, end)`` pass seconds of every re-look the look-ahead took.
+        ``(start, end)`` pass seconds the look-ahead spent re-looking (one window may hold
+        several re-looks taken straight one after another).
+    relook_times : tuple of float
+        Pass seconds of every re-look taken (a mosaic's first frame).
     """
 
     world_id: str
@@ -597,8 +600,11 @@ class PassResult:
     parallax: str = "off"
     """The parallax mode flown (:meth:`PassConfig.resolved_parallax`)."""
     relook_windows: tuple[tuple[float, float], ...] = ()
-    """``(start, end)`` pass seconds of every re-look the look-ahead took (``"estimated"``
-    mode on a 3D world): frames acquired inside one are not taken."""
+    """``(start, end)`` pass seconds the look-ahead spent re-looking (``"estimated"`` mode on
+    a 3D world; re-looks taken straight one after another share one): frames due inside one
+    are taken late or not at all."""
+    relook_times: tuple[float, ...] = ()
+    """Pass seconds of every re-look taken, in order (a mosaic's first frame)."""
 
     @property
     def measured(self) -> bool:
@@ -668,7 +674,7 @@ class PassResult:
         )  # fmt: skip
         hs = [r.stage_s["heights"] for r in self.records if "heights" in r.stage_s]
         return {
-            "relooks": len(self.relook_windows),
+            "relooks": len(self.relook_times),
             "frames_lost_to_relooks": sum(
                 r.path in (RELOOK_DROP, RELOOK_LATE) for r in self.records
             ),

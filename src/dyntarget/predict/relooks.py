@@ -55,7 +55,9 @@ Model (what is and is not modelled):
   start while the look-ahead is busy with another waits for it, at most one re-look's
   duration, else it is not taken. The plumes of one frame share its re-looks, and a plume of a later frame
   shares a re-look already taken within one re-look's duration of the time it wants
-  whose window holds it (a margin included).
+  whose window holds it (a margin included); a plume never shares a re-look it has
+  looked at already (before, a ``slow`` plume's nearer re-looks, within 32.6 s of its
+  first, reused it: the same look counted two or three times).
 * **Catching up** (:meth:`HeightTracker.take`; ``catch_up=False``: every regular frame
   due during a re-look is lost, as before). The look-ahead stares at its regular pitch,
   ``look_ahead_m`` ahead, and a frame on time costs it nothing. A frame due while it
@@ -891,10 +893,11 @@ class HeightTracker:
         follow: Follow | None = None,
     ) -> Relook | None:
         """A re-look already taken within ``tol`` s of ``at`` whose window holds the plumes
-        where their ``guess`` heights (or ``follow``) put them (their rows and a margin), or
+        where their ``guess`` heights (or ``follow``) put them (their rows and a margin), and
+        that none of them has looked at already (the same look twice is no new view), or
         ``None``."""
         for r in self.taken:
-            if abs(r.t_s - at) > tol:
+            if abs(r.t_s - at) > tol or any(r in p.relooks for p in plumes):
                 continue
             a, b = self._expected_rows(plumes, t_k, r.t_s, guess, follow)
             if a - MARGIN_PX >= r.top and b + MARGIN_PX < r.frames[-1][1] + self.where.frame_px:
