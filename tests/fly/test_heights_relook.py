@@ -1150,7 +1150,7 @@ def test_a_relook_wanted_while_the_look_ahead_is_on_another_is_taken_there_strai
     # at the same distance wanted 10 s after the first needs no slew (the pitch of a look
     # 300 km ahead does not change): it is taken when wanted, and the look-ahead goes back
     # to its pitch once, after it: the window grows by 10 s (not by 32.6 s, after a wait)
-    tr, (p, q, _), take = _chain_tracker()
+    tr, (p, q, r), take = _chain_tracker()
     a = get_agility("slow")
     dur = 2 * _back_s(a, 300e3) + a.dwell_s
     assert dur == pytest.approx(32.635, abs=1e-3)
@@ -1160,6 +1160,9 @@ def test_a_relook_wanted_while_the_look_ahead_is_on_another_is_taken_there_strai
     assert second.t_s == 15.0 and second.duration_s == pytest.approx(10.0, rel=1e-9)
     assert tr.busy == [(5.0, pytest.approx(15.0 + dur, rel=1e-12))]
     assert tr.taken == [first, second]
+    # a third, 10 s later again, follows the window's last re-look (the second)
+    third = take(r, 25.0, 300.0)
+    assert third.t_s == 25.0 and tr.busy == [(5.0, pytest.approx(25.0 + dur, rel=1e-12))]
 
 
 def test_a_relook_straight_after_one_at_another_distance_slews_between_them():
