@@ -53,8 +53,8 @@ Model (what is and is not modelled):
   taken when wanted instead of 22.6 s late. Otherwise (a re-look's duration given,
   ``relook_s``; a mosaic; a window that would run into a later one) a re-look that would
   start while the look-ahead is busy with another waits for it, at most one re-look's
-  duration, else it is not taken. The plumes of one frame share its re-looks, and a plume of a later frame
-  shares a re-look already taken within one re-look's duration of the time it wants
+  duration, else it is not taken. The plumes of one frame share its re-looks, and a
+  plume of a later frame shares a re-look already taken within one re-look's duration of the time it wants
   whose window holds it (a margin included); a plume never shares a re-look it has
   looked at already (before, a ``slow`` plume's nearer re-looks, within 32.6 s of its
   first, reused it: the same look counted two or three times).
@@ -1313,18 +1313,21 @@ class HeightTracker:
             lo -= min(back, room)  # (steady tops stay inside, with their margin)
         r0 = int(min(max(round(0.5 * (lo + hi) - (rows - 1) / 2.0), 0), hw - rows))
         img = render(at, r0, w.nadir_hr(at))
-        if chained is not None:
+        if chained is not None:  # it extends a window: the time it adds
             _, i, end = chained
-            s0, e0 = self.busy[i]
-            self.busy[i] = (s0, end)
-            relook = Relook(at, end - e0, r0, img, ahead_m=ahead_m)
-            self.taken.append(relook)
-            return relook
+            relook = Relook(at, end - self.busy[i][1], r0, img, ahead_m=ahead_m)
+            return self._book(relook, (i, end))
         return self._book(Relook(at, dur, r0, img, ahead_m=ahead_m))
 
-    def _book(self, relook: Relook) -> Relook:
-        """Record a re-look taken: the look-ahead busy for its duration, and the re-look."""
-        self.busy.append((relook.t_s, relook.t_s + relook.duration_s))
+    def _book(self, relook: Relook, extends: tuple[int, float] | None = None) -> Relook:
+        """Record a re-look taken: the look-ahead busy for its duration (a window of its own,
+        or, ``extends`` = ``(i, end)``, window ``i`` of :attr:`busy` now ending at ``end``),
+        and the re-look."""
+        if extends is None:
+            self.busy.append((relook.t_s, relook.t_s + relook.duration_s))
+        else:
+            i, end = extends
+            self.busy[i] = (self.busy[i][0], end)
         self.taken.append(relook)
         return relook
 
@@ -1335,8 +1338,9 @@ class HeightTracker:
         the look-ahead is on then, without going back to its pitch in between: ``(t, i, end)``
         (its time, the index in :attr:`busy` of the window it extends, that window's new
         end), or ``None`` where it is not (no window holds ``want``; the look-ahead's time
-        not on the slew model; the last re-look of that window a mosaic; it could not be there
-        by ``want`` plus a slew between the two; the longer window would run into another).
+        not on the slew model; the last re-look of that window a mosaic; the longer window
+        would run into another). It is taken at ``want``, or once the look-ahead has slewed
+        from the last re-look's pitch to its own and settled, if that is later.
 
         A window's time is counted from the first re-look's exposure, the slew there counted
         at its end (as :func:`relook_seconds`): a re-look chained after the last one ``B``
