@@ -1230,3 +1230,25 @@ def test_a_slow_pass_takes_each_relook_of_a_plume_and_counts_relooks_not_windows
     # at least two of them taken straight one after another: fewer windows than re-looks
     assert len(r.relook_windows) < 3
     assert r.totals()["relooks"] == 3
+
+
+def test_a_later_relook_matching_on_its_searchs_edge_rejects_the_earlier_fit():
+    # a top at 8 km for the frame and the first re-look (the fit of those two looks: 8 km),
+    # at 10 km by the second: the second re-look searches 0.7-1.3 x the fit, rows where a
+    # top of 5.6-10.4 km would be, and its best match lies on that search's edge (the top's
+    # move between the looks is beyond what the fit allows). The fit is contradicted: no
+    # estimate, though the two-look one aimed until the decision
+    where, _, _ = _synthetic([])
+    y = _true_row(where, 100.0, 8000.0)
+    blob = (48.0, y, 6, 4, lambda t: 8000.0 if t < 16.0 else 10000.0)
+    where, tr, render = _synthetic([blob])
+    tr.frame(0, 0.0, 0, _blob_mask(where, 0.0, 0, [blob]), render, last=False)
+    (p,) = tr.plumes
+    assert len(p.relooks) == 2 and p.relooks[0].t_s < 16.0 < p.relooks[1].t_s
+    assert p.source == "none" and p.height_m is None
+    assert p.reason.startswith("a later re-look found its best match on the edge of the search")
+    assert "contradicted" in p.reason
+    (ready, h2), = p.stages  # fmt: skip
+    assert abs(h2 - 8000.0) <= 100.0
+    assert tr.height_at(p.pid, ready) == h2  # the two-look estimate aims until the decision
+    assert math.isnan(tr.height_at(p.pid, p.ready_s))

@@ -617,6 +617,10 @@ MIN_ENVELOPE_PX = 4
 MIN_ENVELOPE_NCC = 0.5
 """Least normalised correlation of the envelopes at the best shift."""
 
+EDGE_MATCH = "the envelope's best match lies on the search's edge"
+"""Why :func:`envelope_disparity` gives no displacement when its best match lies on the
+edge of its search (the envelope most likely lies beyond it)."""
+
 
 def envelope_disparity(
     first: np.ndarray,
@@ -719,7 +723,7 @@ def envelope_disparity(
     if not best > MIN_ENVELOPE_NCC:
         return None, f"envelopes do not match (correlation {best:.2f}); no height is measured"
     if iy in (0, score.shape[0] - 1) or ix in (0, score.shape[1] - 1):
-        return None, "the envelope's best match lies on the search's edge; no height is measured"
+        return None, f"{EDGE_MATCH}; no height is measured"
 
     def vertex(m: float, c: float, p: float) -> float:
         den = m - 2.0 * c + p

@@ -118,7 +118,10 @@ Model (what is and is not modelled):
   :data:`~dyntarget.predict.height.MIN_ENVELOPE_NCC`, or the best on the search's
   edge), a degenerate fit or one whose standard deviation exceeds :data:`MAX_SIGMA_M`
   keeps the prior (``height_source`` ``"prior"``) or nothing (``"none"``), with one
-  line on stderr naming the plume and the reason.
+  line on stderr naming the plume and the reason. So does a plume whose later re-look
+  finds its best match on the edge of the search its earlier looks' fit allows (0.7 to
+  1.3 times the fitted height): the fit is contradicted (:meth:`HeightTracker._conclude`);
+  a plume a later re-look does not find at all keeps the fit of the looks that saw it.
 * **Known limits:** the loop does not tell a detached cloud (which drifts with the wind
   as a whole) from a vent-attached plume: it is fitted with the zero-drift prior too,
   and an along-track drift ``v`` biases its height by about ``v dt / (tan_0 - tan_2)``
@@ -143,7 +146,14 @@ import numpy as np
 
 from dyntarget import defaults, parallax
 from dyntarget.errors import InvalidParameterError
-from dyntarget.predict.height import Disparity, HeightFit, Look, envelope_disparity, fit_height
+from dyntarget.predict.height import (
+    EDGE_MATCH,
+    Disparity,
+    HeightFit,
+    Look,
+    envelope_disparity,
+    fit_height,
+)
 from dyntarget.schedule import Agility, OrbitGeometry
 from dyntarget.schedule.kinematics import EARTH_RADIUS_M, angle_between_deg, look_vectors
 
@@ -1127,10 +1137,23 @@ class HeightTracker:
         self, p: Plume, looks: list[Look], fit: HeightFit | None, lost: str | None, why: str
     ) -> None:
         """Plume ``p``'s final estimate from its looks and their last fit (``lost``: why a
-        later re-look did not see it; ``why``: why a re-look was not taken), or the fallback."""
+        later re-look did not see it; ``why``: why a re-look was not taken), or the fallback.
+
+        A later re-look whose best match lies on the edge of its search contradicts the fit
+        of the looks before it: that search spanned the heights the fit allows (0.7 to 1.3
+        times it), and the envelope most likely lies beyond them; the plume gets no
+        estimate (its earlier ones are used until then, as a rejected final fit's are)."""
         if len(looks) >= 2 and fit is not None:
             t0 = time.perf_counter()
-            self._fit(p, looks, fit)
+            if lost is not None and lost.startswith(EDGE_MATCH):
+                self._fallback(
+                    p,
+                    f"a later re-look found its best match on the edge of the search the fit of "
+                    f"its first {len(looks) - 1} re-look(s) allows ({fit.height_m:.0f} m): the "
+                    f"fit is contradicted",
+                )
+            else:
+                self._fit(p, looks, fit)
             last = looks[-1].t_s
             known = max(last, p.stages[-1][0]) if p.stages else last
             p.ready_s = known + self._fit_time(t0)  # decided (estimate or not)
