@@ -241,8 +241,14 @@ def relook_seconds(geometry: OrbitGeometry, agility: Agility, distance_m: float)
     """
     if not (math.isfinite(distance_m) and distance_m > 0):
         raise InvalidParameterError(f"re-look distance: expected metres > 0, got {distance_m!r}")
+    return 2.0 * _pitch_back_s(geometry, agility, distance_m) + agility.dwell_s
+
+
+def _pitch_back_s(geometry: OrbitGeometry, agility: Agility, distance_m: float) -> float:
+    """Seconds to slew between a look ``distance_m`` ahead and the regular pitch (either
+    way: the slew model is symmetric) and settle."""
     slew = agility.slew_time_one(_pitch_deg(geometry, geometry.look_ahead_m, distance_m))
-    return 2.0 * (slew + agility.settle_s) + agility.dwell_s
+    return slew + agility.settle_s
 
 
 @dataclass(frozen=True)
@@ -1380,14 +1386,11 @@ class HeightTracker:
         if len(last.frames) > 1 or last.ahead_m is None:
             return None
         g, a = self.where.geometry, self.agility
-
-        def back(d: float) -> float:
-            return a.slew_time_one(_pitch_deg(g, d, g.look_ahead_m)) + a.settle_s
-
         step = _pitch_deg(g, last.ahead_m, ahead_m)
         move = a.slew_time_one(step) + a.settle_s if step > 1e-9 else 0.0
         t = max(want, last.t_s + a.dwell_s + move, self.free_s)
-        end = e0 + (t - last.t_s) + back(ahead_m) - back(last.ahead_m)
+        back, back_last = _pitch_back_s(g, a, ahead_m), _pitch_back_s(g, a, last.ahead_m)
+        end = e0 + (t - last.t_s) + back - back_last
         if any(s < end and e > s0 for j, (s, e) in enumerate(self.busy) if j != i):
             return None
         return t, i, end
