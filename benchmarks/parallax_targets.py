@@ -27,7 +27,8 @@ Parts (``--part``):
     top rising at up to 100 m/s; ``estimated-far``: one re-look, at 80 % of the distance,
     400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline; ``estimated-mosaic``:
     ``estimated`` whose re-looks take up to 8 frames where one cannot hold the search,
-    ``fly --relook-frames 8``) and with a fixed
+    ``fly --relook-frames 8``; ``estimated-hold``: ``estimated`` whose look-ahead holds
+    each plume's last re-look's pitch, ``fly --relook-hold``) and with a fixed
     prior of 8.5 km (``prior``); ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
@@ -80,13 +81,21 @@ top (``fly``'s default ``--max-rise-mps 0``)."""
 LONG_MODES = (*MODES, "estimated-nc")
 """The long part adds ``estimated-nc``: ``estimated`` without catching up (``--no-catch-up``:
 the frames due during a re-look are lost)."""
-EXTRA_MODES = ("estimated-nc", "estimated-2r", "estimated-far", "estimated-mosaic")
+EXTRA_MODES = (
+    "estimated-nc",
+    "estimated-2r",
+    "estimated-far",
+    "estimated-mosaic",
+    "estimated-hold",
+)
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
 rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
 ``estimated`` with its one re-look at 80 % of the look-ahead distance instead of 60 %
 (``fly --relook-km 400`` at the default geometry); ``estimated-mosaic`` is ``estimated``
 whose re-looks take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the search
-(``fly --relook-frames 8``)."""
+(``fly --relook-frames 8``); ``estimated-hold`` is ``estimated`` whose look-ahead, after
+a plume's last re-look, holds that re-look's pitch and takes the regular frames from there
+(``fly --relook-hold``)."""
 MOSAIC_FRAMES = 8
 """The most frames an ``estimated-mosaic`` re-look takes."""
 RISE_MPS = 100.0
@@ -142,6 +151,7 @@ def fly(spec, window, config: PassConfig, *, long: bool = False) -> dict:
         "relooks": totals.get("relooks"),
         "frames_lost_to_relooks": totals.get("frames_lost_to_relooks"),
         "frames_caught_up": totals.get("frames_caught_up"),
+        **({"frames_held": totals["frames_held"]} if "frames_held" in totals else {}),
         "frames": len(result.records),
         "estimates": estimates,
         "heights_s": [float(r.stage_s.get("heights", 0.0)) for r in frames],
@@ -160,6 +170,8 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated-2", agility, look_ahead_m), max_rise_mps=RISE_MPS)
     if mode == "estimated-mosaic":
         return replace(config_for("estimated", agility, look_ahead_m), relook_frames=MOSAIC_FRAMES)
+    if mode == "estimated-hold":
+        return replace(config_for("estimated", agility, look_ahead_m), relook_hold=True)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)
@@ -302,7 +314,8 @@ def say(row: dict, *keys: str) -> None:
 
 def mode_summary(rows: list[dict], *sums: str) -> dict:
     """Per agility and mode: utility summed over the strips, as a fraction of the flat
-    passes', and the sums of ``sums`` (``None`` counted 0)."""
+    passes', and the sums of ``sums`` (``None`` counted 0; a key no row of a mode has, left
+    out)."""
     summary: dict = {}
     for agility in ("slow", "fast"):
         sel = [r for r in rows if r["agility"] == agility]
@@ -314,7 +327,7 @@ def mode_summary(rows: list[dict], *sums: str) -> dict:
             summary[agility][mode] = {
                 "utility": round(u, 2),
                 "fraction_of_flat": None if flat_u <= 0 else round(u / flat_u, 4),
-                **{k: sum(r[k] or 0 for r in mine) for k in sums},
+                **{k: sum(r.get(k) or 0 for r in mine) for k in sums if any(k in r for r in mine)},
             }
     return summary
 
@@ -348,7 +361,9 @@ def part_long(args) -> dict:
                 rows.append({"strip": i, "agility": agility, "mode": mode, **r})
                 say(rows[-1], "plumes_observed", "plumes_total", "relooks",
                     "frames_lost_to_relooks", "frames_caught_up", "frames", "wall_s")  # fmt: skip
-    summary = mode_summary(rows, "relooks", "frames_lost_to_relooks", "frames_caught_up", "frames")
+    summary = mode_summary(
+        rows, "relooks", "frames_lost_to_relooks", "frames_caught_up", "frames_held", "frames"
+    )
     return {"rows": rows, "summary": summary}
 
 

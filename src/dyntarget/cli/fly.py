@@ -118,8 +118,8 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 
 def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     """``PassConfig`` parallax fields from ``--parallax``, ``--plume-height-km``,
-    ``--no-parallax``, ``--relook-km``, ``--no-catch-up`` and ``--max-rise-mps`` (none
-    given: none set, the defaults)."""
+    ``--no-parallax``, ``--relook-km``, ``--no-catch-up``, ``--max-rise-mps``,
+    ``--relook-frames`` and ``--relook-hold`` (none given: none set, the defaults)."""
     kw: dict[str, Any] = {}
     mode, choice = args.parallax, o.parallax_choice(args)
     if choice == "off":
@@ -157,6 +157,12 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
                 f"--relook-frames: has no effect with --parallax {mode} (no re-look is taken)"
             )
         kw["relook_frames"] = args.relook_frames
+    if args.relook_hold:
+        if mode in ("off", "prior", "true"):
+            raise InvalidParameterError(
+                f"--relook-hold: has no effect with --parallax {mode} (no re-look is taken)"
+            )
+        kw["relook_hold"] = True
     return kw
 
 
@@ -558,6 +564,14 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="lose the look-ahead frames due during a re-look instead of taking them late, "
         "pitching back to them once the re-look is over (the default catches up)",
+    )
+    par.add_argument(
+        "--relook-hold",
+        action="store_true",
+        help="after a plume's last re-look, keep the look-ahead at that re-look's pitch and "
+        "take the regular frames from there, later (a shorter lead, never shorter than the "
+        "NFOV's field of regard allows), instead of going back and catching up or losing "
+        "the frames due meanwhile; helps a slow look-ahead (e.g. --agility slow)",
     )
 
 

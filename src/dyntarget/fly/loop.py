@@ -324,7 +324,7 @@ def _prepare(
                 where, config.limits, config.relook_km, config.relook_s, config.plume_height_m,
                 prior, measure=mode == "estimated", log=_stderr, catch_up=config.catch_up,
                 max_rise_mps=config.max_rise_mps, fit_s=config.compute_budget_s,
-                relook_frames=config.relook_frames,
+                relook_frames=config.relook_frames, hold=config.relook_hold,
             )  # fmt: skip
         ctx = replace(ctx, mode=mode, where=where, tracker=tracker)
     return ctx, geo_info, geo_times

@@ -105,6 +105,9 @@ class PassConfig:
     relook_frames : the most frames one re-look takes, a mosaic down the strip, where its
         search asks more rows than one frame holds (1: one frame, its search cut to it;
         :data:`dyntarget.predict.relooks.RELOOK_FRAMES` by default).
+    relook_hold : after a plume's last re-look the look-ahead holds that re-look's pitch
+        and takes the regular frames from there, later, instead of going back (and then
+        never catches up: :class:`dyntarget.predict.relooks.HeightTracker`'s ``hold``).
     """
 
     planner: str = "lawnmower-transect"
@@ -130,6 +133,7 @@ class PassConfig:
     catch_up: bool = True
     max_rise_mps: float = 0.0
     relook_frames: int = RELOOK_FRAMES
+    relook_hold: bool = False
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -209,6 +213,10 @@ class PassConfig:
             raise InvalidParameterError(
                 f"relook_frames: expected an integer in 1..{MAX_RELOOK_FRAMES}, got {n!r}"
             )
+        if not isinstance(self.relook_hold, bool):
+            raise InvalidParameterError(
+                f"relook_hold: expected true or false, got {self.relook_hold!r}"
+            )
 
     def resolved_parallax(self, is_3d: bool) -> str:
         """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
@@ -272,6 +280,8 @@ class PassConfig:
             d.pop("max_rise_mps")
         if self.relook_frames == RELOOK_FRAMES:  # likewise
             d.pop("relook_frames")
+        if not self.relook_hold:  # likewise
+            d.pop("relook_hold")
         return d
 
 
@@ -622,6 +632,8 @@ class PassResult:
             ``parallax`` (the mode flown); on a 3D world also ``relooks``,
             ``frames_lost_to_relooks`` (not seen at all), ``frames_caught_up`` and
             ``frames_skipped_catching_up`` (estimated heights with ``catch_up``),
+            ``frames_held`` (estimated heights with ``relook_hold``: frames taken late, from
+            a re-look's pitch held),
             ``plumes_height_estimated``,
             ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
@@ -652,15 +664,24 @@ class PassResult:
     @property
     def _catches_up(self) -> bool:
         """Whether the pass re-looked with catching up asked for (``"estimated"`` heights)."""
-        return self.parallax == "estimated" and self.config.catch_up
+        config = self.config
+        return self.parallax == "estimated" and config.catch_up and not config.relook_hold
+
+    @property
+    def _holds(self) -> bool:
+        """Whether the pass re-looked holding each plume's last re-look's pitch."""
+        return self.parallax == "estimated" and self.config.relook_hold
+
+    def _late(self) -> int:
+        """Frames taken after their due time (caught up, or held)."""
+        return sum(
+            not r.dropped and r.acquired_s > self.frames.acquired_s(r.frame) for r in self.records
+        )
 
     def _catch_up_totals(self) -> dict[str, int]:
         """Frames the look-ahead took late after re-looks, and those it skipped meanwhile."""
-        late = sum(
-            not r.dropped and r.acquired_s > self.frames.acquired_s(r.frame) for r in self.records
-        )
         return {
-            "frames_caught_up": late,
+            "frames_caught_up": self._late(),
             "frames_skipped_catching_up": sum(r.path == CATCH_UP_SKIP for r in self.records),
         }
 
@@ -679,6 +700,7 @@ class PassResult:
                 r.path in (RELOOK_DROP, RELOOK_LATE) for r in self.records
             ),
             **(self._catch_up_totals() if self._catches_up else {}),
+            **({"frames_held": self._late()} if self._holds else {}),
             "plumes_height_estimated": len(est),
             "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
             "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,

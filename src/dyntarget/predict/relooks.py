@@ -138,7 +138,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import cv2
@@ -325,6 +325,8 @@ class Relook:
     ahead_m : float or None
         Ground distance ahead of the nadir it looked, metres (``None``: not on record; a
         re-look is then not followed straight by another).
+    held : bool
+        The look-ahead stayed at its pitch after it (:meth:`HeightTracker._holds`).
     """
 
     t_s: float
@@ -333,6 +335,7 @@ class Relook:
     mask: np.ndarray | None = None
     frames: list[tuple[float, int, np.ndarray | None]] = field(default_factory=list)
     ahead_m: float | None = None
+    held: bool = False
 
     def __post_init__(self) -> None:
         if not self.frames:
@@ -572,9 +575,13 @@ class HeightTracker:
     relook_frames : int
         Most frames one re-look takes where its search asks more rows than a frame holds
         (:data:`RELOOK_FRAMES`; 1: one frame, its search cut to it).
+    hold : bool
+        Instead of going back to its regular pitch after a plume's last re-look, the
+        look-ahead holds that re-look's pitch and takes the regular frames from there,
+        later (:meth:`take`; the module docstring's "Holding"). It then never catches up.
     """
 
-    def __init__(
+    def __init__(  # noqa: PLR0913 (the pass's height options, keyword-only after wind)
         self,
         where: Geometry3D,
         agility: Agility,
@@ -589,6 +596,7 @@ class HeightTracker:
         max_rise_mps: float = 0.0,
         fit_s: float | None = None,
         relook_frames: int = RELOOK_FRAMES,
+        hold: bool = False,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log, self.fit_s = measure, log, fit_s
@@ -596,10 +604,19 @@ class HeightTracker:
         g, frame_m = where.geometry, where.frame_px * where.geometry.wfov_gsd_m
         step = _pitch_deg(g, g.look_ahead_m, g.look_ahead_m - frame_m)
         late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
-        self.catch_up = catch_up and late_frame_s < frame_m / g.ground_speed
-        """Whether frames due during a re-look are taken late: asked for, and the look-ahead
-        gains on the ground (a frame taken late, a whole frame's pitch step, settling and
-        exposure, costs less than the time its ground takes to pass)."""
+        self.hold = bool(hold)
+        self.catch_up = catch_up and not hold and late_frame_s < frame_m / g.ground_speed
+        """Whether frames due during a re-look are taken late: asked for, not holding, and
+        the look-ahead gains on the ground (a frame taken late, a whole frame's pitch step,
+        settling and exposure, costs less than the time its ground takes to pass)."""
+        self.holds: list[tuple[float, float]] = []
+        """``(from, distance)``: from pass time ``from`` on (frames due then, re-looks taken
+        then), the look-ahead's regular pitch looks ``distance`` m ahead (:meth:`_home_m`)."""
+        self.last_due = -math.inf
+        """When the last frame :meth:`take` was asked about was due, pass seconds."""
+        self.lags = (0.0, 0.0)
+        """Seconds after its due time the frame taken before the last was taken, and the last
+        (held frames: :meth:`frame` tracks a plume from the view the frame before had)."""
         self.free_s = 0.0
         """When the look-ahead is done with the last frame it took late, pass seconds."""
         self.pitch_m: float | None = None
@@ -657,9 +674,11 @@ class HeightTracker:
         Returns
         -------
         tuple
-            ``(t, "")``: taken at pass time ``t`` (``t_due`` on time, later when late);
-            ``(None, why)``: not taken, ``why`` one of ``"re-looking"`` (due during a
-            re-look, without catching up), ``"covered"`` (its ground is seen by the last
+            ``(t, "")``: taken at pass time ``t`` (``t_due`` on time, later when late or
+            held: while the look-ahead holds a re-look's pitch, ``d`` ahead, every frame is
+            taken when its ground is there, ``(look_ahead_m - d) / v`` after it was due);
+            ``(None, why)``: not taken, ``why`` one of ``"re-looking"`` (due, or held to a
+            time, during a re-look, without catching up), ``"covered"`` (its ground is seen by the last
             frame seen (:meth:`seen`) and the next, which will not come too late) or
             ``"too late"`` (its centre would be within the NFOV's reach).
 
@@ -679,9 +698,15 @@ class HeightTracker:
         >>> 4.8 < t < 5.5, why
         (True, '')
         """
+        self.last_due = t_due
+        if not self.catch_up:  # on time, or held: on the cadence, later; lost while re-looking
+            lag = self._lag_s(t_due)
+            t = t_due + lag
+            if self.busy_at(t):
+                return None, "re-looking"
+            self.lags = (self.lags[1], lag)
+            return t, ""
         busy = self.busy_at(t_due)
-        if not self.catch_up:
-            return (None, "re-looking") if busy else (t_due, "")
         if not busy and self.pitch_m is None and t_due >= self.free_s:  # on time
             return t_due, ""
         g, a = self.where.geometry, self.agility
@@ -712,6 +737,27 @@ class HeightTracker:
             The frame's top strip WFOV row.
         """
         self.last_top = top
+
+    def _home_m(self, t: float) -> float:
+        """How far ahead of the nadir the look-ahead's regular pitch looks at pass time ``t``
+        (for a frame: due at ``t``), metres: ``look_ahead_m`` until it holds a re-look's."""
+        home = self.where.geometry.look_ahead_m
+        for start, d in self.holds:
+            if start <= t:
+                home = d
+        return home
+
+    def _lag_s(self, t_due: float) -> float:
+        """Seconds after its due time a frame due at ``t_due`` is taken on the pitch held then
+        (0 on the regular pitch): when its ground has come that much nearer."""
+        g = self.where.geometry
+        return (g.look_ahead_m - self._home_m(t_due)) / g.ground_speed
+
+    def _from(self, t: float) -> OrbitGeometry:
+        """The geometry whose look-ahead distance is the pitch held at ``t`` (a re-look there
+        slews from it and back to it)."""
+        g, home = self.where.geometry, self._home_m(t)
+        return g if home == g.look_ahead_m else replace(g, look_ahead_m=home)
 
     def _when(self, t_due: float, start: float, prev_m: float) -> float:
         """When the look-ahead, free from ``start`` looking ``prev_m`` ahead, can take the
@@ -807,8 +853,9 @@ class HeightTracker:
         new: list[tuple[int, np.ndarray, np.ndarray]] = []
         ready: list[Plume] = []
         late = 0  # rows ahead a tracked plume's footprint may lie, in a frame taken late
-        if due is not None and t_k > due:  # at the frame's far edge, where it is largest
-            late = math.ceil(self.where.disparity_rows(float(top), due, t_k, TRACK_HEIGHT_M))
+        ref = None if due is None else due + self.lags[0]  # the frame before's view (held)
+        if ref is not None and t_k > ref:  # at the frame's far edge, where it is largest
+            late = math.ceil(self.where.disparity_rows(float(top), ref, t_k, TRACK_HEIGHT_M))
         near = np.ones((2 * MATCH_PX + 1 + late, 2 * MATCH_PX + 1), np.uint8)
         for i in range(1, n):
             if areas[i] < MIN_PLUME_PX:
@@ -983,8 +1030,8 @@ class HeightTracker:
 
         why = ""
         main = max(plumes, key=lambda p: len(p.rows))
-        for d in self._chain(float(np.mean(main.rows)), t_k, prior):
-            dur = self._duration(d)
+        chain = self._chain(float(np.mean(main.rows)), t_k, prior)
+        for i, d in enumerate(chain):
             alive = [p for p in plumes if p.pid not in failed]
             if not alive:
                 break
@@ -993,9 +1040,11 @@ class HeightTracker:
             if want <= t_k:
                 why = why or f"already nearer than {d / 1e3:g} km when seen"
                 continue
+            dur = self._duration(d, want)
             shared = self._window_for(alive, t_k, want, guess, dur, follow) or self._take(
-                alive, t_k, want, dur, guess, render, follow, searches, ahead_m=d
-            )
+                alive, t_k, want, dur, guess, render, follow, searches, ahead_m=d,
+                last=i == len(chain) - 1,
+            )  # fmt: skip
             if shared is None:
                 why = why or "the look-ahead was busy re-looking at other plumes"
                 continue
@@ -1174,11 +1223,12 @@ class HeightTracker:
         """Seconds the fit begun at ``perf_counter()`` ``t0`` took: ``fit_s`` where given."""
         return time.perf_counter() - t0 if self.fit_s is None else self.fit_s
 
-    def _duration(self, d: float) -> float:
-        """Look-ahead seconds of a re-look ``d`` metres ahead (given, or the slew model's)."""
+    def _duration(self, d: float, at: float) -> float:
+        """Look-ahead seconds of a re-look ``d`` metres ahead at ``at`` (given, or the slew
+        model's from the pitch held then and back)."""
         if self.relook_s is not None:
             return self.relook_s
-        return relook_seconds(self.where.geometry, self.agility, d)
+        return relook_seconds(self._from(at), self.agility, d)
 
     def _span(self, y: float, t_k: float, d: float, guess: float, spread: float) -> float:
         """Half-width (rows) of the search for a plume seen at row ``y`` at ``t_k`` in a
@@ -1269,8 +1319,9 @@ class HeightTracker:
         chain: list[float] = []
         spread = SPREAD_GUESS
         asked = self.distances_m
-        if asked and seen <= min(asked):
-            asked = tuple(d * seen / self.where.geometry.look_ahead_m for d in asked)
+        ahead = self.where.geometry.look_ahead_m
+        if asked and (seen <= min(asked) or self._home_m(t_k) < ahead):  # late, or held
+            asked = tuple(d * seen / ahead for d in asked)
         for d in asked:
             for _ in range(MAX_INSERTED):
                 prev = chain[-1] if chain else seen
@@ -1300,6 +1351,7 @@ class HeightTracker:
         follow: Follow | None = None,
         searches: Callable[[Plume, float], list[Search]] | None = None,
         ahead_m: float | None = None,
+        last: bool = False,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
         free, within one re-look's duration; else ``None``), its window centred where their
@@ -1307,7 +1359,8 @@ class HeightTracker:
         do not fit in one window, the largest); where a rise is allowed for, the room the
         window has left reaches beyond them, where a risen top would appear. Where a
         plume's searches (``searches(plume, t)``) ask more rows than a frame holds, the
-        re-look is a mosaic (:meth:`_mosaic`)."""
+        re-look is a mosaic (:meth:`_mosaic`). The plumes' ``last`` re-look may be held
+        (:meth:`_holds`)."""
         w = self.where
         hw, rows = w.wfov_shape[0], w.frame_px
         if hw >= rows and searches is not None:  # the frames it takes, decided at ``want``
@@ -1315,12 +1368,15 @@ class HeightTracker:
         else:
             n, step, step_s = 1, 0, 0.0
         total_s = dur + (n - 1) * step_s
-        at = self._free_from(want, total_s)
-        chained = self._straight_after(want, ahead_m) if n == 1 else None
-        if chained is not None and chained[0] <= at:  # not later than going back between
-            at = chained[0]
-        else:
-            chained = None
+        free = self._free_from(want, total_s)
+        for held in (True, False) if self.hold and last and n == 1 else (False,):
+            chained = self._straight_after(want, ahead_m, held) if n == 1 else None
+            if chained is None or chained[0] > free:  # not later than going back between
+                at, chained = free, None
+            else:
+                at = chained[0]
+            if not held or self._holds(at, ahead_m):
+                break
         if at - want > dur:
             return None
         if n > 1:
@@ -1344,9 +1400,34 @@ class HeightTracker:
         img = render(at, r0, w.nadir_hr(at))
         if chained is not None:  # it extends a window: the time it adds
             _, i, end = chained
-            relook = Relook(at, end - self.busy[i][1], r0, img, ahead_m=ahead_m)
+            relook = Relook(at, end - self.busy[i][1], r0, img, ahead_m=ahead_m, held=held)
+            if held:
+                assert ahead_m is not None
+                self._hold(self.busy[i][0], ahead_m)
             return self._book(relook, (i, end))
-        return self._book(Relook(at, dur, r0, img, ahead_m=ahead_m))
+        if held:  # no slew back: its window ends at the exposure (the slew there counted)
+            assert ahead_m is not None
+            dur -= _pitch_back_s(self._from(at), self.agility, ahead_m)
+            self._hold(at, ahead_m)
+        return self._book(Relook(at, dur, r0, img, ahead_m=ahead_m, held=held))
+
+    def _holds(self, at: float, ahead_m: float | None) -> bool:
+        """Whether a one-frame re-look at ``at``, ``ahead_m`` ahead, the last of its plumes',
+        is held (:attr:`hold` asked): on the slew model, nearer than the pitch held then,
+        not nearer than the NFOV's field of regard begins (frames taken from there are not
+        too late), and no re-look booked after it (they slew back to the pitch before)."""
+        return (
+            self.hold
+            and ahead_m is not None
+            and self.relook_s is None
+            and self.reach_m <= ahead_m < self._home_m(at)
+            and all(s <= at for s, _ in self.busy)
+        )
+
+    def _hold(self, start: float, ahead_m: float) -> None:
+        """Hold ``ahead_m`` from the window that began at ``start`` on: frames due from then
+        on, less those already asked about (:meth:`take`, lost to the window), are held."""
+        self.holds.append((max(start, math.nextafter(self.last_due, math.inf)), ahead_m))
 
     def _book(self, relook: Relook, extends: tuple[int, float] | None = None) -> Relook:
         """Record a re-look taken: the look-ahead busy for its duration (a window of its own,
@@ -1361,7 +1442,7 @@ class HeightTracker:
         return relook
 
     def _straight_after(
-        self, want: float, ahead_m: float | None
+        self, want: float, ahead_m: float | None, held: bool = False
     ) -> tuple[float, int, float] | None:
         """A re-look wanted at ``want``, ``ahead_m`` ahead, taken straight after the re-look
         the look-ahead is on then, without going back to its pitch in between: ``(t, i, end)``
@@ -1374,13 +1455,14 @@ class HeightTracker:
         A window's time is counted from the first re-look's exposure, the slew there counted
         at its end (as :func:`relook_seconds`): a re-look chained after the last one ``B``
         of a window ending ``e`` ends it at ``e + (t - t_B) + back - back_B``, ``back`` the
-        slew to the regular pitch and a settle."""
+        slew to the regular pitch (the pitch held then) and a settle; 0 for a re-look that
+        is ``held`` (:meth:`_holds`: the look-ahead stays there)."""
         if ahead_m is None or self.relook_s is not None:
             return None
-        held = [i for i, (s, e) in enumerate(self.busy) if s <= want < e]
-        if len(held) != 1:
+        on = [i for i, (s, e) in enumerate(self.busy) if s <= want < e]
+        if len(on) != 1:
             return None
-        i = held[0]
+        i = on[0]
         s0, e0 = self.busy[i]
         last = max((r for r in self.taken if s0 <= r.t_s < e0), key=lambda r: r.t_s)
         if len(last.frames) > 1 or last.ahead_m is None:
@@ -1389,7 +1471,9 @@ class HeightTracker:
         step = _pitch_deg(g, last.ahead_m, ahead_m)
         move = a.slew_time_one(step) + a.settle_s if step > 1e-9 else 0.0
         t = max(want, last.t_s + a.dwell_s + move, self.free_s)
-        back, back_last = _pitch_back_s(g, a, ahead_m), _pitch_back_s(g, a, last.ahead_m)
+        home = self._from(want)
+        back = 0.0 if held else _pitch_back_s(home, a, ahead_m)
+        back_last = 0.0 if last.held else _pitch_back_s(home, a, last.ahead_m)
         end = e0 + (t - last.t_s) + back - back_last
         if any(s < end and e > s0 for j, (s, e) in enumerate(self.busy) if j != i):
             return None
