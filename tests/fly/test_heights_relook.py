@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ import pytest
 from dyntarget.cli import main
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.io import write_scene
-from dyntarget.passes.record import CATCH_UP_SKIP, RELOOK_DROP
+from dyntarget.passes.record import CATCH_UP_SKIP, RELOOK_DROP, RELOOK_LATE
 from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, relook_seconds
 from dyntarget.scene import Scene
 from dyntarget.schedule import OrbitGeometry, get_agility
@@ -122,6 +123,8 @@ def _flat_strip(tmp_path):
         (["--relook-frames", "33"], "1..32"),
         (["--relook-frames", "two"], "--relook-frames"),
         (["--relook-frames", "2", "--parallax", "true"], "has no effect"),
+        (["--relook-hold", "--parallax", "prior", "--plume-height-km", "8"], "--relook-hold"),
+        (["--relook-hold", "--no-parallax"], "--relook-hold: has no effect"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -1122,19 +1125,19 @@ def test_a_mosaic_with_no_search_to_try_finds_nothing_and_says_nothing():
 # -- re-looks taken straight one after another ------------------------------------------
 
 
-def _chain_tracker(agility="slow", relook_s=None):
+def _chain_tracker(agility="slow", relook_s=None, hold=False):
     """A tracker on a long strip of 256-row frames and two plumes to re-look at; the
     re-looks are asked of ``_take`` directly at the times and distances a test names."""
     where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 96), 256, 0, 4)
     tr = HeightTracker(
         where, get_agility(agility), (300.0,), relook_s, None, None,
-        measure=True, log=lambda s: None,
+        measure=True, log=lambda s: None, hold=hold,
     )  # fmt: skip
     plumes = [Plume(i + 1, 0, 0.0, np.array([9000 + 100 * i]), np.array([40])) for i in (0, 1, 2)]
     guess = {p.pid: 8500.0 for p in plumes}
 
     def take(p, want, d_km):
-        dur = tr._duration(d_km * 1e3)
+        dur = tr._duration(d_km * 1e3, want)
         return tr._take([p], 0.0, want, dur, guess, lambda t, top, n: None, ahead_m=d_km * 1e3)
 
     return tr, plumes, take
@@ -1252,3 +1255,174 @@ def test_a_later_relook_matching_on_its_searchs_edge_rejects_the_earlier_fit():
     assert abs(h2 - 8000.0) <= 100.0
     assert tr.height_at(p.pid, ready) == h2  # the two-look estimate aims until the decision
     assert math.isnan(tr.height_at(p.pid, p.ready_s))
+
+
+# -- holding a re-look's pitch (``hold``, ``fly --relook-hold``) ------------------------------
+# By hand: 500 km up, the ground speed is sqrt(GM / (R + H)) R / (R + H) = 7062.3 m/s (GM
+# 3.986004418e14), so ground 300 km ahead was 500 km ahead 200 km / 7062.3 m/s = 28.32 s
+# before. ``slow``'s field of regard (30 deg off nadir) begins R (asin((R + H) sin 30 / R) -
+# 30 deg) = 292.7 km ahead.
+V_HAND = math.sqrt(3.986004418e14 / (R + H)) * R / (R + H)
+
+
+def test_the_hand_values_of_holding():
+    assert V_HAND == pytest.approx(7062.3, abs=0.1)
+    assert 200e3 / V_HAND == pytest.approx(28.32, abs=0.01)
+    reach = R * (math.asin((R + H) * math.sin(math.radians(30.0)) / R) - math.radians(30.0))
+    assert reach == pytest.approx(292.7e3, abs=0.1e3)
+
+
+def test_a_held_relook_has_no_slew_back_and_later_frames_are_taken_from_its_pitch():
+    # slow, 300 km ahead: the window is the slew there (15.27 s, counted at its end), a
+    # settle and the exposure: 16.37 s, not 32.6 s. A frame due before it is on time; every
+    # frame due from its start on is taken when its ground is 300 km ahead, 28.32 s later:
+    # none is lost
+    tr, (p, _, _), take = _chain_tracker(hold=True)
+    a = get_agility("slow")
+    r = take(p, 5.0, 300.0)
+    assert r.held and tr.holds == [(5.0, 300e3)]
+    assert tr.busy == [(5.0, pytest.approx(5.0 + 15.27 + 1.0 + 0.1, abs=0.01))]
+    assert tr.busy[0][1] - 5.0 == pytest.approx(_back_s(a, 300e3) + a.dwell_s, rel=1e-9)
+    assert tr.take(4.9, 9000, None) == (4.9, "")
+    for due in (5.0, 6.0, 30.0):
+        t, why = tr.take(due, 9000, None)
+        assert why == "" and t == pytest.approx(due + 200e3 / V_HAND, abs=1e-3)
+
+
+def test_without_holding_the_same_relook_goes_back_and_its_frames_are_lost():
+    tr, (p, _, _), take = _chain_tracker(hold=False)
+    r = take(p, 5.0, 300.0)
+    assert not r.held and tr.holds == []
+    assert tr.busy == [(5.0, pytest.approx(5.0 + 32.635, abs=1e-3))]
+    assert tr.take(6.0, 9000, None) == (None, "re-looking")
+
+
+def test_a_relook_from_the_held_pitch_slews_from_it_and_back_and_its_frames_are_lost():
+    # after holding 300 km, a re-look 180 km ahead (nearer than the field of regard begins:
+    # not held) slews from the held pitch to it and back: 2 x (slew + 1 s) + 0.1 s with the
+    # pitch change between 300 and 180 km ahead (by hand), and a frame whose held time falls
+    # inside it is lost
+    tr, (p, q, _), take = _chain_tracker(hold=True)
+    a = get_agility("slow")
+    take(p, 5.0, 300.0)
+    r = take(q, 60.0, 180.0)
+    phi = _off_nadir_deg(300e3) - _off_nadir_deg(180e3)
+    want = 2 * (_slew(a, phi) + a.settle_s) + a.dwell_s
+    assert not r.held and r.t_s == 60.0 and r.duration_s == pytest.approx(want, rel=1e-9)
+    assert tr.busy[1] == (60.0, pytest.approx(60.0 + want, rel=1e-9))
+    assert tr.holds == [(5.0, 300e3)]
+    lag = 200e3 / V_HAND
+    assert tr.take(61.0 - lag, 9000, None) == (None, "re-looking")
+    t, why = tr.take(61.0 + want - lag, 9000, None)
+    assert why == "" and t == pytest.approx(61.0 + want, abs=1e-3)
+
+
+@pytest.mark.parametrize("d_km", [250.0, 290.0])
+def test_no_relook_nearer_than_the_field_of_regard_begins_is_held(d_km):
+    # held there, the frames would be taken with their ground already in the NFOV's reach
+    tr, (p, _, _), take = _chain_tracker(hold=True)
+    r = take(p, 5.0, d_km)
+    assert not r.held and tr.holds == []
+    assert tr.busy[0][1] - 5.0 == pytest.approx(
+        relook_seconds(OrbitGeometry(), get_agility("slow"), d_km * 1e3), rel=1e-9
+    )
+
+
+def test_a_nearer_relook_straight_after_a_held_one_is_held_in_turn():
+    # 400 km (held: its window is the slew there from 500 km, 5.92 deg, 7.92 s, a settle
+    # and the exposure, 9.02 s) then 350 km wanted inside that window: the slew from 400 to
+    # 350 km and a settle take less than the window has left, so the second is taken
+    # straight after the first, and held too: the window ends at its exposure, the slew to
+    # 400 km still counted (no slew back at all)
+    tr, (p, q, _), take = _chain_tracker(hold=True)
+    a = get_agility("slow")
+    first = take(p, 5.0, 400.0)
+    assert first.held and tr.holds == [(5.0, 400e3)]
+    assert tr.busy == [(5.0, pytest.approx(5.0 + 9.02, abs=0.01))]
+    assert tr.busy[0][1] == pytest.approx(5.0 + _back_s(a, 400e3) + a.dwell_s, rel=1e-9)
+    t = 5.0 + a.dwell_s + _slew(a, _off_nadir_deg(400e3) - _off_nadir_deg(350e3)) + a.settle_s
+    assert t < tr.busy[0][1]
+    second = take(q, 6.0, 350.0)
+    assert second.held and second.t_s == pytest.approx(t, rel=1e-9)
+    assert tr.busy == [(5.0, pytest.approx(t + a.dwell_s + _back_s(a, 400e3), rel=1e-9))]
+    assert tr.holds == [(5.0, 400e3), (5.0, 350e3)]
+    t, why = tr.take(6.0, 9000, None)  # due after the window's start: held 350 km ahead
+    assert why == "" and t == pytest.approx(6.0 + 150e3 / V_HAND, abs=1e-3)
+
+
+def test_a_frame_not_yet_taken_where_the_look_ahead_held_is_taken_where_it_holds_now():
+    # held 400 km ahead from 5 s, 300 km from 20 s: a frame is taken when its ground is
+    # 400 km ahead (14.16 s after it was due) if that comes before 20 s; after, its ground
+    # was not seen at 400 km and it is taken 300 km ahead (28.32 s after it was due)
+    tr, _, _ = _chain_tracker(hold=True)
+    tr.holds.extend([(5.0, 400e3), (20.0, 300e3)])
+    assert 100e3 / V_HAND == pytest.approx(14.16, abs=0.01)
+    assert tr.take(4.0, 9000, None) == (4.0, "")
+    for due, lag in ((5.5, 100e3 / V_HAND), (6.0, 200e3 / V_HAND)):
+        t, why = tr.take(due, 9000, None)
+        assert why == "" and t == pytest.approx(due + lag, abs=1e-3)
+
+
+def test_a_frame_already_asked_about_stays_lost_when_the_hold_begins_in_its_window():
+    # 250 km (nearer than the field of regard begins: not held) and 300 km chained after it,
+    # held: the frame due at 7 s, in the window and asked about before the hold, stays lost;
+    # the hold begins after it
+    tr, (p, q, _), take = _chain_tracker(hold=True)
+    assert not take(p, 5.0, 250.0).held
+    assert tr.take(7.0, 9000, None) == (None, "re-looking")
+    assert take(q, 8.0, 300.0).held
+    (start, d), = tr.holds  # fmt: skip
+    assert d == 300e3 and 7.0 < start < 7.0 + 1e-9
+
+
+def test_a_plume_in_a_held_frame_is_relooked_at_the_asked_fraction_of_where_it_was_seen():
+    # a held frame sees its plumes 300 km ahead; the asked 300 km re-look would have no
+    # baseline. As for a frame taken late, it is scaled: seen 301 km ahead, 300 x 301 / 500
+    tr, _, _ = _chain_tracker(hold=True)
+    tr.holds.append((0.0, 300e3))
+    t_k = 50.0
+    _, ny = tr.where.nadir(t_k)
+    y = ny - 301e3 / GSD
+    assert tr.where.along(y, t_k) == pytest.approx(301e3, abs=1.0)
+    chain = tr._chain(y, t_k, 8500.0)
+    assert chain[-1] == pytest.approx(300e3 * 301 / 500, rel=1e-6)
+    assert all(d < 301e3 for d in chain)
+
+
+@pytest.mark.slow
+def test_a_slow_pass_holding_loses_fewer_frames_and_counts_those_it_held():
+    # a 150 km strip of 2 km frames, slow: its first plume's re-looks (two nearer in time,
+    # then 300 km ahead) cost the frames due meanwhile; held, each comes nearer and the
+    # frames are taken from there
+    from dyntarget.synth.dynamic import with_heights
+    from dyntarget.synth.strip import long_strip_spec
+    from dyntarget.synth.strip_world import LongStrip
+
+    spec, window = long_strip_spec(302, 150.0, width=256, plumes_per_100km=2.0, wind_mps=5.0)
+    spec = with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
+    world = LongStrip(spec, window)
+    config = PassConfig(agility="slow", compute_budget_s=0.05, parallax="estimated")
+    base, held = (fly_pass(world, None, replace(config, relook_hold=h)) for h in (False, True))
+    b, h = base.totals(), held.totals()
+    assert "frames_held" not in b and h["frames_held"] > 0
+    assert h["frames_lost_to_relooks"] < b["frames_lost_to_relooks"]
+    assert "frames_caught_up" not in h and b["frames_caught_up"] == 0
+    late = [
+        r for r in held.records if not r.dropped and r.acquired_s > held.frames.acquired_s(r.frame)
+    ]
+    assert len(late) == h["frames_held"]
+    # every frame is seen or lost: none is taken once its ground is in the NFOV's reach
+    assert all(r.path != RELOOK_LATE for r in held.records)
+
+
+@pytest.mark.parametrize("bad", ["yes", 1, None])
+def test_relook_hold_must_be_true_or_false(bad):
+    from dyntarget.errors import InvalidParameterError
+
+    with pytest.raises(InvalidParameterError, match="relook_hold: expected true or false"):
+        PassConfig(relook_hold=bad)
+
+
+def test_a_held_pass_records_the_setting_and_a_default_one_does_not():
+    assert "relook_hold" not in PassConfig().as_dict()
+    assert PassConfig(relook_hold=True).as_dict()["relook_hold"] is True

@@ -748,10 +748,16 @@ class HeightTracker:
         return home
 
     def _lag_s(self, t_due: float) -> float:
-        """Seconds after its due time a frame due at ``t_due`` is taken on the pitch held then
-        (0 on the regular pitch): when its ground has come that much nearer."""
-        g = self.where.geometry
-        return (g.look_ahead_m - self._home_m(t_due)) / g.ground_speed
+        """Seconds after its due time a frame due at ``t_due`` is taken (0 on the regular
+        pitch): when its ground is as far ahead as the pitch held then. Each hold is nearer
+        than the last and applies to the frames that would be taken from its start on: a
+        frame the look-ahead had not taken yet where it held before is taken where it holds
+        now (its ground was not seen: it lay beyond the pitch held before)."""
+        g, lag = self.where.geometry, 0.0
+        for start, d in self.holds:
+            if t_due + lag >= start:
+                lag = (g.look_ahead_m - d) / g.ground_speed
+        return lag
 
     def _from(self, t: float) -> OrbitGeometry:
         """The geometry whose look-ahead distance is the pitch held at ``t`` (a re-look there
@@ -1030,8 +1036,7 @@ class HeightTracker:
 
         why = ""
         main = max(plumes, key=lambda p: len(p.rows))
-        chain = self._chain(float(np.mean(main.rows)), t_k, prior)
-        for i, d in enumerate(chain):
+        for d in self._chain(float(np.mean(main.rows)), t_k, prior):
             alive = [p for p in plumes if p.pid not in failed]
             if not alive:
                 break
@@ -1042,9 +1047,8 @@ class HeightTracker:
                 continue
             dur = self._duration(d, want)
             shared = self._window_for(alive, t_k, want, guess, dur, follow) or self._take(
-                alive, t_k, want, dur, guess, render, follow, searches, ahead_m=d,
-                last=i == len(chain) - 1,
-            )  # fmt: skip
+                alive, t_k, want, dur, guess, render, follow, searches, ahead_m=d
+            )
             if shared is None:
                 why = why or "the look-ahead was busy re-looking at other plumes"
                 continue
@@ -1351,7 +1355,6 @@ class HeightTracker:
         follow: Follow | None = None,
         searches: Callable[[Plume, float], list[Search]] | None = None,
         ahead_m: float | None = None,
-        last: bool = False,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
         free, within one re-look's duration; else ``None``), its window centred where their
@@ -1359,7 +1362,7 @@ class HeightTracker:
         do not fit in one window, the largest); where a rise is allowed for, the room the
         window has left reaches beyond them, where a risen top would appear. Where a
         plume's searches (``searches(plume, t)``) ask more rows than a frame holds, the
-        re-look is a mosaic (:meth:`_mosaic`). The plumes' ``last`` re-look may be held
+        re-look is a mosaic (:meth:`_mosaic`). A one-frame re-look may be held
         (:meth:`_holds`)."""
         w = self.where
         hw, rows = w.wfov_shape[0], w.frame_px
@@ -1369,7 +1372,7 @@ class HeightTracker:
             n, step, step_s = 1, 0, 0.0
         total_s = dur + (n - 1) * step_s
         free = self._free_from(want, total_s)
-        for held in (True, False) if self.hold and last and n == 1 else (False,):
+        for held in (True, False) if self.hold and n == 1 else (False,):
             chained = self._straight_after(want, ahead_m, held) if n == 1 else None
             if chained is None or chained[0] > free:  # not later than going back between
                 at, chained = free, None
@@ -1412,10 +1415,11 @@ class HeightTracker:
         return self._book(Relook(at, dur, r0, img, ahead_m=ahead_m, held=held))
 
     def _holds(self, at: float, ahead_m: float | None) -> bool:
-        """Whether a one-frame re-look at ``at``, ``ahead_m`` ahead, the last of its plumes',
-        is held (:attr:`hold` asked): on the slew model, nearer than the pitch held then,
-        not nearer than the NFOV's field of regard begins (frames taken from there are not
-        too late), and no re-look booked after it (they slew back to the pitch before)."""
+        """Whether a one-frame re-look at ``at``, ``ahead_m`` ahead, is held (:attr:`hold`
+        asked): on the slew model, nearer than the pitch held then (the look-ahead only
+        ever comes nearer: ground beyond it is not seen yet), not nearer than the NFOV's
+        field of regard begins (frames taken from there are not too late), and no re-look
+        booked after it (they slew back to the pitch before)."""
         return (
             self.hold
             and ahead_m is not None
@@ -1425,9 +1429,11 @@ class HeightTracker:
         )
 
     def _hold(self, start: float, ahead_m: float) -> None:
-        """Hold ``ahead_m`` from the window that began at ``start`` on: frames due from then
-        on, less those already asked about (:meth:`take`, lost to the window), are held."""
-        self.holds.append((max(start, math.nextafter(self.last_due, math.inf)), ahead_m))
+        """Hold ``ahead_m`` from the window that began at ``start`` on: the frames that would
+        be taken from then on (:meth:`_lag_s`), less those already asked about
+        (:meth:`take`: taken, or lost to the window), are taken from there."""
+        asked = self.last_due + self._lag_s(self.last_due)
+        self.holds.append((max(start, math.nextafter(asked, math.inf)), ahead_m))
 
     def _book(self, relook: Relook, extends: tuple[int, float] | None = None) -> Relook:
         """Record a re-look taken: the look-ahead busy for its duration (a window of its own,
