@@ -241,3 +241,37 @@ def test_the_short_strips_mosaic_heights_are_their_record():
     bias = f"{round(h['bias_m'])}".replace("-", "−")
     said = f"RMSE {round(h['rmse_m'])} m and bias {bias} m over the same {h['estimated']} of"
     assert said in PAGE, said
+
+
+def _lost(rows: list[dict], agility: str, mode: str) -> int:
+    """Look-ahead frames lost to re-looks over a mode's passes."""
+    sel = [r for r in rows if r["agility"] == agility and r["mode"] == mode]
+    return sum(r["frames_lost_to_relooks"] or 0 for r in sel)
+
+
+@pytest.mark.parametrize(
+    ("label", "record", "held", "part", "agility"),
+    [
+        ("short strips", "parallax_targeting.json", "parallax_targeting_hold.json", "targeting", "fast"),
+        ("short strips", "parallax_targeting.json", "parallax_targeting_hold.json", "targeting", "slow"),
+        ("long, 8 km frames, 2 strips", "parallax_long_1024.json", "parallax_long_1024_hold.json", "long", "fast"),
+        ("long, 8 km frames, 2 strips", "parallax_long_1024.json", "parallax_long_1024_hold.json", "long", "slow"),
+        ("long, 8 km frames, 8 strips", "parallax_long_1024_8_slow.json", "parallax_long_1024_8_slow_hold.json", "long", "slow"),
+        ("long, 2 km frames, 2 strips", "parallax_long.json", "parallax_long_hold.json", "long", "fast"),
+        ("long, 2 km frames, 2 strips", "parallax_long.json", "parallax_long_hold.json", "long", "slow"),
+        ("long, 2 km frames, 8 strips", "parallax_long_8.json", "parallax_long_8_hold.json", "long", "fast"),
+        ("long, 2 km frames, 8 strips", "parallax_long_8.json", "parallax_long_8_hold.json", "long", "slow"),
+    ],
+)  # fmt: skip
+def test_the_hold_table_is_its_records(label, record, held, part, agility):
+    one, hold = _record(record)[part], _record(held)[part]
+    row = (
+        f"| {label} | `{agility}` | {_flat(one, agility)} | "
+        f"{_cell(one['summary'], one['rows'], agility, 'estimated')} | "
+        f"{_measured(one['rows'], agility, 'estimated')} | "
+        f"{_lost(one['rows'], agility, 'estimated')} | {_flat(hold, agility)} | "
+        f"{_cell(hold['summary'], hold['rows'], agility, 'estimated-hold')} | "
+        f"{_measured(hold['rows'], agility, 'estimated-hold')} | "
+        f"{_lost(hold['rows'], agility, 'estimated-hold')} |"
+    )
+    assert row in PAGE, row

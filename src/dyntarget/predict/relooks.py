@@ -77,6 +77,25 @@ Model (what is and is not modelled):
   view angle: tracking looks for a tracked plume up to :data:`TRACK_HEIGHT_M`'s change of
   parallax nearer the nadir (so a new plume that near a tracked one, on its nadir side, is
   taken for it), and a new plume is measured from that look's own geometry.
+* **Holding** (``hold``, ``fly --relook-hold``; opt-in, and the look-ahead then never
+  catches up). Going back from a re-look to the regular pitch loses the frames due
+  meanwhile (``slow``: 32.6 s of them for a re-look 300 km ahead). Held instead, the
+  look-ahead stays at a re-look's pitch, ``d`` ahead, and takes every later frame there, on
+  the same cadence, ``(look_ahead_m - d) / v`` after it was due (28.3 s for 300 km): its
+  ground, not yet seen, is then ``d`` ahead. Nothing is lost but lead: coming nearer, the
+  look-ahead only waits while ground it has already seen passes. A one-frame re-look on
+  the slew model is held when it is nearer than the pitch held then, not nearer than the
+  NFOV's field of regard begins (:func:`_reach_m`: frames from there are not too late) and
+  no re-look is booked after it (:meth:`HeightTracker._holds`); its window is the slew
+  there, a settle and the exposure (no slew back), and a frame the look-ahead would have
+  taken from the window's start on is held there, unless it was asked about already (then
+  lost to the window). Each hold comes nearer (a plume's narrowing re-looks, 450 then 365
+  then 300 km ahead on 2 km frames, are each held in turn), and a frame not yet taken
+  where the look-ahead held before is taken where it holds now (:meth:`HeightTracker._lag_s`).
+  A re-look from a held pitch slews from it and back to it; a plume seen in a held frame
+  is re-looked at the asked distances scaled, as in a frame taken late (seen 300 km ahead:
+  180 km, nearer than the field of regard begins, so not held: the frames due meanwhile
+  are lost).
 * **Measurement: the envelope.** A plume attached to its vent keeps its envelope (the
   mask's shape) at the vent while the wind blows its texture through it; so the
   envelope is measured, not the texture: the displacement between frame ``k``'s mask
