@@ -14,7 +14,7 @@ from dyntarget.cli import main
 from dyntarget.fly import PassConfig, fly_pass
 from dyntarget.io import write_scene
 from dyntarget.passes.record import CATCH_UP_SKIP, RELOOK_DROP, RELOOK_LATE
-from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, relook_seconds
+from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, Relook, relook_seconds
 from dyntarget.scene import Scene
 from dyntarget.schedule import OrbitGeometry, get_agility
 
@@ -1191,10 +1191,11 @@ def test_a_relook_after_the_window_or_before_another_is_taken_on_its_own():
     a = get_agility("slow")
     dur = 2 * _back_s(a, 300e3) + a.dwell_s
     take(p, 5.0, 300.0)
-    take(q, 5.0 + dur + 1.0, 300.0)  # after the first's window: a window of its own
-    assert [s for s, _ in tr.busy] == [5.0, 5.0 + dur + 1.0]
-    # wanted inside the first window, but staying on until then would run into the second:
-    # it waits for the second to end (more than one re-look's wait: not taken)
+    take(q, 5.0 + dur + 0.5, 300.0)  # after the first's window: a window of its own
+    assert [s for s, _ in tr.busy] == [5.0, 5.0 + dur + 0.5]
+    # wanted 1 s into the first window, but staying on until then (its window would end 1 s
+    # later) would run into the second: it waits for the second to end (more than one
+    # re-look's wait: not taken)
     assert take(r, 6.0, 300.0) is None and len(tr.busy) == 2
 
 
@@ -1426,3 +1427,155 @@ def test_relook_hold_must_be_true_or_false(bad):
 def test_a_held_pass_records_the_setting_and_a_default_one_does_not():
     assert "relook_hold" not in PassConfig().as_dict()
     assert PassConfig(relook_hold=True).as_dict()["relook_hold"] is True
+
+
+def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():
+    # the pitch of a look 300 km ahead does not change: a second one wanted 0.5 s after the
+    # first's exposure is taken when wanted (once the 0.1 s exposure is over), not after a
+    # slew or a second's settling
+    tr, (p, q, _), take = _chain_tracker()
+    take(p, 5.0, 300.0)
+    assert take(q, 5.5, 300.0).t_s == 5.5
+    assert tr.busy == [
+        (
+            5.0,
+            pytest.approx(
+                5.5 + relook_seconds(OrbitGeometry(), get_agility("slow"), 300e3), rel=1e-12
+            ),
+        )
+    ]
+
+
+@pytest.mark.parametrize(
+    ("frames", "ahead_m", "chained"),
+    [(1, 300e3, True), (2, 300e3, False), (3, 300e3, False), (1, None, False)],
+)
+def test_only_a_one_frame_relook_whose_distance_is_known_is_followed_straight(
+    frames, ahead_m, chained
+):
+    # a mosaic's last frame lies further down the strip than its pitch says, and a re-look
+    # with no distance on record has no pitch to slew from: neither is followed straight
+    tr, _, _ = _chain_tracker()
+    shots = [(5.0 + i, 100 * i, None) for i in range(frames)]
+    tr._book(Relook(5.0, 20.0, 0, None, shots, ahead_m=ahead_m))
+    got = tr._straight_after(10.0, 300e3, False)
+    assert (got is not None) == chained
+    if chained:
+        assert got[:2] == (10.0, 0)
+
+
+def _sharing_tracker(rows):
+    """A tracker holding one re-look taken at 5 s (a 256-row window from strip row 1000),
+    where a plume is expected at strip ``rows`` (first, last) whatever its height: the
+    window's own rule, apart from the disparity model."""
+    tr, (p, _, _), _ = _chain_tracker()
+    r = tr._book(Relook(5.0, 30.0, 1000, None, ahead_m=300e3))
+    seen = []
+
+    def expected(plumes, t_k, at, guess, follow=None):
+        seen.append(follow)
+        return rows if follow is None else (1100.0, 1110.0)
+
+    tr._expected_rows = expected
+    return tr, p, r, seen
+
+
+@pytest.mark.parametrize(
+    ("rows", "shared"),
+    [
+        ((1006.0, 1249.0), True),  # 6 rows (the margin) inside both edges
+        ((1005.0, 1200.0), False),  # 5 rows below the top edge
+        ((995.0, 1100.0), False),  # beyond the top edge
+        ((1100.0, 1250.0), False),  # 5 rows above the bottom edge (row 1255)
+        ((1005.0, 1260.0), False),
+    ],
+)
+def test_a_relook_is_shared_only_where_its_window_holds_the_plume_with_a_margin(rows, shared):
+    tr, p, r, _ = _sharing_tracker(rows)
+    got = tr._window_for([p], 0.0, 5.5, {p.pid: 8500.0}, 1.0)
+    assert (got is r) == shared
+
+
+def test_a_relook_is_shared_up_to_one_duration_from_when_it_is_wanted():
+    tr, p, r, _ = _sharing_tracker((1100.0, 1110.0))
+    assert tr._window_for([p], 0.0, 4.0, {p.pid: 8500.0}, 1.0) is r  # exactly 1 s
+    assert tr._window_for([p], 0.0, 3.99, {p.pid: 8500.0}, 1.0) is None
+
+
+def test_a_rising_tops_relook_is_shared_where_its_following_search_puts_it():
+    # outside the window by its steady height, inside by the search that follows its rise
+    tr, p, r, seen = _sharing_tracker((2000.0, 2010.0))
+    assert tr._window_for([p], 0.0, 5.5, {p.pid: 8500.0}, 1.0) is None
+    follow = lambda plume, at: (100.0, 5.0)  # noqa: E731
+    assert tr._window_for([p], 0.0, 5.5, {p.pid: 8500.0}, 1.0, follow) is r
+    assert seen[-1] is follow
+
+
+def test_a_relook_exactly_where_the_field_of_regard_begins_is_held():
+    tr, (p, _, _), take = _chain_tracker(hold=True)
+    assert tr.reach_m == pytest.approx(292.7e3, abs=0.1e3)
+    r = take(p, 5.0, tr.reach_m / 1e3)
+    assert r.held and tr.holds == [(5.0, pytest.approx(tr.reach_m))]
+
+
+def test_a_relook_at_the_distance_held_is_not_held_again():
+    tr, (p, q, _), take = _chain_tracker(hold=True)
+    take(p, 5.0, 300.0)
+    r = take(q, 40.0, 300.0)  # after the held window: from the held pitch, no pitch change
+    a = get_agility("slow")
+    assert not r.held and tr.holds == [(5.0, 300e3)]
+    assert r.duration_s == pytest.approx(2 * a.settle_s + a.dwell_s, rel=1e-9)
+
+
+def test_a_relook_from_the_held_pitch_from_the_moment_the_hold_begins():
+    tr, _, _ = _chain_tracker(hold=True)
+    tr.holds.append((5.0, 300e3))
+    a = get_agility("slow")
+    phi = _off_nadir_deg(300e3) - _off_nadir_deg(180e3)
+    from_held = 2 * (_slew(a, phi) + a.settle_s) + a.dwell_s
+    assert tr._duration(180e3, 5.0) == pytest.approx(from_held, rel=1e-9)
+    assert tr._duration(180e3, 4.99) == pytest.approx(
+        relook_seconds(OrbitGeometry(), a, 180e3), rel=1e-9
+    )
+
+
+def test_a_nearer_hold_begins_after_the_frames_already_taken_where_it_held():
+    # held 400 km ahead from 5 s: the frame due at 10 s is taken at 24.16 s. A nearer hold
+    # booked now, its window begun at 20 s, applies from after that frame's time, not
+    # from 20 s nor from 10 - 14.16 s
+    tr, _, _ = _chain_tracker(hold=True)
+    tr.holds.append((5.0, 400e3))
+    t, _ = tr.take(10.0, 9000, None)
+    assert t == pytest.approx(10.0 + 100e3 / V_HAND, abs=1e-3)
+    tr._hold(20.0, 300e3)
+    start = tr.holds[-1][0]
+    assert t < start < t + 1e-9
+
+
+def test_a_held_frame_tracks_a_plume_seen_before_the_hold_but_not_one_seen_held():
+    # a plume's footprint on the strip (rows 9000-9010), and a component 100 rows nearer the
+    # nadir in a frame taken 28.3 s late (held 300 km ahead). Taken from the pitch before
+    # (on time), the frame's view changed by up to a 20 km top's parallax over 28.3 s
+    # (hundreds of rows): the same plume. Taken after a frame held too, its view is the
+    # frame before's: 100 rows away, a new plume
+    def run(first_held):
+        where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 96), 256, 0, 4)
+        tr = HeightTracker(
+            where, get_agility("slow"), (300.0,), None, None, None,
+            measure=False, log=lambda s: None, hold=True,
+        )  # fmt: skip
+        rows, cols = np.mgrid[9000:9011, 40:51]
+        tr.plumes.append(Plume(1, 0, 0.0, rows.ravel(), cols.ravel()))
+        tr.labels[9000:9011, 40:51] = 1
+        tr.holds.append((5.0 if first_held else 0.0, 300e3))
+        tr.take(4.0 if first_held else 3.0, 8960, None)  # the frame before
+        due = 6.0
+        t, why = tr.take(due, 8900, None)
+        assert why == "" and t == pytest.approx(due + 200e3 / V_HAND, abs=1e-3)
+        mask = np.zeros((256, 96), bool)
+        mask[200:211, 40:51] = True  # strip rows 9100-9110
+        out = tr.frame(1, t, 8900, mask, lambda *a: None, last=False, due=due)
+        return int(out[205, 45]), len(tr.plumes)
+
+    assert run(first_held=True) == (1, 1)
+    assert run(first_held=False) == (2, 2)

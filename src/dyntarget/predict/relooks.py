@@ -1467,7 +1467,7 @@ class HeightTracker:
         return relook
 
     def _straight_after(
-        self, want: float, ahead_m: float | None, held: bool = False
+        self, want: float, ahead_m: float | None, held: bool
     ) -> tuple[float, int, float] | None:
         """A re-look wanted at ``want``, ``ahead_m`` ahead, taken straight after the re-look
         the look-ahead is on then, without going back to its pitch in between: ``(t, i, end)``
@@ -1806,6 +1806,10 @@ def held_part(
 
 def _pitch_deg(geometry: OrbitGeometry, from_m: float, to_m: float) -> float:
     """Degrees between the look-ahead's lines of sight to ground ``from_m`` and ``to_m``
-    ahead of the nadir (the pitch change between two looks)."""
+    ahead of the nadir (the pitch change between two looks; exactly 0 between two looks at
+    the same distance, where the arccosine of the unit vectors' dot product gives about
+    1e-6 degrees of rounding, and with it a slew and a settle)."""
+    if from_m == to_m:
+        return 0.0
     a = look_vectors(geometry, np.array([from_m, to_m]), np.zeros(2), 0.0)
     return float(angle_between_deg(a[0], a[1]))
