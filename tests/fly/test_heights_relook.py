@@ -722,24 +722,25 @@ def test_a_frame_due_during_a_re_look_is_taken_once_the_look_ahead_has_pitched_b
     assert tr.free_s == pytest.approx(t + a.dwell_s)
 
 
-def test_while_behind_a_frame_whose_ground_the_next_one_covers_is_skipped():
+@pytest.mark.parametrize("t0", [0.0, 30.0])  # the pass's first frame due at t0
+def test_while_behind_a_frame_whose_ground_the_next_one_covers_is_skipped(t0):
     tr, a = _late_tracker(), get_agility("fast")
     v = OrbitGeometry().ground_speed
     cad = 32 * GSD / v
-    _take(tr, 0.0, 8128)
-    tr.busy.append((0.5 * cad, 0.5 * cad + 3.8))  # frames 1..26 fall inside
-    t1, why1 = _take(tr, cad, 8096)
+    _take(tr, t0, 8128)
+    tr.busy.append((t0 + 0.5 * cad, t0 + 0.5 * cad + 3.8))  # frames 1..26 fall inside
+    t1, why1 = _take(tr, t0 + cad, 8096)
     # the last seen (frame 0) covers rows 8128-8191; frame 2 (8064-8127) abuts it, so
     # frame 1 is skipped, frame 2 taken late
     assert t1 is None and why1 == "covered"
-    t2, why = _take(tr, 2 * cad, 8064)
-    assert why == "" and t2 > 0.5 * cad + 3.8
+    t2, why = _take(tr, t0 + 2 * cad, 8064)
+    assert why == "" and t2 > t0 + 0.5 * cad + 3.8
     prev = tr.pitch_m
-    assert prev == pytest.approx(500e3 - v * (t2 - 2 * cad))
-    assert _take(tr, 3 * cad, 8032) == (None, "covered")  # 8000 + 64 reaches 8064
-    t4, _ = _take(tr, 4 * cad, 8000)
+    assert prev == pytest.approx(500e3 - v * (t2 - t0 - 2 * cad))
+    assert _take(tr, t0 + 3 * cad, 8032) == (None, "covered")  # 8000 + 64 reaches 8064
+    t4, _ = _take(tr, t0 + 4 * cad, 8000)
     # from the last look's pitch to frame 4's ground, then settle: the root by hand
-    assert t4 == pytest.approx(_late_time(a, t2 + a.dwell_s, prev, 4 * cad), abs=1e-3)
+    assert t4 == pytest.approx(_late_time(a, t2 + a.dwell_s, prev, t0 + 4 * cad), abs=1e-3)
 
 
 def test_the_look_ahead_catches_up_and_is_back_on_time():
