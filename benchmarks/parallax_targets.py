@@ -28,7 +28,7 @@ Parts (``--part``):
     400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline; ``estimated-mosaic``:
     ``estimated`` whose re-looks take up to 8 frames where one cannot hold the search,
     ``fly --relook-frames 8``; ``estimated-hold``: ``estimated`` whose look-ahead holds
-    each plume's last re-look's pitch, ``fly --relook-hold``) and with a fixed
+    its re-looks' pitch where it can, ``fly --relook-hold``) and with a fixed
     prior of 8.5 km (``prior``); ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
@@ -94,7 +94,7 @@ rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far``
 (``fly --relook-km 400`` at the default geometry); ``estimated-mosaic`` is ``estimated``
 whose re-looks take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the search
 (``fly --relook-frames 8``); ``estimated-hold`` is ``estimated`` whose look-ahead, after
-a plume's last re-look, holds that re-look's pitch and takes the regular frames from there
+a re-look, holds that re-look's pitch where it can and takes the regular frames from there
 (``fly --relook-hold``)."""
 MOSAIC_FRAMES = 8
 """The most frames an ``estimated-mosaic`` re-look takes."""

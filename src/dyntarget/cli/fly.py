@@ -568,7 +568,7 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
     par.add_argument(
         "--relook-hold",
         action="store_true",
-        help="after a plume's last re-look, keep the look-ahead at that re-look's pitch and "
+        help="after a re-look, keep the look-ahead at that re-look's pitch, where it can, and "
         "take the regular frames from there, later (a shorter lead, never shorter than the "
         "NFOV's field of regard allows), instead of going back and catching up or losing "
         "the frames due meanwhile; helps a slow look-ahead (e.g. --agility slow)",

@@ -105,7 +105,7 @@ class PassConfig:
     relook_frames : the most frames one re-look takes, a mosaic down the strip, where its
         search asks more rows than one frame holds (1: one frame, its search cut to it;
         :data:`dyntarget.predict.relooks.RELOOK_FRAMES` by default).
-    relook_hold : after a plume's last re-look the look-ahead holds that re-look's pitch
+    relook_hold : after a re-look the look-ahead holds that re-look's pitch, where it can,
         and takes the regular frames from there, later, instead of going back (and then
         never catches up: :class:`dyntarget.predict.relooks.HeightTracker`'s ``hold``).
     """
@@ -669,7 +669,7 @@ class PassResult:
 
     @property
     def _holds(self) -> bool:
-        """Whether the pass re-looked holding each plume's last re-look's pitch."""
+        """Whether the pass re-looked holding the re-looks' pitch where it could."""
         return self.parallax == "estimated" and self.config.relook_hold
 
     def _late(self) -> int:

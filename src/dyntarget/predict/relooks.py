@@ -595,9 +595,10 @@ class HeightTracker:
         Most frames one re-look takes where its search asks more rows than a frame holds
         (:data:`RELOOK_FRAMES`; 1: one frame, its search cut to it).
     hold : bool
-        Instead of going back to its regular pitch after a plume's last re-look, the
-        look-ahead holds that re-look's pitch and takes the regular frames from there,
-        later (:meth:`take`; the module docstring's "Holding"). It then never catches up.
+        Instead of going back to its regular pitch after a re-look (nearer than the pitch
+        it holds, not nearer than the NFOV's field of regard begins), the look-ahead holds
+        that re-look's pitch and takes the regular frames from there, later (:meth:`take`;
+        the module docstring's "Holding"). It then never catches up.
     """
 
     def __init__(  # noqa: PLR0913 (the pass's height options, keyword-only after wind)
