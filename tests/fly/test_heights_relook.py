@@ -1580,3 +1580,15 @@ def test_a_held_frame_tracks_a_plume_seen_before_the_hold_but_not_one_seen_held(
 
     assert run(first_held=True) == (1, 1)
     assert run(first_held=False) == (2, 2)
+
+
+def test_a_small_pitch_change_between_chained_relooks_still_costs_its_slew_and_settle():
+    # 300 then 310 km ahead: well under a degree apart, but not the same distance: the
+    # second waits for that slew (by hand) and a second's settling after the first's exposure
+    _, (p, q, _), take = _chain_tracker()
+    a = get_agility("slow")
+    take(p, 5.0, 300.0)
+    phi = _off_nadir_deg(310e3) - _off_nadir_deg(300e3)
+    assert 0.0 < phi < 1.0
+    second = take(q, 5.2, 310.0)
+    assert second.t_s == pytest.approx(5.0 + a.dwell_s + _slew(a, phi) + a.settle_s, rel=1e-9)
