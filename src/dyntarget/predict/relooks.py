@@ -1424,14 +1424,10 @@ class HeightTracker:
         if chained is not None:  # it extends a window: the time it adds
             _, i, end = chained
             relook = Relook(at, end - self.busy[i][1], r0, img, ahead_m=ahead_m, held=held)
-            if held:
-                assert ahead_m is not None
-                self._hold(self.busy[i][0], ahead_m)
             return self._book(relook, (i, end))
         if held:  # no slew back: its window ends at the exposure (the slew there counted)
             assert ahead_m is not None
             dur -= _pitch_back_s(self._from(at), self.agility, ahead_m)
-            self._hold(at, ahead_m)
         return self._book(Relook(at, dur, r0, img, ahead_m=ahead_m, held=held))
 
     def _holds(self, at: float, ahead_m: float | None) -> bool:
@@ -1458,12 +1454,17 @@ class HeightTracker:
     def _book(self, relook: Relook, extends: tuple[int, float] | None = None) -> Relook:
         """Record a re-look taken: the look-ahead busy for its duration (a window of its own,
         or, ``extends`` = ``(i, end)``, window ``i`` of :attr:`busy` now ending at ``end``),
-        and the re-look."""
+        the re-look, and, for a held one, the hold from its window's start (:meth:`_hold`)."""
         if extends is None:
             self.busy.append((relook.t_s, relook.t_s + relook.duration_s))
+            start = relook.t_s
         else:
             i, end = extends
-            self.busy[i] = (self.busy[i][0], end)
+            start = self.busy[i][0]
+            self.busy[i] = (start, end)
+        if relook.held:
+            assert relook.ahead_m is not None
+            self._hold(start, relook.ahead_m)
         self.taken.append(relook)
         return relook
 
