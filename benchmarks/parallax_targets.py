@@ -28,7 +28,9 @@ Parts (``--part``):
     400 km: a shorter pitch, cheaper for ``slow``, a shorter baseline; ``estimated-mosaic``:
     ``estimated`` whose re-looks take up to 8 frames where one cannot hold the search,
     ``fly --relook-frames 8``; ``estimated-hold``: ``estimated`` whose look-ahead holds
-    its re-looks' pitch where it can, ``fly --relook-hold``) and with a fixed
+    its re-looks' pitch where it can, ``fly --relook-hold``, as ``estimated`` does by
+    default where it cannot catch up (``slow``); ``estimated-back``: going back to the
+    regular pitch after every re-look, ``fly --no-relook-hold``) and with a fixed
     prior of 8.5 km (``prior``); ``--modes`` picks some. Utility is the loop's
     (line-of-sight scoring on the 3D worlds).
 ``long``
@@ -172,6 +174,8 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated", agility, look_ahead_m), relook_frames=MOSAIC_FRAMES)
     if mode == "estimated-hold":
         return replace(config_for("estimated", agility, look_ahead_m), relook_hold=True)
+    if mode == "estimated-back":
+        return replace(config_for("estimated", agility, look_ahead_m), relook_hold=False)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)

@@ -125,6 +125,8 @@ def _flat_strip(tmp_path):
         (["--relook-frames", "2", "--parallax", "true"], "has no effect"),
         (["--relook-hold", "--parallax", "prior", "--plume-height-km", "8"], "--relook-hold"),
         (["--relook-hold", "--no-parallax"], "--relook-hold: has no effect"),
+        (["--no-relook-hold", "--parallax", "true"], "--no-relook-hold: has no effect"),
+        (["--relook-hold", "--no-relook-hold"], "not allowed with argument"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -149,13 +151,21 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
     assert len(doc["features"]) == summary["plumes_height_estimated"] + sum(
         f["properties"]["height_source"] != "estimated" for f in doc["features"]
     )
-    for key in ("relooks", "frames_lost_to_relooks", "height_rmse_m", "height_bias_m",
-                "frames_caught_up", "frames_skipped_catching_up"):  # fmt: skip
+    for key in ("relooks", "frames_lost_to_relooks", "height_rmse_m", "height_bias_m"):
         assert key in summary
+    # its frames are 16 WFOV rows (512 m, passing in 0.07 s): even `fast` (a frame taken
+    # late costs it over 0.1 s of settling) cannot catch up, so by default it holds
+    assert "frames_held" in summary and "frames_caught_up" not in summary
+    # --no-relook-hold: going back, catching up asked for (none can be)
+    assert main([*fly, "--no-relook-hold", "--out", str(tmp_path / "back"), "--quiet"]) == 0
+    back = json.loads((tmp_path / "back" / "summary.json").read_text())
+    assert back["frames_caught_up"] == 0 and back["frames_skipped_catching_up"] == 0
+    assert "frames_held" not in back
     # --no-catch-up: the frames due during a re-look are lost, nothing is taken late
     assert main([*fly, "--no-catch-up", "--out", str(tmp_path / "nc"), "--quiet"]) == 0
     nc = json.loads((tmp_path / "nc" / "summary.json").read_text())
-    assert "frames_caught_up" not in nc and nc["relooks"] == summary["relooks"]
+    assert "frames_caught_up" not in nc and "frames_held" not in nc
+    assert nc["relooks"] == summary["relooks"]
     # --no-parallax: off, no plume is measured
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
@@ -1227,7 +1237,8 @@ def test_a_slow_pass_takes_each_relook_of_a_plume_and_counts_relooks_not_windows
     # test_pass_3d.py); with ``slow`` they fall within a re-look's duration of each other
     from tests.fly.test_pass_3d import _world
 
-    r = fly_pass(_world(), None, PassConfig(agility="slow", compute_budget_s=0.05))
+    config = PassConfig(agility="slow", compute_budget_s=0.05, relook_hold=False)  # going back
+    r = fly_pass(_world(), None, config)
     (e,) = r.heights
     times = r.relook_times
     assert e.relooks == 3 and len(set(times)) == 3  # three looks, not one looked at thrice
@@ -1417,17 +1428,18 @@ def test_a_slow_pass_holding_loses_fewer_frames_and_counts_those_it_held():
     assert all(r.path != RELOOK_LATE for r in held.records)
 
 
-@pytest.mark.parametrize("bad", ["yes", 1, None])
-def test_relook_hold_must_be_true_or_false(bad):
+@pytest.mark.parametrize("bad", ["yes", 1, 0.0])
+def test_relook_hold_must_be_true_false_or_none(bad):
     from dyntarget.errors import InvalidParameterError
 
-    with pytest.raises(InvalidParameterError, match="relook_hold: expected true or false"):
+    with pytest.raises(InvalidParameterError, match="relook_hold: expected true, false or null"):
         PassConfig(relook_hold=bad)
 
 
-def test_a_held_pass_records_the_setting_and_a_default_one_does_not():
+def test_a_pass_records_a_hold_asked_for_or_refused_and_not_the_default():
     assert "relook_hold" not in PassConfig().as_dict()
     assert PassConfig(relook_hold=True).as_dict()["relook_hold"] is True
+    assert PassConfig(relook_hold=False).as_dict()["relook_hold"] is False
 
 
 def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():

@@ -157,12 +157,13 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
                 f"--relook-frames: has no effect with --parallax {mode} (no re-look is taken)"
             )
         kw["relook_frames"] = args.relook_frames
-    if args.relook_hold:
+    if args.relook_hold is not None:
+        flag = "--relook-hold" if args.relook_hold else "--no-relook-hold"
         if mode in ("off", "prior", "true"):
             raise InvalidParameterError(
-                f"--relook-hold: has no effect with --parallax {mode} (no re-look is taken)"
+                f"{flag}: has no effect with --parallax {mode} (no re-look is taken)"
             )
-        kw["relook_hold"] = True
+        kw["relook_hold"] = args.relook_hold
     return kw
 
 
@@ -565,13 +566,25 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         help="lose the look-ahead frames due during a re-look instead of taking them late, "
         "pitching back to them once the re-look is over (the default catches up)",
     )
-    par.add_argument(
+    hold = par.add_mutually_exclusive_group()
+    hold.add_argument(
         "--relook-hold",
-        action="store_true",
+        action="store_const",
+        const=True,
+        default=None,
         help="after a re-look, keep the look-ahead at that re-look's pitch, where it can, and "
         "take the regular frames from there, later (a shorter lead, never shorter than the "
         "NFOV's field of regard allows), instead of going back and catching up or losing "
-        "the frames due meanwhile; helps a slow look-ahead (e.g. --agility slow)",
+        "the frames due meanwhile (the default where the look-ahead cannot catch up, as "
+        "--agility slow; this asks for it on any look-ahead)",
+    )
+    hold.add_argument(
+        "--no-relook-hold",
+        dest="relook_hold",
+        action="store_const",
+        const=False,
+        help="always go back to the regular pitch after a re-look, catching up where the "
+        "look-ahead can, else losing the frames due meanwhile",
     )
 
 

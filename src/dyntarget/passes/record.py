@@ -26,7 +26,7 @@ from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.pipeline import PipelineConfig
 from dyntarget.predict import GROUNDS
-from dyntarget.predict.relooks import RELOOK_FRAMES, RELOOK_KM
+from dyntarget.predict.relooks import RELOOK_FRAMES, RELOOK_KM, holds_relooks
 from dyntarget.scene import check_factor
 from dyntarget.schedule import Agility, OrbitGeometry, get_agility
 from dyntarget.trajectory import Trajectory
@@ -107,7 +107,10 @@ class PassConfig:
         :data:`dyntarget.predict.relooks.RELOOK_FRAMES` by default).
     relook_hold : after a re-look the look-ahead holds that re-look's pitch, where it can,
         and takes the regular frames from there, later, instead of going back (and then
-        never catches up: :class:`dyntarget.predict.relooks.HeightTracker`'s ``hold``).
+        never catches up: :class:`dyntarget.predict.relooks.HeightTracker`'s ``hold``);
+        ``None``, the default: where catching up is asked for and the look-ahead cannot
+        gain on the ground (``slow``; :func:`dyntarget.predict.relooks.holds_relooks`);
+        ``False``: never (going back, as before).
     """
 
     planner: str = "lawnmower-transect"
@@ -133,7 +136,7 @@ class PassConfig:
     catch_up: bool = True
     max_rise_mps: float = 0.0
     relook_frames: int = RELOOK_FRAMES
-    relook_hold: bool = False
+    relook_hold: bool | None = None
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -213,9 +216,9 @@ class PassConfig:
             raise InvalidParameterError(
                 f"relook_frames: expected an integer in 1..{MAX_RELOOK_FRAMES}, got {n!r}"
             )
-        if not isinstance(self.relook_hold, bool):
+        if self.relook_hold is not None and not isinstance(self.relook_hold, bool):
             raise InvalidParameterError(
-                f"relook_hold: expected true or false, got {self.relook_hold!r}"
+                f"relook_hold: expected true, false or null, got {self.relook_hold!r}"
             )
 
     def resolved_parallax(self, is_3d: bool) -> str:
@@ -280,7 +283,7 @@ class PassConfig:
             d.pop("max_rise_mps")
         if self.relook_frames == RELOOK_FRAMES:  # likewise
             d.pop("relook_frames")
-        if not self.relook_hold:  # likewise
+        if self.relook_hold is None:  # likewise
             d.pop("relook_hold")
         return d
 
@@ -632,8 +635,8 @@ class PassResult:
             ``parallax`` (the mode flown); on a 3D world also ``relooks``,
             ``frames_lost_to_relooks`` (not seen at all), ``frames_caught_up`` and
             ``frames_skipped_catching_up`` (estimated heights with ``catch_up``),
-            ``frames_held`` (estimated heights with ``relook_hold``: frames taken late, from
-            a re-look's pitch held),
+            ``frames_held`` (estimated heights whose look-ahead held re-looks' pitch,
+            asked for or by default: frames taken late, from a re-look's pitch held),
             ``plumes_height_estimated``,
             ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
@@ -665,12 +668,18 @@ class PassResult:
     def _catches_up(self) -> bool:
         """Whether the pass re-looked with catching up asked for (``"estimated"`` heights)."""
         config = self.config
-        return self.parallax == "estimated" and config.catch_up and not config.relook_hold
+        return self.parallax == "estimated" and config.catch_up and not self._held
 
     @property
     def _holds(self) -> bool:
         """Whether the pass re-looked holding the re-looks' pitch where it could."""
-        return self.parallax == "estimated" and self.config.relook_hold
+        return self.parallax == "estimated" and self._held
+
+    @property
+    def _held(self) -> bool:
+        """Whether its look-ahead held re-looks' pitch (asked for, or by default)."""
+        c, f = self.config, self.frames
+        return holds_relooks(f.geometry, c.limits, f.frame_px, c.catch_up, c.relook_hold)
 
     def _late(self) -> int:
         """Frames taken after their due time (caught up, or held)."""

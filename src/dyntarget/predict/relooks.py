@@ -77,8 +77,10 @@ Model (what is and is not modelled):
   view angle: tracking looks for a tracked plume up to :data:`TRACK_HEIGHT_M`'s change of
   parallax nearer the nadir (so a new plume that near a tracked one, on its nadir side, is
   taken for it), and a new plume is measured from that look's own geometry.
-* **Holding** (``hold``, ``fly --relook-hold``; opt-in, and the look-ahead then never
-  catches up). Going back from a re-look to the regular pitch loses the frames due
+* **Holding** (``hold``; by default where catching up is asked for and the look-ahead
+  cannot gain on the ground, as ``slow``: :func:`holds_relooks`; ``fly --relook-hold``
+  asks for it anywhere, ``--no-relook-hold`` refuses it; the look-ahead then never catches
+  up). Going back from a re-look to the regular pitch loses the frames due
   meanwhile (``slow``: 32.6 s of them for a re-look 300 km ahead). Held instead, the
   look-ahead stays at a re-look's pitch, ``d`` ahead, and takes every later frame there, on
   the same cadence, ``(look_ahead_m - d) / v`` after it was due (28.3 s for 300 km): its
@@ -594,11 +596,13 @@ class HeightTracker:
     relook_frames : int
         Most frames one re-look takes where its search asks more rows than a frame holds
         (:data:`RELOOK_FRAMES`; 1: one frame, its search cut to it).
-    hold : bool
+    hold : bool or None
         Instead of going back to its regular pitch after a re-look (nearer than the pitch
         it holds, not nearer than the NFOV's field of regard begins), the look-ahead holds
         that re-look's pitch and takes the regular frames from there, later (:meth:`take`;
-        the module docstring's "Holding"). It then never catches up.
+        the module docstring's "Holding"). It then never catches up. ``None``, the default:
+        where catching up is asked for but the look-ahead cannot gain on the ground
+        (:func:`holds_relooks`).
     """
 
     def __init__(  # noqa: PLR0913 (the pass's height options, keyword-only after wind)
@@ -616,19 +620,18 @@ class HeightTracker:
         max_rise_mps: float = 0.0,
         fit_s: float | None = None,
         relook_frames: int = RELOOK_FRAMES,
-        hold: bool = False,
+        hold: bool | None = None,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
         self.measure, self.log, self.fit_s = measure, log, fit_s
         self.relook_frames = int(relook_frames)
-        g, frame_m = where.geometry, where.frame_px * where.geometry.wfov_gsd_m
-        step = _pitch_deg(g, g.look_ahead_m, g.look_ahead_m - frame_m)
-        late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
-        self.hold = bool(hold)
-        self.catch_up = catch_up and not hold and late_frame_s < frame_m / g.ground_speed
+        self.hold = holds_relooks(where.geometry, agility, where.frame_px, catch_up, hold)
+        """Whether the look-ahead holds its re-looks' pitch (:func:`holds_relooks`)."""
+        self.catch_up = (
+            catch_up and not self.hold and gains_on_ground(where.geometry, agility, where.frame_px)
+        )
         """Whether frames due during a re-look are taken late: asked for, not holding, and
-        the look-ahead gains on the ground (a frame taken late, a whole frame's pitch step,
-        settling and exposure, costs less than the time its ground takes to pass)."""
+        the look-ahead gains on the ground (:func:`gains_on_ground`)."""
         self.holds: list[tuple[float, float]] = []
         """``(from, distance)``: from pass time ``from`` on (frames due then, re-looks taken
         then), the look-ahead's regular pitch looks ``distance`` m ahead (:meth:`_home_m`)."""
@@ -1754,6 +1757,78 @@ class HeightTracker:
                 )
             )
         return tuple(out)
+
+
+def gains_on_ground(geometry: OrbitGeometry, agility: Agility, frame_px: int) -> bool:
+    """Whether a look-ahead behind its frames catches up: a frame taken late (a whole
+    frame's pitch step, settling and exposure) costs less than the time its ground takes to
+    pass.
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The pass's geometry (its look-ahead distance, WFOV pixel size and ground speed).
+    agility : Agility
+        The preset whose slew model, settle and dwell time a frame taken late.
+    frame_px : int
+        Frame height, WFOV rows.
+
+    Returns
+    -------
+    bool
+        True where the look-ahead gains on the ground.
+
+    Examples
+    --------
+    At the default geometry an 8 km frame (256 rows of 32 m) passes in 1.16 s: ``fast``
+    (0.1 s of settling) gains on it, ``slow`` (a second of settling and a slower slew)
+    does not.
+
+    >>> from dyntarget.schedule import get_agility
+    >>> g = OrbitGeometry(wfov_gsd_m=32.0)
+    >>> gains_on_ground(g, get_agility("fast"), 256), gains_on_ground(g, get_agility("slow"), 256)
+    (True, False)
+    """
+    frame_m = frame_px * geometry.wfov_gsd_m
+    step = _pitch_deg(geometry, geometry.look_ahead_m, geometry.look_ahead_m - frame_m)
+    late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
+    return late_frame_s < frame_m / geometry.ground_speed
+
+
+def holds_relooks(
+    geometry: OrbitGeometry, agility: Agility, frame_px: int, catch_up: bool, hold: bool | None
+) -> bool:
+    """Whether a pass's look-ahead holds its re-looks' pitch (the module docstring's
+    "Holding").
+
+    Parameters
+    ----------
+    geometry, agility, frame_px
+        As :func:`gains_on_ground`.
+    catch_up : bool
+        Whether catching up is asked for.
+    hold : bool or None
+        Asked for (``True``), refused (``False``) or ``None``: held where catching up is
+        asked for and the look-ahead cannot gain on the ground (the frames due during a
+        re-look would otherwise be lost); with ``catch_up=False`` they are lost, as asked.
+
+    Returns
+    -------
+    bool
+        True where it holds.
+
+    Examples
+    --------
+    >>> from dyntarget.schedule import get_agility
+    >>> g, slow, fast = OrbitGeometry(wfov_gsd_m=32.0), get_agility("slow"), get_agility("fast")
+    >>> holds_relooks(g, slow, 256, True, None), holds_relooks(g, fast, 256, True, None)
+    (True, False)
+    >>> holds_relooks(g, slow, 256, False, None), holds_relooks(g, fast, 256, True, True)
+    (False, True)
+    """
+    if hold is not None:
+        return bool(hold)
+    return catch_up and not gains_on_ground(geometry, agility, frame_px)
 
 
 def _reach_m(geometry: OrbitGeometry, agility: Agility) -> float:
