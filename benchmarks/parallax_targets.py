@@ -89,6 +89,7 @@ EXTRA_MODES = (
     "estimated-far",
     "estimated-mosaic",
     "estimated-hold",
+    "estimated-back",
 )
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
 rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
@@ -97,7 +98,9 @@ rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far``
 whose re-looks take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the search
 (``fly --relook-frames 8``); ``estimated-hold`` is ``estimated`` whose look-ahead, after
 a re-look, holds that re-look's pitch where it can and takes the regular frames from there
-(``fly --relook-hold``)."""
+(``fly --relook-hold``; ``estimated`` does so by default where the look-ahead cannot catch
+up, as ``slow``); ``estimated-back`` is ``estimated`` whose look-ahead always goes back to
+its regular pitch (``fly --no-relook-hold``)."""
 MOSAIC_FRAMES = 8
 """The most frames an ``estimated-mosaic`` re-look takes."""
 RISE_MPS = 100.0
