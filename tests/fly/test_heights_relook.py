@@ -790,10 +790,67 @@ def test_a_frame_whose_ground_the_nfov_can_already_reach_is_lost():
     assert a.field_of_regard_deg == 30.0
 
 
+def _gains_by_hand(agility: str, rows: int) -> bool:
+    """Whether a frame taken late (its pitch step 500 km ahead, by hand on the sphere, the
+    trapezoid slew, settle and dwell) costs less than its ground's 7062.3 m/s passage."""
+    a = get_agility(agility)
+
+    def off_nadir(s):  # the angle at the satellite to ground s m ahead along the sphere
+        return math.atan2(R * math.sin(s / R), R + H - R * math.cos(s / R))
+
+    step = math.degrees(off_nadir(500e3) - off_nadir(500e3 - rows * 32.0))
+    return _slew(a, step) + a.settle_s + a.dwell_s < rows * 32.0 / 7062.3
+
+
+@pytest.mark.parametrize(
+    ("agility", "rows", "gains"),
+    [("fast", 51, False), ("fast", 52, True), ("fast", 64, True), ("fast", 256, True),
+     ("slow", 64, False), ("slow", 256, False), ("slow", 1100, False), ("slow", 1119, True)],
+)  # fmt: skip
+def test_whether_a_late_frame_gains_on_the_ground_is_the_hand_value(agility, rows, gains):
+    # fast: 51 rows (1632 m, 0.2311 s to pass) cost 0.2314 s late, 52 rows 0.2327 of 0.2356 s;
+    # slow settles for a second: only frames of 1119 rows (35.8 km, 5.0703 s to pass, 5.0692 s
+    # late) or more gain. A late frame is taken from nearer: pitching 1100 rows further out
+    # instead (a smaller angle per metre) would gain
+    from dyntarget.predict.relooks import gains_on_ground
+
+    assert _gains_by_hand(agility, rows) is gains
+    assert gains_on_ground(OrbitGeometry(wfov_gsd_m=32.0), get_agility(agility), rows) is gains
+
+
+@pytest.mark.parametrize(
+    ("agility", "rows", "catch_up", "hold", "holds", "catches_up"),
+    [
+        ("slow", 64, True, None, True, False),  # cannot gain: holds by default
+        ("slow", 256, True, None, True, False),
+        ("fast", 64, True, None, False, True),  # gains: catches up by default
+        ("fast", 48, True, None, True, False),  # 1.5 km frames: fast cannot gain either
+        ("slow", 64, True, False, False, False),  # --no-relook-hold: goes back, loses them
+        ("slow", 64, False, None, False, False),  # --no-catch-up: loses them, as asked
+        ("fast", 64, True, True, True, False),  # --relook-hold: holds, never catches up
+        ("fast", 64, False, True, True, False),
+    ],
+)
+def test_a_look_ahead_holds_by_default_only_where_it_cannot_catch_up(
+    agility, rows, catch_up, hold, holds, catches_up
+):
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), rows, 8192 - rows, 4)
+    tr = HeightTracker(
+        where, get_agility(agility), (300.0,), None, None, None, measure=False, log=print,
+        catch_up=catch_up, hold=hold,
+    )  # fmt: skip
+    assert (tr.hold, tr.catch_up) == (holds, catches_up)
+
+
 def test_slow_agility_cannot_gain_on_the_ground_and_loses_the_frames():
     # a late 2 km frame costs slow at least its 1 s settle: more than the 0.29 s its ground
-    # takes to pass, so catching up would only fall further behind
-    tr = _late_tracker("slow")
+    # takes to pass, so catching up would only fall further behind; going back
+    # (--no-relook-hold) it loses the frames due during a re-look
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (8192, 64), FP, 8192 - FP, 4)
+    tr = HeightTracker(
+        where, get_agility("slow"), (300.0,), None, None, None, measure=False, log=print,
+        hold=False,
+    )  # fmt: skip
     assert tr.catch_up is False
     tr.busy.append((1.0, 40.0))
     assert _take(tr, 2.0, 8064) == (None, "re-looking")
@@ -1403,7 +1460,7 @@ def test_a_plume_in_a_held_frame_is_relooked_at_the_asked_fraction_of_where_it_w
 
 
 @pytest.mark.slow
-def test_a_slow_pass_holding_loses_fewer_frames_and_counts_those_it_held():
+def test_a_slow_pass_holding_loses_fewer_frames_and_counts_those_it_held_by_default():
     # a 150 km strip of 2 km frames, slow: its first plume's re-looks (two nearer in time,
     # then 300 km ahead) cost the frames due meanwhile; held, each comes nearer and the
     # frames are taken from there
@@ -1415,9 +1472,13 @@ def test_a_slow_pass_holding_loses_fewer_frames_and_counts_those_it_held():
     spec = with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
     world = LongStrip(spec, window)
     config = PassConfig(agility="slow", compute_budget_s=0.05, parallax="estimated")
-    base, held = (fly_pass(world, None, replace(config, relook_hold=h)) for h in (False, True))
+    base, held, auto = (
+        fly_pass(world, None, replace(config, relook_hold=h)) for h in (False, True, None)
+    )
     b, h = base.totals(), held.totals()
     assert "frames_held" not in b and h["frames_held"] > 0
+    # slow cannot catch up, so by default it holds: the same pass as asking for it
+    assert auto.totals() == h and auto.flown == held.flown
     assert h["frames_lost_to_relooks"] < b["frames_lost_to_relooks"]
     assert "frames_caught_up" not in h and b["frames_caught_up"] == 0
     late = [

@@ -67,8 +67,10 @@ Model (what is and is not modelled):
   frame's time comes before the look-ahead is ready again: it is back on its pitch. It
   catches up only where it gains on the ground: where a frame taken late (a whole frame's
   pitch step, settling, exposure) costs less than the time the frame's ground takes to
-  pass (``fast`` on frames of about 1.7 km or more at the default geometry; ``slow``, which
-  settles for a second, on none: its frames due during a re-look are lost). While behind,
+  pass (:func:`gains_on_ground`: ``fast`` on frames of about 1.7 km or more at the default
+  geometry; ``slow``, which settles for a second, only on frames of 35.8 km or more: on
+  shorter ones it holds the re-look's pitch instead by default, below, or loses the frames
+  due during a re-look). While behind,
   a frame whose ground the last frame seen (:meth:`HeightTracker.seen`: taken and planned)
   and the next one cover between them (frames overlap) is skipped, unless the next would
   come too late. A frame whose centre would already be within the NFOV's forward reach
