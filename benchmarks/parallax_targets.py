@@ -106,7 +106,11 @@ MOSAIC_FRAMES = 8
 RISE_MPS = 100.0
 """The fastest rise ``estimated-2r`` allows for: the top of the rising columns' range."""
 RISE_MODES = ("estimated-2", "estimated-2r")
-"""The rise part flies each column both ways: a steady top's search, and the rise allowed for."""
+"""The rise part flies each column both ways by default: a steady top's search, and the rise
+allowed for (``--rise-modes`` picks; ``estimated-2rm`` is ``estimated-2r`` whose re-looks
+take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the search,
+``fly --relook-km 400,300 --max-rise-mps 100 --relook-frames 8``)."""
+RISE_EXTRA = ("estimated-2rm",)
 PRIOR_M = 8500.0
 AGILITIES = ("slow", "fast")
 """The agility presets flown (``--long-agilities`` picks some for the long part)."""
@@ -173,6 +177,10 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated", agility, look_ahead_m), relook_km=far)
     if mode == "estimated-2r":
         return replace(config_for("estimated-2", agility, look_ahead_m), max_rise_mps=RISE_MPS)
+    if mode == "estimated-2rm":
+        return replace(
+            config_for("estimated-2r", agility, look_ahead_m), relook_frames=MOSAIC_FRAMES
+        )
     if mode == "estimated-mosaic":
         return replace(config_for("estimated", agility, look_ahead_m), relook_frames=MOSAIC_FRAMES)
     if mode == "estimated-hold":
@@ -281,12 +289,12 @@ def rising_column(seed: int, rng: np.random.Generator):
 
 def part_rise(args) -> dict:
     """Rise velocity from re-looks at two distances (80 % and 60 % of the look-ahead
-    distance), ``fast``, one rising column per strip, flown both ways (:data:`RISE_MODES`)."""
+    distance), ``fast``, one rising column per strip, flown both ways (:data:`RISE_MODES`; ``--rise-modes`` picks)."""
     rng = np.random.default_rng(args.seed + 2)
     rows = []
     for i in range(args.rise_strips):
         spec, window, rise = rising_column(args.seed + 500 + i, rng)
-        for mode in RISE_MODES:
+        for mode in args.rise_modes:
             r = fly(spec, window, config_for(mode, "fast", defaults.LOOK_AHEAD_M))
             est = [e for e in r["estimates"] if e.get("height_source") == "estimated"]
             got = est[0].get("rise_mps") if est else None
@@ -297,7 +305,7 @@ def part_rise(args) -> dict:
             })  # fmt: skip
             say(rows[-1], "rise_true_mps", "rise_mps", "within_25", "wall_s")
     summary = {}
-    for mode in RISE_MODES:
+    for mode in args.rise_modes:
         mine = [r for r in rows if r["mode"] == mode]
         fitted = [r for r in mine if r["rise_mps"] is not None]
         rel = np.array([(r["rise_mps"] - r["rise_true_mps"]) / r["rise_true_mps"] for r in fitted])
@@ -385,6 +393,10 @@ def main() -> None:
         "--part", choices=("heights", "targeting", "long", "rise", "all"), default="all"
     )
     ap.add_argument("--rise-strips", type=int, default=24)
+    ap.add_argument(
+        "--rise-modes", type=lambda s: tuple(s.split(",")), default=RISE_MODES,
+        help=f"rise part, comma-separated, of {','.join((*RISE_MODES, *RISE_EXTRA))}",
+    )  # fmt: skip
     ap.add_argument("--long-strips", type=int, default=2)
     ap.add_argument("--long-km", type=float, default=150.0)
     ap.add_argument("--long-width", type=int, default=256, help="long strips' width, px (8 m)")
@@ -429,6 +441,7 @@ def main() -> None:
             )
         )
         + ("" if args.modes == MODES else f" --modes {','.join(args.modes)}")
+        + ("" if args.rise_modes == RISE_MODES else f" --rise-modes {','.join(args.rise_modes)}")
         + ("" if args.height_mode == "estimated" else f" --height-mode {args.height_mode}")
         + (
             ""
@@ -443,6 +456,11 @@ def main() -> None:
     for m in (*args.modes, *args.long_modes):
         if m not in known:
             ap.error(f"unknown mode {m!r}: expected one of {', '.join(known)}")
+    for m in args.rise_modes:
+        if m not in (*RISE_MODES, *RISE_EXTRA):
+            ap.error(
+                f"unknown rise mode {m!r}: expected one of {', '.join(RISE_MODES + RISE_EXTRA)}"
+            )
     t0 = time.perf_counter()
     if args.part in ("heights", "all"):
         record["heights"] = part_heights(args)
