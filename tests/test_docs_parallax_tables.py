@@ -276,8 +276,8 @@ def test_the_short_strips_mosaic_heights_are_their_record():
 def test_the_hold_table_is_its_records(label, back, held, part, agility):
     # fast catches up by default (going back: `estimated`; held: `estimated-hold`, asked
     # for); slow cannot, and holds by default (going back: `estimated-back`; held: `estimated`)
-    back_mode, held_mode = ("estimated", "estimated-hold") if agility == "fast" else (
-        "estimated-back", "estimated"
+    back_mode, held_mode = (
+        ("estimated", "estimated-hold") if agility == "fast" else ("estimated-back", "estimated")
     )
     row = (
         f"| {label} | `{agility}` | {_side(_record(back)[part], agility, back_mode, lost=True)} | "
