@@ -289,7 +289,8 @@ def rising_column(seed: int, rng: np.random.Generator):
 
 def part_rise(args) -> dict:
     """Rise velocity from re-looks at two distances (80 % and 60 % of the look-ahead
-    distance), ``fast``, one rising column per strip, flown both ways (:data:`RISE_MODES`; ``--rise-modes`` picks)."""
+    distance), ``fast``, one rising column per strip, flown both ways (:data:`RISE_MODES`;
+    ``--rise-modes`` picks)."""
     rng = np.random.default_rng(args.seed + 2)
     rows = []
     for i in range(args.rise_strips):
@@ -452,15 +453,13 @@ def main() -> None:
     for a in args.long_agilities:
         if a not in AGILITIES:
             ap.error(f"unknown agility {a!r}: expected one of {', '.join(AGILITIES)}")
-    known = (*MODES, *EXTRA_MODES)
-    for m in (*args.modes, *args.long_modes):
-        if m not in known:
-            ap.error(f"unknown mode {m!r}: expected one of {', '.join(known)}")
-    for m in args.rise_modes:
-        if m not in (*RISE_MODES, *RISE_EXTRA):
-            ap.error(
-                f"unknown rise mode {m!r}: expected one of {', '.join(RISE_MODES + RISE_EXTRA)}"
-            )
+    for asked, known in (
+        ((*args.modes, *args.long_modes), (*MODES, *EXTRA_MODES)),
+        (args.rise_modes, (*RISE_MODES, *RISE_EXTRA)),
+    ):
+        for m in asked:
+            if m not in known:
+                ap.error(f"unknown mode {m!r}: expected one of {', '.join(known)}")
     t0 = time.perf_counter()
     if args.part in ("heights", "all"):
         record["heights"] = part_heights(args)
