@@ -51,6 +51,9 @@ Parts (``--part``):
     The estimate's own time per frame (the ``heights`` stage) and the loop's time per frame
     (``loop_s``) of the ``estimated`` passes.
 
+``--relook-wait W`` sets :data:`dyntarget.predict.relooks.RELOOK_WAIT` (the longest wait for
+a busy look-ahead, in re-look durations) for the run: the study of that constant.
+
 Usage::
 
     python benchmarks/parallax_targets.py --strips 12 --out docs/benchmarks
@@ -70,6 +73,7 @@ import numpy as np
 from dyntarget import defaults, parallax
 from dyntarget.evaluate.bench import machine
 from dyntarget.fly import PassConfig, fly_pass
+from dyntarget.predict import relooks
 from dyntarget.synth.dynamic import with_heights
 from dyntarget.synth.strip import long_strip_spec, strip_spec
 from dyntarget.synth.strip_world import LongStrip, MovingStrip
@@ -419,6 +423,11 @@ def main() -> None:
         choices=("estimated", "estimated-mosaic"),
         help="heights part: fly's default re-looks, or re-looks taking a mosaic",
     )
+    ap.add_argument(
+        "--relook-wait", type=float, default=relooks.RELOOK_WAIT,
+        help="longest wait for a busy look-ahead, in re-look durations (a study of "
+        "dyntarget.predict.relooks.RELOOK_WAIT; default: its value)",
+    )  # fmt: skip
     ap.add_argument("--record", help="the record's file name (default: by --part)")
     ap.add_argument("--out", type=Path, default=Path("docs/benchmarks"))
     args = ap.parse_args()
@@ -449,7 +458,15 @@ def main() -> None:
             if args.long_agilities == AGILITIES
             else f" --long-agilities {','.join(args.long_agilities)}"
         )
+        + (
+            ""
+            if args.relook_wait == relooks.RELOOK_WAIT
+            else f" --relook-wait {args.relook_wait:g}"
+        )
     }
+    if not args.relook_wait > 0.0:
+        ap.error(f"--relook-wait must be positive, got {args.relook_wait:g}")
+    relooks.RELOOK_WAIT = args.relook_wait  # the one study that changes it: this process only
     for a in args.long_agilities:
         if a not in AGILITIES:
             ap.error(f"unknown agility {a!r}: expected one of {', '.join(AGILITIES)}")

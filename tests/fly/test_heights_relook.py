@@ -1262,9 +1262,21 @@ def test_a_relook_after_the_window_or_before_another_is_taken_on_its_own():
     take(q, 5.0 + dur + 0.5, 300.0)  # after the first's window: a window of its own
     assert [s for s, _ in tr.busy] == [5.0, 5.0 + dur + 0.5]
     # wanted 1 s into the first window, but staying on until then (its window would end 1 s
-    # later) would run into the second: it waits for the second to end (more than one
-    # re-look's wait: not taken)
-    assert take(r, 6.0, 300.0) is None and len(tr.busy) == 2
+    # later) would run into the second: it waits for the second to end, at 5 + 2 x 32.635
+    # + 0.5 = 70.77 s (64.77 s: 1.98 re-looks' durations, within the wait of 4)
+    third = take(r, 6.0, 300.0)
+    assert third.t_s == pytest.approx(5.0 + 2 * dur + 0.5, rel=1e-12)
+    assert third.t_s == pytest.approx(70.770, abs=1e-3) and len(tr.busy) == 3
+
+
+def test_a_relook_waits_for_a_busy_look_ahead_at_most_four_of_its_durations():
+    # re-looks of 4 s (``relook_s``: not chained), the look-ahead busy from 5 to 21 s
+    tr, (p, q, r), take = _chain_tracker(relook_s=4.0)
+    tr.busy.append((5.0, 21.0))
+    assert take(p, 6.0, 300.0).t_s == 21.0  # wanted at 6 s: 15 s wait (3.75 re-looks)
+    assert tr.busy[-1] == (21.0, 25.0)
+    assert take(q, 8.9, 300.0) is None  # free at 25 s: 16.1 s, more than 4 x 4 s
+    assert take(r, 9.0, 300.0).t_s == 25.0  # 16 s: four re-looks' wait, taken
 
 
 def test_relooks_of_a_fixed_duration_are_not_chained():

@@ -52,8 +52,10 @@ Model (what is and is not modelled):
   300 km ahead 10 s apart keep the look-ahead 42.6 s instead of 65.3 s, and the second is
   taken when wanted instead of 22.6 s late. Otherwise (a re-look's duration given,
   ``relook_s``; a mosaic; a window that would run into a later one) a re-look that would
-  start while the look-ahead is busy with another waits for it, at most one re-look's
-  duration, else it is not taken. The plumes of one frame share its re-looks, and a
+  start while the look-ahead is busy with another waits for it, at most
+  :data:`RELOOK_WAIT` times its own duration, else it is not taken: a plume not re-looked
+  at gets no height and is not flown, and the wait costs the look-ahead no more than the
+  re-look itself does. The plumes of one frame share its re-looks, and a
   plume of a later frame shares a re-look already taken within one re-look's duration of the time it wants
   whose window holds it (a margin included); a plume never shares a re-look it has
   looked at already (before, a ``slow`` plume's nearer re-looks, within 32.6 s of its
@@ -221,6 +223,12 @@ TRACK_HEIGHT_M = 20_000.0
 """Highest plume top the tracker allows for when it matches a frame taken late: such a
 frame sees its plumes from nearer, displaced towards the nadir by up to this height's
 change of parallax, and a plume tracked on an earlier frame is looked for that far."""
+RELOOK_WAIT = 4.0
+"""Longest wait for a busy look-ahead, in the waiting re-look's own durations (``fast`` 300
+km ahead: 3.8 s each). A plume whose re-looks are not taken gets no height and is not
+flown; where three re-looks per plume keep the look-ahead busy (2 km frames), a longer
+wait measures plumes a shorter one leaves without a height; ``docs/plumes-3d.md`` compares
+waits of 1, 2, 4 and 10 (``benchmarks/parallax_targets.py --relook-wait``)."""
 RELOOK_KM = (300.0,)
 """Default re-look distances ahead of the nadir, km: one re-look, 300 km ahead (from
 500 km, tan(theta) falls by 0.468: the longest baseline the NFOV's lead leaves). Two
@@ -1382,7 +1390,7 @@ class HeightTracker:
         ahead_m: float | None = None,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
-        free, within one re-look's duration; else ``None``), its window centred where their
+        free, within :data:`RELOOK_WAIT` re-look durations ``dur``; else ``None``), its window centred where their
         guessed heights put them (a rising top: where ``follow`` searches for it; where they
         do not fit in one window, the largest); where a rise is allowed for, the room the
         window has left reaches beyond them, where a risen top would appear. Where a
@@ -1405,7 +1413,7 @@ class HeightTracker:
                 at = chained[0]
             if not held or self._holds(at, ahead_m):
                 break
-        if at - want > dur:
+        if at - want > RELOOK_WAIT * dur:
             return None
         if n > 1:
             assert searches is not None
