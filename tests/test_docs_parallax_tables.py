@@ -284,3 +284,28 @@ def test_the_hold_table_is_its_records(label, back, held, part, agility):
         f"{_side(_record(held)[part], agility, held_mode, lost=True)} |"
     )
     assert row in PAGE, row
+
+
+@pytest.mark.parametrize(
+    ("label", "record"),
+    [
+        ("1 (the wait before)", "parallax_long_8_wait1.json"),
+        ("2", "parallax_long_8_wait2.json"),
+        ("**4** (the default)", "parallax_long_8.json"),
+        ("10", "parallax_long_8_wait10.json"),
+    ],
+)
+def test_the_relook_wait_table_is_its_records(label, record):
+    got = _record(record)["long"]
+    s, rows = got["summary"], got["rows"]
+    fast = [r for r in rows if r["agility"] == "fast"]
+    flat = {r["strip"]: r["utility"] for r in fast if r["mode"] == "flat"}
+    est = [r for r in fast if r["mode"] == "estimated"]
+    two = sum(r["utility"] for r in est if r["strip"] < 2) / (flat[0] + flat[1])  # strips 0-1
+    kept = sum(r["utility"] >= 0.9 * flat[r["strip"]] for r in est)
+    busy = sum("busy" in e["reason"] for r in est for e in r["estimates"])
+    row = (
+        f"| {label} | {_flat(got, 'fast')} | {_cell(s, rows, 'fast', 'estimated')} | "
+        f"{two:.2f} | {kept} of {len(est)} | {_measured(rows, 'fast', 'estimated')} | {busy} |"
+    )
+    assert row in PAGE, row
