@@ -1390,13 +1390,13 @@ class HeightTracker:
         ahead_m: float | None = None,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
-        free, within :data:`RELOOK_WAIT` re-look durations ``dur``; else ``None``), its window centred where their
-        guessed heights put them (a rising top: where ``follow`` searches for it; where they
-        do not fit in one window, the largest); where a rise is allowed for, the room the
-        window has left reaches beyond them, where a risen top would appear. Where a
-        plume's searches (``searches(plume, t)``) ask more rows than a frame holds, the
-        re-look is a mosaic (:meth:`_mosaic`). A one-frame re-look may be held
-        (:meth:`_holds`)."""
+        free, within :data:`RELOOK_WAIT` re-look durations ``dur``; else ``None``), its
+        window centred where their guessed heights put them (a rising top: where ``follow``
+        searches for it; where they do not fit in one window, the largest); where a rise is
+        allowed for, the room the window has left reaches beyond them, where a risen top
+        would appear. Where a plume's searches (``searches(plume, t)``) ask more rows than
+        a frame holds, the re-look is a mosaic (:meth:`_mosaic`). A one-frame re-look may
+        be held (:meth:`_holds`)."""
         w = self.where
         hw, rows = w.wfov_shape[0], w.frame_px
         if hw >= rows and searches is not None:  # the frames it takes, decided at ``want``
