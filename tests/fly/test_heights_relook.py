@@ -1279,6 +1279,33 @@ def test_a_relook_waits_for_a_busy_look_ahead_at_most_four_of_its_durations():
     assert take(r, 9.0, 300.0).t_s == 25.0  # 16 s: four re-looks' wait, taken
 
 
+def test_a_mosaic_wanted_inside_another_relooks_window_waits_for_it_to_end():
+    # a mosaic is never taken straight after another re-look: 64-row frames, a search of
+    # +-60 rows (more than half a frame: 121 rows, frames stepping by 64 - 1 - 2 x 6 = 51
+    # rows, so 1 + ceil((121 - 64) / 51) = 3 frames), wanted 1 s into a slow
+    # re-look's window (5 to 37.635 s): taken once that window ends, in a window of its own
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 96), 64, 0, 4)
+    tr = HeightTracker(
+        where, get_agility("slow"), (300.0,), None, None, None,
+        measure=True, log=lambda s: None, relook_frames=8, hold=False,
+    )  # fmt: skip
+    p, q = (Plume(i + 1, 0, 0.0, np.array([9000 + 100 * i]), np.array([40])) for i in (0, 1))
+    guess = {p.pid: 8500.0, q.pid: 8500.0}
+    dur = 2 * _back_s(get_agility("slow"), 300e3) + get_agility("slow").dwell_s
+
+    def render(t, top, n):
+        return None
+
+    first = tr._take([p], 0.0, 5.0, dur, guess, render, ahead_m=300e3)
+    assert len(first.frames) == 1 and tr.busy == [(5.0, pytest.approx(5.0 + dur, rel=1e-12))]
+    mosaic = tr._take(
+        [q], 0.0, 6.0, dur, guess, render, searches=lambda pl, t: [(0.0, 60.0)], ahead_m=300e3
+    )
+    assert len(mosaic.frames) == 3
+    assert mosaic.t_s == pytest.approx(5.0 + dur, rel=1e-12)  # 37.635 s, not 6 s
+    assert len(tr.busy) == 2 and tr.busy[1][0] == mosaic.t_s
+
+
 def test_relooks_of_a_fixed_duration_are_not_chained():
     # a re-look's duration given (``relook_s``): no slew model to chain them by; the second
     # waits for the first to end
