@@ -36,6 +36,15 @@ def _cell(summary: dict, rows: list[dict], agility: str, mode: str, bold: bool =
     return f"**{text}**" if bold else text
 
 
+def _kept(rows: list[dict], agility: str, mode: str) -> str:
+    """Strips whose ``mode`` pass keeps >= 90 % of its flat twin's utility: "k of n"."""
+    flat = {
+        r["strip"]: r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat"
+    }
+    sel = [r for r in rows if r["agility"] == agility and r["mode"] == mode]
+    return f"{sum(r['utility'] >= 0.9 * flat[r['strip']] for r in sel)} of {len(sel)}"
+
+
 def _long_row(record: str, agility: str, middle: tuple[str, ...], late: str) -> str:
     """A long-pass table row: flat, the ``middle`` modes, estimated, its frames taken late
     (caught up, or held) and lost (``late`` formats them), without catching up, its frames
@@ -156,18 +165,10 @@ def test_the_relook_distance_table_is_its_records(label, record, far, part, agil
 def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
     got = _record("parallax_long_8.json")["long"]
     s, rows = got["summary"], got["rows"]
-    flat = {
-        r["strip"]: r["utility"] for r in rows if r["agility"] == agility and r["mode"] == "flat"
-    }
-
-    def strips(mode: str) -> str:  # strips whose pass keeps >= 90 % of its flat twin's utility
-        sel = [r for r in rows if r["agility"] == agility and r["mode"] == mode]
-        return f"{sum(r['utility'] >= 0.9 * flat[r['strip']] for r in sel)} of {len(sel)}"
-
     row = (
         f"| `{agility}` | {_flat(got, agility)} | {_cell(s, rows, agility, 'true')} | "
-        f"{strips('true')} | {_cell(s, rows, agility, 'estimated', bold=True)} | "
-        f"{strips('estimated')} |"
+        f"{_kept(rows, agility, 'true')} | "
+        f"{_cell(s, rows, agility, 'estimated', bold=True)} | {_kept(rows, agility, 'estimated')} |"
     )
     assert row in PAGE, row
 
@@ -182,13 +183,10 @@ def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
 def test_slow_on_eight_strips_of_8_km_frames_is_its_record(record, mode, label):
     got = _record(record)["long"]
     s, rows = got["summary"], got["rows"]
-    flat = {r["strip"]: r["utility"] for r in rows if r["mode"] == "flat"}
-    est = [r for r in rows if r["mode"] == mode]
-    kept = sum(r["utility"] >= 0.9 * flat[r["strip"]] for r in est)
     lost = s["slow"][mode]["frames_lost_to_relooks"]
     row = (
         f"| {label} | {_flat(got, 'slow')} | {_cell(s, rows, 'slow', mode, bold=True)} | "
-        f"{kept} of {len(est)} | {lost} of {s['slow'][mode]['frames']} |"
+        f"{_kept(rows, 'slow', mode)} | {lost} of {s['slow'][mode]['frames']} |"
     )
     assert row in PAGE, row
 
@@ -302,10 +300,10 @@ def test_the_relook_wait_table_is_its_records(label, record):
     flat = {r["strip"]: r["utility"] for r in fast if r["mode"] == "flat"}
     est = [r for r in fast if r["mode"] == "estimated"]
     two = sum(r["utility"] for r in est if r["strip"] < 2) / (flat[0] + flat[1])  # strips 0-1
-    kept = sum(r["utility"] >= 0.9 * flat[r["strip"]] for r in est)
     busy = sum("busy" in e["reason"] for r in est for e in r["estimates"])
     row = (
         f"| {label} | {_flat(got, 'fast')} | {_cell(s, rows, 'fast', 'estimated')} | "
-        f"{two:.2f} | {kept} of {len(est)} | {_measured(rows, 'fast', 'estimated')} | {busy} |"
+        f"{two:.2f} | {_kept(rows, 'fast', 'estimated')} | "
+        f"{_measured(rows, 'fast', 'estimated')} | {busy} |"
     )
     assert row in PAGE, row
