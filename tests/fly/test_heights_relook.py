@@ -1254,19 +1254,25 @@ def test_a_relook_straight_after_one_at_another_distance_slews_between_them():
     assert tr.busy == [(s0, pytest.approx(end, rel=1e-9))]
 
 
-def test_a_relook_after_the_window_or_before_another_is_taken_on_its_own():
-    tr, (p, q, r), take = _chain_tracker()
-    a = get_agility("slow")
-    dur = 2 * _back_s(a, 300e3) + a.dwell_s
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_a_relook_after_the_window_or_before_another_is_taken_on_its_own(agility):
+    tr, (p, q, r), take = _chain_tracker(agility)
+    a = get_agility(agility)
+    dur = 2 * _back_s(a, 300e3) + a.dwell_s  # slow 32.635 s, fast 3.80 s
     take(p, 5.0, 300.0)
     take(q, 5.0 + dur + 0.5, 300.0)  # after the first's window: a window of its own
     assert [s for s, _ in tr.busy] == [5.0, 5.0 + dur + 0.5]
     # wanted 1 s into the first window, but staying on until then (its window would end 1 s
-    # later) would run into the second: it waits for the second to end, at 5 + 2 x 32.635
-    # + 0.5 = 70.77 s (64.77 s: 1.98 re-looks' durations, within the wait of 4)
+    # later) would run into the second: it waits for the second to end, at 5 + 2 dur + 0.5
+    # (slow: 70.77 s, 64.77 s of wait, 1.98 re-looks' durations, within the wait of 4;
+    # fast: 13.1 s, 7.1 s of wait)
     third = take(r, 6.0, 300.0)
-    assert third.t_s == pytest.approx(5.0 + 2 * dur + 0.5, rel=1e-12)
-    assert third.t_s == pytest.approx(70.770, abs=1e-3) and len(tr.busy) == 3
+    if agility == "slow":  # but 300 km ahead at 6 s, the plume passes the nadir at 48.5 s
+        assert 6.0 + 300e3 / OrbitGeometry().ground_speed < 48.5 and third is None
+        assert len(tr.busy) == 2
+        return
+    assert 3.7 < dur < 3.9
+    assert third.t_s == pytest.approx(5.0 + 2 * dur + 0.5, rel=1e-12) and len(tr.busy) == 3
 
 
 def test_a_relook_waits_for_a_busy_look_ahead_at_most_four_of_its_durations():
@@ -1277,6 +1283,19 @@ def test_a_relook_waits_for_a_busy_look_ahead_at_most_four_of_its_durations():
     assert tr.busy[-1] == (21.0, 25.0)
     assert take(q, 8.9, 300.0) is None  # free at 25 s: 16.1 s, more than 4 x 4 s
     assert take(r, 9.0, 300.0).t_s == 25.0  # 16 s: four re-looks' wait, taken
+
+
+@pytest.mark.parametrize(("busy_until", "taken"), [(48.0, True), (49.0, False)])
+def test_a_relook_does_not_wait_past_the_plumes_passing_the_nadir(busy_until, taken):
+    # re-looks of 40 s (four of them: 160 s of wait allowed), 300 km ahead when wanted at
+    # 6 s: the plume passes the nadir 300 km / 7062.3 m/s = 42.48 s later, at 48.48 s.
+    # Free at 48 s, it is still 3.4 km ahead: taken; free at 49 s, 3.7 km behind: not
+    tr, (p, _, _), take = _chain_tracker(relook_s=40.0)
+    v = OrbitGeometry().ground_speed
+    assert 7062.0 < v < 7062.6 and 48.4 < 6.0 + 300e3 / v < 48.6
+    tr.busy.append((5.0, busy_until))
+    got = take(p, 6.0, 300.0)
+    assert (got is not None and got.t_s == busy_until) if taken else got is None
 
 
 def test_a_mosaic_wanted_inside_another_relooks_window_waits_for_it_to_end():

@@ -53,7 +53,9 @@ Model (what is and is not modelled):
   taken when wanted instead of 22.6 s late. Otherwise (a re-look's duration given,
   ``relook_s``; a mosaic; a window that would run into a later one) a re-look that would
   start while the look-ahead is busy with another waits for it, at most
-  :data:`RELOOK_WAIT` times its own duration, else it is not taken: a plume not re-looked
+  :data:`RELOOK_WAIT` times its own duration and while its plumes are still ahead of the
+  nadir (a ``slow`` re-look 300 km ahead lasts 32.6 s: four of them would reach past it),
+  else it is not taken: a plume not re-looked
   at gets no height and is not flown, and the wait costs the look-ahead no more than the
   re-look itself does. The plumes of one frame share its re-looks, and a
   plume of a later frame shares a re-look already taken within one re-look's duration of the time it wants
@@ -1390,7 +1392,8 @@ class HeightTracker:
         ahead_m: float | None = None,
     ) -> Relook | None:
         """Take a re-look for ``plumes`` at ``want`` (or as soon after as the look-ahead is
-        free, within :data:`RELOOK_WAIT` re-look durations ``dur``; else ``None``), its
+        free, within :data:`RELOOK_WAIT` re-look durations ``dur`` and while the plumes,
+        ``ahead_m`` ahead at ``want``, are still ahead of the nadir; else ``None``), its
         window centred where their guessed heights put them (a rising top: where ``follow``
         searches for it; where they do not fit in one window, the largest); where a rise is
         allowed for, the room the window has left reaches beyond them, where a risen top
@@ -1415,6 +1418,8 @@ class HeightTracker:
                 break
         if at - want > RELOOK_WAIT * dur:
             return None
+        if ahead_m is not None and ahead_m <= w.geometry.ground_speed * (at - want):
+            return None  # the plumes would have passed the nadir by then
         if n > 1:
             assert searches is not None
             lo, hi = self._needed_rows(plumes, at, searches)
