@@ -162,8 +162,9 @@ def test_the_relook_distance_table_is_its_records(label, record, far, part, agil
 
 
 @pytest.mark.parametrize("agility", ["fast", "slow"])
-def test_the_eight_strip_table_on_2_km_frames_is_its_record(agility):
-    got = _record("parallax_long_8.json")["long"]
+@pytest.mark.parametrize("record", ["parallax_long_8.json", "parallax_long_24.json"])
+def test_the_eight_and_24_strip_tables_on_2_km_frames_are_their_records(record, agility):
+    got = _record(record)["long"]
     s, rows = got["summary"], got["rows"]
     row = (
         f"| `{agility}` | {_flat(got, agility)} | {_cell(s, rows, agility, 'true')} | "
@@ -307,3 +308,39 @@ def test_the_relook_wait_table_is_its_records(label, record):
         f"{_measured(rows, 'fast', 'estimated')} | {busy} |"
     )
     assert row in PAGE, row
+
+
+def _summed(rows: list[dict], agility: str, mode: str, strips) -> float:
+    """``mode``'s utility summed over ``strips`` over the flat passes' sum."""
+    def total(m: str) -> float:
+        return sum(
+            r["utility"] for r in rows
+            if r["agility"] == agility and r["mode"] == m and r["strip"] in strips
+        )  # fmt: skip
+
+    return total(mode) / total("flat")
+
+
+def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record():
+    # the page's prose on the 24 strips: the fraction of flat by eights, and the 90 % interval
+    # of a bootstrap over strips (10,000 draws of 24 strips with replacement, seed 0)
+    import numpy as np
+
+    rows = _record("parallax_long_24.json")["long"]["rows"]
+    text = " ".join(PAGE.split())
+    eights = {
+        a: ", ".join(f"{_summed(rows, a, 'estimated', range(i, i + 8)):.2f}" for i in (0, 8, 16))
+        for a in ("fast", "slow")
+    }
+    f, s = (e.rsplit(", ", 1) for e in (eights["fast"], eights["slow"]))
+    assert f"`fast` keeps {f[0]} and {f[1]} and `slow` {s[0]} and {s[1]}," in text
+    bounds = {}
+    for a in ("fast", "slow"):
+        flat, est = (
+            np.array([r["utility"] for r in rows if r["agility"] == a and r["mode"] == m])
+            for m in ("flat", "estimated")
+        )
+        draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
+        lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
+        bounds[a] = f"{lo:.2f}–{hi:.2f}"
+    assert f"is {bounds['fast']} for `fast` and {bounds['slow']} for `slow`" in text
