@@ -312,6 +312,7 @@ def test_the_relook_wait_table_is_its_records(label, record):
 
 def _summed(rows: list[dict], agility: str, mode: str, strips) -> float:
     """``mode``'s utility summed over ``strips`` over the flat passes' sum."""
+
     def total(m: str) -> float:
         return sum(
             r["utility"] for r in rows
