@@ -43,6 +43,52 @@ def test_slew_time_for_known_angles():
     assert AGILITY["unlimited"].slew_time(45.0) == 0.0
 
 
+@pytest.mark.parametrize("one", [False, True])
+def test_a_change_of_direction_below_the_resolution_takes_no_slew(one):
+    # 1e-5 deg (0.036 arcsec): below it no slew; just above, the triangle profile by hand,
+    # 2 sqrt(2e-5 / 0.5) = 0.012649 s. 1.2e-6 deg is what the arc cosine of two unit vectors
+    # of one direction, a few units in the last place apart, gives
+    a = Agility("t", max_rate_deg_s=1.0, max_accel_deg_s2=0.5)
+    slew = a.slew_time_one if one else a.slew_time
+    assert float(slew(1.2e-6)) == 0.0 and float(slew(-9.9e-6)) == 0.0
+    assert float(slew(2e-5)) == pytest.approx(0.0126491, rel=1e-5)
+
+
+def test_two_pointings_at_one_top_are_timed_alike_with_and_without_avx512():
+    # numpy dispatches its vector loops to AVX-512 where the CPU has it; the arc cosine of
+    # two nearly parallel look vectors then came out about 1e-6 deg instead of 0, a slow
+    # slew of 3 ms per pointing. The aim test's two pointings at one 10 km top, flown with
+    # numpy's AVX-512 loops disabled and as this CPU runs them: the same times to the bit
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.path.insert(0, 'tests'); import numpy as np; import test_aim as T;"
+        "from dyntarget.schedule import schedule_on_prediction, OrbitGeometry;"
+        "from dyntarget.trajectory import Trajectory;"
+        "g = OrbitGeometry(altitude_m=T.H_SC, look_ahead_m=500e3, wfov_gsd_m=T.GSD, start_s=40.0);"
+        "b = np.array([T._pixel(500e3, 0.0), T._pixel(500e3, 0.0)]);"
+        "s = schedule_on_prediction(Trajectory(b, np.zeros(2), 'demo'), T.SHAPE, g, 'slow',"
+        " None, aim=T._aim()); import json; print(json.dumps(s.times.tolist()))"
+    )
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+    def times(disabled: str) -> list[float]:
+        env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": disabled}
+        out = subprocess.run([sys.executable, "-c", code], env=env, cwd=root,
+                             capture_output=True, text=True, check=True)  # fmt: skip
+        return json.loads(out.stdout.strip().splitlines()[-1])  # floats round-trip exactly
+
+    from numpy._core._multiarray_umath import __cpu_dispatch__
+
+    avx512 = [f for f in __cpu_dispatch__ if f.startswith(("AVX512", "X86_V4"))]
+    native, no512 = times(""), times(" ".join(avx512))
+    assert native == no512
+    assert native[1] - native[0] == pytest.approx(1.1, abs=1e-9)  # dwell 0.1 + settle 1.0
+
+
 def test_off_nadir_angle_on_a_sphere_by_hand():
     g = OrbitGeometry(altitude_m=500e3)
     # straight below: 0 deg

@@ -28,7 +28,8 @@ Model (documented in ``docs/onboard.md``):
 * **Agility**: a slew between two look directions of angle ``φ`` takes the
   time of a rest-to-rest trapezoidal rate profile (acceleration ``α`` up to the
   rate ``ω``): ``2 sqrt(φ / α)`` when ``φ <= ω² / α``, else ``φ / ω + ω / α``;
-  then ``settle_s``; then the pointing is held for ``dwell_s`` (the sensor
+  none below :data:`SLEW_RESOLUTION_DEG` (the same direction, up to rounding); then
+  ``settle_s``; then the pointing is held for ``dwell_s`` (the sensor
   tracks the ground point meanwhile). The sensor starts at nadir at ``start_s``
   (the time the plan is ready: onboard classification and planning latency).
 
@@ -51,6 +52,15 @@ import numpy.typing as npt
 
 from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
+
+SLEW_RESOLUTION_DEG = 1e-5
+"""A change of direction smaller than this (0.036 arcsec, 9 cm at 500 km) takes no slew.
+
+Far below any attitude control's resolution, and far above the rounding of the angle between
+two unit vectors of one direction computed two ways (the arc cosine of their dot product
+turns a few units in the last place into about 1e-6 degrees, and with it a slew of
+milliseconds for ``slow``: which one depended on the CPU's vector instructions, with
+AVX-512 or without)."""
 
 EARTH_RADIUS_M = 6_371_000.0
 """Mean Earth radius (IUGG)."""
@@ -187,9 +197,11 @@ class Agility:
         Returns
         -------
         numpy.ndarray
-            Slew times, seconds, of the same shape (settling not included).
+            Slew times, seconds, of the same shape (settling not included; 0 below
+            :data:`SLEW_RESOLUTION_DEG`).
         """
         phi = np.abs(np.asarray(angle_deg, np.float64))
+        phi = np.where(phi < SLEW_RESOLUTION_DEG, 0.0, phi)
         w, a = self.max_rate_deg_s, self.max_accel_deg_s2
         if math.isinf(a):
             return phi / w if math.isfinite(w) else np.zeros_like(phi)
@@ -211,6 +223,8 @@ class Agility:
             Slew time, seconds (settling not included).
         """
         phi = abs(angle_deg)
+        if phi < SLEW_RESOLUTION_DEG:
+            phi = 0.0
         w, a = self.max_rate_deg_s, self.max_accel_deg_s2
         if math.isinf(a):
             return phi / w if math.isfinite(w) else 0.0
