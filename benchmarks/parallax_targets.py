@@ -94,6 +94,7 @@ EXTRA_MODES = (
     "estimated-mosaic",
     "estimated-hold",
     "estimated-back",
+    "estimated-defer",
 )
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
 rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
@@ -104,7 +105,9 @@ whose re-looks take up to :data:`MOSAIC_FRAMES` frames where one cannot hold the
 a re-look, holds that re-look's pitch where it can and takes the regular frames from there
 (``fly --relook-hold``; ``estimated`` does so by default where the look-ahead cannot catch
 up, as ``slow``); ``estimated-back`` is ``estimated`` whose look-ahead always goes back to
-its regular pitch (``fly --no-relook-hold``)."""
+its regular pitch (``fly --no-relook-hold``); ``estimated-defer`` is ``estimated`` whose
+plumes cut by a frame's top edge are flown from the frame that sees them whole
+(``fly --defer-cut-plumes``)."""
 MOSAIC_FRAMES = 8
 """The most frames an ``estimated-mosaic`` re-look takes."""
 RISE_MPS = 100.0
@@ -191,6 +194,8 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated", agility, look_ahead_m), relook_hold=True)
     if mode == "estimated-back":
         return replace(config_for("estimated", agility, look_ahead_m), relook_hold=False)
+    if mode == "estimated-defer":
+        return replace(config_for("estimated", agility, look_ahead_m), defer_cut=True)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)

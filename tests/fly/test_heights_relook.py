@@ -127,6 +127,8 @@ def _flat_strip(tmp_path):
         (["--relook-hold", "--no-parallax"], "--relook-hold: has no effect"),
         (["--no-relook-hold", "--parallax", "true"], "--no-relook-hold: has no effect"),
         (["--relook-hold", "--no-relook-hold"], "not allowed with argument"),
+        (["--defer-cut-plumes", "--no-parallax"], "--defer-cut-plumes: has no effect"),
+        (["--defer-cut-plumes", "--parallax", "true"], "--defer-cut-plumes: has no effect"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -1559,6 +1561,64 @@ def test_a_pass_records_a_hold_asked_for_or_refused_and_not_the_default():
     assert "relook_hold" not in PassConfig().as_dict()
     assert PassConfig(relook_hold=True).as_dict()["relook_hold"] is True
     assert PassConfig(relook_hold=False).as_dict()["relook_hold"] is False
+
+
+@pytest.mark.parametrize("bad", ["yes", 1, None])
+def test_defer_cut_must_be_true_or_false(bad):
+    from dyntarget.errors import InvalidParameterError
+
+    with pytest.raises(InvalidParameterError, match="defer_cut: expected true or false"):
+        PassConfig(defer_cut=bad)
+
+
+def test_a_pass_records_deferring_cut_plumes_when_asked_and_not_the_default():
+    assert "defer_cut" not in PassConfig().as_dict()
+    assert PassConfig(defer_cut=True).as_dict()["defer_cut"] is True
+
+
+def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo():
+    # five pointings on a frame's plume-id map: plume 2 (pending) under the 2nd, 3rd and 5th
+    # (pixels (x, y) = (3, 1), (4, 1) and (7, 2)), plume 1 under the 1st, none under the 4th
+    from dyntarget.fly.loop import _Todo, _without_plumes
+    from dyntarget.trajectory import Trajectory
+
+    pids = np.zeros((4, 8), np.int32)
+    pids[0, 0:2] = 1
+    pids[1, 3:5] = 2
+    pids[2, 6:8] = 2
+    pts = np.array([[1.0, 0.2], [3.2, 0.9], [4.0, 1.4], [5.0, 3.0], [7.4, 2.0]])
+    todo = _Todo(Trajectory(pts, np.zeros(5), "demo"), np.arange(5), np.arange(10, 15), 2,
+                 np.zeros(5, np.int64), np.zeros(5, np.int64))  # fmt: skip
+    out = _without_plumes(todo, pids, {2})
+    assert out.trajectory.points.tolist() == [[1.0, 0.2], [5.0, 3.0]]
+    assert out.keep.tolist() == [10, 13] and out.part.tolist() == [0, 3]
+    assert out.skipped == 2 + 3  # the frame's own skips and the three deferred
+    assert _without_plumes(todo, pids, set()) is todo and _without_plumes(todo, pids, {5}) is todo
+
+
+@pytest.mark.slow
+def test_a_plume_cut_by_the_frames_top_edge_is_flown_from_the_frame_that_measures_it_whole(
+    monkeypatch,
+):
+    # the long 2 km-frame strip of seed 304 (benchmarks/parallax_targets.py's long part),
+    # slow: its first plume enters frame 34 on its top rows, upwind end cut, and is measured
+    # again on frame 35. Deferred, no pointing is flown from frame 34; by default frame 34's
+    # pointings fly it (aimed with the cut view's height)
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import parallax_targets as pt
+
+    spec, window = pt.long_strip_spec(304, 300.0, width=256, plumes_per_100km=2.0, wind_mps=5.0)
+    spec3 = pt.with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
+    base = pt.config_for("estimated", "slow", 500e3)
+    frames = {}
+    for defer in (False, True):
+        res = fly_pass(pt.LongStrip(spec3, window), None, replace(base, defer_cut=defer))
+        first = res.heights[0]
+        assert first.frame == 35  # measured (again) on frame 35, whole
+        frames[defer] = {f for f, i in zip(res.flown.frame, res.flown.plume_id, strict=True) if i}
+    assert 34 in frames[False] and min(frames[True]) >= 35
 
 
 def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():

@@ -119,7 +119,8 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     """``PassConfig`` parallax fields from ``--parallax``, ``--plume-height-km``,
     ``--no-parallax``, ``--relook-km``, ``--no-catch-up``, ``--max-rise-mps``,
-    ``--relook-frames`` and ``--relook-hold`` (none given: none set, the defaults)."""
+    ``--relook-frames``, ``--relook-hold`` and ``--defer-cut-plumes`` (none given: none set,
+    the defaults)."""
     kw: dict[str, Any] = {}
     mode, choice = args.parallax, o.parallax_choice(args)
     if choice == "off":
@@ -152,19 +153,22 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
             )
         kw["max_rise_mps"] = args.max_rise_mps
     if args.relook_frames is not None:
-        if mode in ("off", "prior", "true"):
-            raise InvalidParameterError(
-                f"--relook-frames: has no effect with --parallax {mode} (no re-look is taken)"
-            )
+        _refuse_unmeasured("--relook-frames", mode, "no re-look is taken")
         kw["relook_frames"] = args.relook_frames
     if args.relook_hold is not None:
         flag = "--relook-hold" if args.relook_hold else "--no-relook-hold"
-        if mode in ("off", "prior", "true"):
-            raise InvalidParameterError(
-                f"{flag}: has no effect with --parallax {mode} (no re-look is taken)"
-            )
+        _refuse_unmeasured(flag, mode, "no re-look is taken")
         kw["relook_hold"] = args.relook_hold
+    if args.defer_cut_plumes:
+        _refuse_unmeasured("--defer-cut-plumes", mode, "no height is measured")
+        kw["defer_cut"] = True
     return kw
+
+
+def _refuse_unmeasured(flag: str, mode: str | None, why: str) -> None:
+    """A re-look option given with a ``--parallax`` mode that measures no height: one line."""
+    if mode in ("off", "prior", "true"):
+        raise InvalidParameterError(f"{flag}: has no effect with --parallax {mode} ({why})")
 
 
 def _km_list(text: str) -> tuple[float, ...]:
@@ -585,6 +589,13 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         const=False,
         help="always go back to the regular pitch after a re-look, catching up where the "
         "look-ahead can, else losing the frames due meanwhile",
+    )
+    par.add_argument(
+        "--defer-cut-plumes",
+        action="store_true",
+        help="a plume whose upwind end the look-ahead frame's top edge cuts is flown from "
+        "the first frame that sees that end, with the height measured there, not from the "
+        "cut view (opt-in; measured in docs/plumes-3d.md)",
     )
 
 

@@ -604,10 +604,14 @@ def _fly_frame(
     result, stage, prediction = _plan_frame(ctx, k, image, valid, mask, start, state)
     heights: dict[str, float] = {}
     aim = None
+    pids = None
     if ctx.where:
-        aim = _aim(ctx, k, _heights(ctx, k, t_look, result, image, heights), t_look)
+        pids = _heights(ctx, k, t_look, result, image, heights)
+        aim = _aim(ctx, k, pids, t_look)
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
+    if config.defer_cut and pids is not None and ctx.tracker is not None:
+        todo = _without_plumes(todo, pids, ctx.tracker.pending_ids())
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
     loop_s = time.perf_counter() - t_loop
@@ -755,6 +759,25 @@ def _todo(
         keep = keep[:0]  # no pointing of this frame's plan is flown as planned
     todo = Trajectory(points, np.zeros(len(points)), traj.planner)
     return _Todo(todo, part, keep, int(np.count_nonzero(skip)), rows, cols)
+
+
+def _without_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> _Todo:
+    """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
+    map ``pids``), counted as skipped: ``defer_cut``'s plumes, flown from a later frame."""
+    points = todo.trajectory.points
+    if not skip or not len(points) or len(todo.keep) != len(points):  # none, or a blueprint's
+        return todo
+    rows = np.clip(np.floor(points[:, 1] + 0.5).astype(np.int64), 0, pids.shape[0] - 1)
+    cols = np.clip(np.floor(points[:, 0] + 0.5).astype(np.int64), 0, pids.shape[1] - 1)
+    keep = ~np.isin(pids[rows, cols], list(skip))
+    if keep.all():
+        return todo
+    n = int(np.count_nonzero(keep))
+    trajectory = Trajectory(points[keep], np.zeros(n), todo.trajectory.planner)
+    return _Todo(
+        trajectory, todo.part[keep], todo.keep[keep], todo.skipped + len(points) - n,
+        todo.rows, todo.cols,
+    )  # fmt: skip
 
 
 def _schedule_frame(

@@ -111,6 +111,11 @@ class PassConfig:
         ``None``, the default: where catching up is asked for and the look-ahead cannot
         gain on the ground (``slow``; :func:`dyntarget.predict.relooks.holds_relooks`);
         ``False``: never (going back, as before).
+    defer_cut : a plume whose upwind end the frame's top edge cuts is not flown from that
+        frame: it is flown from the first frame that sees that end, with the height
+        measured there (:meth:`dyntarget.predict.relooks.HeightTracker.pending_ids`;
+        ``"estimated"`` mode). ``False``, the default: flown from both, the first with the
+        height measured on its cut view.
     """
 
     planner: str = "lawnmower-transect"
@@ -137,6 +142,7 @@ class PassConfig:
     max_rise_mps: float = 0.0
     relook_frames: int = RELOOK_FRAMES
     relook_hold: bool | None = None
+    defer_cut: bool = False
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -220,6 +226,10 @@ class PassConfig:
             raise InvalidParameterError(
                 f"relook_hold: expected true, false or null, got {self.relook_hold!r}"
             )
+        if not isinstance(self.defer_cut, bool):
+            raise InvalidParameterError(
+                f"defer_cut: expected true or false, got {self.defer_cut!r}"
+            )
 
     def resolved_parallax(self, is_3d: bool) -> str:
         """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
@@ -285,6 +295,8 @@ class PassConfig:
             d.pop("relook_frames")
         if self.relook_hold is None:  # likewise
             d.pop("relook_hold")
+        if not self.defer_cut:  # likewise
+            d.pop("defer_cut")
         return d
 
 

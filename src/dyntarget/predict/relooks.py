@@ -957,6 +957,18 @@ class HeightTracker:
             self._relook(big, t_k, top, comp, mask if raw is None else raw, render)
         return out
 
+    def pending_ids(self) -> set[int]:
+        """The tracked plumes measured provisionally so far (:attr:`Plume.pending`: their
+        upwind end cut by the edge of the frame that saw them; measured again, with the
+        rest of them, on the first frame that sees that end).
+
+        Returns
+        -------
+        set of int
+            Their ids (1-based).
+        """
+        return {p.pid for p in self.plumes if p.pending}
+
     def _cut_upwind(self, rows: np.ndarray, cols: np.ndarray) -> bool:
         """Whether a component (frame rows, columns) has its upwind end (the quarter of its
         length along the wind at the upwind side; all of it without a wind) on the frame's
