@@ -322,15 +322,19 @@ def _summed(rows: list[dict], agility: str, mode: str, strips) -> float:
     return total(mode) / total("flat")
 
 
-def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record():
+@pytest.mark.parametrize(
+    ("record", "mode"),
+    [("parallax_long_24.json", "estimated"), ("parallax_long_24_defer.json", "estimated-defer")],
+)
+def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record(record, mode):
     # the page's prose on the 24 strips: the fraction of flat by eights, and the 90 % interval
     # of a bootstrap over strips (10,000 draws of 24 strips with replacement, seed 0)
     import numpy as np
 
-    rows = _record("parallax_long_24.json")["long"]["rows"]
+    rows = _record(record)["long"]["rows"]
     text = " ".join(PAGE.split())
     eights = {
-        a: ", ".join(f"{_summed(rows, a, 'estimated', range(i, i + 8)):.2f}" for i in (0, 8, 16))
+        a: ", ".join(f"{_summed(rows, a, mode, range(i, i + 8)):.2f}" for i in (0, 8, 16))
         for a in ("fast", "slow")
     }
     f, s = (e.rsplit(", ", 1) for e in (eights["fast"], eights["slow"]))
@@ -339,9 +343,24 @@ def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record():
     for a in ("fast", "slow"):
         flat, est = (
             np.array([r["utility"] for r in rows if r["agility"] == a and r["mode"] == m])
-            for m in ("flat", "estimated")
+            for m in ("flat", mode)
         )
         draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
         lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
         bounds[a] = f"{lo:.2f}–{hi:.2f}"
     assert f"is {bounds['fast']} for `fast` and {bounds['slow']} for `slow`" in text
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+def test_the_deferred_cut_plumes_table_is_its_record(agility):
+    got = _record("parallax_long_24_defer.json")["long"]
+    base = _record("parallax_long_24.json")["long"]
+    s, rows = got["summary"], got["rows"]
+    row = (
+        f"| `{agility}` | {_flat(got, agility)} | "
+        f"{_cell(s, rows, agility, 'estimated-defer', bold=True)} | "
+        f"{_kept(rows, agility, 'estimated-defer')} | "
+        f"{_cell(base['summary'], base['rows'], agility, 'estimated')} | "
+        f"{_kept(base['rows'], agility, 'estimated')} |"
+    )
+    assert row in PAGE, row
