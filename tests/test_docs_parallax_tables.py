@@ -364,3 +364,21 @@ def test_the_deferred_cut_plumes_table_is_its_record(agility):
         f"{_kept(base['rows'], agility, 'estimated')} |"
     )
     assert row in PAGE, row
+
+
+@pytest.mark.parametrize("agility", ["fast", "slow"])
+@pytest.mark.parametrize(
+    ("label", "record", "base", "part"),
+    [
+        ("short strips", "parallax_targeting_defer.json", "parallax_targeting.json", "targeting"),
+        ("long, 8 km frames", "parallax_long_1024_defer.json", "parallax_long_1024.json", "long"),
+    ],
+)
+def test_deferring_cut_plumes_elsewhere_is_its_records(label, record, base, part, agility):
+    got, b = _record(record)[part], _record(base)[part]
+    row = (
+        f"| {label} | `{agility}` | {_flat(got, agility)} | "
+        f"{_cell(got['summary'], got['rows'], agility, 'estimated-defer', bold=True)} | "
+        f"{_cell(b['summary'], b['rows'], agility, 'estimated')} |"
+    )
+    assert row in PAGE, row
