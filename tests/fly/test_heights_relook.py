@@ -168,6 +168,13 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
     nc = json.loads((tmp_path / "nc" / "summary.json").read_text())
     assert "frames_caught_up" not in nc and "frames_held" not in nc
     assert nc["relooks"] == summary["relooks"]
+    # --defer-cut-plumes: recorded with the pass's settings (absent by default)
+    assert main([*fly, "--defer-cut-plumes", "--out", str(tmp_path / "dc"), "--quiet"]) == 0
+    params = [
+        json.loads((tmp_path / d / "pointings.geojson").read_text())["properties"]["params"]
+        for d in ("dc", "out")
+    ]
+    assert params[0]["defer_cut"] is True and "defer_cut" not in params[1]
     # --no-parallax: off, no plume is measured
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
