@@ -1594,8 +1594,10 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo():
     pids[1, 3:5] = 2
     pids[2, 6:8] = 2
     pts = np.array([[1.0, 0.2], [3.2, 0.9], [4.0, 1.4], [5.0, 3.0], [7.4, 2.0]])
+    rows, cols = np.zeros(15, np.int64), np.zeros(15, np.int64)  # the plan's pixels: 10..14
+    rows[10:], cols[10:] = [0, 1, 1, 3, 2], [1, 3, 4, 5, 7]  # are these five pointings'
     todo = _Todo(Trajectory(pts, np.zeros(5), "demo"), np.arange(5), np.arange(10, 15), 2,
-                 np.zeros(5, np.int64), np.zeros(5, np.int64))  # fmt: skip
+                 rows, cols)  # fmt: skip
     out = _without_plumes(todo, pids, {2})
     assert out.trajectory.points.tolist() == [[1.0, 0.2], [5.0, 3.0]]
     assert out.keep.tolist() == [10, 13] and out.part.tolist() == [0, 3]

@@ -767,9 +767,7 @@ def _without_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> _Todo:
     points = todo.trajectory.points
     if not skip or not len(points) or len(todo.keep) != len(points):  # none, or a blueprint's
         return todo
-    rows = np.clip(np.floor(points[:, 1] + 0.5).astype(np.int64), 0, pids.shape[0] - 1)
-    cols = np.clip(np.floor(points[:, 0] + 0.5).astype(np.int64), 0, pids.shape[1] - 1)
-    keep = ~np.isin(pids[rows, cols], list(skip))
+    keep = ~np.isin(pids[todo.rows[todo.keep], todo.cols[todo.keep]], list(skip))
     if keep.all():
         return todo
     n = int(np.count_nonzero(keep))
