@@ -165,6 +165,9 @@ class PassState:
     late_s : dict of int to float
         When each frame taken late was taken (the look-ahead catching up after a
         re-look, :meth:`~dyntarget.predict.relooks.HeightTracker.take`), pass seconds.
+    deferred : list of _Deferred
+        ``defer_cut``: pointings planned on plumes still measured provisionally, held until
+        a later frame measures them again or no longer sees them.
     """
 
     covered: np.ndarray
@@ -179,6 +182,7 @@ class PassState:
     records: list[FrameRecord] = field(default_factory=list)
     flown: Flown = field(default_factory=Flown)
     late_s: dict[int, float] = field(default_factory=dict)  # frames taken late: when
+    deferred: list[_Deferred] = field(default_factory=list)  # defer_cut's held pointings
 
 
 @dataclass(frozen=True, eq=False)
@@ -610,8 +614,10 @@ def _fly_frame(
         aim = _aim(ctx, k, pids, t_look)
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
+    released: tuple[int, tuple[float, float, float, int]] = (0, (0.0, 0.0, 0.0, 0))
     if config.defer_cut and pids is not None and ctx.tracker is not None:
-        todo = _without_plumes(todo, pids, ctx.tracker.pending_ids())
+        released = _fly_released(ctx, k, pids, start, stage, state)
+        todo = _defer_plumes(ctx, k, t_look, todo, pids, result, prediction, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
     loop_s = time.perf_counter() - t_loop
@@ -621,6 +627,8 @@ def _fly_frame(
     stage |= heights  # the height work is off the plan's critical path (its own stage)
     _commit(flown, ready, t_k, frames.geometry, state)
     gains = _score(ctx, k, flown, todo, state)
+    if released[0]:  # the held pointings of earlier frames flown first (``defer_cut``)
+        gains = _sum_gains(gains, released[1])
     flown_local = todo.keep[flown.kept[flown.kept < len(todo.keep)]]  # of this frame's plan
     target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
     _cover_plumes(
@@ -629,7 +637,8 @@ def _fly_frame(
     met = None if config.deadline_s is None else (ready - t_look) <= config.deadline_s
     record = FrameRecord(
         k, t_look, start, ready, ready - t_look, stage, met, "; ".join(result.path),
-        len(result.trajectory), todo.skipped, len(flown.kept), *gains, loop_s=loop_s,
+        len(result.trajectory), todo.skipped, len(flown.kept) + released[0], *gains,
+        loop_s=loop_s,
     )  # fmt: skip
     return record, image, result
 
@@ -764,18 +773,99 @@ def _todo(
 def _without_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> _Todo:
     """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
     map ``pids``), counted as skipped: ``defer_cut``'s plumes, flown from a later frame."""
+    return _split_plumes(todo, pids, skip)[0]
+
+
+def _split_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> tuple[_Todo, dict[int, _Todo]]:
+    """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
+    map ``pids``; counted as skipped), and those pointings, plume by plume."""
     points = todo.trajectory.points
     if not skip or not len(points) or len(todo.keep) != len(points):  # none, or a blueprint's
-        return todo
-    keep = ~np.isin(pids[todo.rows[todo.keep], todo.cols[todo.keep]], list(skip))
+        return todo, {}
+    on = pids[todo.rows[todo.keep], todo.cols[todo.keep]]
+    keep = ~np.isin(on, list(skip))
     if keep.all():
+        return todo, {}
+
+    def subset(sel: np.ndarray, skipped: int) -> _Todo:
+        n = int(np.count_nonzero(sel))
+        trajectory = Trajectory(points[sel], np.zeros(n), todo.trajectory.planner)
+        return _Todo(trajectory, todo.part[sel], todo.keep[sel], skipped, todo.rows, todo.cols)
+
+    held = {int(i): subset(on == i, 0) for i in np.unique(on[~keep])}
+    return subset(keep, todo.skipped + int(np.count_nonzero(~keep))), held
+
+
+def _sum_gains(
+    a: tuple[float, float, float, int], b: tuple[float, float, float, int]
+) -> tuple[float, float, float, int]:
+    """Two :func:`_score` results added."""
+    return a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]
+
+
+@dataclass(frozen=True, eq=False)
+class _Deferred:
+    """Frame ``k``'s pointings on plume ``pid``, held (``defer_cut``): the plume was measured
+    provisionally on a view that cut its upwind end."""
+
+    k: int
+    t_look: float
+    pid: int
+    todo: _Todo
+    pids: np.ndarray
+    result: PlanResult
+    prediction: Prediction | None
+
+
+def _defer_plumes(
+    ctx: _Pass,
+    k: int,
+    t_look: float,
+    todo: _Todo,
+    pids: np.ndarray,
+    result: PlanResult,
+    prediction: Prediction | None,
+    state: PassState,
+) -> _Todo:
+    """Frame ``k``'s ``todo`` less its pointings on plumes still measured provisionally,
+    which ``state.deferred`` holds for a later frame (:func:`_fly_released`)."""
+    assert ctx.tracker is not None
+    if k + 1 >= ctx.frames.n_frames:  # no later frame: nothing is pending after the last
         return todo
-    n = int(np.count_nonzero(keep))
-    trajectory = Trajectory(points[keep], np.zeros(n), todo.trajectory.planner)
-    return _Todo(
-        trajectory, todo.part[keep], todo.keep[keep], todo.skipped + len(points) - n,
-        todo.rows, todo.cols,
-    )  # fmt: skip
+    todo, held = _split_plumes(todo, pids, ctx.tracker.pending_ids())
+    state.deferred.extend(
+        _Deferred(k, t_look, pid, part, pids, result, prediction) for pid, part in held.items()
+    )
+    return todo
+
+
+def _fly_released(
+    ctx: _Pass, k: int, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
+) -> tuple[int, tuple[float, float, float, int]]:
+    """Schedule, commit and score the held pointings (``defer_cut``) whose plume frame ``k``
+    measured again (no longer pending) or no longer sees (it never will: held pointings
+    would be lost), in the order they were planned, before frame ``k``'s own; each aims
+    with its plume's latest estimate. Returns how many were flown and what they gained
+    (:func:`_score`)."""
+    assert ctx.tracker is not None
+    if not state.deferred:
+        return 0, (0.0, 0.0, 0.0, 0)
+    pending = ctx.tracker.pending_ids()
+    seen = set(np.unique(pids).tolist())
+    go = [d for d in state.deferred if d.pid not in pending or d.pid not in seen]
+    state.deferred = [d for d in state.deferred if d not in go]
+    n, gains = 0, (0.0, 0.0, 0.0, 0)
+    for d in go:
+        t_d = ctx.frames.acquired_s(d.k)
+        aim = _aim(ctx, d.k, d.pids, d.t_look)
+        flown, ready = _schedule_frame(
+            ctx, d.todo, d.result, d.prediction, t_d, start, stage, state, aim
+        )
+        _commit(flown, ready, t_d, ctx.frames.geometry, state)
+        got = _score(ctx, d.k, flown, d.todo, state)
+        gains = _sum_gains(gains, got)
+        n += len(flown.kept)
+    return n, gains
 
 
 def _schedule_frame(
