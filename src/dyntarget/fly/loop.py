@@ -614,9 +614,9 @@ def _fly_frame(
         aim = _aim(ctx, k, pids, t_look)
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
-    released: tuple[int, tuple[float, float, float, int]] = (0, (0.0, 0.0, 0.0, 0))
+    released: list[tuple[_Deferred, Schedule]] = []
     if config.defer_cut and pids is not None and ctx.tracker is not None:
-        released = _fly_released(ctx, k, pids, start, stage, state)
+        released = _fly_released(ctx, pids, start, stage, state)
         todo = _defer_plumes(ctx, k, t_look, todo, pids, result, prediction, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
@@ -626,9 +626,10 @@ def _fly_frame(
         state.schedule_s = stage["schedule"]
     stage |= heights  # the height work is off the plan's critical path (its own stage)
     _commit(flown, ready, t_k, frames.geometry, state)
-    gains = _score(ctx, k, flown, todo, state)
-    if released[0]:  # the held pointings of earlier frames flown first (``defer_cut``)
-        gains = _sum_gains(gains, released[1])
+    gains = (0.0, 0.0, 0.0, 0)
+    for d, held in released:  # earlier frames' held pointings, flown first (``defer_cut``)
+        gains = _sum_gains(gains, _score(ctx, d.k, held, d.todo, state))
+    gains = _sum_gains(gains, _score(ctx, k, flown, todo, state))
     flown_local = todo.keep[flown.kept[flown.kept < len(todo.keep)]]  # of this frame's plan
     target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
     _cover_plumes(
@@ -637,7 +638,8 @@ def _fly_frame(
     met = None if config.deadline_s is None else (ready - t_look) <= config.deadline_s
     record = FrameRecord(
         k, t_look, start, ready, ready - t_look, stage, met, "; ".join(result.path),
-        len(result.trajectory), todo.skipped, len(flown.kept) + released[0], *gains,
+        len(result.trajectory), todo.skipped, len(flown.kept) + sum(len(f.kept) for _, f in released),
+        *gains,
         loop_s=loop_s,
     )  # fmt: skip
     return record, image, result
@@ -840,21 +842,21 @@ def _defer_plumes(
 
 
 def _fly_released(
-    ctx: _Pass, k: int, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
-) -> tuple[int, tuple[float, float, float, int]]:
-    """Schedule, commit and score the held pointings (``defer_cut``) whose plume frame ``k``
-    measured again (no longer pending) or no longer sees (it never will: held pointings
-    would be lost), in the order they were planned, before frame ``k``'s own; each aims
-    with its plume's latest estimate. Returns how many were flown and what they gained
-    (:func:`_score`)."""
+    ctx: _Pass, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
+) -> list[tuple[_Deferred, Schedule]]:
+    """Schedule and commit the held pointings (``defer_cut``) whose plume the frame now
+    flown (plume-id map ``pids``) measured again (no longer pending) or no longer sees (no
+    later frame would: they would be lost), in the order they were planned, before the
+    frame's own; each aims with its plume's latest estimate. Returns them with their
+    schedules, for :func:`_score` (the simulator's work, not timed with the schedule's)."""
     assert ctx.tracker is not None
     if not state.deferred:
-        return 0, (0.0, 0.0, 0.0, 0)
+        return []
     pending = ctx.tracker.pending_ids()
     seen = set(np.unique(pids).tolist())
     go = [d for d in state.deferred if d.pid not in pending or d.pid not in seen]
     state.deferred = [d for d in state.deferred if d not in go]
-    n, gains = 0, (0.0, 0.0, 0.0, 0)
+    out = []
     for d in go:
         t_d = ctx.frames.acquired_s(d.k)
         aim = _aim(ctx, d.k, d.pids, d.t_look)
@@ -862,10 +864,8 @@ def _fly_released(
             ctx, d.todo, d.result, d.prediction, t_d, start, stage, state, aim
         )
         _commit(flown, ready, t_d, ctx.frames.geometry, state)
-        got = _score(ctx, d.k, flown, d.todo, state)
-        gains = _sum_gains(gains, got)
-        n += len(flown.kept)
-    return n, gains
+        out.append((d, flown))
+    return out
 
 
 def _schedule_frame(
