@@ -1583,10 +1583,10 @@ def test_a_pass_records_deferring_cut_plumes_when_asked_and_not_the_default():
     assert PassConfig(defer_cut=True).as_dict()["defer_cut"] is True
 
 
-def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo():
+def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_by_plume():
     # five pointings on a frame's plume-id map: plume 2 (pending) under the 2nd, 3rd and 5th
     # (pixels (x, y) = (3, 1), (4, 1) and (7, 2)), plume 1 under the 1st, none under the 4th
-    from dyntarget.fly.loop import _Todo, _without_plumes
+    from dyntarget.fly.loop import _split_plumes, _Todo
     from dyntarget.trajectory import Trajectory
 
     pids = np.zeros((4, 8), np.int32)
@@ -1598,21 +1598,51 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo():
     rows[10:], cols[10:] = [0, 1, 1, 3, 2], [1, 3, 4, 5, 7]  # are these five pointings'
     todo = _Todo(Trajectory(pts, np.zeros(5), "demo"), np.arange(5), np.arange(10, 15), 2,
                  rows, cols)  # fmt: skip
-    out = _without_plumes(todo, pids, {2})
+    out, held = _split_plumes(todo, pids, {2})
     assert out.trajectory.points.tolist() == [[1.0, 0.2], [5.0, 3.0]]
     assert out.keep.tolist() == [10, 13] and out.part.tolist() == [0, 3]
     assert out.skipped == 2 + 3  # the frame's own skips and the three deferred
-    assert _without_plumes(todo, pids, set()) is todo and _without_plumes(todo, pids, {5}) is todo
+    assert list(held) == [2]  # the three, held for plume 2, in their planned order
+    assert held[2].trajectory.points.tolist() == [[3.2, 0.9], [4.0, 1.4], [7.4, 2.0]]
+    assert held[2].keep.tolist() == [11, 12, 14] and held[2].part.tolist() == [1, 2, 4]
+    assert held[2].skipped == 0
+    # both plumes pending: held apart
+    out, held = _split_plumes(todo, pids, {1, 2})
+    assert out.trajectory.points.tolist() == [[5.0, 3.0]] and out.skipped == 2 + 4
+    assert sorted(held) == [1, 2] and held[1].keep.tolist() == [10]
+    for skip in (set(), {5}):  # none pending, or one the plan does not reach
+        assert _split_plumes(todo, pids, skip) == (todo, {})
+
+
+def test_held_pointings_are_released_once_their_plume_is_measured_again_or_out_of_view():
+    # held pointings of plumes 1, 2, 3 (two frames of plume 2); plume 2 still pending and in
+    # this frame's view: kept; plume 1 measured again (no longer pending): released; plume 3
+    # still pending but no longer seen (no later frame would see it whole): released
+    from dyntarget.fly.loop import _Deferred, _released
+
+    def held(k, pid):
+        return _Deferred(k, 0.0, pid, None, None, None, None)
+
+    deferred = [held(10, 2), held(10, 3), held(11, 1), held(11, 2)]
+    pids = np.zeros((4, 8), np.int32)
+    pids[0, :3], pids[3, 5:] = 1, 2
+    go, keep = _released(deferred, {2, 3}, pids)
+    assert [(d.k, d.pid) for d in go] == [(10, 3), (11, 1)]
+    assert [(d.k, d.pid) for d in keep] == [(10, 2), (11, 2)]
+    go, keep = _released(deferred, {1, 2, 3}, np.zeros((4, 8), np.int32))  # none in view
+    assert go == deferred and keep == []
 
 
 @pytest.mark.slow
-def test_a_plume_cut_by_the_frames_top_edge_is_flown_from_the_frame_that_measures_it_whole(
+def test_a_plume_cut_by_the_frames_top_edge_is_flown_once_the_next_frame_measures_it_whole(
     monkeypatch,
 ):
     # the long 2 km-frame strip of seed 304 (benchmarks/parallax_targets.py's long part),
     # slow: its first plume enters frame 34 on its top rows, upwind end cut, and is measured
-    # again on frame 35. Deferred, no pointing is flown from frame 34; by default frame 34's
-    # pointings fly it (aimed with the cut view's height)
+    # again on frame 35. By default frame 34's pointings fly it when frame 34's plan is
+    # ready, aimed with the cut view's height (5.8 km; 5.75 km whole, 5.72 km true).
+    # Deferred, they are held and flown when frame 35's plan is ready, before frame 35's
+    # own, aimed with the height measured whole: the pass gains
     from pathlib import Path
 
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
@@ -1621,13 +1651,23 @@ def test_a_plume_cut_by_the_frames_top_edge_is_flown_from_the_frame_that_measure
     spec, window = pt.long_strip_spec(304, 300.0, width=256, plumes_per_100km=2.0, wind_mps=5.0)
     spec3 = pt.with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
     base = pt.config_for("estimated", "slow", 500e3)
-    frames = {}
+    utility = {}
     for defer in (False, True):
         res = fly_pass(pt.LongStrip(spec3, window), None, replace(base, defer_cut=defer))
-        first = res.heights[0]
-        assert first.frame == 35  # measured (again) on frame 35, whole
-        frames[defer] = {f for f, i in zip(res.flown.frame, res.flown.plume_id, strict=True) if i}
-    assert 34 in frames[False] and min(frames[True]) >= 35
+        assert res.heights[0].frame == 35  # measured (again) on frame 35, whole
+        frame = np.array(res.flown.frame)
+        hit = np.array(res.flown.plume_id) > 0
+        n34, n35 = int(np.count_nonzero(frame == 34)), int(np.count_nonzero(frame == 35))
+        assert int(np.count_nonzero(hit[frame == 34])) >= 20  # frame 34's plan flies the plume
+        r34, r35 = res.records[34], res.records[35]
+        if not defer:
+            assert (r34.flown, r35.flown) == (n34, n35)  # flown when frame 34's plan is ready
+        else:  # its pointings on the plume held until frame 35's plan is ready
+            assert r34.flown < n34 - 20 and r35.flown == n35 + (n34 - r34.flown)
+            t_held = np.array(res.flown.t)[frame == 34][-(n34 - r34.flown) :]
+            assert t_held.min() >= r35.ready_s
+        utility[defer] = res.totals()["utility"]
+    assert utility[True] > utility[False]
 
 
 def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():

@@ -593,9 +593,9 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
     par.add_argument(
         "--defer-cut-plumes",
         action="store_true",
-        help="a plume whose upwind end the look-ahead frame's top edge cuts is flown from "
-        "the first frame that sees that end, with the height measured there, not from the "
-        "cut view (opt-in; measured in docs/plumes-3d.md)",
+        help="the pointings a look-ahead frame plans on a plume whose upwind end its top "
+        "edge cuts wait for the first frame that sees that end, and fly aimed with the "
+        "height measured there, not the cut view's (opt-in; measured in docs/plumes-3d.md)",
     )
 
 

@@ -616,7 +616,7 @@ def _fly_frame(
     todo = _todo(ctx, k, image, result, start, state)
     released: list[tuple[_Deferred, Schedule]] = []
     if config.defer_cut and pids is not None and ctx.tracker is not None:
-        released = _fly_released(ctx, pids, start, stage, state)
+        released = _fly_released(ctx, k, pids, start, stage, state)
         todo = _defer_plumes(ctx, k, t_look, todo, pids, result, prediction, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
@@ -772,15 +772,10 @@ def _todo(
     return _Todo(todo, part, keep, int(np.count_nonzero(skip)), rows, cols)
 
 
-def _without_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> _Todo:
-    """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
-    map ``pids``), counted as skipped: ``defer_cut``'s plumes, flown from a later frame."""
-    return _split_plumes(todo, pids, skip)[0]
-
-
 def _split_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> tuple[_Todo, dict[int, _Todo]]:
     """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
-    map ``pids``; counted as skipped), and those pointings, plume by plume."""
+    map ``pids``; counted as skipped), and those pointings, plume by plume: ``defer_cut``'s
+    plumes, held for a later frame (:func:`_defer_plumes`)."""
     points = todo.trajectory.points
     if not skip or not len(points) or len(todo.keep) != len(points):  # none, or a blueprint's
         return todo, {}
@@ -841,31 +836,56 @@ def _defer_plumes(
     return todo
 
 
+def _released(
+    deferred: list[_Deferred], pending: set[int], pids: np.ndarray
+) -> tuple[list[_Deferred], list[_Deferred]]:
+    """The held pointings to fly now and those still held: a plume's are released once it
+    is no longer ``pending`` (measured again) or the frame (plume-id map ``pids``) no
+    longer shows it; each list in the order the pointings were held."""
+    seen = set(np.unique(pids).tolist())
+    go = [d for d in deferred if d.pid not in pending or d.pid not in seen]
+    return go, [d for d in deferred if d.pid in pending and d.pid in seen]
+
+
 def _fly_released(
-    ctx: _Pass, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
+    ctx: _Pass, k: int, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
 ) -> list[tuple[_Deferred, Schedule]]:
-    """Schedule and commit the held pointings (``defer_cut``) whose plume the frame now
-    flown (plume-id map ``pids``) measured again (no longer pending) or no longer sees (no
-    later frame would: they would be lost), in the order they were planned, before the
-    frame's own; each aims with its plume's latest estimate. Returns them with their
+    """Schedule and commit the held pointings (``defer_cut``) whose plume frame ``k``
+    (plume-id map ``pids``) measured again (no longer pending) or no longer sees (no later
+    frame would: they would be lost), in the order they were planned, before frame ``k``'s
+    own; each aims with its plume's latest estimate. Those on frame ``k``'s rows are not
+    flown: frame ``k`` plans that ground again, seen whole. Returns them with their
     schedules, for :func:`_score` (the simulator's work, not timed with the schedule's)."""
     assert ctx.tracker is not None
     if not state.deferred:
         return []
-    pending = ctx.tracker.pending_ids()
-    seen = set(np.unique(pids).tolist())
-    go = [d for d in state.deferred if d.pid not in pending or d.pid not in seen]
-    state.deferred = [d for d in state.deferred if d not in go]
+    go, state.deferred = _released(state.deferred, ctx.tracker.pending_ids(), pids)
+    frames = ctx.frames
+    below = frames.tops[k] + frames.frame_px  # the first strip row behind frame k
     out = []
     for d in go:
-        t_d = ctx.frames.acquired_s(d.k)
+        todo = _behind(d.todo, below - frames.tops[d.k])
+        if not len(todo.trajectory.points):
+            continue
+        t_d = frames.acquired_s(d.k)
         aim = _aim(ctx, d.k, d.pids, d.t_look)
         flown, ready = _schedule_frame(
-            ctx, d.todo, d.result, d.prediction, t_d, start, stage, state, aim
+            ctx, todo, d.result, d.prediction, t_d, start, stage, state, aim
         )
-        _commit(flown, ready, t_d, ctx.frames.geometry, state)
-        out.append((d, flown))
+        _commit(flown, ready, t_d, frames.geometry, state)
+        out.append((replace(d, todo=todo), flown))
     return out
+
+
+def _behind(todo: _Todo, row: int) -> _Todo:
+    """``todo``'s pointings on frame rows ``row`` and after (behind a later frame whose
+    last row is ``row - 1`` on this frame's rows)."""
+    sel = todo.rows[todo.keep] >= row
+    if sel.all():
+        return todo
+    n = int(np.count_nonzero(sel))
+    trajectory = Trajectory(todo.trajectory.points[sel], np.zeros(n), todo.trajectory.planner)
+    return _Todo(trajectory, todo.part[sel], todo.keep[sel], 0, todo.rows, todo.cols)
 
 
 def _schedule_frame(

@@ -111,11 +111,13 @@ class PassConfig:
         ``None``, the default: where catching up is asked for and the look-ahead cannot
         gain on the ground (``slow``; :func:`dyntarget.predict.relooks.holds_relooks`);
         ``False``: never (going back, as before).
-    defer_cut : a plume whose upwind end the frame's top edge cuts is not flown from that
-        frame: it is flown from the first frame that sees that end, with the height
+    defer_cut : the pointings a frame plans on a plume whose upwind end its top edge cuts
+        are held, not flown when the frame's plan is ready: they are flown when the first
+        frame that sees that end is ready, before that frame's own, aimed with the height
         measured there (:meth:`dyntarget.predict.relooks.HeightTracker.pending_ids`;
-        ``"estimated"`` mode). ``False``, the default: flown from both, the first with the
-        height measured on its cut view.
+        ``"estimated"`` mode); where no later frame sees the plume, when the next frame
+        taken is ready, with the height measured on the cut view. ``False``, the default:
+        flown when the cut frame's plan is ready, with the cut view's height.
     """
 
     planner: str = "lawnmower-transect"
