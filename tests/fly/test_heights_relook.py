@@ -1614,6 +1614,24 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_b
         assert _split_plumes(todo, pids, skip) == (todo, {})
 
 
+def test_released_pointings_on_the_releasing_frames_rows_are_left_to_its_own_plan():
+    # four held pointings on frame rows 5, 40, 31 and 63 of a 64-row frame; the frame that
+    # releases them lies 32 rows ahead (50 % overlap), its last row on row 31 of theirs:
+    # only those on rows 32 and after (40 and 63) lie behind it and are flown
+    from dyntarget.fly.loop import _behind, _Todo
+    from dyntarget.trajectory import Trajectory
+
+    pts = np.array([[1.0, 5.2], [2.0, 39.6], [3.0, 31.4], [4.0, 63.0]])
+    rows, cols = np.array([7, 5, 40, 31, 63]), np.array([0, 1, 2, 3, 4])
+    todo = _Todo(Trajectory(pts, np.zeros(4), "demo"), np.array([0, 1, 2, 3]),
+                 np.array([1, 2, 3, 4]), 0, rows, cols)  # fmt: skip
+    out = _behind(todo, 32)
+    assert out.trajectory.points.tolist() == [[2.0, 39.6], [4.0, 63.0]]
+    assert out.keep.tolist() == [2, 4] and out.part.tolist() == [1, 3]
+    assert _behind(todo, 0) is todo  # all behind a frame ending above them
+    assert len(_behind(todo, 64).trajectory.points) == 0
+
+
 def test_held_pointings_are_released_once_their_plume_is_measured_again_or_out_of_view():
     # held pointings of plumes 1, 2, 3 (two frames of plume 2); plume 2 still pending and in
     # this frame's view: kept; plume 1 measured again (no longer pending): released; plume 3
@@ -1633,41 +1651,60 @@ def test_held_pointings_are_released_once_their_plume_is_measured_again_or_out_o
     assert go == deferred and keep == []
 
 
-@pytest.mark.slow
-def test_a_plume_cut_by_the_frames_top_edge_is_flown_once_the_next_frame_measures_it_whole(
-    monkeypatch,
-):
-    # the long 2 km-frame strip of seed 304 (benchmarks/parallax_targets.py's long part),
-    # slow: its first plume enters frame 34 on its top rows, upwind end cut, and is measured
-    # again on frame 35. By default frame 34's pointings fly it when frame 34's plan is
-    # ready, aimed with the cut view's height (5.8 km; 5.75 km whole, 5.72 km true).
-    # Deferred, they are held and flown when frame 35's plan is ready, before frame 35's
-    # own, aimed with the height measured whole: the pass gains
+def _long_strip_pass(monkeypatch, seed: int, agility: str, defer: bool):
+    """A long 2 km-frame strip of benchmarks/parallax_targets.py's long part, flown
+    ``estimated`` with or without ``defer_cut``."""
     from pathlib import Path
 
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
     import parallax_targets as pt
 
-    spec, window = pt.long_strip_spec(304, 300.0, width=256, plumes_per_100km=2.0, wind_mps=5.0)
+    spec, window = pt.long_strip_spec(seed, 300.0, width=256, plumes_per_100km=2.0, wind_mps=5.0)
     spec3 = pt.with_heights(spec, plume_height_km=(2.0, 15.0), cloud_height_km=(1.0, 12.0))
-    base = pt.config_for("estimated", "slow", 500e3)
+    config = replace(pt.config_for("estimated", agility, 500e3), defer_cut=defer)
+    return fly_pass(pt.LongStrip(spec3, window), None, config)
+
+
+@pytest.mark.slow
+def test_a_plume_cut_by_the_frames_top_edge_is_flown_from_the_frame_that_measures_it_whole(
+    monkeypatch,
+):
+    # seed 304, slow: its first plume enters frame 34 on its top rows, upwind end cut, and
+    # is measured again on frame 35. By default frame 34's pointings fly it, aimed with the
+    # cut view's height (5.8 km; 5.75 km whole, 5.72 km true). Deferred, frame 34's
+    # pointings on it are held; all lie on frame 35's rows (50 % overlap), which frame 35's
+    # own plan flies, aimed with the height measured whole: the pass gains
     utility = {}
     for defer in (False, True):
-        res = fly_pass(pt.LongStrip(spec3, window), None, replace(base, defer_cut=defer))
+        res = _long_strip_pass(monkeypatch, 304, "slow", defer)
         assert res.heights[0].frame == 35  # measured (again) on frame 35, whole
         frame = np.array(res.flown.frame)
         hit = np.array(res.flown.plume_id) > 0
-        n34, n35 = int(np.count_nonzero(frame == 34)), int(np.count_nonzero(frame == 35))
-        assert int(np.count_nonzero(hit[frame == 34])) >= 20  # frame 34's plan flies the plume
-        r34, r35 = res.records[34], res.records[35]
-        if not defer:
-            assert (r34.flown, r35.flown) == (n34, n35)  # flown when frame 34's plan is ready
-        else:  # its pointings on the plume held until frame 35's plan is ready
-            assert r34.flown < n34 - 20 and r35.flown == n35 + (n34 - r34.flown)
-            t_held = np.array(res.flown.t)[frame == 34][-(n34 - r34.flown) :]
-            assert t_held.min() >= r35.ready_s
+        hits = {k: int(np.count_nonzero(hit[frame == k])) for k in (34, 35)}
+        assert hits == ({34: hits[34], 35: 0} if not defer else {34: 0, 35: hits[35]})
+        assert max(hits.values()) >= 20
         utility[defer] = res.totals()["utility"]
     assert utility[True] > utility[False]
+
+
+@pytest.mark.slow
+def test_held_pointings_fly_after_the_frame_that_releases_them_and_behind_it(monkeypatch):
+    # seed 301, fast, deferred: pointings a frame planned on a cut plume are flown when a
+    # later frame is ready (counted in its record), each behind that frame's rows, at or
+    # after its plan is ready; most of them observe a plume
+    res = _long_strip_pass(monkeypatch, 301, "fast", True)
+    fl, frames = res.flown, res.frames
+    by = np.repeat([r.frame for r in res.records], [r.flown for r in res.records])
+    planned = np.array(fl.frame)
+    assert len(by) == len(planned)
+    held = np.flatnonzero(by != planned)
+    assert len(held) >= 20
+    ready = {r.frame: r.ready_s for r in res.records}
+    for i in held:
+        k = int(by[i])
+        assert k > planned[i] and fl.t[i] >= ready[k]
+        assert fl.y[i] + 0.5 >= frames.tops[k] + frames.frame_px
+    assert np.count_nonzero(np.array(fl.plume_id)[held]) >= len(held) // 2
 
 
 def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():

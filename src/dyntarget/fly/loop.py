@@ -626,21 +626,21 @@ def _fly_frame(
         state.schedule_s = stage["schedule"]
     stage |= heights  # the height work is off the plan's critical path (its own stage)
     _commit(flown, ready, t_k, frames.geometry, state)
-    gains = (0.0, 0.0, 0.0, 0)
-    for d, held in released:  # earlier frames' held pointings, flown first (``defer_cut``)
-        gains = _sum_gains(gains, _score(ctx, d.k, held, d.todo, state))
-    gains = _sum_gains(gains, _score(ctx, k, flown, todo, state))
+    # earlier frames' held pointings (``defer_cut``) were flown first: scored first
+    before = [_score(ctx, d.k, held, d.todo, state) for d, held in released]
+    gains = _score(ctx, k, flown, todo, state)
+    for g in before:
+        gains = _sum_gains(g, gains)
     flown_local = todo.keep[flown.kept[flown.kept < len(todo.keep)]]  # of this frame's plan
     target_mask = result.mask if result.predicted_mask is None else result.predicted_mask
     _cover_plumes(
         target_mask, todo.rows, todo.cols, flown_local, len(result.trajectory), top, state
     )
     met = None if config.deadline_s is None else (ready - t_look) <= config.deadline_s
+    n_flown = len(flown.kept) + sum(len(held.kept) for _, held in released)
     record = FrameRecord(
         k, t_look, start, ready, ready - t_look, stage, met, "; ".join(result.path),
-        len(result.trajectory), todo.skipped, len(flown.kept) + sum(len(f.kept) for _, f in released),
-        *gains,
-        loop_s=loop_s,
+        len(result.trajectory), todo.skipped, n_flown, *gains, loop_s=loop_s,
     )  # fmt: skip
     return record, image, result
 

@@ -529,21 +529,23 @@ class ViewCollector:
 
 def _pass_frames(result: PassResult, views: Sequence[FrameView]) -> list[PassFrame]:
     """The frames of the slider view: each frame's image, probability and polygons, and the
-    pointings flown from its plan (frame pixels, coloured by their time in the pass)."""
+    pointings flown from its plan (frame pixels, coloured by their time in the pass; with
+    ``defer_cut`` those held and flown after a later frame too, by their ``frame``)."""
     from dyntarget.trajectory import Trajectory
     from dyntarget.view.html import PassFrame
 
     fl = result.flown
+    frame_of = np.asarray(fl.frame, np.int64)
+    x, y, t = (np.asarray(a, np.float64) for a in (fl.x, fl.y, fl.t))
+    part, plume = np.asarray(fl.part, np.int64), np.asarray(fl.plume, np.float64)
     steps = []
     for v in views:
-        sl = slice(v.first, v.end)
-        n = v.end - v.first
+        sl = np.flatnonzero(frame_of == v.frame)
+        n = len(sl)
         traj = None
         if n:
-            pts = np.column_stack([fl.x[sl], np.asarray(fl.y[sl]) - v.top])
-            traj = Trajectory(
-                pts, np.asarray(fl.part[sl]), result.config.planner, times=np.asarray(fl.t[sl])
-            )
+            pts = np.column_stack([x[sl], y[sl] - v.top])
+            traj = Trajectory(pts, part[sl], result.config.planner, times=t[sl])
         steps.append(
             PassFrame(
                 time_s=round(result.frames.acquired_s(v.frame), 3),
@@ -551,7 +553,7 @@ def _pass_frames(result: PassResult, views: Sequence[FrameView]) -> list[PassFra
                 probability=v.plan.probability,
                 polygons=v.plan.polygons,
                 trajectory=traj,
-                point_values={"plume_fraction": fl.plume[sl]} if n else None,
+                point_values={"plume_fraction": plume[sl].tolist()} if n else None,
                 label=f"frame {v.frame}: {n} flown",
             )
         )
