@@ -329,6 +329,7 @@ def _prepare(
                 prior, measure=mode == "estimated", log=_stderr, catch_up=config.catch_up,
                 max_rise_mps=config.max_rise_mps, fit_s=config.compute_budget_s,
                 relook_frames=config.relook_frames, hold=config.relook_hold,
+                keep_cut=config.defer_cut,
             )  # fmt: skip
         ctx = replace(ctx, mode=mode, where=where, tracker=tracker)
     return ctx, geo_info, geo_times

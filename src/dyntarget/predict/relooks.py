@@ -165,7 +165,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import partial
 
 import cv2
@@ -413,6 +413,9 @@ class Plume:
         ``(ready_s, height_m)`` of the estimates made on the way, one per re-look whose
         looks so far fitted (the first from two looks): aimed with from ``ready_s`` until
         the final estimate is ready.
+    cut : Plume or None
+        With ``keep_cut``, the plume as its cut view measured it (an estimate), kept when
+        it is measured again on a whole view, in case that gives none.
     """
 
     pid: int
@@ -431,6 +434,7 @@ class Plume:
     pending: bool = False
     rise_mps: float | None = None
     stages: list[tuple[float, float]] = field(default_factory=list)
+    cut: Plume | None = None
 
 
 @dataclass(frozen=True)
@@ -615,6 +619,12 @@ class HeightTracker:
         the module docstring's "Holding"). It then never catches up. ``None``, the default:
         where catching up is asked for but the look-ahead cannot gain on the ground
         (:func:`holds_relooks`).
+    keep_cut : bool
+        A plume measured provisionally on a cut view (:attr:`Plume.pending`) and again on
+        the first view that sees it whole keeps the cut view's estimate where the whole
+        view gives none (usable once that is known), instead of having none (the pass's
+        ``defer_cut``, whose held pointings would otherwise not fly). ``False``, the
+        default: the whole view's outcome replaces it either way.
     """
 
     def __init__(  # noqa: PLR0913 (the pass's height options, keyword-only after wind)
@@ -633,8 +643,10 @@ class HeightTracker:
         fit_s: float | None = None,
         relook_frames: int = RELOOK_FRAMES,
         hold: bool | None = None,
+        keep_cut: bool = False,
     ) -> None:
         self.where, self.agility, self.prior_m, self.wind = where, agility, prior_m, wind
+        self.keep_cut = bool(keep_cut)
         self.measure, self.log, self.fit_s = measure, log, fit_s
         self.relook_frames = int(relook_frames)
         self.hold = holds_relooks(where.geometry, agility, where.frame_px, catch_up, hold)
@@ -925,6 +937,8 @@ class HeightTracker:
                 if p.pending and p not in ready and (last or not self._cut_upwind(rows, cols)):
                     # its upwind end is in view now: measured again on this frame's view (the
                     # re-looks already taken shared where their windows hold it)
+                    if self.keep_cut and p.source == "estimated":
+                        p.cut = replace(p, relooks=list(p.relooks), stages=list(p.stages))
                     p.pending, p.frame, p.t_k, p.rows, p.cols = False, k, t_k, rows + top, cols
                     p.relooks, p.source, p.reason, p.ready_s = [], "none", "", math.inf
                     p.stages = []
@@ -1640,7 +1654,24 @@ class HeightTracker:
         p.ground_xy = (fit.position_m[0] / gsd, -fit.position_m[1] / gsd)
 
     def _fallback(self, p: Plume, reason: str) -> None:
-        """No estimate: the prior, or nothing; say so (``reason`` empty: not measured by design)."""
+        """No estimate: the prior, or nothing; say so (``reason`` empty: not measured by design).
+
+        A plume measured again on a whole view that kept its cut view's estimate
+        (:attr:`Plume.cut`, ``keep_cut``) gets that back instead, usable once the whole
+        view's outcome is known (its last re-look's end, or the whole view's time)."""
+        if p.cut is not None:
+            known = max((r.t_s + r.duration_s for r in p.relooks), default=p.t_k)
+            whole, cut = p.frame, p.cut
+            for f in fields(Plume):
+                setattr(p, f.name, getattr(cut, f.name))
+            p.pending, p.cut = False, None  # measured again: done
+            p.ready_s = max(p.ready_s, known)
+            self.log(
+                f"plume {p.pid} (frame {whole}): no height measured on the whole view: "
+                f"{reason}; keeping the estimate from its cut view on frame {p.frame} "
+                f"({p.height_m:.0f} m)"
+            )
+            return
         p.source = "prior" if self.prior_m is not None else "none"
         p.height_m = self.prior_m
         p.sigma_m = None
