@@ -352,7 +352,7 @@ def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record(rec
             low_fast = lo
     assert f"is {bounds['fast']} for `fast` and {bounds['slow']} for `slow`" in text
     if mode == "estimated-defer":  # the lower end that says the target is met, unrounded
-        assert f"(its lower end {low_fast:.3f})" in text
+        assert f"(`fast`'s lower end {low_fast:.3f})" in text
 
 
 @pytest.mark.parametrize("agility", ["fast", "slow"])

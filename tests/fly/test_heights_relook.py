@@ -1707,6 +1707,28 @@ def test_held_pointings_fly_after_the_frame_that_releases_them_and_behind_it(mon
     assert np.count_nonzero(np.array(fl.plume_id)[held]) >= len(held) // 2
 
 
+@pytest.mark.slow
+def test_deferred_a_plume_whose_whole_view_gives_no_height_flies_with_its_cut_views(
+    monkeypatch, capsys
+):
+    # seed 301, fast: plume 3 enters frame 129 cut (measured there, 2.7 km; true 2.5 km)
+    # and its whole view on frame 131 is too short for its search. By default it ends with
+    # no height (its frame-129 pointings flew with the cut view's); deferred, it keeps the
+    # cut view's estimate, so that its held pointings fly
+    for defer in (False, True):
+        res = _long_strip_pass(monkeypatch, 301, "fast", defer)
+        e = res.heights[2].as_dict()
+        err = capsys.readouterr().err
+        if not defer:
+            assert (e["frame"], e["height_source"], e["top_height_m"]) == (131, "none", None)
+            assert "keeping the estimate" not in err
+        else:
+            assert (e["frame"], e["height_source"]) == (129, "estimated")
+            assert abs(e["top_height_m"] - e["true_height_m"]) < 500
+            assert "plume 3 (frame 131): no height measured on the whole view" in err
+            assert "keeping the estimate from its cut view on frame 129" in err
+
+
 def test_a_relook_at_the_same_distance_straight_after_needs_no_settle():
     # the pitch of a look 300 km ahead does not change: a second one wanted 0.5 s after the
     # first's exposure is taken when wanted (once the 0.1 s exposure is over), not after a
@@ -1869,3 +1891,60 @@ def test_a_small_pitch_change_between_chained_relooks_still_costs_its_slew_and_s
     assert 0.0 < phi < 1.0
     second = take(q, 5.2, 310.0)
     assert second.t_s == pytest.approx(5.0 + a.dwell_s + _slew(a, phi) + a.settle_s, rel=1e-9)
+
+
+def _cut_and_whole(keep_cut: bool):
+    """A tracker whose plume 1 was measured on a cut view of frame 10 (6000 m, usable at
+    20 s, one re-look at 15 s) and measured again on frame 11's whole view, whose one
+    re-look (from 30 s, 3.8 s long) found nothing."""
+    where = Geometry3D(OrbitGeometry(wfov_gsd_m=GSD), (20000, 96), 256, 0, 4)
+    said: list[str] = []
+    tr = HeightTracker(
+        where, get_agility("fast"), (300.0,), None, None, None,
+        measure=True, log=said.append, keep_cut=keep_cut,
+    )  # fmt: skip
+    cut_look = Relook(15.0, 3.8, 100)
+    p = Plume(1, 10, 1.45, np.array([9000]), np.array([40]), relooks=[cut_look],
+              height_m=6000.0, sigma_m=200.0, ground_xy=(40.0, 9100.0), ready_s=20.0,
+              source="estimated", pending=True, stages=[(20.0, 6000.0)])  # fmt: skip
+    tr.plumes.append(p)
+    if keep_cut:  # what the tracker keeps when frame 11 sees the plume whole
+        p.cut = replace(p, relooks=list(p.relooks), stages=list(p.stages))
+    p.pending, p.frame, p.t_k, p.rows, p.cols = False, 11, 1.6, np.array([8950]), np.array([40])
+    p.relooks, p.source, p.reason, p.ready_s, p.stages = (
+        [Relook(30.0, 3.8, 90)],
+        "none",
+        "",
+        math.inf,
+        [],
+    )
+    tr._fallback(p, "envelopes do not match (correlation 0.26)")
+    return tr, p, said
+
+
+def test_a_plume_whose_whole_view_gives_no_height_keeps_its_cut_views_estimate_with_defer():
+    # keep_cut (defer_cut's): the cut view's 6000 m comes back, with its frame and view,
+    # decided once the whole view's re-look is over (30 + 3.8 s, later than the cut's 20 s);
+    # the stderr line says so; it is no longer pending
+    tr, p, said = _cut_and_whole(True)
+    assert (p.source, p.height_m, p.sigma_m, p.frame, p.t_k) == (
+        "estimated",
+        6000.0,
+        200.0,
+        10,
+        1.45,
+    )
+    assert p.rows.tolist() == [9000] and p.ground_xy == (40.0, 9100.0)
+    assert p.ready_s == pytest.approx(33.8) and p.stages == [(20.0, 6000.0)]
+    assert not p.pending and p.cut is None and len(p.relooks) == 1 and p.relooks[0].t_s == 15.0
+    assert said == [
+        "plume 1 (frame 11): no height measured on the whole view: envelopes do not match "
+        "(correlation 0.26); keeping the estimate from its cut view on frame 10 (6000 m)"
+    ]
+    # aimed with it from when the cut view's estimate was made (20 s), none before
+    assert tr.height_at(1, 40.0) == tr.height_at(1, 25.0) == 6000.0
+    assert math.isnan(tr.height_at(1, 19.0))
+    # without keep_cut (the default) the whole view's outcome stands: no height
+    _, q, said = _cut_and_whole(False)
+    assert (q.source, q.height_m, q.frame) == ("none", None, 11)
+    assert said[0].startswith("plume 1 (frame 11): no height estimated: envelopes do not match")

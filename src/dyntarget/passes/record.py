@@ -115,9 +115,11 @@ class PassConfig:
         are held, not flown when the frame's plan is ready: they are flown when the first
         frame that sees that end is ready, before that frame's own, aimed with the height
         measured there (:meth:`dyntarget.predict.relooks.HeightTracker.pending_ids`;
-        ``"estimated"`` mode); where no later frame sees the plume, when the next frame
-        taken is ready, with the height measured on the cut view. ``False``, the default:
-        flown when the cut frame's plan is ready, with the cut view's height.
+        ``"estimated"`` mode; those on that frame's rows are left to its own plan); where
+        that frame gives no height, with the cut view's (``HeightTracker`` ``keep_cut``);
+        where no later frame sees the plume, when the next frame taken is ready, with the
+        cut view's. ``False``, the default: flown when the cut frame's plan is ready, with
+        the cut view's height.
     """
 
     planner: str = "lawnmower-transect"
