@@ -1615,19 +1615,19 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_b
 
 
 def test_released_pointings_on_the_releasing_frames_rows_are_left_to_its_own_plan():
-    # four held pointings on frame rows 5, 40, 31 and 63 of a 64-row frame; the frame that
-    # releases them lies 32 rows ahead (50 % overlap), its last row on row 31 of theirs:
-    # only those on rows 32 and after (40 and 63) lie behind it and are flown
+    # five held pointings on frame rows 5, 40, 31, 32 and 63 of a 64-row frame; the frame
+    # that releases them lies 32 rows ahead (50 % overlap), its last row on row 31 of
+    # theirs: only those on rows 32 and after (40, 32 and 63) lie behind it and are flown
     from dyntarget.fly.loop import _behind, _Todo
     from dyntarget.trajectory import Trajectory
 
-    pts = np.array([[1.0, 5.2], [2.0, 39.6], [3.0, 31.4], [4.0, 63.0]])
-    rows, cols = np.array([7, 5, 40, 31, 63]), np.array([0, 1, 2, 3, 4])
-    todo = _Todo(Trajectory(pts, np.zeros(4), "demo"), np.array([0, 1, 2, 3]),
-                 np.array([1, 2, 3, 4]), 0, rows, cols)  # fmt: skip
+    pts = np.array([[1.0, 5.2], [2.0, 39.6], [3.0, 31.4], [5.0, 31.6], [4.0, 63.0]])
+    rows, cols = np.array([7, 5, 40, 31, 32, 63]), np.array([0, 1, 2, 3, 4, 5])
+    todo = _Todo(Trajectory(pts, np.zeros(5), "demo"), np.array([0, 1, 2, 3, 4]),
+                 np.array([1, 2, 3, 4, 5]), 0, rows, cols)  # fmt: skip
     out = _behind(todo, 32)
-    assert out.trajectory.points.tolist() == [[2.0, 39.6], [4.0, 63.0]]
-    assert out.keep.tolist() == [2, 4] and out.part.tolist() == [1, 3]
+    assert out.trajectory.points.tolist() == [[2.0, 39.6], [5.0, 31.6], [4.0, 63.0]]
+    assert out.keep.tolist() == [2, 4, 5] and out.part.tolist() == [1, 3, 4]
     assert _behind(todo, 0) is todo  # all behind a frame ending above them
     assert len(_behind(todo, 64).trajectory.points) == 0
 

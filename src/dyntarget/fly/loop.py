@@ -827,9 +827,7 @@ def _defer_plumes(
 ) -> _Todo:
     """Frame ``k``'s ``todo`` less its pointings on plumes still measured provisionally,
     which ``state.deferred`` holds for a later frame (:func:`_fly_released`)."""
-    assert ctx.tracker is not None
-    if k + 1 >= ctx.frames.n_frames:  # no later frame: nothing is pending after the last
-        return todo
+    assert ctx.tracker is not None  # (none is pending after the last frame: it measures all)
     todo, held = _split_plumes(todo, pids, ctx.tracker.pending_ids())
     state.deferred.extend(
         _Deferred(k, t_look, pid, part, pids, result, prediction) for pid, part in held.items()
