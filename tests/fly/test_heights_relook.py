@@ -1705,6 +1705,11 @@ def test_held_pointings_fly_after_the_frame_that_releases_them_and_behind_it(mon
         assert k > planned[i] and fl.t[i] >= ready[k]
         assert fl.y[i] + 0.5 >= frames.tops[k] + frames.frame_px
     assert np.count_nonzero(np.array(fl.plume_id)[held]) >= len(held) // 2
+    # the pass keeps its pointings in the order flown: held ones before the releasing
+    # frame's own, and those of earlier frames first
+    assert np.all(np.diff(fl.t) >= 0)
+    for k in np.unique(by[held]):
+        assert np.all(np.diff(planned[(by == k) & (planned != k)]) >= 0)
 
 
 @pytest.mark.slow
