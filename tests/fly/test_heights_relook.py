@@ -175,6 +175,8 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
         for d in ("dc", "out")
     ]
     assert params[0]["defer_cut"] is True and "defer_cut" not in params[1]
+    dc = json.loads((tmp_path / "dc" / "summary.json").read_text())
+    assert dc["pointings_flown_deferred"] >= 0 and "pointings_flown_deferred" not in summary
     # --no-parallax: off, no plume is measured
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
@@ -1705,6 +1707,7 @@ def test_held_pointings_fly_after_the_frame_that_releases_them_and_behind_it(mon
         assert k > planned[i] and fl.t[i] >= ready[k]
         assert fl.y[i] + 0.5 >= frames.tops[k] + frames.frame_px
     assert np.count_nonzero(np.array(fl.plume_id)[held]) >= len(held) // 2
+    assert res.totals()["pointings_flown_deferred"] == len(held)  # summary.json's count
     # the pass keeps its pointings in the order flown: held ones before the releasing
     # frame's own, and those of earlier frames first
     assert np.all(np.diff(fl.t) >= 0)

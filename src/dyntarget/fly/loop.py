@@ -616,7 +616,8 @@ def _fly_frame(
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
     released: list[tuple[_Deferred, Schedule]] = []
-    if config.defer_cut and pids is not None and ctx.tracker is not None:
+    defer = config.defer_cut and ctx.mode == "estimated" and ctx.tracker is not None
+    if defer and pids is not None:
         released = _fly_released(ctx, k, pids, start, stage, state)
         todo = _defer_plumes(ctx, k, t_look, todo, pids, result, prediction, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)

@@ -653,7 +653,8 @@ class PassResult:
             ``frames_skipped_catching_up`` (estimated heights with ``catch_up``),
             ``frames_held`` (estimated heights whose look-ahead held re-looks' pitch,
             asked for or by default: frames taken late, from a re-look's pitch held),
-            ``plumes_height_estimated``,
+            ``pointings_flown_deferred`` (``defer_cut``: pointings held on a cut plume and
+            flown after a later frame), ``plumes_height_estimated``,
             ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
             ``heights_median_s`` (the height work's median wall time per frame; ``None``
@@ -703,6 +704,12 @@ class PassResult:
             not r.dropped and r.acquired_s > self.frames.acquired_s(r.frame) for r in self.records
         )
 
+    def _flown_deferred(self) -> int:
+        """Pointings flown after a later frame than the one whose plan they came from (the
+        records count each pointing with the frame after which it flew)."""
+        after = np.repeat([r.frame for r in self.records], [r.flown for r in self.records])
+        return int(np.count_nonzero(after != np.asarray(self.flown.frame, np.int64)))
+
     def _catch_up_totals(self) -> dict[str, int]:
         """Frames the look-ahead took late after re-looks, and those it skipped meanwhile."""
         return {
@@ -726,6 +733,11 @@ class PassResult:
             ),
             **(self._catch_up_totals() if self._catches_up else {}),
             **({"frames_held": self._late()} if self._holds else {}),
+            **(
+                {"pointings_flown_deferred": self._flown_deferred()}
+                if self.config.defer_cut
+                else {}
+            ),
             "plumes_height_estimated": len(est),
             "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
             "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,
