@@ -322,6 +322,20 @@ def _summed(rows: list[dict], agility: str, mode: str, strips) -> float:
     return total(mode) / total("flat")
 
 
+def _bootstrap(rows: list[dict], agility: str, mode: str) -> tuple[float, float]:
+    """The 90 % interval of a bootstrap over strips (10,000 draws with replacement, seed 0)
+    of ``mode``'s summed utility over the flat passes'."""
+    import numpy as np
+
+    flat, est = (
+        np.array([r["utility"] for r in rows if r["agility"] == agility and r["mode"] == m])
+        for m in ("flat", mode)
+    )
+    draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
+    lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
+    return float(lo), float(hi)
+
+
 @pytest.mark.parametrize(
     ("record", "mode"),
     [("parallax_long_24.json", "estimated"), ("parallax_long_24_defer.json", "estimated-defer")],
@@ -329,8 +343,6 @@ def _summed(rows: list[dict], agility: str, mode: str, strips) -> float:
 def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record(record, mode):
     # the page's prose on the 24 strips: the fraction of flat by eights, and the 90 % interval
     # of a bootstrap over strips (10,000 draws of 24 strips with replacement, seed 0)
-    import numpy as np
-
     rows = _record(record)["long"]["rows"]
     text = " ".join(PAGE.split())
     eights = {
@@ -339,17 +351,8 @@ def test_the_24_strips_by_eights_and_their_bootstrap_interval_are_the_record(rec
     }
     f, s = (e.rsplit(", ", 1) for e in (eights["fast"], eights["slow"]))
     assert f"`fast` keeps {f[0]} and {f[1]} and `slow` {s[0]} and {s[1]}," in text
-    bounds = {}
-    for a in ("fast", "slow"):
-        flat, est = (
-            np.array([r["utility"] for r in rows if r["agility"] == a and r["mode"] == m])
-            for m in ("flat", mode)
-        )
-        draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
-        lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
-        bounds[a] = f"{lo:.2f}–{hi:.2f}"
-        if a == "fast":
-            low_fast = lo
+    bounds = {a: _interval(rows, a, mode) for a in ("fast", "slow")}
+    low_fast = _bootstrap(rows, "fast", mode)[0]
     assert f"is {bounds['fast']} for `fast` and {bounds['slow']} for `slow`" in text
     if mode == "estimated-defer":  # the lower end that says the target is met, unrounded
         assert f"(`fast`'s lower end {low_fast:.3f})" in text
@@ -414,16 +417,8 @@ def test_deferring_cut_plumes_elsewhere_is_its_records(label, record, base, part
 
 
 def _interval(rows: list[dict], agility: str, mode: str) -> str:
-    """The 90 % interval of a bootstrap over strips (10,000 draws with replacement, seed 0)
-    of ``mode``'s summed utility over the flat passes'."""
-    import numpy as np
-
-    flat, est = (
-        np.array([r["utility"] for r in rows if r["agility"] == agility and r["mode"] == m])
-        for m in ("flat", mode)
-    )
-    draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
-    lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
+    """:func:`_bootstrap`'s interval, as the tables print it."""
+    lo, hi = _bootstrap(rows, agility, mode)
     return f"{lo:.2f}–{hi:.2f}"
 
 
@@ -485,17 +480,8 @@ def test_the_48_strips_hold_the_24_strips_passes_but_a_few_slow_ones():
 def test_the_48_strips_conclusion_quotes_the_intervals_unrounded():
     # "the intervals' lower ends 0.876 and 0.848" (the defaults), "an interval of
     # 0.905–0.952" (fast deferred) and "its interval's lower end 0.896" (slow deferred)
-    import numpy as np
-
     def bounds(record: str, agility: str, mode: str) -> tuple[float, float]:
-        rows = _record(record)["long"]["rows"]
-        flat, est = (
-            np.array([r["utility"] for r in rows if r["agility"] == agility and r["mode"] == m])
-            for m in ("flat", mode)
-        )
-        draws = np.random.default_rng(0).integers(0, len(flat), (10_000, len(flat)))
-        lo, hi = np.percentile(est[draws].sum(1) / flat[draws].sum(1), [5, 95])
-        return lo, hi
+        return _bootstrap(_record(record)["long"]["rows"], agility, mode)
 
     text = " ".join(PAGE.split())
     fast, slow = (bounds("parallax_long_48.json", a, "estimated")[0] for a in ("fast", "slow"))

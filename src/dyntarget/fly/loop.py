@@ -616,10 +616,11 @@ def _fly_frame(
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
     released: list[tuple[_Deferred, Schedule]] = []
-    defer = config.defer_cut and ctx.mode == "estimated" and ctx.tracker is not None
-    if defer and pids is not None:
-        released = _fly_released(ctx, k, pids, start, stage, state)
-        todo = _defer_plumes(ctx, k, t_look, todo, pids, result, prediction, state)
+    deferring = ctx.tracker if config.defer_cut and ctx.mode == "estimated" else None
+    if deferring is not None and pids is not None:
+        pending = deferring.pending_ids()
+        released = _fly_released(ctx, k, pids, pending, start, stage, state)
+        todo = _defer_plumes(k, t_look, todo, pids, pending, result, prediction, state)
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
     loop_s = time.perf_counter() - t_loop
@@ -786,13 +787,15 @@ def _split_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> tuple[_Todo,
     if keep.all():
         return todo, {}
 
-    def subset(sel: np.ndarray, skipped: int) -> _Todo:
-        n = int(np.count_nonzero(sel))
-        trajectory = Trajectory(points[sel], np.zeros(n), todo.trajectory.planner)
-        return _Todo(trajectory, todo.part[sel], todo.keep[sel], skipped, todo.rows, todo.cols)
+    held = {int(i): _subset(todo, on == i, 0) for i in np.unique(on[~keep])}
+    return _subset(todo, keep, todo.skipped + int(np.count_nonzero(~keep))), held
 
-    held = {int(i): subset(on == i, 0) for i in np.unique(on[~keep])}
-    return subset(keep, todo.skipped + int(np.count_nonzero(~keep))), held
+
+def _subset(todo: _Todo, sel: np.ndarray, skipped: int) -> _Todo:
+    """The pointings ``sel`` (a mask over ``todo``'s) of ``todo``, ``skipped`` counted."""
+    n = int(np.count_nonzero(sel))
+    trajectory = Trajectory(todo.trajectory.points[sel], np.zeros(n), todo.trajectory.planner)
+    return _Todo(trajectory, todo.part[sel], todo.keep[sel], skipped, todo.rows, todo.cols)
 
 
 def _sum_gains(
@@ -817,19 +820,19 @@ class _Deferred:
 
 
 def _defer_plumes(
-    ctx: _Pass,
     k: int,
     t_look: float,
     todo: _Todo,
     pids: np.ndarray,
+    pending: set[int],
     result: PlanResult,
     prediction: Prediction | None,
     state: PassState,
 ) -> _Todo:
-    """Frame ``k``'s ``todo`` less its pointings on plumes still measured provisionally,
-    which ``state.deferred`` holds for a later frame (:func:`_fly_released`)."""
-    assert ctx.tracker is not None  # (none is pending after the last frame: it measures all)
-    todo, held = _split_plumes(todo, pids, ctx.tracker.pending_ids())
+    """Frame ``k``'s ``todo`` less its pointings on the plumes still measured provisionally
+    (``pending``; none after the last frame, which measures them all), which
+    ``state.deferred`` holds for a later frame (:func:`_fly_released`)."""
+    todo, held = _split_plumes(todo, pids, pending)
     state.deferred.extend(
         _Deferred(k, t_look, pid, part, pids, result, prediction) for pid, part in held.items()
     )
@@ -848,18 +851,23 @@ def _released(
 
 
 def _fly_released(
-    ctx: _Pass, k: int, pids: np.ndarray, start: float, stage: dict[str, float], state: PassState
+    ctx: _Pass,
+    k: int,
+    pids: np.ndarray,
+    pending: set[int],
+    start: float,
+    stage: dict[str, float],
+    state: PassState,
 ) -> list[tuple[_Deferred, Schedule]]:
     """Schedule and commit the held pointings (``defer_cut``) whose plume frame ``k``
-    (plume-id map ``pids``) measured again (no longer pending) or no longer sees (no later
+    (plume-id map ``pids``) measured again (no longer ``pending``) or no longer sees (no later
     frame would: they would be lost), in the order they were planned, before frame ``k``'s
     own; each aims with its plume's latest estimate. Those on frame ``k``'s rows are not
     flown: frame ``k`` plans that ground again, seen whole. Returns them with their
     schedules, for :func:`_score` (the simulator's work, not timed with the schedule's)."""
-    assert ctx.tracker is not None
     if not state.deferred:
         return []
-    go, state.deferred = _released(state.deferred, ctx.tracker.pending_ids(), pids)
+    go, state.deferred = _released(state.deferred, pending, pids)
     frames = ctx.frames
     below = frames.tops[k] + frames.frame_px  # the first strip row behind frame k
     out = []
@@ -881,11 +889,7 @@ def _behind(todo: _Todo, row: int) -> _Todo:
     """``todo``'s pointings on frame rows ``row`` and after (behind a later frame whose
     last row is ``row - 1`` on this frame's rows)."""
     sel = todo.rows[todo.keep] >= row
-    if sel.all():
-        return todo
-    n = int(np.count_nonzero(sel))
-    trajectory = Trajectory(todo.trajectory.points[sel], np.zeros(n), todo.trajectory.planner)
-    return _Todo(trajectory, todo.part[sel], todo.keep[sel], 0, todo.rows, todo.cols)
+    return todo if sel.all() else _subset(todo, sel, 0)
 
 
 def _schedule_frame(
