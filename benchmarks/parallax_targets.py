@@ -95,6 +95,7 @@ EXTRA_MODES = (
     "estimated-hold",
     "estimated-back",
     "estimated-defer",
+    "estimated-nodefer",
 )
 """Also accepted by ``--modes``: ``estimated-2r`` is ``estimated-2`` allowing for a top
 rising at up to :data:`RISE_MPS` (``fly --max-rise-mps 100``); ``estimated-far`` is
@@ -107,7 +108,10 @@ a re-look, holds that re-look's pitch where it can and takes the regular frames 
 up, as ``slow``); ``estimated-back`` is ``estimated`` whose look-ahead always goes back to
 its regular pitch (``fly --no-relook-hold``); ``estimated-defer`` is ``estimated`` whose
 plumes cut by a frame's top edge are flown from the frame that sees them whole
-(``fly --defer-cut-plumes``)."""
+(``fly --defer-cut-plumes``; ``estimated``'s default on frames shorter than 4 km, the 2 km
+frames of ``--long-width 256`` and of the rise part); ``estimated-nodefer`` flies them from
+the cut frame on any frame (``fly --no-defer-cut-plumes``; ``estimated`` before deferring
+became its default on short frames)."""
 MOSAIC_FRAMES = 8
 """The most frames an ``estimated-mosaic`` re-look takes."""
 RISE_MPS = 100.0
@@ -194,8 +198,9 @@ def config_for(mode: str, agility: str, look_ahead_m: float) -> PassConfig:
         return replace(config_for("estimated", agility, look_ahead_m), relook_hold=True)
     if mode == "estimated-back":
         return replace(config_for("estimated", agility, look_ahead_m), relook_hold=False)
-    if mode == "estimated-defer":
-        return replace(config_for("estimated", agility, look_ahead_m), defer_cut=True)
+    if mode in ("estimated-defer", "estimated-nodefer"):
+        defer = mode == "estimated-defer"
+        return replace(config_for("estimated", agility, look_ahead_m), defer_cut=defer)
     relook: tuple[float, ...] = (round(0.6 * look_ahead_m / 1e3, 3),)
     if mode == "estimated-2":
         mode, relook = "estimated", (round(0.8 * look_ahead_m / 1e3, 3), *relook)

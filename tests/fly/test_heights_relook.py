@@ -129,6 +129,8 @@ def _flat_strip(tmp_path):
         (["--relook-hold", "--no-relook-hold"], "not allowed with argument"),
         (["--defer-cut-plumes", "--no-parallax"], "--defer-cut-plumes: has no effect"),
         (["--defer-cut-plumes", "--parallax", "true"], "--defer-cut-plumes: has no effect"),
+        (["--no-defer-cut-plumes", "--no-parallax"], "--no-defer-cut-plumes: has no effect"),
+        (["--defer-cut-plumes", "--no-defer-cut-plumes"], "not allowed with argument"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -168,15 +170,20 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
     nc = json.loads((tmp_path / "nc" / "summary.json").read_text())
     assert "frames_caught_up" not in nc and "frames_held" not in nc
     assert nc["relooks"] == summary["relooks"]
-    # --defer-cut-plumes: recorded with the pass's settings (absent by default)
-    assert main([*fly, "--defer-cut-plumes", "--out", str(tmp_path / "dc"), "--quiet"]) == 0
+    # its 512 m frames (under 4 km) hold cut plumes' pointings by default: counted;
+    # --no-defer-cut-plumes refuses, --defer-cut-plumes asks: both recorded with the pass's
+    # settings (absent by default)
+    assert "pointings_flown_deferred" in summary
+    for flag, d in (("--no-defer-cut-plumes", "nd"), ("--defer-cut-plumes", "dc")):
+        assert main([*fly, flag, "--out", str(tmp_path / d), "--quiet"]) == 0
     params = [
         json.loads((tmp_path / d / "pointings.geojson").read_text())["properties"]["params"]
-        for d in ("dc", "out")
+        for d in ("dc", "nd", "out")
     ]
-    assert params[0]["defer_cut"] is True and "defer_cut" not in params[1]
-    dc = json.loads((tmp_path / "dc" / "summary.json").read_text())
-    assert dc["pointings_flown_deferred"] >= 0 and "pointings_flown_deferred" not in summary
+    assert params[0]["defer_cut"] is True and params[1]["defer_cut"] is False
+    assert "defer_cut" not in params[2]
+    nd = json.loads((tmp_path / "nd" / "summary.json").read_text())
+    assert "pointings_flown_deferred" not in nd
     # --no-parallax: off, no plume is measured
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
@@ -1572,17 +1579,38 @@ def test_a_pass_records_a_hold_asked_for_or_refused_and_not_the_default():
     assert PassConfig(relook_hold=False).as_dict()["relook_hold"] is False
 
 
-@pytest.mark.parametrize("bad", ["yes", 1, None])
-def test_defer_cut_must_be_true_or_false(bad):
+@pytest.mark.parametrize("bad", ["yes", 1, 0.5])
+def test_defer_cut_must_be_true_false_or_none(bad):
     from dyntarget.errors import InvalidParameterError
 
-    with pytest.raises(InvalidParameterError, match="defer_cut: expected true or false"):
+    with pytest.raises(InvalidParameterError, match="defer_cut: expected true, false or null"):
         PassConfig(defer_cut=bad)
 
 
 def test_a_pass_records_deferring_cut_plumes_when_asked_and_not_the_default():
     assert "defer_cut" not in PassConfig().as_dict()
     assert PassConfig(defer_cut=True).as_dict()["defer_cut"] is True
+    assert PassConfig(defer_cut=False).as_dict()["defer_cut"] is False
+
+
+@pytest.mark.parametrize(
+    ("rows", "gsd", "asked", "expected"),
+    [
+        (64, 32.0, None, True),  # 2048 m: a 2 km frame defers by default
+        (124, 32.0, None, True),  # 3968 m < 4000 m
+        (125, 32.0, None, False),  # 4000 m: not shorter than 4 km
+        (256, 32.0, None, False),  # 8 km
+        (250, 16.0, None, False),  # 4000 m with 16 m pixels
+        (249, 16.0, None, True),  # 3984 m
+        (64, 32.0, False, False),  # refused
+        (256, 32.0, True, True),  # asked for
+    ],
+)
+def test_cut_plumes_are_deferred_by_default_on_frames_shorter_than_4_km(rows, gsd, asked, expected):
+    from dyntarget.predict.relooks import defers_cut
+    from dyntarget.schedule import OrbitGeometry
+
+    assert defers_cut(OrbitGeometry(wfov_gsd_m=gsd), rows, asked) is expected
 
 
 def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_by_plume():

@@ -119,8 +119,8 @@ def _pass_config(args: argparse.Namespace, planner: str, agility: str):
 def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     """``PassConfig`` parallax fields from ``--parallax``, ``--plume-height-km``,
     ``--no-parallax``, ``--relook-km``, ``--no-catch-up``, ``--max-rise-mps``,
-    ``--relook-frames``, ``--relook-hold`` and ``--defer-cut-plumes`` (none given: none set,
-    the defaults)."""
+    ``--relook-frames``, ``--relook-hold`` and ``--defer-cut-plumes`` (and their ``--no-``
+    forms; none given: none set, the defaults)."""
     kw: dict[str, Any] = {}
     mode, choice = args.parallax, o.parallax_choice(args)
     if choice == "off":
@@ -159,9 +159,10 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
         flag = "--relook-hold" if args.relook_hold else "--no-relook-hold"
         _refuse_unmeasured(flag, mode, "no re-look is taken")
         kw["relook_hold"] = args.relook_hold
-    if args.defer_cut_plumes:
-        _refuse_unmeasured("--defer-cut-plumes", mode, "no height is measured")
-        kw["defer_cut"] = True
+    if args.defer_cut is not None:
+        flag = "--defer-cut-plumes" if args.defer_cut else "--no-defer-cut-plumes"
+        _refuse_unmeasured(flag, mode, "no height is measured")
+        kw["defer_cut"] = args.defer_cut
     return kw
 
 
@@ -590,12 +591,25 @@ def _add_parallax_options(p: argparse.ArgumentParser) -> None:
         help="always go back to the regular pitch after a re-look, catching up where the "
         "look-ahead can, else losing the frames due meanwhile",
     )
-    par.add_argument(
+    defer = par.add_mutually_exclusive_group()
+    defer.add_argument(
         "--defer-cut-plumes",
-        action="store_true",
+        dest="defer_cut",
+        action="store_const",
+        const=True,
+        default=None,
         help="the pointings a look-ahead frame plans on a plume whose upwind end its top "
         "edge cuts wait for the first frame that sees that end, and fly aimed with the "
-        "height measured there, not the cut view's (opt-in; measured in docs/plumes-3d.md)",
+        "height measured there, not the cut view's (the default on frames shorter than "
+        "4 km along track; this asks for it on any frame; measured in docs/plumes-3d.md)",
+    )
+    defer.add_argument(
+        "--no-defer-cut-plumes",
+        dest="defer_cut",
+        action="store_const",
+        const=False,
+        help="fly the pointings on a cut plume when the cut frame's plan is ready, aimed "
+        "with the cut view's height, on any frame",
     )
 
 

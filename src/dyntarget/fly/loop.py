@@ -104,7 +104,7 @@ from dyntarget.pipeline import (
     predict_segmentation,
 )
 from dyntarget.predict import Motion, Prediction, plume_motion, wind_motion
-from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume
+from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, defers_cut
 from dyntarget.schedule import (
     Agility,
     OrbitGeometry,
@@ -203,6 +203,8 @@ class _Pass:
     """The spacecraft's track on the strip (a 3D world only)."""
     tracker: HeightTracker | None = None
     """Plumes, re-looks and heights (``"estimated"``/``"prior"`` on a 3D world)."""
+    defer: bool = False
+    """Whether cut plumes' pointings are held (``defer_cut`` resolved; estimated heights)."""
 
 
 def fly_pass(
@@ -318,6 +320,9 @@ def _prepare(
             frames.geometry, frames.wfov_shape, frames.frame_px, frames.tops[0], config.factor
         )
         tracker = None
+        defer = mode == "estimated" and defers_cut(
+            frames.geometry, frames.frame_px, config.defer_cut
+        )
         if mode in ("estimated", "prior"):
             wind = _wind(config, world)
             prior = None
@@ -328,10 +333,9 @@ def _prepare(
                 where, config.limits, config.relook_km, config.relook_s, config.plume_height_m,
                 prior, measure=mode == "estimated", log=_stderr, catch_up=config.catch_up,
                 max_rise_mps=config.max_rise_mps, fit_s=config.compute_budget_s,
-                relook_frames=config.relook_frames, hold=config.relook_hold,
-                keep_cut=config.defer_cut,
+                relook_frames=config.relook_frames, hold=config.relook_hold, keep_cut=defer,
             )  # fmt: skip
-        ctx = replace(ctx, mode=mode, where=where, tracker=tracker)
+        ctx = replace(ctx, mode=mode, where=where, tracker=tracker, defer=defer)
     return ctx, geo_info, geo_times
 
 
@@ -616,7 +620,7 @@ def _fly_frame(
     t0 = time.perf_counter()
     todo = _todo(ctx, k, image, result, start, state)
     released: list[tuple[_Deferred, Schedule]] = []
-    deferring = ctx.tracker if config.defer_cut and ctx.mode == "estimated" else None
+    deferring = ctx.tracker if ctx.defer else None
     if deferring is not None and pids is not None:
         pending = deferring.pending_ids()
         released = _fly_released(ctx, k, pids, pending, start, stage, state)

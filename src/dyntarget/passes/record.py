@@ -26,7 +26,7 @@ from dyntarget import defaults
 from dyntarget.errors import InvalidParameterError
 from dyntarget.pipeline import PipelineConfig
 from dyntarget.predict import GROUNDS
-from dyntarget.predict.relooks import RELOOK_FRAMES, RELOOK_KM, holds_relooks
+from dyntarget.predict.relooks import RELOOK_FRAMES, RELOOK_KM, defers_cut, holds_relooks
 from dyntarget.scene import check_factor
 from dyntarget.schedule import Agility, OrbitGeometry, get_agility
 from dyntarget.trajectory import Trajectory
@@ -118,8 +118,11 @@ class PassConfig:
         ``"estimated"`` mode; those on that frame's rows are left to its own plan); where
         that frame gives no height, with the cut view's (``HeightTracker`` ``keep_cut``);
         where no later frame sees the plume, when the next frame taken is ready, with the
-        cut view's. ``False``, the default: flown when the cut frame's plan is ready, with
-        the cut view's height.
+        cut view's. ``None``, the default: where frames are shorter along track than
+        :data:`dyntarget.predict.relooks.DEFER_CUT_BELOW_M` (4 km;
+        :func:`dyntarget.predict.relooks.defers_cut`). ``False``: never, flown when the cut
+        frame's plan is ready, with the cut view's height (the default before 2 km frames
+        were measured to gain).
     """
 
     planner: str = "lawnmower-transect"
@@ -146,7 +149,7 @@ class PassConfig:
     max_rise_mps: float = 0.0
     relook_frames: int = RELOOK_FRAMES
     relook_hold: bool | None = None
-    defer_cut: bool = False
+    defer_cut: bool | None = None
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
@@ -230,9 +233,9 @@ class PassConfig:
             raise InvalidParameterError(
                 f"relook_hold: expected true, false or null, got {self.relook_hold!r}"
             )
-        if not isinstance(self.defer_cut, bool):
+        if self.defer_cut is not None and not isinstance(self.defer_cut, bool):
             raise InvalidParameterError(
-                f"defer_cut: expected true or false, got {self.defer_cut!r}"
+                f"defer_cut: expected true, false or null, got {self.defer_cut!r}"
             )
 
     def resolved_parallax(self, is_3d: bool) -> str:
@@ -299,7 +302,7 @@ class PassConfig:
             d.pop("relook_frames")
         if self.relook_hold is None:  # likewise
             d.pop("relook_hold")
-        if not self.defer_cut:  # likewise
+        if self.defer_cut is None:  # likewise
             d.pop("defer_cut")
         return d
 
@@ -653,8 +656,8 @@ class PassResult:
             ``frames_skipped_catching_up`` (estimated heights with ``catch_up``),
             ``frames_held`` (estimated heights whose look-ahead held re-looks' pitch,
             asked for or by default: frames taken late, from a re-look's pitch held),
-            ``pointings_flown_deferred`` (``defer_cut``: pointings held on a cut plume and
-            flown after a later frame), ``plumes_height_estimated``,
+            ``pointings_flown_deferred`` (estimated heights holding cut plumes' pointings,
+            ``defer_cut``, asked for or by default: those flown after a later frame), ``plumes_height_estimated``,
             ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
             ``heights_median_s`` (the height work's median wall time per frame; ``None``
@@ -698,6 +701,12 @@ class PassResult:
         c, f = self.config, self.frames
         return holds_relooks(f.geometry, c.limits, f.frame_px, c.catch_up, c.relook_hold)
 
+    @property
+    def _defers(self) -> bool:
+        """Whether the pass held cut plumes' pointings (asked for, or by default)."""
+        c, f = self.config, self.frames
+        return self.parallax == "estimated" and defers_cut(f.geometry, f.frame_px, c.defer_cut)
+
     def _late(self) -> int:
         """Frames taken after their due time (caught up, or held)."""
         return sum(
@@ -733,11 +742,7 @@ class PassResult:
             ),
             **(self._catch_up_totals() if self._catches_up else {}),
             **({"frames_held": self._late()} if self._holds else {}),
-            **(
-                {"pointings_flown_deferred": self._flown_deferred()}
-                if self.config.defer_cut
-                else {}
-            ),
+            **({"pointings_flown_deferred": self._flown_deferred()} if self._defers else {}),
             "plumes_height_estimated": len(est),
             "height_rmse_m": round(float(np.sqrt(np.mean(err**2))), 1) if len(err) else None,
             "height_bias_m": round(float(np.mean(err)), 1) if len(err) else None,

@@ -231,6 +231,12 @@ km ahead: 3.8 s each). A plume whose re-looks are not taken gets no height and i
 flown; where three re-looks per plume keep the look-ahead busy (2 km frames), a longer
 wait measures plumes a shorter one leaves without a height; ``docs/plumes-3d.md`` compares
 waits of 1, 2, 4 and 10 (``benchmarks/parallax_targets.py --relook-wait``)."""
+DEFER_CUT_BELOW_M = 4000.0
+"""Look-ahead frames shorter than this along track, m, hold the pointings they plan on a
+plume their top edge cuts by default (:func:`defers_cut`). Measured (``docs/plumes-3d.md``):
+on 2 km frames holding them kept 93 % of the flat utility against 90 % (``fast`` and
+``slow``, 48 strips); on 4 km frames (the short strips) it did not help (``fast``) or cost
+(``slow``), on 8 km frames it cost 0.02."""
 RELOOK_KM = (300.0,)
 """Default re-look distances ahead of the nadir, km: one re-look, 300 km ahead (from
 500 km, tan(theta) falls by 0.468: the longest baseline the NFOV's lead leaves). Two
@@ -1851,6 +1857,41 @@ def gains_on_ground(geometry: OrbitGeometry, agility: Agility, frame_px: int) ->
     step = _pitch_deg(geometry, geometry.look_ahead_m, geometry.look_ahead_m - frame_m)
     late_frame_s = agility.slew_time_one(step) + agility.settle_s + agility.dwell_s
     return late_frame_s < frame_m / geometry.ground_speed
+
+
+def defers_cut(geometry: OrbitGeometry, frame_px: int, defer: bool | None) -> bool:
+    """Whether a pass holds the pointings a frame plans on a plume its top edge cuts, for
+    the first frame that sees the plume whole (``PassConfig.defer_cut``).
+
+    Parameters
+    ----------
+    geometry : OrbitGeometry
+        The pass's geometry (its WFOV pixel size).
+    frame_px : int
+        Frame height, WFOV rows.
+    defer : bool or None
+        Asked for (``True``), refused (``False``) or ``None``: held where a frame is
+        shorter along track than :data:`DEFER_CUT_BELOW_M` (most plumes it shows are cut).
+
+    Returns
+    -------
+    bool
+        True where the pass holds them.
+
+    Examples
+    --------
+    With 32 m WFOV pixels a 2 km frame (64 rows) holds them, a 4 km frame (128 rows) does
+    not, unless asked.
+
+    >>> g = OrbitGeometry(wfov_gsd_m=32.0)
+    >>> defers_cut(g, 64, None), defers_cut(g, 128, None), defers_cut(g, 128, True)
+    (True, False, True)
+    >>> defers_cut(g, 64, False)
+    False
+    """
+    if defer is not None:
+        return bool(defer)
+    return frame_px * geometry.wfov_gsd_m < DEFER_CUT_BELOW_M
 
 
 def holds_relooks(
