@@ -131,6 +131,7 @@ def _flat_strip(tmp_path):
         (["--defer-cut-plumes", "--parallax", "true"], "--defer-cut-plumes: has no effect"),
         (["--no-defer-cut-plumes", "--no-parallax"], "--no-defer-cut-plumes: has no effect"),
         (["--defer-cut-plumes", "--no-defer-cut-plumes"], "not allowed with argument"),
+        (["--defer-cut-plumes", "--predict", "two-looks"], "defer_cut: holds pointings"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -1613,6 +1614,22 @@ def test_cut_plumes_are_deferred_by_default_on_frames_shorter_than_4_km(rows, gs
     assert defers_cut(OrbitGeometry(wfov_gsd_m=gsd), rows, asked) is expected
 
 
+def test_cut_plumes_are_not_deferred_where_frames_plan_a_predicted_plume():
+    # a frame that predicts plans where the plume will be, not the ground it saw: no later
+    # frame plans the held pointings' ground again (a 2 km frame deferring with --predict
+    # two-looks flew nothing: the next frame's predicted mask was empty). Refused when asked,
+    # off by default
+    from dyntarget.errors import InvalidParameterError
+    from dyntarget.schedule import OrbitGeometry
+
+    g = OrbitGeometry(wfov_gsd_m=32.0)
+    assert PassConfig().resolved_defer_cut(g, 64) is True
+    assert PassConfig(predict="two-looks").resolved_defer_cut(g, 64) is False
+    assert PassConfig(predict="wind").resolved_defer_cut(g, 64) is False
+    with pytest.raises(InvalidParameterError, match="defer_cut: .*predict 'two-looks'"):
+        PassConfig(predict="two-looks", defer_cut=True)
+
+
 def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_by_plume():
     # five pointings on a frame's plume-id map: plume 2 (pending) under the 2nd, 3rd and 5th
     # (pixels (x, y) = (3, 1), (4, 1) and (7, 2)), plume 1 under the 1st, none under the 4th
@@ -1628,7 +1645,7 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_b
     rows[10:], cols[10:] = [0, 1, 1, 3, 2], [1, 3, 4, 5, 7]  # are these five pointings'
     todo = _Todo(Trajectory(pts, np.zeros(5), "demo"), np.arange(5), np.arange(10, 15), 2,
                  rows, cols)  # fmt: skip
-    out, held = _split_plumes(todo, pids, {2})
+    out, held = _split_plumes(todo, pids, {2}, 0.0)
     assert out.trajectory.points.tolist() == [[1.0, 0.2], [5.0, 3.0]]
     assert out.keep.tolist() == [10, 13] and out.part.tolist() == [0, 3]
     assert out.skipped == 2 + 3  # the frame's own skips and the three deferred
@@ -1637,11 +1654,20 @@ def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_b
     assert held[2].keep.tolist() == [11, 12, 14] and held[2].part.tolist() == [1, 2, 4]
     assert held[2].skipped == 0
     # both plumes pending: held apart
-    out, held = _split_plumes(todo, pids, {1, 2})
+    out, held = _split_plumes(todo, pids, {1, 2}, 0.0)
     assert out.trajectory.points.tolist() == [[5.0, 3.0]] and out.skipped == 2 + 4
     assert sorted(held) == [1, 2] and held[1].keep.tolist() == [10]
     for skip in (set(), {5}):  # none pending, or one the plan does not reach
-        assert _split_plumes(todo, pids, skip) == (todo, {})
+        assert _split_plumes(todo, pids, skip, 0.0) == (todo, {})
+    # the 4th, on no plume, is aimed with its nearest neighbour's height within fill_px:
+    # the 3rd's (plume 2) at hypot(1.0, 1.6) = 1.89 px (the 5th's, plume 2 too, 2.61 px;
+    # the 1st's, plume 1, 4.8 px). Within 2 px it is held with plume 2, not flown
+    # uncorrected on its own; within 1.8 px it takes no one's and stays
+    out, held = _split_plumes(todo, pids, {2}, 2.0)
+    assert out.trajectory.points.tolist() == [[1.0, 0.2]] and out.skipped == 2 + 4
+    assert held[2].keep.tolist() == [11, 12, 13, 14]
+    out, held = _split_plumes(todo, pids, {2}, 1.8)
+    assert out.keep.tolist() == [10, 13] and held[2].keep.tolist() == [11, 12, 14]
 
 
 def test_released_pointings_on_the_releasing_frames_rows_are_left_to_its_own_plan():

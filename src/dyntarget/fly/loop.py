@@ -104,7 +104,7 @@ from dyntarget.pipeline import (
     predict_segmentation,
 )
 from dyntarget.predict import Motion, Prediction, plume_motion, wind_motion
-from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume, defers_cut
+from dyntarget.predict.relooks import Geometry3D, HeightTracker, Plume
 from dyntarget.schedule import (
     Agility,
     OrbitGeometry,
@@ -113,6 +113,7 @@ from dyntarget.schedule import (
     schedule_on_prediction,
     sensor_in_frame,
 )
+from dyntarget.schedule.aim import plume_of
 from dyntarget.synth.worlds import TruthBands, World, wfov_look
 from dyntarget.trajectory import Trajectory
 
@@ -320,9 +321,7 @@ def _prepare(
             frames.geometry, frames.wfov_shape, frames.frame_px, frames.tops[0], config.factor
         )
         tracker = None
-        defer = mode == "estimated" and defers_cut(
-            frames.geometry, frames.frame_px, config.defer_cut
-        )
+        defer = mode == "estimated" and config.resolved_defer_cut(frames.geometry, frames.frame_px)
         if mode in ("estimated", "prior"):
             wind = _wind(config, world)
             prior = None
@@ -519,15 +518,23 @@ def _aim(ctx: _Pass, k: int, pids: np.ndarray | None, t_look: float) -> Parallax
         return out - t_k
 
     del where  # the top the look-ahead saw at t_k, then where the NFOV meets it at its time
-    _, spacing = ctx.config.pipeline.plan.resolved(shape)  # a plume's pointings lie this close
     held = (  # with a prior no pointing waits: the prior aims it until the estimate
         ctx.mode == "estimated" and pids is not None
         and tracker is not None and tracker.prior_m is None
     )  # fmt: skip
     return ParallaxAim(
         frames.geometry, shape, field(look=False), field(look=True), look_s=t_look - t_k,
-        fill_px=2.0 * spacing, known_s=known_s if held else None,
+        fill_px=_fill_px(ctx), known_s=known_s if held else None,
     )  # fmt: skip
+
+
+def _fill_px(ctx: _Pass) -> float:
+    """How near a pointing off every plume lies to one on a plume whose heights it is aimed
+    with (:attr:`~dyntarget.schedule.ParallaxAim.fill_px`), WFOV px: twice the plan's
+    transect spacing (a plume's pointings lie this close)."""
+    frames = ctx.frames
+    _, spacing = ctx.config.pipeline.plan.resolved((frames.frame_px, frames.wfov_shape[1]))
+    return 2.0 * spacing
 
 
 def _true_heights(
@@ -624,7 +631,9 @@ def _fly_frame(
     if deferring is not None and pids is not None:
         pending = deferring.pending_ids()
         released = _fly_released(ctx, k, pids, pending, start, stage, state)
-        todo = _defer_plumes(k, t_look, todo, pids, pending, result, prediction, state)
+        todo = _defer_plumes(
+            k, t_look, todo, pids, pending, result, prediction, state, _fill_px(ctx)
+        )
     flown, ready = _schedule_frame(ctx, todo, result, prediction, t_k, start, stage, state, aim)
     stage["schedule"] = time.perf_counter() - t0
     loop_s = time.perf_counter() - t_loop
@@ -779,14 +788,18 @@ def _todo(
     return _Todo(todo, part, keep, int(np.count_nonzero(skip)), rows, cols)
 
 
-def _split_plumes(todo: _Todo, pids: np.ndarray, skip: set[int]) -> tuple[_Todo, dict[int, _Todo]]:
+def _split_plumes(
+    todo: _Todo, pids: np.ndarray, skip: set[int], fill_px: float
+) -> tuple[_Todo, dict[int, _Todo]]:
     """``todo`` less its pointings on the tracked plumes ``skip`` (by the frame's plume-id
-    map ``pids``; counted as skipped), and those pointings, plume by plume: ``defer_cut``'s
-    plumes, held for a later frame (:func:`_defer_plumes`)."""
+    map ``pids``, a pointing off every plume by the one whose heights it is aimed with,
+    :func:`~dyntarget.schedule.aim.plume_of` within ``fill_px``; counted as skipped), and
+    those pointings, plume by plume: ``defer_cut``'s plumes, held for a later frame
+    (:func:`_defer_plumes`)."""
     points = todo.trajectory.points
     if not skip or not len(points) or len(todo.keep) != len(points):  # none, or a blueprint's
         return todo, {}
-    on = pids[todo.rows[todo.keep], todo.cols[todo.keep]]
+    on = plume_of(points, pids[todo.rows[todo.keep], todo.cols[todo.keep]], fill_px)
     keep = ~np.isin(on, list(skip))
     if keep.all():
         return todo, {}
@@ -832,11 +845,13 @@ def _defer_plumes(
     result: PlanResult,
     prediction: Prediction | None,
     state: PassState,
+    fill_px: float,
 ) -> _Todo:
     """Frame ``k``'s ``todo`` less its pointings on the plumes still measured provisionally
-    (``pending``; none after the last frame, which measures them all), which
+    (``pending``; none after the last frame, which measures them all; those off every plume
+    by the plume they are aimed with, within ``fill_px``: :func:`_split_plumes`), which
     ``state.deferred`` holds for a later frame (:func:`_fly_released`)."""
-    todo, held = _split_plumes(todo, pids, pending)
+    todo, held = _split_plumes(todo, pids, pending, fill_px)
     state.deferred.extend(
         _Deferred(k, t_look, pid, part, pids, result, prediction) for pid, part in held.items()
     )

@@ -120,7 +120,8 @@ class PassConfig:
         where no later frame sees the plume, when the next frame taken is ready, with the
         cut view's. ``None``, the default: where frames are shorter along track than
         :data:`dyntarget.predict.relooks.DEFER_CUT_BELOW_M` (4 km;
-        :func:`dyntarget.predict.relooks.defers_cut`). ``False``: never, flown when the cut
+        :func:`dyntarget.predict.relooks.defers_cut`; never with a ``predict`` mode, whose
+        frames plan the predicted plume, not the ground seen). ``False``: never, flown when the cut
         frame's plan is ready, with the cut view's height (the default before 2 km frames
         were measured to gain).
     """
@@ -237,6 +238,16 @@ class PassConfig:
             raise InvalidParameterError(
                 f"defer_cut: expected true, false or null, got {self.defer_cut!r}"
             )
+        if self.defer_cut and self.predict != "none":
+            raise InvalidParameterError(
+                f"defer_cut: holds pointings for a later frame that plans the same ground; "
+                f"with predict {self.predict!r} a frame plans the predicted plume instead"
+            )
+
+    def resolved_defer_cut(self, geometry: OrbitGeometry, frame_px: int) -> bool:
+        """Whether cut plumes' pointings are held (``defer_cut`` resolved by the frame's
+        length, :func:`dyntarget.predict.relooks.defers_cut`; never with a prediction)."""
+        return self.predict == "none" and defers_cut(geometry, frame_px, self.defer_cut)
 
     def resolved_parallax(self, is_3d: bool) -> str:
         """The parallax mode flown on a world: ``"auto"`` resolved, ``"off"`` on a flat world.
@@ -705,7 +716,7 @@ class PassResult:
     def _defers(self) -> bool:
         """Whether the pass held cut plumes' pointings (asked for, or by default)."""
         c, f = self.config, self.frames
-        return self.parallax == "estimated" and defers_cut(f.geometry, f.frame_px, c.defer_cut)
+        return self.parallax == "estimated" and c.resolved_defer_cut(f.geometry, f.frame_px)
 
     def _late(self) -> int:
         """Frames taken after their due time (caught up, or held)."""

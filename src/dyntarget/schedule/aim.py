@@ -431,6 +431,42 @@ def _fill(
     return h, h_look, on
 
 
+def plume_of(points: npt.ArrayLike, ids: npt.ArrayLike, fill_px: float) -> np.ndarray:
+    """Each pointing's plume as :class:`ParallaxAim` aims it: its own, or, off every plume,
+    that of its nearest pointing on one strictly within ``fill_px`` pixels (the one whose
+    heights it takes), else none.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(N, 2)`` pointings, ``(x, y)`` pixels.
+    ids : array_like
+        ``(N,)`` plume ids under them (0: on none).
+    fill_px : float
+        :attr:`ParallaxAim.fill_px` (0: none takes another's).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(N,)`` int64 plume ids.
+
+    Examples
+    --------
+    Two pointings on plume 3 and, off it, one 1.5 px from the second and one 5 px away:
+
+    >>> pts = np.array([[0.0, 0.0], [2.0, 0.0], [3.5, 0.0], [7.0, 0.0]])
+    >>> plume_of(pts, [3, 3, 0, 0], 4.0).tolist()
+    [3, 3, 3, 0]
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    out = np.array(ids, np.int64).reshape(-1)
+    on = out > 0
+    if fill_px > 0 and on.any() and not on.all():
+        src = _nearest(pts, on, fill_px)
+        out[np.flatnonzero(~on)[src >= 0]] = out[src[src >= 0]]
+    return out
+
+
 def _nearest(pts: np.ndarray, on: np.ndarray, radius: float) -> np.ndarray:
     """For each pointing off ``on``, the index of its nearest ``on`` pointing strictly
     within ``radius`` pixels (-1: none)."""
