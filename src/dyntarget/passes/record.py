@@ -245,8 +245,29 @@ class PassConfig:
             )
 
     def resolved_defer_cut(self, geometry: OrbitGeometry, frame_px: int) -> bool:
-        """Whether cut plumes' pointings are held (``defer_cut`` resolved by the frame's
-        length, :func:`dyntarget.predict.relooks.defers_cut`; never with a prediction)."""
+        """Whether cut plumes' pointings are held (``defer_cut`` resolved).
+
+        Parameters
+        ----------
+        geometry : OrbitGeometry
+            The pass's geometry (its WFOV pixel size).
+        frame_px : int
+            Frame height, WFOV rows.
+
+        Returns
+        -------
+        bool
+            ``defer_cut`` if given, else whether the frame is shorter than 4 km
+            (:func:`dyntarget.predict.relooks.defers_cut`); never with a ``predict`` mode.
+
+        Examples
+        --------
+        >>> g = OrbitGeometry(wfov_gsd_m=32.0)
+        >>> PassConfig().resolved_defer_cut(g, 64), PassConfig().resolved_defer_cut(g, 256)
+        (True, False)
+        >>> PassConfig(predict="two-looks").resolved_defer_cut(g, 64)
+        False
+        """
         return self.predict == "none" and defers_cut(geometry, frame_px, self.defer_cut)
 
     def resolved_parallax(self, is_3d: bool) -> str:
