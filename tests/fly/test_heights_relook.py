@@ -189,6 +189,7 @@ def test_a_3d_strip_writes_plumes_geojson(tmp_path):
     assert main([*fly, "--no-parallax", "--out", str(tmp_path / "off"), "--quiet"]) == 0
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
     assert off["parallax"] == "off" and off["relooks"] == 0
+    assert "pointings_flown_deferred" not in off  # nothing is held without a measured height
 
 
 def test_prior_mode_aims_every_plume_at_the_prior():
