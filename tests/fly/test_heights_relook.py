@@ -131,7 +131,11 @@ def _flat_strip(tmp_path):
         (["--defer-cut-plumes", "--parallax", "true"], "--defer-cut-plumes: has no effect"),
         (["--no-defer-cut-plumes", "--no-parallax"], "--no-defer-cut-plumes: has no effect"),
         (["--defer-cut-plumes", "--no-defer-cut-plumes"], "not allowed with argument"),
-        (["--defer-cut-plumes", "--predict", "two-looks"], "defer_cut: holds pointings"),
+        (
+            ["--defer-cut-plumes", "--predict", "two-looks"],
+            "--defer-cut-plumes: not with --predict",
+        ),
+        (["--defer-cut-plumes", "--predict", "wind"], "--defer-cut-plumes: not with --predict"),
     ],
 )
 def test_bad_parallax_options_one_line_exit_2(tmp_path, capsys, extra, needle):
@@ -1629,6 +1633,8 @@ def test_cut_plumes_are_not_deferred_where_frames_plan_a_predicted_plume():
     assert PassConfig(predict="wind").resolved_defer_cut(g, 64) is False
     with pytest.raises(InvalidParameterError, match="defer_cut: .*predict 'two-looks'"):
         PassConfig(predict="two-looks", defer_cut=True)
+    with pytest.raises(InvalidParameterError, match="predict: expected one of"):
+        PassConfig(predict="bogus", defer_cut=True)  # the bad mode named, not the pairing
 
 
 def test_pointings_on_plumes_deferred_are_left_out_of_the_frames_todo_and_held_by_plume():

@@ -162,6 +162,11 @@ def _parallax_settings(args: argparse.Namespace) -> dict[str, Any]:
     if args.defer_cut is not None:
         flag = "--defer-cut-plumes" if args.defer_cut else "--no-defer-cut-plumes"
         _refuse_unmeasured(flag, mode, "no height is measured")
+        if args.defer_cut and args.predict != "none":
+            raise InvalidParameterError(
+                f"--defer-cut-plumes: not with --predict {args.predict} (a frame that predicts "
+                "plans the predicted plume, not the ground a later frame plans again)"
+            )
         kw["defer_cut"] = args.defer_cut
     return kw
 

@@ -154,11 +154,11 @@ class PassConfig:
 
     def __post_init__(self) -> None:
         _ = self.limits  # an unknown preset is refused here
-        self._check_parallax()
         if self.predict not in PREDICT_MODES:
             raise InvalidParameterError(
                 f"predict: expected one of {', '.join(PREDICT_MODES)}, got {self.predict!r}"
             )
+        self._check_parallax()  # after predict: defer_cut is checked against it
         if self.ground not in GROUNDS:
             raise InvalidParameterError(
                 f"ground: expected one of {', '.join(GROUNDS)}, got {self.ground!r}"
@@ -689,8 +689,8 @@ class PassResult:
             ``frames_held`` (estimated heights whose look-ahead held re-looks' pitch,
             asked for or by default: frames taken late, from a re-look's pitch held),
             ``pointings_flown_deferred`` (estimated heights holding cut plumes' pointings,
-            ``defer_cut``, asked for or by default: those flown after a later frame), ``plumes_height_estimated``,
-            ``height_rmse_m`` and
+            ``defer_cut``, asked for or by default: those flown after a later frame),
+            ``plumes_height_estimated``, ``height_rmse_m`` and
             ``height_bias_m`` (estimates against the true heights; ``None`` when none) and
             ``heights_median_s`` (the height work's median wall time per frame; ``None``
             with a fixed compute budget).
