@@ -684,3 +684,22 @@ def test_a_pointing_on_no_plume_takes_the_window_of_its_nearest_plume_pointing()
                       known_s=_known([[20.0, np.inf], [40.0, np.inf], [np.nan, np.nan]]))  # fmt: skip
     w = aim.windows(np.array([[10.0, 10.0], [12.0, 10.0], [12.5, 10.0]]))
     assert w.tolist() == [[20.0, math.inf], [40.0, math.inf], [40.0, math.inf]]
+
+
+def test_a_pointing_off_every_plume_belongs_to_its_nearest_neighbours_plume_within_fill_px():
+    # plume_of, by hand. Pointings at x = 0, 0.6, 3, 5 and 9 (one row): plume 1 under the
+    # first (index 0), plume 7 under the fourth, none under the others. Within 1 px the
+    # second (0.6 px from the first) joins plume 1; the third (3 px from the first, 2 px
+    # from the fourth) and the fifth (4 px from the fourth) join none. Within 2.5 px the
+    # third joins plume 7 (2 px, nearer than plume 1's 3 px); the fifth still none
+    from dyntarget.schedule.aim import plume_of
+
+    pts = np.array([[0.0, 4.0], [0.6, 4.0], [3.0, 4.0], [5.0, 4.0], [9.0, 4.0]])
+    ids = np.array([1, 0, 0, 7, 0], np.int32)  # a frame's plume-id map is int32
+    got = plume_of(pts, ids, 1.0)
+    assert got.tolist() == [1, 1, 0, 7, 0] and got.dtype == np.int64
+    assert plume_of(pts, ids, 2.5).tolist() == [1, 1, 7, 7, 0]
+    assert plume_of(pts, ids, 2.0).tolist() == [1, 1, 0, 7, 0]  # 2 px: not strictly nearer
+    assert plume_of(pts, ids, 0.0).tolist() == [1, 0, 0, 7, 0]  # 0: none takes another's
+    assert plume_of(pts, np.zeros(5, np.int32), 9.0).tolist() == [0] * 5  # no plume at all
+    assert plume_of(pts, np.ones(5, np.int32), 9.0).tolist() == [1] * 5
