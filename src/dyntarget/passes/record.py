@@ -121,9 +121,9 @@ class PassConfig:
         cut view's. ``None``, the default: where frames are shorter along track than
         :data:`dyntarget.predict.relooks.DEFER_CUT_BELOW_M` (4 km;
         :func:`dyntarget.predict.relooks.defers_cut`; never with a ``predict`` mode, whose
-        frames plan the predicted plume, not the ground seen). ``False``: never, flown when the cut
-        frame's plan is ready, with the cut view's height (the default before 2 km frames
-        were measured to gain).
+        frames plan the predicted plume, not the ground seen). ``False``: never, flown when
+        the cut frame's plan is ready, with the cut view's height (the default before 2 km
+        frames were measured to gain).
     """
 
     planner: str = "lawnmower-transect"
